@@ -1,0 +1,26 @@
+"""dea-opt: discrete element analysis of cartilage contact, solved three ways and certified."""
+
+from .errors import (
+    DeaError,
+    InputError,
+    LoadNotSupportedError,
+    MissingDependencyError,
+    SolverError,
+    ValidityWarning,
+)
+from .kinematics import DOFS
+from .laws import AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw
+from .layer import SpringLayer
+from .problem import Body, ContactProblem, Load
+from .solution import Certificate, Solution, certify
+from .solver import METHODS, check_load_supported, compare, solve
+
+__version__ = "0.1.0"
+
+__all__ = [
+    "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
+    "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
+    "METHODS", "MissingDependencyError", "PolynomialLaw", "Solution", "SolverError",
+    "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve",
+    "__version__",
+]

@@ -1,0 +1,66 @@
+"""Boundary checks shared by the public constructors: each raises a named InputError."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import InputError
+
+
+def _describe(value) -> str:
+    if isinstance(value, np.ndarray):
+        return f"an array of shape {value.shape} and dtype {value.dtype}"
+    text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def as_float_array(name: str, value, shape: tuple, *, allow_scalar_for=None) -> np.ndarray:
+    """``value`` as a float64 C-contiguous array of ``shape`` (``None`` entries free).
+
+    With ``allow_scalar_for=n`` a scalar is broadcast to shape ``(n,)``.
+    """
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be numeric with shape {_shape(shape)}, got {_describe(value)}") from None
+    if allow_scalar_for is not None and arr.ndim == 0:
+        arr = np.full(allow_scalar_for, float(arr))
+    if arr.ndim != len(shape) or any(s is not None and s != a for s, a in zip(shape, arr.shape)):
+        raise InputError(f"{name} must have shape {_shape(shape)}, got shape {arr.shape}")
+    bad = ~np.isfinite(arr)
+    if bad.any():
+        index = np.argwhere(bad)[0]
+        raise InputError(
+            f"{name} must be finite, got {arr[tuple(index)]} at index {tuple(int(i) for i in index)}"
+        )
+    return np.ascontiguousarray(arr)
+
+
+def _shape(shape) -> str:
+    inner = ", ".join("N" if s is None else str(s) for s in shape)
+    return f"({inner},)" if len(shape) == 1 else f"({inner})"
+
+
+def vector3(name: str, value) -> tuple:
+    if value is None:
+        value = (0.0, 0.0, 0.0)
+    if np.ndim(value) == 0:
+        try:
+            if float(value) == 0.0:
+                value = (0.0, 0.0, 0.0)
+        except (TypeError, ValueError):
+            pass
+    arr = as_float_array(name, value, (3,))
+    return tuple(float(v) for v in arr)
+
+
+def finite_number(name: str, value) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {_describe(value)}") from None
+    if not math.isfinite(v):
+        raise InputError(f"{name} must be finite, got {v}")
+    return v

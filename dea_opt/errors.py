@@ -1,0 +1,61 @@
+"""One exception tree for every failure dea-opt reports.
+
+``DeaError`` is the base; catch it to catch everything dea-opt raises on purpose.
+The README's *Error catalogue* lists every subclass, when it is raised and what to do;
+``tests/test_errors.py`` checks that the catalogue and this module agree.
+"""
+
+from __future__ import annotations
+
+
+class DeaError(Exception):
+    """Base of every error dea-opt raises on purpose."""
+
+
+class InputError(DeaError, ValueError):
+    """An argument has the wrong type, shape or value.
+
+    The message names the argument, what was expected and what came.
+    """
+
+
+class LoadNotSupportedError(DeaError):
+    """Compression-only springs cannot carry the load.
+
+    Raised when the load pulls the bodies apart, or loads a direction (a translation or a
+    rotation) that no spring resists. ``direction`` is the unbalanced part of the
+    generalized load over the free degrees of freedom, as a dict ``{dof name: value}``.
+    """
+
+    def __init__(self, message: str, direction: dict | None = None):
+        super().__init__(message)
+        self.direction = direction or {}
+
+
+class SolverError(DeaError):
+    """A solver did not return an answer dea-opt can certify.
+
+    ``status`` is the solver's own status string; ``solution`` (when there is one) is the
+    uncertified :class:`~dea_opt.solution.Solution`, for inspection only.
+    """
+
+    def __init__(self, message: str, status: str = "", solution=None):
+        super().__init__(message)
+        self.status = status
+        self.solution = solution
+
+
+class MissingDependencyError(DeaError, ImportError):
+    """An optional extra is needed for this feature and is not installed.
+
+    The message names the ``pip install`` command that adds it.
+    """
+
+
+class ValidityWarning(UserWarning):
+    """A result lies outside the range where its spring law is trustworthy.
+
+    Issued when a linear law meets compressive strain beyond 30 % (the limit of validity
+    stated by Volokh, Chao & Armand) and whenever a strain reaches -1 (a spring crushed
+    through its whole thickness).
+    """

@@ -1,0 +1,114 @@
+"""The linear-law DEA problem as a convex QP, modelled in cvxpy and solved by Clarabel.
+
+Written math: ``formulations/qp.md``. Variables: the free dofs ``x`` and the compressive
+strain ``c``; ``min 1/2 sum V_i H c_i^2 - r . x`` s.t. ``c >= 0``, ``c + e0 + A x >= 0``.
+The load is the only cvxpy Parameter, so a new load re-solves without recompiling; spring
+forces come from the duals of ``c + e0 + A x >= 0`` (``lambda_i = V_i H c_i``).
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from ..errors import InputError, MissingDependencyError, SolverError
+from .base import FormulationResult, SpringSystem
+
+PAGE = "formulations/qp.md"
+LINEAR_ONLY = True
+
+#: Tolerance options of each solver cvxpy knows, as functions of one tolerance.
+TOLERANCE_OPTIONS = {
+    "CLARABEL": lambda tol: {"tol_gap_abs": tol, "tol_gap_rel": tol, "tol_feas": tol, "tol_ktratio": tol * 1e-2},
+    "OSQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "polish": True, "max_iter": 200_000},
+    "SCS": lambda tol: {"eps_abs": tol, "eps_rel": tol, "max_iters": 200_000},
+    "PIQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "eps_duality_gap_abs": tol, "eps_duality_gap_rel": tol},
+    "ECOS": lambda tol: {"abstol": tol, "reltol": tol, "feastol": tol},
+}
+
+
+class QPModel:
+    """A compiled cvxpy model of one spring system, re-solvable for new loads.
+
+    Parameters
+    ----------
+    system : SpringSystem
+    law : LinearLaw
+    solver : str
+        A QP solver cvxpy has installed (``"CLARABEL"`` by default).
+    """
+
+    def __init__(self, system: SpringSystem, law, solver: str = "CLARABEL"):
+        if not law.is_linear:
+            raise InputError(
+                f"method 'qp' needs a LinearLaw, got {law.describe()}: use method='nlp' or "
+                f"method='newton' for nonlinear laws"
+            )
+        try:
+            import cvxpy as cp
+        except ImportError as exc:  # pragma: no cover - cvxpy is a core dependency
+            raise MissingDependencyError("method 'qp' needs cvxpy: pip install cvxpy") from exc
+        solver = solver.upper()
+        if solver not in cp.installed_solvers():
+            raise InputError(
+                f"solver must be one of the QP solvers cvxpy has installed {sorted(cp.installed_solvers())}, "
+                f"got {solver!r}"
+            )
+        start = time.perf_counter()
+        self.solver = solver
+        self.system = system
+        m, n = system.n_dofs, system.n_springs
+        self.x = cp.Variable(m, name="x")
+        self.c = cp.Variable(n, nonneg=True, name="c")
+        self.load = cp.Parameter(m, name="r")
+        weight = np.sqrt(system.volume * law.H)
+        objective = 0.5 * cp.sum_squares(cp.multiply(weight, self.c)) - self.load @ self.x
+        self.contact = self.c + system.A @ self.x >= -system.e0
+        self.problem = cp.Problem(cp.Minimize(objective), [self.contact])
+        self.build_time = time.perf_counter() - start
+        self.compiled = False
+
+    def solve(self, load=None, *, tol: float = 1e-9, warm_start: bool = True, **solver_options) -> FormulationResult:
+        """Solve for ``load`` (default: the system's own load)."""
+        import cvxpy as cp
+
+        self.load.value = np.asarray(self.system.load if load is None else load, dtype=float)
+        options = {**TOLERANCE_OPTIONS.get(self.solver, lambda t: {})(tol), **solver_options}
+        start = time.perf_counter()
+        try:
+            self.problem.solve(solver=self.solver, warm_start=warm_start, **options)
+        except cp.error.SolverError as exc:
+            raise SolverError(f"{self.solver} failed: {exc}", status="solver_error") from exc
+        elapsed = time.perf_counter() - start
+        stats = self.problem.solver_stats
+        status = self.problem.status
+        first = not self.compiled
+        self.compiled = True
+        x = self.x.value
+        lam = self.contact.dual_value
+        n = self.system.n_springs
+        if x is None or lam is None:
+            x = np.full(self.system.n_dofs, np.nan)
+            lam = np.full(n, np.nan)
+        stress = -np.asarray(lam, dtype=float).reshape(n) / self.system.volume
+        solver_time = stats.solve_time if stats and stats.solve_time is not None else float("nan")
+        return FormulationResult(
+            x=np.asarray(x, dtype=float).reshape(-1),
+            stress=stress,
+            success=status == cp.OPTIMAL,
+            status=status,
+            message=f"{self.solver}: {status}",
+            iterations=int(stats.num_iters or 0) if stats else 0,
+            build_time=self.build_time if first else 0.0,
+            solve_time=elapsed,
+            info={"solver": self.solver, "solver_time": solver_time, "compile_and_solve": first},
+        )
+
+
+def solve(system: SpringSystem, law, *, solver: str = "CLARABEL", tol: float = 1e-9, x0=None, **solver_options):
+    """Build and solve the QP once (``x0`` is ignored: interior-point solvers start cold)."""
+    model = QPModel(system, law, solver=solver)
+    result = model.solve(tol=tol, **solver_options)
+    result.build_time = model.build_time
+    return result

@@ -1,0 +1,358 @@
+"""Spring laws: stress, tangent and strain energy of one cartilage spring.
+
+Strain ``eps = dh/h`` is positive in tension and stress ``sigma`` has the same sign
+(Volokh, Chao & Armand, Eq. 2), so compression gives ``sigma < 0`` and pressure ``-sigma``.
+Every law writes its formulas once, in :meth:`Law.stress_expr`, :meth:`Law.tangent_expr` and
+:meth:`Law.energy_expr`, against an array namespace ``xp``: NumPy for arrays, CasADi for the
+symbolic expressions of the NLP formulation, so the two can never drift apart.
+The written math is in ``formulations/energy.md``.
+
+Units: ``H`` in MPa, stress and energy density in MPa (= N/mm^2 = mJ/mm^3).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+
+from .errors import InputError
+
+__all__ = [
+    "Law",
+    "LinearLaw",
+    "AteshianLaw",
+    "CubicLaw",
+    "PolynomialLaw",
+    "BlankevoortLaw",
+]
+
+
+def _namespace(eps):
+    """NumPy for numbers and arrays, CasADi for CasADi symbols (imported only then)."""
+    if isinstance(eps, (np.ndarray, float, int, np.floating, np.integer)):
+        return np
+    import casadi
+
+    return SimpleNamespace(
+        exp=casadi.exp, log=casadi.log, log1p=casadi.log1p, expm1=casadi.expm1
+    )
+
+
+def _positive(name, value, *, allow_zero=False):
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number, got {value!r}") from None
+    if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
+        bound = ">= 0" if allow_zero else "> 0"
+        raise InputError(f"{name} must be a finite number {bound}, got {value!r}")
+    return v
+
+
+@dataclass(frozen=True)
+class Law:
+    """Base of every spring law; subclass it for a law of your own.
+
+    A subclass implements the three ``*_expr`` methods with ``xp.exp``, ``xp.log``,
+    ``xp.log1p``, ``xp.expm1`` and arithmetic only, so that they work for NumPy arrays
+    and CasADi symbols alike. ``energy`` must be the antiderivative of ``stress`` with
+    ``energy(0) == 0``, and it must be convex on compression for the equilibrium to be a
+    minimum of the total energy.
+    """
+
+    #: Laws with ``bounded_strain`` are defined for ``eps > -1`` only: the solvers keep
+    #: every iterate inside, and the NLP bounds compressive strain below 1.
+    bounded_strain = False
+    #: True for the one law the QP formulation accepts.
+    is_linear = False
+
+    @property
+    def modulus(self) -> float:
+        """Small-strain stiffness ``d sigma / d eps`` at ``eps = 0`` (MPa)."""
+        return float(self.tangent(np.zeros(1))[0])
+
+    def stress_expr(self, eps, xp):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def tangent_expr(self, eps, xp):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def energy_expr(self, eps, xp):  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def _evaluate(self, expr, eps, outside):
+        xp = _namespace(eps)
+        if xp is not np:
+            return expr(eps, xp)
+        eps = np.asarray(eps, dtype=float)
+        if not self.bounded_strain:
+            with np.errstate(over="ignore", invalid="ignore"):
+                return expr(eps, np)
+        crushed = eps <= -1.0
+        if not crushed.any():
+            with np.errstate(over="ignore", invalid="ignore"):
+                return expr(eps, np)
+        safe = np.where(crushed, 0.0, eps)
+        with np.errstate(over="ignore", invalid="ignore"):
+            value = np.asarray(expr(safe, np), dtype=float)
+        return np.where(crushed, outside, value)
+
+    def stress(self, eps):
+        """Stress ``sigma(eps)`` in MPa (tension positive); ``-inf`` where crushed."""
+        return self._evaluate(self.stress_expr, eps, -np.inf)
+
+    def tangent(self, eps):
+        """Tangent stiffness ``d sigma / d eps`` in MPa; ``+inf`` where crushed."""
+        return self._evaluate(self.tangent_expr, eps, np.inf)
+
+    def energy(self, eps):
+        """Strain energy density ``w(eps)`` in MPa with ``w(0) = 0``; ``+inf`` where crushed."""
+        return self._evaluate(self.energy_expr, eps, np.inf)
+
+    def describe(self) -> str:
+        """A short label for tables, e.g. ``ateshian(H=0.6, beta=0.05)``."""
+        args = ", ".join(f"{k}={v:g}" for k, v in self._parameters().items())
+        return f"{self.name}({args})"
+
+    def _parameters(self) -> dict:
+        return {"H": self.H}
+
+
+@dataclass(frozen=True)
+class LinearLaw(Law):
+    """The classical DEA spring, ``sigma = H eps``.
+
+    Parameters
+    ----------
+    H : float
+        Aggregate modulus in MPa (> 0).
+    """
+
+    H: float
+    name = "linear"
+    is_linear = True
+
+    def __post_init__(self):
+        object.__setattr__(self, "H", _positive("H", self.H))
+
+    def stress_expr(self, eps, xp):
+        return self.H * eps
+
+    def tangent_expr(self, eps, xp):
+        return self.H + 0.0 * eps
+
+    def energy_expr(self, eps, xp):
+        return 0.5 * self.H * eps * eps
+
+
+@dataclass(frozen=True)
+class AteshianLaw(Law):
+    """Ateshian's confined-compression law, Eq. (2) of Volokh, Chao & Armand.
+
+    ``sigma = H (lam^2 - 1) / (2 lam^(2 beta + 1)) exp(beta (lam^2 - 1))`` with
+    ``lam = 1 + eps``; energy ``w = H/(4 beta) (lam^(-2 beta) exp(beta (lam^2 - 1)) - 1)``
+    and, for ``beta = 0``, its limit ``w = H/4 (lam^2 - 1 - 2 ln lam)``.
+    Defined for ``eps > -1``; it stiffens without bound as the cartilage is crushed.
+
+    Parameters
+    ----------
+    H : float
+        Aggregate modulus ``H_A0`` in MPa (> 0; 0.3 to 0.6 for human cartilage).
+    beta : float
+        Stiffening exponent (>= 0; 0.05 to 0.6 for human cartilage).
+    """
+
+    H: float
+    beta: float
+    name = "ateshian"
+    bounded_strain = True
+
+    def __post_init__(self):
+        object.__setattr__(self, "H", _positive("H", self.H))
+        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True))
+
+    def _parameters(self):
+        return {"H": self.H, "beta": self.beta}
+
+    def stress_expr(self, eps, xp):
+        b = self.beta
+        g = eps * (2.0 + eps)  # lam^2 - 1
+        return 0.5 * self.H * g * xp.exp(b * g - (2.0 * b + 1.0) * xp.log1p(eps))
+
+    def tangent_expr(self, eps, xp):
+        b = self.beta
+        g = eps * (2.0 + eps)
+        lam2 = g + 1.0
+        bracket = 2.0 * lam2 + g * (2.0 * b * lam2 - (2.0 * b + 1.0))
+        return 0.5 * self.H * xp.exp(b * g - (2.0 * b + 2.0) * xp.log1p(eps)) * bracket
+
+    def energy_expr(self, eps, xp):
+        # q = ln(lam^-2 exp(lam^2 - 1)); w = H/(4 beta) expm1(beta q) -> H q / 4 as beta -> 0
+        q = eps * (2.0 + eps) - 2.0 * xp.log1p(eps)
+        if self.beta == 0.0:
+            return 0.25 * self.H * q
+        return 0.25 * self.H / self.beta * xp.expm1(self.beta * q)
+
+
+def _polynomial(coefficients, eps):
+    """Horner's rule for ``sum_k c_k eps^k`` with ``coefficients = (c_0, c_1, ...)``."""
+    result = 0.0 * eps + coefficients[-1]
+    for c in coefficients[-2::-1]:
+        result = result * eps + c
+    return result
+
+
+@dataclass(frozen=True, eq=False)
+class _PolynomialStress(Law):
+    """A law whose stress is ``sum_{k>=1} c_k eps^k`` (``coefficients = (c_1, ..., c_n)``)."""
+
+    @property
+    def coefficients(self) -> np.ndarray:  # pragma: no cover - abstract
+        raise NotImplementedError
+
+    def stress_expr(self, eps, xp):
+        return _polynomial((0.0, *self.coefficients), eps)
+
+    def tangent_expr(self, eps, xp):
+        c = self.coefficients
+        return _polynomial(tuple(k * c[k - 1] for k in range(1, len(c) + 1)), eps)
+
+    def energy_expr(self, eps, xp):
+        c = self.coefficients
+        return _polynomial((0.0, 0.0, *(c[k - 1] / (k + 1) for k in range(1, len(c) + 1))), eps)
+
+    def _key(self):
+        return tuple(float(f"{c:.12e}") for c in self.coefficients)
+
+    def __eq__(self, other):
+        if not isinstance(other, _PolynomialStress):
+            return NotImplemented
+        return self._key() == other._key()
+
+    def __hash__(self):
+        return hash(self._key())
+
+
+@dataclass(frozen=True, eq=False)
+class CubicLaw(_PolynomialStress):
+    """The cubic law of Eq. (3), energy Eq. (4) with the alphas of Eq. (5).
+
+    ``sigma = H/2 (2 eps - eps^2 + (1 + 4 beta) eps^3)``: the third-order Taylor
+    polynomial of :class:`AteshianLaw`. Its tangent is positive for every strain.
+    """
+
+    H: float
+    beta: float
+    name = "cubic"
+
+    def __post_init__(self):
+        object.__setattr__(self, "H", _positive("H", self.H))
+        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True))
+
+    def _parameters(self):
+        return {"H": self.H, "beta": self.beta}
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """``(alpha_1, alpha_2, alpha_3)`` of Eq. (5), in MPa."""
+        H, b = self.H, self.beta
+        return np.array([H, -H / 2.0, H * (1.0 + 4.0 * b) / 2.0])
+
+
+def ateshian_taylor_coefficients(H: float, beta: float, order: int) -> np.ndarray:
+    """Taylor coefficients ``(c_1, ..., c_order)`` of Eq. (2) about ``eps = 0``.
+
+    Computed by truncated power-series arithmetic on
+    ``sigma = H/2 (2 eps + eps^2) (1 + eps)^(-(2 beta + 1)) exp(beta (2 eps + eps^2))``
+    (Remark 2 of the paper), not typed in.
+    """
+    n = order + 1
+    g = np.zeros(n)  # beta (2 eps + eps^2)
+    g[1] = 2.0 * beta
+    if n > 2:
+        g[2] = beta
+    exp_g = np.zeros(n)  # exp(g) by f' = g' f
+    exp_g[0] = 1.0
+    for k in range(1, n):
+        exp_g[k] = sum(j * g[j] * exp_g[k - j] for j in range(1, k + 1)) / k
+    a = -(2.0 * beta + 1.0)
+    binomial = np.ones(n)  # (1 + eps)^a
+    for k in range(1, n):
+        binomial[k] = binomial[k - 1] * (a - k + 1) / k
+    front = np.zeros(n)  # H/2 (2 eps + eps^2)
+    front[1] = H
+    if n > 2:
+        front[2] = H / 2.0
+    series = np.convolve(np.convolve(front, binomial)[:n], exp_g)[:n]
+    return series[1:]
+
+
+@dataclass(frozen=True, eq=False)
+class PolynomialLaw(_PolynomialStress):
+    """The Taylor polynomial of Eq. (2) to any order (Remark 2 of the paper).
+
+    ``PolynomialLaw(H, beta, 3)`` equals :class:`CubicLaw` ``(H, beta)``; higher orders
+    approach :class:`AteshianLaw` on ``-0.4 <= eps <= 0.4``. Even orders may soften under
+    large compression: check ``tangent`` over the strains you expect.
+    """
+
+    H: float
+    beta: float
+    order: int = 5
+    name = "polynomial"
+
+    def __post_init__(self):
+        object.__setattr__(self, "H", _positive("H", self.H))
+        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True))
+        if isinstance(self.order, bool) or not isinstance(self.order, (int, np.integer)) or not (
+            1 <= self.order <= 40
+        ):
+            raise InputError(f"order must be an integer from 1 to 40, got {self.order!r}")
+        object.__setattr__(
+            self, "_coefficients", ateshian_taylor_coefficients(self.H, self.beta, int(self.order))
+        )
+
+    def _parameters(self):
+        return {"H": self.H, "beta": self.beta, "order": self.order}
+
+    @property
+    def coefficients(self) -> np.ndarray:
+        """``(c_1, ..., c_order)`` in MPa, from :func:`ateshian_taylor_coefficients`."""
+        return self._coefficients
+
+
+@dataclass(frozen=True)
+class BlankevoortLaw(Law):
+    """The logarithmic law ``sigma = H ln(1 + eps)`` (Blankevoort et al.; OpenSim-JAM).
+
+    Energy ``w = H ((1 + eps) ln(1 + eps) - eps)``; defined for ``eps > -1``.
+    """
+
+    H: float
+    name = "blankevoort"
+    bounded_strain = True
+
+    def __post_init__(self):
+        object.__setattr__(self, "H", _positive("H", self.H))
+
+    def stress_expr(self, eps, xp):
+        return self.H * xp.log1p(eps)
+
+    def tangent_expr(self, eps, xp):
+        return self.H / (1.0 + eps)
+
+    def energy_expr(self, eps, xp):
+        return self.H * ((1.0 + eps) * xp.log1p(eps) - eps)
+
+
+def check_law(law) -> Law:
+    """Validate that ``law`` is a :class:`Law` (an :class:`InputError` otherwise)."""
+    if not isinstance(law, Law):
+        raise InputError(
+            f"law must be a dea_opt Law (LinearLaw, AteshianLaw, CubicLaw, PolynomialLaw, "
+            f"BlankevoortLaw or a subclass of Law), got {type(law).__name__}"
+        )
+    return law

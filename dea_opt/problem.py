@@ -1,0 +1,268 @@
+"""Bodies, loads and the contact problem: small immutable objects."""
+
+from __future__ import annotations
+
+from dataclasses import InitVar, dataclass, field, replace
+from functools import cached_property
+from types import MappingProxyType
+
+import numpy as np
+
+from ._validate import finite_number, vector3
+from .errors import InputError
+from .formulations.base import SpringSystem
+from .kinematics import DOF_NAMES, DOFS, normal_operator
+from .laws import Law, check_law
+from .layer import SpringLayer
+
+__all__ = ["Body", "Load", "ContactProblem", "DOFS"]
+
+
+@dataclass(frozen=True)
+class Load:
+    """A force (N) and moment (N mm) on a body; with ``point`` the force acts there.
+
+    Parameters
+    ----------
+    force : array_like, shape (3,)
+        Force in N.
+    moment : array_like, shape (3,) or 0
+        Moment in N mm about the body's reference point.
+    point : array_like, shape (3,), optional
+        Where the force acts (mm); its moment about the reference is added.
+    """
+
+    force: tuple = (0.0, 0.0, 0.0)
+    moment: tuple = (0.0, 0.0, 0.0)
+    point: tuple | None = None
+
+    def __post_init__(self):
+        object.__setattr__(self, "force", vector3("force", self.force))
+        object.__setattr__(self, "moment", vector3("moment", self.moment))
+        if self.point is not None:
+            object.__setattr__(self, "point", vector3("point", self.point))
+
+    def about(self, reference) -> tuple[tuple, tuple]:
+        """``(force, moment)`` with the moment taken about ``reference``."""
+        moment = np.array(self.moment)
+        if self.point is not None:
+            moment = moment + np.cross(np.subtract(self.point, reference), self.force)
+        return self.force, tuple(float(v) for v in moment)
+
+
+def _dof_tuple(name: str, value) -> tuple:
+    if value is None:
+        return ()
+    if isinstance(value, str):
+        value = (value,) if value not in ("all", "none") else (DOFS if value == "all" else ())
+    try:
+        items = tuple(value)
+    except TypeError:
+        raise InputError(f"{name} must be a sequence of dof names from {DOFS}, got {value!r}") from None
+    for item in items:
+        if item not in DOFS:
+            raise InputError(f"{name} must hold dof names from {DOFS}, got {item!r}")
+    if len(set(items)) != len(items):
+        raise InputError(f"{name} lists a dof twice: {items}")
+    return tuple(d for d in DOFS if d in items)
+
+
+@dataclass(frozen=True)
+class Body:
+    """One rigid bone: its reference point, free dofs, load and prescribed motion.
+
+    Parameters
+    ----------
+    reference : array_like, shape (3,)
+        The point rotations are about and moments are taken about (mm); the body
+        centroid of Eq. (10).
+    free : sequence of str
+        Unknown dofs among ``("ux", "uy", "uz", "rx", "ry", "rz")``; default all six.
+        Dofs neither free nor prescribed are fixed at zero.
+    force, moment : array_like, shape (3,)
+        Load on the body (N and N mm about ``reference``).
+    prescribed : mapping {dof: value}
+        Dofs held at a given displacement (mm or rad); their reactions are reported.
+        A prescribed dof is not free even if listed in ``free``.
+    """
+
+    reference: tuple = (0.0, 0.0, 0.0)
+    free: tuple = DOFS
+    force: tuple = (0.0, 0.0, 0.0)
+    moment: tuple = (0.0, 0.0, 0.0)
+    prescribed: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        set_ = object.__setattr__
+        set_(self, "reference", vector3("reference", self.reference))
+        set_(self, "force", vector3("force", self.force))
+        set_(self, "moment", vector3("moment", self.moment))
+        if not hasattr(self.prescribed, "items"):
+            raise InputError(f"prescribed must be a mapping {{dof: value}}, got {self.prescribed!r}")
+        prescribed = {}
+        for dof, value in self.prescribed.items():
+            if dof not in DOFS:
+                raise InputError(f"prescribed must use dof names from {DOFS}, got {dof!r}")
+            prescribed[dof] = finite_number(f"prescribed[{dof!r}]", value)
+        set_(self, "prescribed", MappingProxyType(prescribed))
+        set_(self, "free", tuple(d for d in _dof_tuple("free", self.free) if d not in prescribed))
+
+    def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None) -> "Body":
+        """A copy carrying ``load`` (or the load made of ``force``, ``moment``, ``point``)."""
+        if load is None:
+            load = Load(force=force, moment=moment, point=point)
+        elif not isinstance(load, Load):
+            raise InputError(f"load must be a dea_opt.Load, got {type(load).__name__}")
+        f, m = load.about(self.reference)
+        return replace(self, force=f, moment=m, prescribed=dict(self.prescribed))
+
+    def with_prescribed(self, **values) -> "Body":
+        """A copy with these dofs prescribed (e.g. ``uz=-0.2``)."""
+        prescribed = {**self.prescribed, **values}
+        free = tuple(d for d in DOFS if d in self.free or (d in self.prescribed and d not in values))
+        return replace(self, free=free, prescribed=prescribed)
+
+    @property
+    def load_vector(self) -> np.ndarray:
+        """``(Fx, Fy, Fz, Mx, My, Mz)`` of Eq. (8)."""
+        return np.array(self.force + self.moment)
+
+
+FIXED = Body(free=())
+
+
+@dataclass(frozen=True, eq=False)
+class ContactProblem:
+    """Two rigid bodies touching through a spring layer.
+
+    Parameters
+    ----------
+    layer : SpringLayer
+    law : Law
+    body1, body2 : Body
+        Default: body 1 fixed, body 2 free in all six dofs.
+    force, moment, reference, free, load :
+        Shorthand for body 2 with body 1 fixed: ``ContactProblem(layer, law,
+        force=(0, 0, -500), reference=(0, 0, 0), free=("uz", "rx", "ry"))``.
+        ``load`` is a :class:`Load` (use it for a force acting at a point).
+    """
+
+    layer: SpringLayer
+    law: Law
+    body1: Body = FIXED
+    body2: Body = None
+    force: InitVar = None
+    moment: InitVar = None
+    reference: InitVar = None
+    free: InitVar = None
+    load: InitVar = None
+
+    def __post_init__(self, force, moment, reference, free, load):
+        if not isinstance(self.layer, SpringLayer):
+            raise InputError(f"layer must be a SpringLayer, got {type(self.layer).__name__}")
+        check_law(self.law)
+        if not isinstance(self.body1, Body):
+            raise InputError(f"body1 must be a dea_opt.Body, got {type(self.body1).__name__}")
+        shorthand = any(v is not None for v in (force, moment, reference, free, load))
+        body2 = self.body2
+        if shorthand:
+            if body2 is not None:
+                raise InputError(
+                    "give either body2=Body(...) or the shorthand force/moment/reference/free/"
+                    "load, not both"
+                )
+            body2 = Body(
+                reference=(0.0, 0.0, 0.0) if reference is None else reference,
+                free=DOFS if free is None else free,
+                force=force,
+                moment=moment,
+            )
+            if load is not None:
+                body2 = body2.with_load(load)
+        elif body2 is None:
+            body2 = Body()
+        if not isinstance(body2, Body):
+            raise InputError(f"body2 must be a dea_opt.Body, got {type(body2).__name__}")
+        object.__setattr__(self, "body2", body2)
+
+    # --- copies -------------------------------------------------------------------------
+    def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None, body: int = 2):
+        """A copy whose body ``body`` (1 or 2) carries a new load."""
+        key = _body_key(body)
+        return replace(self, **{key: getattr(self, key).with_load(load, force=force, moment=moment, point=point)})
+
+    def with_law(self, law: Law) -> "ContactProblem":
+        return replace(self, law=law)
+
+    def with_layer(self, layer: SpringLayer) -> "ContactProblem":
+        return replace(self, layer=layer)
+
+    def with_body(self, body: int, new: Body) -> "ContactProblem":
+        return replace(self, **{_body_key(body): new})
+
+    # --- derived arrays -----------------------------------------------------------------
+    @cached_property
+    def normal_operator(self) -> np.ndarray:
+        """Rows ``n_i^T B_i`` (N, 12), see :mod:`dea_opt.kinematics`."""
+        layer = self.layer
+        return normal_operator(layer.points, layer.normals, self.body1.reference, self.body2.reference)
+
+    @cached_property
+    def free_indices(self) -> np.ndarray:
+        """Indices into the 12-vector ``u`` of the free dofs."""
+        idx = [i for i, d in enumerate(DOFS) if d in self.body1.free]
+        idx += [6 + i for i, d in enumerate(DOFS) if d in self.body2.free]
+        return np.array(idx, dtype=int)
+
+    @property
+    def free_names(self) -> tuple:
+        return tuple(DOF_NAMES[i] for i in self.free_indices)
+
+    @cached_property
+    def prescribed_u(self) -> np.ndarray:
+        """The 12-vector with prescribed values at their dofs and zeros elsewhere."""
+        u = np.zeros(12)
+        for k, body in enumerate((self.body1, self.body2)):
+            for dof, value in body.prescribed.items():
+                u[6 * k + DOFS.index(dof)] = value
+        return u
+
+    @property
+    def load_vector(self) -> np.ndarray:
+        """``r`` of Eq. (8), shape (12,)."""
+        return np.concatenate([self.body1.load_vector, self.body2.load_vector])
+
+    @cached_property
+    def _geometry(self) -> tuple:
+        G = self.normal_operator
+        h = self.layer.thickness
+        A = np.ascontiguousarray(G[:, self.free_indices] / h[:, None])
+        e0 = (self.layer.gap + G @ self.prescribed_u) / h
+        return A, e0, self.layer.areas * h
+
+    def system(self) -> SpringSystem:
+        """The reduced problem over the free dofs, for the formulations."""
+        A, e0, volume = self._geometry
+        return SpringSystem(A, e0, volume, self.load_vector[self.free_indices])
+
+    def full_u(self, x) -> np.ndarray:
+        """The 12-vector ``u`` from the free-dof vector ``x``."""
+        u = self.prescribed_u.copy()
+        u[self.free_indices] = x
+        return u
+
+    def strain(self, u) -> np.ndarray:
+        """``eps_i = (gap_i + n_i . B_i u) / h_i`` (Eq. 11), shape (N,)."""
+        return (self.layer.gap + self.normal_operator @ np.asarray(u, dtype=float)) / self.layer.thickness
+
+    def __repr__(self) -> str:
+        return (
+            f"ContactProblem({self.layer!r}, {self.law.describe()}, free={self.free_names}, "
+            f"load={self.load_vector.round(6).tolist()})"
+        )
+
+
+def _body_key(body) -> str:
+    if body not in (1, 2):
+        raise InputError(f"body must be 1 or 2, got {body!r}")
+    return f"body{body}"

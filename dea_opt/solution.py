@@ -1,0 +1,273 @@
+"""One result type for every formulation, carrying the certificate dea_opt computes itself."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .kinematics import DOF_NAMES
+
+__all__ = ["Certificate", "Solution", "certify"]
+
+
+@dataclass(frozen=True)
+class Certificate:
+    """Residuals computed by dea_opt from ``u``, never taken from a solver.
+
+    Attributes
+    ----------
+    equilibrium : float
+        ``|q - r|`` over the free dofs, relative to ``max(|r|, sum |f_i|)``, where ``q`` is the
+        generalized force of the law's spring forces at ``u`` (moments divided by the
+        layer's radius about each reference so forces and moments weigh alike).
+    tension : float
+        Largest tensile spring force the formulation reported, relative to the largest force.
+    complementarity : float
+        ``max_i |f_i| max(eps_i, 0)`` relative to the largest force: open springs carry nothing.
+    consistency : float
+        Largest difference between the formulation's spring forces (e.g. QP duals) and
+        the law's forces at ``u``, relative to the largest force.
+    energy : float
+        Energy a further Newton step could still release, ``g^T K^+ g / 2``, relative to
+        the strain energy plus the work of the load.
+    tolerance : float
+        The bound every residual must meet.
+    """
+
+    equilibrium: float
+    tension: float
+    complementarity: float
+    consistency: float
+    energy: float
+    tolerance: float = 1e-6
+
+    @property
+    def passed(self) -> bool:
+        values = (self.equilibrium, self.tension, self.complementarity, self.consistency, self.energy)
+        return all(np.isfinite(v) and v <= self.tolerance for v in values)
+
+    def worst(self) -> tuple[str, float]:
+        """The name and value of the largest residual."""
+        items = self.as_dict()
+        items.pop("tolerance")
+        items.pop("passed")
+        name = max(items, key=lambda k: items[k] if np.isfinite(items[k]) else np.inf)
+        return name, items[name]
+
+    def as_dict(self) -> dict:
+        return {
+            "equilibrium": self.equilibrium,
+            "tension": self.tension,
+            "complementarity": self.complementarity,
+            "consistency": self.consistency,
+            "energy": self.energy,
+            "tolerance": self.tolerance,
+            "passed": self.passed,
+        }
+
+
+def _moment_length(problem) -> np.ndarray:
+    """Per-dof divisor that turns N mm into N: 1 for forces, the layer radius for moments."""
+    points = problem.layer.points
+    length = np.ones(12)
+    for k, body in enumerate((problem.body1, problem.body2)):
+        if len(points):
+            radius = float(np.sqrt(np.mean(np.sum((points - body.reference) ** 2, axis=1))))
+            length[6 * k + 3 : 6 * k + 6] = max(radius, 1e-12)
+    return length
+
+
+def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate:
+    """Check ``u`` against the law: equilibrium, sign, complementarity, optimality.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+    u : ndarray, shape (12,)
+    reported_stress : ndarray, shape (N,)
+        Spring stress as the formulation reported it (MPa, tension positive).
+    tolerance : float
+    """
+    layer, law = problem.layer, problem.law
+    eps = problem.strain(u)
+    compressed = np.minimum(eps, 0.0)
+    with np.errstate(invalid="ignore", over="ignore"):
+        sigma = law.stress(compressed)
+    force = layer.areas * sigma
+    reported = layer.areas * np.asarray(reported_stress, dtype=float)
+    free = problem.free_indices
+    G = problem.normal_operator
+    q = G.T @ force
+    length = _moment_length(problem)[free]
+    residual = (q - problem.load_vector)[free] / length
+    r = problem.load_vector[free] / length
+    fmax = max(np.max(np.abs(force), initial=0.0), np.max(np.abs(reported), initial=0.0))
+    fscale = max(fmax, 1e-300)
+    scale = max(np.linalg.norm(r), np.sum(np.abs(force)), 1e-300)
+    equilibrium = float(np.linalg.norm(residual) / scale) if free.size else 0.0
+    tension = float(max(np.max(reported, initial=0.0), 0.0) / fscale)
+    complementarity = float(np.max(np.abs(reported) * np.maximum(eps, 0.0), initial=0.0) / fscale)
+    consistency = float(np.max(np.abs(reported - force), initial=0.0) / fscale)
+    energy = 0.0
+    if free.size and len(eps):
+        active = eps < 0
+        A = G[np.ix_(active, free)] / layer.thickness[active, None]
+        with np.errstate(invalid="ignore", over="ignore"):
+            weight = layer.areas[active] * layer.thickness[active] * law.tangent(compressed[active])
+        g = (q - problem.load_vector)[free]
+        if np.isfinite(weight).all() and np.isfinite(g).all():
+            K = A.T @ (A * weight[:, None])
+            decrement = float(g @ np.linalg.lstsq(K, g, rcond=1e-12)[0]) if np.any(K) else 0.0
+            with np.errstate(invalid="ignore", over="ignore"):
+                stored = float(layer.areas @ (layer.thickness * law.energy(compressed)))
+            work = abs(float(problem.load_vector @ (u - problem.prescribed_u)))
+            energy = 0.5 * abs(decrement) / max(stored + work, 1e-300)
+        else:
+            energy = float("nan")
+    if not np.isfinite(sigma).all():
+        equilibrium = float("nan")
+    return Certificate(equilibrium, tension, complementarity, consistency, energy, tolerance)
+
+
+@dataclass(frozen=True, eq=False)
+class Solution:
+    """The equilibrium of a :class:`~dea_opt.problem.ContactProblem`, from any formulation.
+
+    Spring quantities have shape (N,), in the layer's spring order. ``stress`` and
+    ``spring_force`` are tension positive (so ``<= 0``); ``pressure = -stress >= 0``.
+    """
+
+    problem: object
+    u: np.ndarray
+    strain: np.ndarray
+    pressure: np.ndarray
+    method: str
+    success: bool
+    status: str
+    message: str
+    iterations: int
+    build_time: float
+    solve_time: float
+    certificate: Certificate
+    info: dict = field(default_factory=dict)
+
+    # scipy.optimize names
+    @property
+    def x(self) -> np.ndarray:
+        """Alias of ``u`` (the 12-vector of Eq. 7)."""
+        return self.u
+
+    @property
+    def nit(self) -> int:
+        return self.iterations
+
+    @property
+    def body1_displacement(self) -> np.ndarray:
+        """``(ux, uy, uz, rx, ry, rz)`` of body 1 (mm, rad)."""
+        return self.u[:6]
+
+    @property
+    def body2_displacement(self) -> np.ndarray:
+        return self.u[6:]
+
+    @property
+    def in_contact(self) -> np.ndarray:
+        return self.strain < 0
+
+    @property
+    def stress(self) -> np.ndarray:
+        return -self.pressure
+
+    @property
+    def spring_force(self) -> np.ndarray:
+        """``S_i sigma_i`` in N (tension positive, so <= 0)."""
+        return -self.pressure * self.problem.layer.areas
+
+    @property
+    def _normal_forces(self) -> np.ndarray:
+        return (self.pressure * self.problem.layer.areas)[:, None] * self.problem.layer.normals
+
+    @property
+    def contact_force(self) -> np.ndarray:
+        """Resultant force the springs exert on body 2 (N); minus its load at equilibrium."""
+        return self._normal_forces.sum(axis=0)
+
+    @property
+    def contact_moment(self) -> np.ndarray:
+        """Resultant moment the springs exert on body 2 about its reference (N mm)."""
+        arm = self.problem.layer.points - np.asarray(self.problem.body2.reference)
+        return np.cross(arm, self._normal_forces).sum(axis=0)
+
+    @property
+    def peak_pressure(self) -> float:
+        """Largest pressure (MPa)."""
+        return float(self.pressure.max(initial=0.0))
+
+    @property
+    def contact_area(self) -> float:
+        """Area of the springs in contact (mm^2)."""
+        return float(self.problem.layer.areas[self.in_contact].sum())
+
+    @property
+    def mean_pressure(self) -> float:
+        """Area-weighted mean pressure over the contact (MPa); 0 without contact."""
+        area = self.contact_area
+        return float(self.pressure @ self.problem.layer.areas / area) if area > 0 else 0.0
+
+    @property
+    def total_normal_force(self) -> float:
+        """Sum of the spring force magnitudes (N)."""
+        return float(self.pressure @ self.problem.layer.areas)
+
+    @property
+    def center_of_pressure(self) -> np.ndarray:
+        """Pressure-weighted centroid of the contact (mm); NaN without contact."""
+        weight = self.pressure * self.problem.layer.areas
+        total = weight.sum()
+        if total <= 0:
+            return np.full(3, np.nan)
+        return weight @ self.problem.layer.points / total
+
+    @property
+    def max_compressive_strain(self) -> float:
+        """``-min(eps)`` over the springs in contact (0 without contact)."""
+        return float(max(-self.strain.min(initial=0.0), 0.0))
+
+    @property
+    def reactions(self) -> dict:
+        """Generalized force the supports apply at every dof that is not free (N, N mm)."""
+        layer = self.problem.layer
+        q = self.problem.normal_operator.T @ (-self.pressure * layer.areas)
+        reaction = q - self.problem.load_vector
+        held = np.setdiff1d(np.arange(12), self.problem.free_indices)
+        return {DOF_NAMES[i]: float(reaction[i]) for i in held}
+
+    def summary(self) -> dict:
+        """The headline numbers as plain Python values (for tables and JSON)."""
+        return {
+            "method": self.method,
+            "success": self.success,
+            "status": self.status,
+            "law": self.problem.law.describe(),
+            "n_springs": len(self.pressure),
+            "peak_pressure": self.peak_pressure,
+            "mean_pressure": self.mean_pressure,
+            "contact_area": self.contact_area,
+            "center_of_pressure": self.center_of_pressure.tolist(),
+            "contact_force": self.contact_force.tolist(),
+            "contact_moment": self.contact_moment.tolist(),
+            "max_compressive_strain": self.max_compressive_strain,
+            "u": self.u.tolist(),
+            "iterations": self.iterations,
+            "build_time": self.build_time,
+            "solve_time": self.solve_time,
+            "certificate": self.certificate.as_dict(),
+            "reactions": self.reactions,
+        }
+
+    def __repr__(self) -> str:
+        return (
+            f"Solution(method={self.method!r}, success={self.success}, peak={self.peak_pressure:.6g} MPa, "
+            f"area={self.contact_area:.6g} mm^2, nit={self.iterations})"
+        )

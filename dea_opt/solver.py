@@ -1,0 +1,239 @@
+"""``solve`` and ``compare``: dispatch a problem to a formulation and certify the answer."""
+
+from __future__ import annotations
+
+import time
+import warnings
+
+import numpy as np
+
+from . import formulations
+from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
+from .kinematics import DOF_NAMES
+from .problem import ContactProblem
+from .solution import Solution, certify
+
+__all__ = ["solve", "compare", "check_load_supported", "METHODS"]
+
+METHODS = ("auto", *formulations.FORMULATIONS)
+
+#: Relative residual of the cone test above which a load counts as not carried.
+_CONE_TOL = 1e-7
+_LINEAR_VALIDITY = 0.3
+
+
+def _describe_direction(names, vector, load_vector) -> str:
+    vector = np.asarray(vector, dtype=float)
+    big = np.abs(vector) >= 1e-3 * np.abs(vector).max()
+    parts = []
+    for name, value, r in zip(names, vector, load_vector):
+        if not big[names.index(name)]:
+            continue
+        body, dof = name.split(".")
+        kind = "force" if dof[0] == "u" else "moment"
+        axis = dof[1]
+        unit = "N" if kind == "force" else "N mm"
+        parts.append(f"{kind} {value:+.4g} {unit} along {axis} on {body}")
+    return ", ".join(parts)
+
+
+def check_load_supported(problem: ContactProblem) -> None:
+    """Raise :class:`LoadNotSupportedError` when compression-only springs cannot carry the load.
+
+    A solution exists iff the load lies in the cone of the spring directions,
+    ``r = -A^T lambda`` with ``lambda >= 0`` (``formulations/energy.md``). Tested with
+    non-negative least squares; the unbalanced remainder names the direction.
+    """
+    system = problem.system()
+    r = system.load
+    names = list(problem.free_names)
+    if not names:
+        return
+    rnorm = np.linalg.norm(r)
+    if rnorm == 0:
+        return
+    if system.n_springs == 0:
+        raise LoadNotSupportedError(
+            f"no spring resists the free dofs {tuple(names)}, so the load cannot be carried: "
+            f"{_describe_direction(names, r, r)}; add springs or fix these dofs",
+            direction=dict(zip(names, r.tolist())),
+        )
+    from scipy.optimize import nnls
+
+    # Columns scaled to unit length so that nnls sees a well-conditioned cone.
+    columns = -system.A.T
+    norms = np.linalg.norm(columns, axis=0)
+    keep = norms > 0
+    columns = columns[:, keep] / norms[keep]
+    try:
+        _, residual_norm = nnls(columns, r, maxiter=50 * max(len(r), 1) + 100)
+    except RuntimeError:
+        return  # undecided: leave it to the solver and its certificate
+    if residual_norm <= _CONE_TOL * rnorm:
+        return
+    lam, _ = nnls(columns, r, maxiter=50 * max(len(r), 1) + 100)
+    remainder = r - columns @ lam
+    pulls = "pulls the bodies apart or loads a direction no spring resists"
+    raise LoadNotSupportedError(
+        f"compression-only springs cannot carry this load: it {pulls}. "
+        f"Unbalanced part: {_describe_direction(names, remainder, r)} "
+        f"({residual_norm / rnorm:.3g} of the load). Check the load's sign (body 2 is pushed "
+        f"toward body 1 by a load along -normal), fix the unresisted dofs, or add springs.",
+        direction=dict(zip(names, remainder.tolist())),
+    )
+
+
+def _warn_validity(solution: Solution) -> None:
+    strain = solution.strain
+    if not len(strain):
+        return
+    lowest = float(strain.min())
+    law = solution.problem.law
+    if lowest <= -1.0:
+        warnings.warn(
+            f"a spring reached strain {lowest:.3g} <= -1: the cartilage is crushed through its whole "
+            f"thickness; the result is not physical (use a bounded law such as AteshianLaw, or a smaller load)",
+            ValidityWarning,
+            stacklevel=3,
+        )
+    elif law.is_linear and lowest < -_LINEAR_VALIDITY:
+        warnings.warn(
+            f"the linear law met compressive strain {-lowest:.3g} > {_LINEAR_VALIDITY}, beyond the range "
+            f"where Volokh, Chao & Armand find it valid; consider AteshianLaw",
+            ValidityWarning,
+            stacklevel=3,
+        )
+
+
+def _run(problem: ContactProblem, method: str, certificate_tol: float, options: dict) -> Solution:
+    module = formulations.get(method)
+    if module.LINEAR_ONLY and not problem.law.is_linear:
+        raise InputError(
+            f"method {method!r} needs a LinearLaw, got {problem.law.describe()}: "
+            f"use method='nlp' or method='newton' for nonlinear laws"
+        )
+    start = time.perf_counter()
+    system = problem.system()
+    build = time.perf_counter() - start
+    if system.n_dofs == 0:
+        result = formulations.FormulationResult(
+            x=np.zeros(0), stress=problem.law.stress(np.minimum(system.e0, 0.0)), success=True,
+            status="no_free_dofs", message="every dof is fixed or prescribed",
+        )
+    else:
+        if method != "newton":
+            check_load_supported(problem)
+        result = module.solve(system, problem.law, **options)
+    u = problem.full_u(result.x)
+    finite = np.isfinite(u).all()
+    strain = problem.strain(u) if finite else np.full(len(problem.layer), np.nan)
+    with np.errstate(invalid="ignore", over="ignore"):
+        pressure = -problem.law.stress(np.minimum(strain, 0.0)) if finite else strain
+    certificate = certify(problem, u, result.stress, certificate_tol) if finite else certify(
+        problem, np.zeros(12), np.full(len(problem.layer), np.nan), certificate_tol)
+    success = bool(finite and certificate.passed and np.isfinite(pressure).all())
+    return Solution(
+        problem=problem, u=u, strain=strain, pressure=pressure, method=method, success=success,
+        status=result.status, message=result.message, iterations=result.iterations,
+        build_time=build + result.build_time, solve_time=result.solve_time,
+        certificate=certificate, info=dict(result.info, solver_success=result.success),
+    )
+
+
+def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: float = 1e-6,
+          strict: bool = True, **options) -> Solution:
+    """Find the equilibrium of ``problem`` and certify it.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+    method : {"auto", "newton", "qp", "nlp"}
+        ``"auto"`` runs Newton and, if its answer does not pass the certificate, the
+        constrained formulation that fits the law (``qp`` for a linear law, ``nlp``
+        otherwise); ``solution.info["fallback"]`` says why.
+    certificate_tol : float
+        Bound on every residual of the :class:`~dea_opt.solution.Certificate`.
+    strict : bool
+        Raise :class:`SolverError` when the answer fails its certificate (default). With
+        ``strict=False`` the uncertified solution is returned with ``success=False``.
+    **options
+        Passed to the formulation (e.g. ``tol``, ``solver``, ``form``, ``x0``, ``max_iter``).
+
+    Returns
+    -------
+    Solution
+
+    Raises
+    ------
+    InputError, LoadNotSupportedError, SolverError
+    """
+    if not isinstance(problem, ContactProblem):
+        raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
+    if method not in METHODS:
+        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if method == "auto":
+        solution = _run(problem, "newton", certificate_tol, {k: v for k, v in options.items() if k in ("x0",)})
+        if not solution.success:
+            _raise_if_unsupported(problem)
+            fallback = "qp" if problem.law.is_linear else "nlp"
+            reason = (f"newton ended with status {solution.status!r} and certificate residual "
+                      f"{solution.certificate.worst()}")
+            solution = _run(problem, fallback, certificate_tol, {k: v for k, v in options.items() if k != "x0"})
+            solution.info["fallback"] = reason
+        solution.info.setdefault("fallback", None)
+        solution.info["requested"] = "auto"
+    else:
+        solution = _run(problem, method, certificate_tol, options)
+        if not solution.success and method == "newton":
+            _raise_if_unsupported(problem)
+    if not solution.success and strict:
+        name, value = solution.certificate.worst()
+        raise SolverError(
+            f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
+            f"certificate residual {name} = {value:.3g} > {certificate_tol:g}. Try method='auto', a tighter "
+            f"solver tolerance, or check the problem for loads no spring resists.",
+            status=solution.status,
+            solution=solution,
+        )
+    if solution.success:
+        _warn_validity(solution)
+    return solution
+
+
+def _raise_if_unsupported(problem: ContactProblem) -> None:
+    if problem.free_indices.size:
+        check_load_supported(problem)
+
+
+def compare(problem: ContactProblem, methods=("qp", "nlp", "newton"), *, certificate_tol: float = 1e-6,
+            **options) -> dict:
+    """Solve with several methods and measure their largest disagreement.
+
+    Methods that do not apply (``qp`` for a nonlinear law) are skipped. ``options`` may
+    map a method name to its own options, e.g. ``compare(p, qp={"tol": 1e-10})``.
+
+    Returns
+    -------
+    dict
+        ``{"solutions": {method: Solution}, "displacement": float, "pressure": float,
+        "skipped": {method: reason}}``: the largest pairwise difference of ``u`` relative
+        to ``max |u|`` and of pressure relative to the peak pressure.
+    """
+    solutions, skipped = {}, {}
+    for method in methods:
+        if method not in METHODS or method == "auto":
+            raise InputError(f"methods must be taken from {METHODS[1:]}, got {method!r}")
+        module = formulations.get(method)
+        if module.LINEAR_ONLY and not problem.law.is_linear:
+            skipped[method] = f"{method} needs a linear law"
+            continue
+        solutions[method] = solve(problem, method, certificate_tol=certificate_tol, **options.get(method, {}))
+    du = dp = 0.0
+    items = list(solutions.values())
+    for i, a in enumerate(items):
+        for b in items[i + 1:]:
+            su = max(np.abs(a.u).max(), np.abs(b.u).max(), 1e-300)
+            sp = max(a.peak_pressure, b.peak_pressure, 1e-300)
+            du = max(du, float(np.abs(a.u - b.u).max() / su))
+            dp = max(dp, float(np.abs(a.pressure - b.pressure).max() / sp))
+    return {"solutions": solutions, "displacement": du, "pressure": dp, "skipped": skipped}
