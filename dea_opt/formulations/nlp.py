@@ -76,6 +76,8 @@ class NLPModel:
                 "max_iter": max_iter,
                 "mu_strategy": "adaptive",
                 "bound_relax_factor": 0.0,
+                # AMD ordering: the dense dof columns of A make MUMPS's default ordering slow.
+                "mumps_pivot_order": 0,
                 **(ipopt_options or {}),
             },
         }
