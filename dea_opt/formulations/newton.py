@@ -32,19 +32,29 @@ def _tangent(A, weight) -> np.ndarray:
     return A.T @ (A * weight[:, None])
 
 
-def _solve_step(K, g, K_all_fn) -> np.ndarray:
-    """``-K^+ g``; where ``K`` misses a direction, ``K + K_all`` is used instead."""
-    vals, vecs = np.linalg.eigh(K)
+def _resisted_basis(K_all) -> np.ndarray:
+    """Orthonormal basis (m, k) of the directions some spring resists."""
+    vals, vecs = np.linalg.eigh(K_all)
     top = vals[-1] if vals.size else 0.0
-    if top <= 0 or vals[0] <= _SINGULAR * top:
-        K = K + K_all_fn()
-        vals, vecs = np.linalg.eigh(K)
-        top = vals[-1] if vals.size else 0.0
-    keep = vals > _SINGULAR * max(top, 0.0)
-    if not keep.any():
+    return vecs[:, vals > _SINGULAR * max(top, 0.0)]
+
+
+def _solve_step(K, g, Q, K_all_fn) -> np.ndarray:
+    """``-K^+ g`` within the resisted directions ``Q``.
+
+    Where the active tangent misses one of them (too few springs in contact), ``K + K_all``
+    is used instead, which keeps the step a descent direction.
+    """
+    if Q.shape[1] == 0:
         return np.zeros_like(g)
-    coeff = (vecs[:, keep].T @ g) / vals[keep]
-    return -(vecs[:, keep] @ coeff)
+    Kr, gr = Q.T @ K @ Q, Q.T @ g
+    vals = np.linalg.eigvalsh(Kr)
+    if vals[-1] <= 0 or vals[0] <= _SINGULAR * vals[-1]:
+        Kr = Kr + Q.T @ K_all_fn() @ Q
+    try:
+        return -(Q @ np.linalg.solve(Kr, gr))
+    except np.linalg.LinAlgError:
+        return -(Q @ np.linalg.lstsq(Kr, gr, rcond=_SINGULAR)[0])
 
 
 def solve(
@@ -85,6 +95,7 @@ def solve(
         eps = e0.copy()
     phi = _energy(law, V, eps) - r @ x
     previous_active = None
+    Q = None
     status, message, success = "max_iter", f"no convergence in {max_iter} iterations", False
     history = []
     it = 0
@@ -107,15 +118,20 @@ def solve(
         def all_springs():
             return _tangent(A, V * law.tangent(compressed))
 
+        if Q is None:
+            # Directions no spring resists carry no load (checked before any method runs
+            # or after a failure); leaving them out keeps the Newton steps undamped.
+            K_all = all_springs()
+            Q = _resisted_basis(K_all)
         if it == 1 and extended_start:
-            K = all_springs()
+            K = K_all
         else:
             idx = np.flatnonzero(active)
             K = _tangent(A[idx], V[idx] * law.tangent(compressed[idx])) if idx.size else np.zeros((m, m))
         if not np.isfinite(K).all():
             status, message = "nan", "the law returned a non-finite tangent"
             break
-        d = _solve_step(K, g, all_springs)
+        d = _solve_step(K, g, Q, all_springs)
         slope = g @ d
         if slope >= 0 or not np.any(d):
             # No descent direction is left: the gradient lies in directions nothing resists.
