@@ -123,7 +123,16 @@ def _run(problem: ContactProblem, method: str, certificate_tol: float, options: 
     else:
         if method != "newton":
             check_load_supported(problem)
-        result = module.solve(system, problem.law, **options)
+        try:
+            result = module.solve(system, problem.law, **options)
+        except SolverError as exc:
+            # A solver that raised still yields a (failed) Solution, so that auto can fall
+            # back and strict=False can report it like any other failure.
+            nan = np.full(system.n_dofs, np.nan)
+            result = formulations.FormulationResult(
+                x=nan, stress=np.full(system.n_springs, np.nan), success=False,
+                status=exc.status or "solver_error", message=str(exc),
+            )
     u = problem.full_u(result.x)
     finite = np.isfinite(u).all()
     strain = problem.strain(u) if finite else np.full(len(problem.layer), np.nan)
@@ -172,13 +181,15 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     if method == "auto":
-        solution = _run(problem, "newton", certificate_tol, {k: v for k, v in options.items() if k in ("x0",)})
+        newton_options = {k: v for k, v in options.items() if k in ("x0", "max_iter")}
+        solution = _run(problem, "newton", certificate_tol, newton_options)
         if not solution.success:
             _raise_if_unsupported(problem)
             fallback = "qp" if problem.law.is_linear else "nlp"
             reason = (f"newton ended with status {solution.status!r} and certificate residual "
                       f"{solution.certificate.worst()}")
-            solution = _run(problem, fallback, certificate_tol, {k: v for k, v in options.items() if k != "x0"})
+            fallback_options = {k: v for k, v in options.items() if k not in ("x0", "max_iter")}
+            solution = _run(problem, fallback, certificate_tol, fallback_options)
             solution.info["fallback"] = reason
         solution.info.setdefault("fallback", None)
         solution.info["requested"] = "auto"

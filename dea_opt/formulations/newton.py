@@ -152,6 +152,10 @@ def solve(
         if not accepted:
             if gnorm <= 1e3 * gtol or rounding:
                 status, message, success = "converged", "step below rounding of Phi", True
+            elif law.bounded_strain and eps.min() < -1 + 1e-6:
+                status, message = "crushed", (
+                    "the springs reach eps = -1 (crushed through their thickness) before the load "
+                    "is carried: the load is beyond what this layer can bear")
             else:
                 status, message = "line_search", "the line search found no decrease of Phi"
             break
@@ -172,6 +176,10 @@ def solve(
             if np.linalg.norm(internal - r) / scale <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
+    if not success and law.bounded_strain and eps.min(initial=0.0) < -1 + 1e-4:
+        status, message = "crushed", (
+            f"{message}; springs reach eps = {eps.min():.6f}, crushed through their thickness before "
+            f"the load is carried: the load is beyond what this layer can bear")
     stress = law.stress(np.minimum(eps, 0.0))
     return FormulationResult(
         x=x,

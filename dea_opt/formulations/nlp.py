@@ -17,7 +17,7 @@ import time
 
 import numpy as np
 
-from ..errors import InputError, MissingDependencyError
+from ..errors import InputError, MissingDependencyError, SolverError
 from .base import FormulationResult, SpringSystem
 
 PAGE = "formulations/nlp.md"
@@ -106,7 +106,10 @@ class NLPModel:
         else:
             args["x0"] = self._start(x0)
         start = time.perf_counter()
-        out = self.solver(**args)
+        try:
+            out = self.solver(**args)
+        except RuntimeError as exc:
+            raise SolverError(f"IPOPT raised: {exc}", status="exception") from exc
         elapsed = time.perf_counter() - start
         stats = self.solver.stats()
         z = np.asarray(out["x"], dtype=float).reshape(-1)

@@ -9,6 +9,7 @@ forces come from the duals of ``c + e0 + A x >= 0`` (``lambda_i = V_i H c_i``).
 from __future__ import annotations
 
 import time
+import warnings
 
 import numpy as np
 
@@ -77,7 +78,10 @@ class QPModel:
         options = {**TOLERANCE_OPTIONS.get(self.solver, lambda t: {})(tol), **solver_options}
         start = time.perf_counter()
         try:
-            self.problem.solve(solver=self.solver, warm_start=warm_start, **options)
+            with warnings.catch_warnings():
+                # dea_opt certifies every answer itself; cvxpy's own doubt adds nothing.
+                warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+                self.problem.solve(solver=self.solver, warm_start=warm_start, **options)
         except cp.error.SolverError as exc:
             raise SolverError(f"{self.solver} failed: {exc}", status="solver_error") from exc
         elapsed = time.perf_counter() - start
