@@ -20,6 +20,8 @@ METHODS = ("auto", *formulations.FORMULATIONS)
 #: Relative residual of the cone test above which a load counts as not carried.
 _CONE_TOL = 1e-7
 _LINEAR_VALIDITY = 0.3
+#: Compressive strain beyond which any law's answer is flagged as a nearly crushed layer.
+_NEARLY_CRUSHED = 0.95
 
 
 def _describe_direction(names, vector, load_vector) -> str:
@@ -93,6 +95,13 @@ def _warn_validity(solution: Solution) -> None:
         warnings.warn(
             f"a spring reached strain {lowest:.3g} <= -1: the cartilage is crushed through its whole "
             f"thickness; the result is not physical (use a bounded law such as AteshianLaw, or a smaller load)",
+            ValidityWarning,
+            stacklevel=3,
+        )
+    elif lowest <= -_NEARLY_CRUSHED:
+        warnings.warn(
+            f"a spring reached strain {lowest:.6g}: the cartilage is nearly crushed through its whole "
+            f"thickness, where pressures grow without bound; check the load and the thickness",
             ValidityWarning,
             stacklevel=3,
         )
