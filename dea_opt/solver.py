@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import inspect
+import math
 import time
 import warnings
 
@@ -114,8 +116,21 @@ def _warn_validity(solution: Solution) -> None:
         )
 
 
+def _check_options(module, method: str, options: dict) -> None:
+    """Unknown options are an InputError naming the accepted ones (solver-specific
+    pass-through options are accepted where the formulation takes ``**kwargs``)."""
+    params = inspect.signature(module.solve).parameters
+    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
+        return
+    accepted = [n for n, p in params.items() if p.kind is inspect.Parameter.KEYWORD_ONLY]
+    for key in options:
+        if key not in accepted:
+            raise InputError(f"method {method!r} takes the options {accepted}, got unknown option {key!r}")
+
+
 def _run(problem: ContactProblem, method: str, certificate_tol: float, options: dict) -> Solution:
     module = formulations.get(method)
+    _check_options(module, method, options)
     if module.LINEAR_ONLY and not problem.law.is_linear:
         raise InputError(
             f"method {method!r} needs a LinearLaw, got {problem.law.describe()}: "
@@ -189,6 +204,8 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    if not isinstance(certificate_tol, (int, float)) or not (0 < certificate_tol < 1) or math.isnan(certificate_tol):
+        raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
     if method == "auto":
         newton_options = {k: v for k, v in options.items() if k in ("x0", "max_iter")}
         solution = _run(problem, "newton", certificate_tol, newton_options)

@@ -154,3 +154,16 @@ def test_bounded_law_nearly_crushed_warns():
     with pytest.warns(d.ValidityWarning, match="nearly crushed"):
         s = d.solve(_bed(d.AteshianLaw(0.6, 0.0), force=(0, 0, -400.0)), "newton")
     assert -1 < s.strain.min() <= -0.95
+
+
+def test_unknown_option_names_the_accepted_ones():
+    with pytest.raises(d.InputError, match=r"method 'newton' takes the options .*'x0'.* got unknown option 'tolx'"):
+        d.solve(_bed(), "newton", tolx=1e-3)
+    with pytest.raises(d.InputError, match=r"unknown option 'solver'"):
+        d.solve(_bed(), "nlp", solver="CLARABEL")
+
+
+@pytest.mark.parametrize("tol", [0, -1e-6, 2.0, float("nan"), "tight"])
+def test_bad_certificate_tolerance(tol):
+    with pytest.raises(d.InputError, match="certificate_tol must be a number in"):
+        d.solve(_bed(), "newton", certificate_tol=tol)
