@@ -19,15 +19,19 @@ DOF_NAMES = tuple(f"body{b}.{d}" for b in (1, 2) for d in DOFS)
 
 
 def normal_operator(points, normals, reference1, reference2) -> np.ndarray:
-    """The rows ``n_i^T B_i`` of Eq. (11), shape (N, 12), in mm per unit of ``u``."""
+    """The rows ``n_i^T B_i`` of Eq. (11), shape (N, 12), in mm per unit of ``u``.
+
+    Returned as the transpose of a C-contiguous (12, N) array: products over the springs
+    (``G @ u``, ``G.T @ f``) then stream through memory once per dof.
+    """
     n = np.asarray(normals, dtype=float)
     p = np.asarray(points, dtype=float)
-    G = np.empty((p.shape[0], 12))
-    G[:, 0:3] = -n
-    G[:, 3:6] = -np.cross(p - np.asarray(reference1, dtype=float), n)
-    G[:, 6:9] = n
-    G[:, 9:12] = np.cross(p - np.asarray(reference2, dtype=float), n)
-    return G
+    GT = np.empty((12, p.shape[0]))
+    GT[0:3] = -n.T
+    GT[3:6] = -np.cross(p - np.asarray(reference1, dtype=float), n).T
+    GT[6:9] = n.T
+    GT[9:12] = np.cross(p - np.asarray(reference2, dtype=float), n).T
+    return GT.T
 
 
 def relative_displacement(points, u, reference1, reference2) -> np.ndarray:

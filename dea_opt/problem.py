@@ -234,16 +234,16 @@ class ContactProblem:
 
     @cached_property
     def _geometry(self) -> tuple:
-        G = self.normal_operator
+        GT = self.normal_operator.T
         h = self.layer.thickness
-        A = np.ascontiguousarray(G[:, self.free_indices] / h[:, None])
-        e0 = (self.layer.gap + G @ self.prescribed_u) / h
-        return A, e0, self.layer.areas * h
+        AT = GT[self.free_indices] / h
+        e0 = (self.layer.gap + self.prescribed_u @ GT) / h
+        return AT, e0, self.layer.areas * h
 
     def system(self) -> SpringSystem:
         """The reduced problem over the free dofs, for the formulations."""
-        A, e0, volume = self._geometry
-        return SpringSystem(A, e0, volume, self.load_vector[self.free_indices])
+        AT, e0, volume = self._geometry
+        return SpringSystem(AT, e0, volume, self.load_vector[self.free_indices])
 
     def full_u(self, x) -> np.ndarray:
         """The 12-vector ``u`` from the free-dof vector ``x``."""
@@ -253,7 +253,20 @@ class ContactProblem:
 
     def strain(self, u) -> np.ndarray:
         """``eps_i = (gap_i + n_i . B_i u) / h_i`` (Eq. 11), shape (N,)."""
-        return (self.layer.gap + self.normal_operator @ np.asarray(u, dtype=float)) / self.layer.thickness
+        return (self.layer.gap + np.asarray(u, dtype=float) @ self.normal_operator.T) / self.layer.thickness
+
+    @cached_property
+    def layer_radius(self) -> np.ndarray:
+        """RMS distance of the springs from each body's reference (mm), shape (2,)."""
+        points = self.layer.points
+        if not len(points):
+            return np.ones(2)
+        mean, mean_sq = points.mean(axis=0), float(np.mean(np.einsum("ij,ij->i", points, points)))
+        radius = []
+        for body in (self.body1, self.body2):
+            c = np.asarray(body.reference)
+            radius.append(max(np.sqrt(max(mean_sq - 2 * c @ mean + c @ c, 0.0)), 1e-12))
+        return np.array(radius)
 
     def __repr__(self) -> str:
         return (

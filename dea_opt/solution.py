@@ -67,17 +67,6 @@ class Certificate:
         }
 
 
-def _moment_length(problem) -> np.ndarray:
-    """Per-dof divisor that turns N mm into N: 1 for forces, the layer radius for moments."""
-    points = problem.layer.points
-    length = np.ones(12)
-    for k, body in enumerate((problem.body1, problem.body2)):
-        if len(points):
-            radius = float(np.sqrt(np.mean(np.sum((points - body.reference) ** 2, axis=1))))
-            length[6 * k + 3 : 6 * k + 6] = max(radius, 1e-12)
-    return length
-
-
 def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate:
     """Check ``u`` against the law: equilibrium, sign, complementarity, optimality.
 
@@ -90,38 +79,38 @@ def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate
     tolerance : float
     """
     layer, law = problem.layer, problem.law
+    system = problem.system()
+    free = problem.free_indices
+    x = np.asarray(u, dtype=float)[free]
     eps = problem.strain(u)
     compressed = np.minimum(eps, 0.0)
     with np.errstate(invalid="ignore", over="ignore"):
         sigma = law.stress(compressed)
     force = layer.areas * sigma
     reported = layer.areas * np.asarray(reported_stress, dtype=float)
-    free = problem.free_indices
-    G = problem.normal_operator
-    q = G.T @ force
-    length = _moment_length(problem)[free]
-    residual = (q - problem.load_vector)[free] / length
-    r = problem.load_vector[free] / length
+    # A^T (V sigma) = G_free^T (S sigma): the generalized spring force on the free dofs.
+    g = system.AT @ (system.volume * sigma) - system.load
+    length = np.repeat(problem.layer_radius, 6)[free]
+    length[[i for i, k in enumerate(free) if k % 6 < 3]] = 1.0
     fmax = max(np.max(np.abs(force), initial=0.0), np.max(np.abs(reported), initial=0.0))
     fscale = max(fmax, 1e-300)
-    scale = max(np.linalg.norm(r), np.sum(np.abs(force)), 1e-300)
-    equilibrium = float(np.linalg.norm(residual) / scale) if free.size else 0.0
+    scale = max(np.linalg.norm(system.load / length), np.sum(np.abs(force)), 1e-300)
+    equilibrium = float(np.linalg.norm(g / length) / scale) if free.size else 0.0
     tension = float(max(np.max(reported, initial=0.0), 0.0) / fscale)
     complementarity = float(np.max(np.abs(reported) * np.maximum(eps, 0.0), initial=0.0) / fscale)
     consistency = float(np.max(np.abs(reported - force), initial=0.0) / fscale)
     energy = 0.0
     if free.size and len(eps):
-        active = eps < 0
-        A = G[np.ix_(active, free)] / layer.thickness[active, None]
+        rows = np.flatnonzero(eps < 0)
         with np.errstate(invalid="ignore", over="ignore"):
-            weight = layer.areas[active] * layer.thickness[active] * law.tangent(compressed[active])
-        g = (q - problem.load_vector)[free]
+            weight = system.volume[rows] * law.tangent(compressed[rows])
         if np.isfinite(weight).all() and np.isfinite(g).all():
-            K = A.T @ (A * weight[:, None])
+            AT = system.AT[:, rows]
+            K = (AT * weight) @ AT.T
             decrement = float(g @ np.linalg.lstsq(K, g, rcond=1e-12)[0]) if np.any(K) else 0.0
             with np.errstate(invalid="ignore", over="ignore"):
-                stored = float(layer.areas @ (layer.thickness * law.energy(compressed)))
-            work = abs(float(problem.load_vector @ (u - problem.prescribed_u)))
+                stored = float(system.volume[rows] @ law.energy(compressed[rows]))
+            work = abs(float(system.load @ x))
             energy = 0.5 * abs(decrement) / max(stored + work, 1e-300)
         else:
             energy = float("nan")
@@ -271,3 +260,34 @@ class Solution:
             f"Solution(method={self.method!r}, success={self.success}, peak={self.peak_pressure:.6g} MPa, "
             f"area={self.contact_area:.6g} mm^2, nit={self.iterations})"
         )
+
+    # --- output files (dea_opt.io) ----------------------------------------------------
+    def to_vtk(self, path, **kw):
+        """Write the contact surface with cell data (``.vtu``/``.vtp``); see :func:`dea_opt.io.to_vtk`."""
+        from .io import to_vtk
+
+        return to_vtk(self, path, **kw)
+
+    def to_csv(self, path):
+        """Write one row per spring; see :func:`dea_opt.io.to_csv` for the columns."""
+        from .io import to_csv
+
+        return to_csv(self, path)
+
+    def to_json(self, path, **kw):
+        """Write the summary as JSON; see :func:`dea_opt.io.to_json`."""
+        from .io import to_json
+
+        return to_json(self, path, **kw)
+
+    def plot_pressure(self, path, **kw):
+        """Draw a pressure map to a PNG; see :func:`dea_opt.io.plot_pressure`."""
+        from .io import plot_pressure
+
+        return plot_pressure(self, path, **kw)
+
+    def regions(self, labels=None, planes=None):
+        """Statistics per region; see :func:`dea_opt.regions.regional_statistics`."""
+        from .regions import regional_statistics
+
+        return regional_statistics(self, labels=labels, planes=planes)

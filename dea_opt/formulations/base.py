@@ -23,8 +23,9 @@ class SpringSystem:
 
     Attributes
     ----------
-    A : ndarray, shape (N, m)
-        Strain per unit free displacement (1/mm, 1/rad), float64 C-contiguous.
+    AT : ndarray, shape (m, N)
+        Strain per unit free displacement (1/mm, 1/rad), float64 C-contiguous: one row per
+        dof, so every pass over the springs reads memory in order.
     e0 : ndarray, shape (N,)
         Strain at ``x = 0``.
     volume : ndarray, shape (N,)
@@ -33,24 +34,29 @@ class SpringSystem:
         Generalized load on the free dofs (N, N mm).
     """
 
-    A: np.ndarray
+    AT: np.ndarray
     e0: np.ndarray
     volume: np.ndarray
     load: np.ndarray
 
     @property
+    def A(self) -> np.ndarray:
+        """``AT.T``, shape (N, m): the rows ``n_i^T B_i / h_i`` over the free dofs."""
+        return self.AT.T
+
+    @property
     def n_springs(self) -> int:
-        return self.A.shape[0]
+        return self.AT.shape[1]
 
     @property
     def n_dofs(self) -> int:
-        return self.A.shape[1]
+        return self.AT.shape[0]
 
     def strain(self, x) -> np.ndarray:
-        return self.e0 + self.A @ x
+        return self.e0 + np.asarray(x, dtype=float) @ self.AT
 
     def with_load(self, load) -> "SpringSystem":
-        return SpringSystem(self.A, self.e0, self.volume, np.asarray(load, dtype=float))
+        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float))
 
 
 @dataclass

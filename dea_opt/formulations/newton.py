@@ -28,8 +28,9 @@ def _energy(law, volume, eps) -> float:
     return float(volume @ law.energy(np.minimum(eps, 0.0)))
 
 
-def _tangent(A, weight) -> np.ndarray:
-    return A.T @ (A * weight[:, None])
+def _tangent(AT, weight) -> np.ndarray:
+    """``AT diag(weight) AT^T``, shape (m, m): Eq. (16) as one matrix product."""
+    return (AT * weight) @ AT.T
 
 
 def _resisted_basis(K_all) -> np.ndarray:
@@ -86,10 +87,10 @@ def solve(
         Treat every spring as active in the first iteration.
     """
     start = time.perf_counter()
-    A, e0, V, r = system.A, system.e0, system.volume, system.load
-    m = A.shape[1]
+    AT, e0, V, r = system.AT, system.e0, system.volume, system.load
+    m = AT.shape[0]
     x = np.zeros(m) if x0 is None else np.array(x0, dtype=float)
-    eps = e0 + A @ x
+    eps = e0 + x @ AT
     if law.bounded_strain and (eps <= -1).any():
         x = np.zeros(m)  # a warm start outside the law's domain is no start
         eps = e0.copy()
@@ -102,11 +103,10 @@ def solve(
     for it in range(1, max_iter + 1):
         compressed = np.minimum(eps, 0.0)
         sigma = law.stress(compressed)
-        internal = A.T @ (V * sigma)
+        internal = AT @ (V * sigma)
         g = internal - r
         scale = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
         gnorm = np.linalg.norm(g) / scale
-        active = eps < 0
         if not np.isfinite(gnorm):
             status, message = "nan", "the law returned a non-finite stress"
             break
@@ -116,7 +116,7 @@ def solve(
             break
 
         def all_springs():
-            return _tangent(A, V * law.tangent(compressed))
+            return _tangent(AT, V * law.tangent(compressed))
 
         if Q is None:
             # Directions no spring resists carry no load (checked before any method runs
@@ -126,8 +126,8 @@ def solve(
         if it == 1 and extended_start:
             K = K_all
         else:
-            idx = np.flatnonzero(active)
-            K = _tangent(A[idx], V[idx] * law.tangent(compressed[idx])) if idx.size else np.zeros((m, m))
+            rows = np.flatnonzero(eps < 0)
+            K = _tangent(AT[:, rows], V[rows] * law.tangent(compressed[rows])) if rows.size else np.zeros((m, m))
         if not np.isfinite(K).all():
             status, message = "nan", "the law returned a non-finite tangent"
             break
@@ -137,7 +137,7 @@ def solve(
             # No descent direction is left: the gradient lies in directions nothing resists.
             status, message = "stalled", "no descent direction (unsupported load direction?)"
             break
-        Ad = A @ d
+        Ad = d @ AT
         alpha, accepted = 1.0, False
         rounding = abs(slope) <= 1e-14 * max(abs(phi), 1e-300)
         for _ in range(60):
@@ -166,12 +166,9 @@ def solve(
         new_active = eps < 0
         settled = previous_active is not None and np.array_equal(new_active, previous_active)
         previous_active = new_active
-        xnorm = np.linalg.norm(x)
-        if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(xnorm, 1e-300):
+        if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(np.linalg.norm(x), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
-            compressed = np.minimum(eps, 0.0)
-            sigma = law.stress(compressed)
-            internal = A.T @ (V * sigma)
+            internal = AT @ (V * law.stress(np.minimum(eps, 0.0)))
             scale = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
             if np.linalg.norm(internal - r) / scale <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
