@@ -1,0 +1,256 @@
+"""Regional statistics: how the load splits between parts of the contact.
+
+Regions are sets of springs, given by labels (``SpringLayer.labels`` or an array of your
+own), by half-spaces ``{name: (point, normal)}``, or by a cut across one axis
+(:func:`split_by_axis`, OpenSim-JAM's medial/lateral, anterior/posterior and
+superior/inferior split). Each region reports a :class:`RegionStats`.
+
+Units: mm, mm^2, N, MPa.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._validate import as_float_array, finite_number
+from .errors import InputError
+
+__all__ = ["RegionStats", "regional_statistics", "split_by_axis", "region_statistics"]
+
+_AXES = {"x": 0, "y": 1, "z": 2}
+
+
+@dataclass(frozen=True)
+class RegionStats:
+    """The load carried by one region of the contact.
+
+    Attributes
+    ----------
+    name : str
+        The region's name (a label, a half-space name or a side of a split).
+    n_springs : int
+        Springs in the region.
+    area : float
+        Area of all the region's springs (mm^2), in contact or not.
+    force : float
+        Sum of the spring force magnitudes ``sum p_i S_i`` over the region (N).
+    force_vector : ndarray, shape (3,)
+        Resultant force of the region's springs on body 2 (N).
+    share : float
+        ``force`` divided by the total over all springs (``Solution.total_normal_force``);
+        NaN when nothing is in contact.
+    peak_pressure : float
+        Largest pressure in the region (MPa); 0 without contact.
+    mean_pressure : float
+        Area-weighted mean pressure over the region's contact area (MPa); 0 without contact.
+    contact_area : float
+        Area of the region's springs in contact (mm^2).
+    center_of_pressure : ndarray, shape (3,)
+        Pressure-weighted centroid of the region's springs (mm); NaN without contact.
+    """
+
+    name: str
+    n_springs: int
+    area: float
+    force: float
+    force_vector: np.ndarray
+    share: float
+    peak_pressure: float
+    mean_pressure: float
+    contact_area: float
+    center_of_pressure: np.ndarray
+
+    def as_dict(self) -> dict:
+        """Plain Python values (lists for vectors; NaN stays NaN, see ``dea_opt.io``)."""
+        return {
+            "name": self.name,
+            "n_springs": self.n_springs,
+            "area": self.area,
+            "force": self.force,
+            "force_vector": self.force_vector.tolist(),
+            "share": self.share,
+            "peak_pressure": self.peak_pressure,
+            "mean_pressure": self.mean_pressure,
+            "contact_area": self.contact_area,
+            "center_of_pressure": self.center_of_pressure.tolist(),
+        }
+
+
+def region_statistics(solution, mask, name: str = "region") -> RegionStats:
+    """The :class:`RegionStats` of the springs selected by ``mask``.
+
+    Parameters
+    ----------
+    solution : Solution
+    mask : array_like of bool, shape (N,)
+        True for the springs in the region.
+    name : str
+    """
+    layer = solution.problem.layer
+    n = len(layer)
+    mask = np.asarray(mask)
+    if mask.shape != (n,) or mask.dtype != bool:
+        raise InputError(f"mask must be booleans of shape ({n},), got shape {mask.shape} and dtype {mask.dtype}")
+    pressure = solution.pressure[mask]
+    areas = layer.areas[mask]
+    weight = pressure * areas
+    force = float(weight.sum())
+    total = solution.total_normal_force
+    contact = solution.in_contact[mask]
+    contact_area = float(areas[contact].sum())
+    if force > 0:
+        cop = weight @ layer.points[mask] / force
+    else:
+        cop = np.full(3, np.nan)
+    return RegionStats(
+        name=str(name),
+        n_springs=int(mask.sum()),
+        area=float(areas.sum()),
+        force=force,
+        force_vector=weight @ layer.normals[mask] if mask.any() else np.zeros(3),
+        share=force / total if total > 0 else float("nan"),
+        peak_pressure=float(pressure.max(initial=0.0)),
+        mean_pressure=force / contact_area if contact_area > 0 else 0.0,
+        contact_area=contact_area,
+        center_of_pressure=cop,
+    )
+
+
+def _label_masks(labels, n) -> dict:
+    labels = np.asarray(labels)
+    if labels.shape != (n,):
+        raise InputError(f"labels must have shape ({n},), got shape {labels.shape}")
+    return {str(value): labels == value for value in np.unique(labels)}
+
+
+def _unit_vector(name: str, value) -> np.ndarray:
+    vector = as_float_array(name, value, (3,))
+    length = np.linalg.norm(vector)
+    if length <= 1e-12:
+        raise InputError(f"{name} must be a nonzero vector, got {vector.tolist()}")
+    return vector / length
+
+
+def _plane_masks(planes, points) -> dict:
+    if not hasattr(planes, "items"):
+        raise InputError(
+            f"planes must be a mapping {{name: (point, normal)}}, got {type(planes).__name__}"
+        )
+    masks = {}
+    for name, spec in planes.items():
+        try:
+            point, normal = spec
+        except (TypeError, ValueError):
+            raise InputError(f"planes[{name!r}] must be a pair (point, normal), got {spec!r}") from None
+        point = as_float_array(f"planes[{name!r}] point", point, (3,))
+        normal = _unit_vector(f"planes[{name!r}] normal", normal)
+        masks[str(name)] = (points - point) @ normal >= 0.0
+    return masks
+
+
+def regional_statistics(solution, labels=None, planes=None) -> dict:
+    """Force, share, peak and mean pressure, contact area and centre of pressure per region.
+
+    Parameters
+    ----------
+    solution : Solution
+    labels : array_like, shape (N,), optional
+        A region label per spring. Default: the layer's ``labels`` when ``planes`` is not
+        given. To get label regions and half-spaces together, pass
+        ``labels=solution.problem.layer.labels`` and ``planes``.
+    planes : mapping {name: (point (3,), normal (3,))}, optional
+        Half-space regions: the springs with ``(x - point) . normal >= 0`` (mm). Half-spaces
+        may overlap or leave springs out; their shares then need not add up to 1.
+
+    Returns
+    -------
+    dict {name: RegionStats}
+        Label regions in sorted label order, then the half-spaces in the given order.
+        Label regions partition the springs, so their forces add up to the total.
+
+    Raises
+    ------
+    InputError
+        No regions (no ``labels``, no ``planes`` and a layer without labels), labels of the
+        wrong shape, a malformed plane, or a name used twice.
+    """
+    layer = solution.problem.layer
+    n = len(layer)
+    if labels is None and planes is None:
+        labels = layer.labels
+        if labels is None:
+            raise InputError(
+                "regional_statistics needs regions: the layer has no labels, so pass "
+                "labels=(N,) array or planes={name: (point, normal)}"
+            )
+    masks = _label_masks(labels, n) if labels is not None else {}
+    if planes is not None:
+        for name, mask in _plane_masks(planes, layer.points).items():
+            if name in masks:
+                raise InputError(f"planes uses the name {name!r} of a label region; rename it")
+            masks[name] = mask
+    return {name: region_statistics(solution, mask, name) for name, mask in masks.items()}
+
+
+def _axis(axis) -> np.ndarray:
+    if isinstance(axis, str):
+        key = axis.strip().lower()
+        sign = -1.0 if key.startswith("-") else 1.0
+        key = key.lstrip("+-")
+        if key not in _AXES:
+            raise InputError(f"axis must be 'x', 'y', 'z' (optionally signed) or a 3-vector, got {axis!r}")
+        vector = np.zeros(3)
+        vector[_AXES[key]] = sign
+        return vector
+    return _unit_vector("axis", axis)
+
+
+def split_by_axis(solution, axis="x", at=None, names=("medial", "lateral")) -> dict:
+    """Split the springs in two by a plane across ``axis`` (JAM's medial/lateral split).
+
+    Parameters
+    ----------
+    solution : Solution
+    axis : {"x", "y", "z", "-x", "-y", "-z"} or array_like, shape (3,)
+        Direction across which to split; a vector is normalized.
+    at : float, "cop", "centroid" or None
+        Where to cut, as a coordinate along ``axis`` (mm). ``None`` or ``"cop"``: at the
+        centre of pressure (at the area centroid of the springs when nothing is in
+        contact); ``"centroid"``: at the area centroid of the springs. The centre of
+        pressure separates two contact patches (the knee's compartments); to split one
+        patch, give a coordinate.
+    names : pair of str
+        ``names[0]`` for the springs with coordinate ``< at``, ``names[1]`` for ``>= at``.
+        Which side is medial depends on the frame and on the side of the body: check it.
+
+    Returns
+    -------
+    dict {name: RegionStats}
+        Two regions that partition the springs: their forces add up to the total.
+    """
+    layer = solution.problem.layer
+    direction = _axis(axis)
+    try:
+        low, high = (str(v) for v in names)
+    except (TypeError, ValueError):
+        raise InputError(f"names must be a pair of strings, got {names!r}") from None
+    if low == high:
+        raise InputError(f"names must be two different strings, got {names!r}")
+    coordinate = layer.points @ direction
+    centroid = float(layer.areas @ coordinate / layer.areas.sum()) if len(layer) else 0.0
+    if at is None or (isinstance(at, str) and at == "cop"):
+        cop = solution.center_of_pressure
+        cut = float(cop @ direction) if np.isfinite(cop).all() else centroid
+    elif isinstance(at, str) and at == "centroid":
+        cut = centroid
+    else:
+        if isinstance(at, str):
+            raise InputError(f"at must be a number, 'cop', 'centroid' or None, got {at!r}")
+        cut = finite_number("at", at)
+    below = coordinate < cut
+    return {
+        low: region_statistics(solution, below, low),
+        high: region_statistics(solution, ~below, high),
+    }
