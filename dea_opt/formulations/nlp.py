@@ -45,23 +45,33 @@ class NLPModel:
         start = time.perf_counter()
         self.system, self.law, self.form = system, law, form
         m, n = system.n_dofs, system.n_springs
-        A = ca.DM(system.A)
         V = ca.DM(system.volume)
         e0 = system.e0
         r = ca.MX.sym("r", m)
         x = ca.MX.sym("x", m)
         if form == "constrained":
+            # Each block of about sqrt(N) springs sees its own copy of x, tied to x by
+            # equalities: the KKT matrix then has no row as long as N, which MUMPS's ordering
+            # handles badly (formulations/nlp.md, "Block copies").
+            size = max(int(np.ceil(np.sqrt(n))), 1)
+            self.n_blocks = nb = max(int(np.ceil(n / size)), 1)
+            block = np.arange(n) // size
+            select = ca.DM(ca.Sparsity.triplet(nb, n, block.tolist(), list(range(n))), 1.0)
+            copies = ca.MX.sym("x_blocks", m, nb)
             c = ca.MX.sym("c", n)
-            z = ca.vertcat(x, c)
+            z = ca.vertcat(x, ca.vec(copies), c)
             energy = ca.dot(V, law.energy(-c))
-            g = c + ca.mtimes(A, x)
-            self.lbg, self.ubg = -e0, np.full(n, np.inf)
+            contact = c + ca.sum1(ca.DM(system.AT) * ca.mtimes(copies, select)).T
+            tie = ca.vec(copies - ca.repmat(x, 1, nb))
+            g = ca.vertcat(contact, tie)
+            self.lbg = np.concatenate([-e0, np.zeros(m * nb)])
+            self.ubg = np.concatenate([np.full(n, np.inf), np.zeros(m * nb)])
             upper = 1.0 - _CRUSH_MARGIN if law.bounded_strain else np.inf
-            self.lbx = np.concatenate([np.full(m, -np.inf), np.zeros(n)])
-            self.ubx = np.concatenate([np.full(m, np.inf), np.full(n, upper)])
+            self.lbx = np.concatenate([np.full(m * (nb + 1), -np.inf), np.zeros(n)])
+            self.ubx = np.concatenate([np.full(m * (nb + 1), np.inf), np.full(n, upper)])
             nlp = {"x": z, "p": r, "f": energy - ca.dot(r, x), "g": g}
         else:
-            eps = ca.DM(e0) + ca.mtimes(A, x)
+            eps = ca.DM(e0) + ca.mtimes(ca.DM(system.A), x)
             energy = ca.dot(V, law.energy(ca.fmin(eps, 0)))
             self.lbg = self.ubg = np.zeros(0)
             self.lbx, self.ubx = np.full(m, -np.inf), np.full(m, np.inf)
@@ -91,10 +101,10 @@ class NLPModel:
         x0 = np.zeros(m) if x0 is None else np.asarray(x0, dtype=float)
         if self.form == "reduced":
             return x0
-        c0 = np.maximum(-(system.e0 + system.A @ x0), 0.0)
+        c0 = np.maximum(-system.strain(x0), 0.0)
         if self.law.bounded_strain:
             c0 = np.minimum(c0, 0.5)
-        return np.concatenate([x0, c0])
+        return np.concatenate([x0, np.tile(x0, self.n_blocks), c0])
 
     def solve(self, load=None, *, x0=None, warm_start: bool = True) -> FormulationResult:
         system = self.system
@@ -115,7 +125,7 @@ class NLPModel:
         z = np.asarray(out["x"], dtype=float).reshape(-1)
         x = z[:m]
         if self.form == "constrained":
-            stress = np.asarray(out["lam_g"], dtype=float).reshape(-1) / system.volume
+            stress = np.asarray(out["lam_g"], dtype=float).reshape(-1)[: system.n_springs] / system.volume
             self._warm = {"x0": z, "lam_x0": out["lam_x"], "lam_g0": out["lam_g"]}
         else:
             stress = self.law.stress(np.minimum(system.strain(x), 0.0))
