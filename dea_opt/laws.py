@@ -192,7 +192,9 @@ class AteshianLaw(Law):
     def energy_expr(self, eps, xp):
         # q = ln(lam^-2 exp(lam^2 - 1)); w = H/(4 beta) expm1(beta q) -> H q / 4 as beta -> 0
         q = eps * (2.0 + eps) - 2.0 * xp.log1p(eps)
-        if self.beta == 0.0:
+        if self.beta < 1e-12:
+            # The beta -> 0 limit; it differs from the exact form by O(beta q), and it does
+            # not divide by a beta that may underflow.
             return 0.25 * self.H * q
         return 0.25 * self.H / self.beta * xp.expm1(self.beta * q)
 

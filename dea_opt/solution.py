@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .formulations.base import UNRESISTED
 from .kinematics import DOF_NAMES
 
 __all__ = ["Certificate", "Solution", "certify"]
@@ -18,16 +19,19 @@ class Certificate:
     Attributes
     ----------
     equilibrium : float
-        ``|q - r|`` over the free dofs, relative to ``max(|r|, sum |f_i|)``, where ``q`` is the
-        generalized force of the law's spring forces at ``u`` (moments divided by the
-        layer's radius about each reference so forces and moments weigh alike).
+        The residual ``g = q - r`` over the free dofs (``q`` the generalized force of the
+        law's spring forces at ``u``), the larger of two measures: in the norm of the bonded
+        stiffness ``K0``, ``sqrt(g K0^+ g / r K0^+ r)`` (free of units and of where the
+        reference points are), and per dof relative to ``max(|r|, sum |f_i|)`` with moments
+        divided by the layer's radius. Any load along a direction no spring resists counts
+        in full.
     tension : float
-        Largest tensile spring force the formulation reported, relative to the largest force.
+        Tensile spring force the formulation reported, as a fraction of the total force.
     complementarity : float
-        ``max_i |f_i| max(eps_i, 0)`` relative to the largest force: open springs carry nothing.
+        ``sum_i |f_i| max(eps_i, 0)`` over the total force: open springs carry nothing.
     consistency : float
-        Largest difference between the formulation's spring forces (e.g. QP duals) and
-        the law's forces at ``u``, relative to the largest force.
+        ``sum_i |f_i^rep - f_i(u)|`` over the total force: the formulation's own spring forces
+        (the duals, for the constrained formulations) against the law's at ``u``.
     energy : float
         Energy a further Newton step could still release, ``g^T K^+ g / 2``, relative to
         the strain energy plus the work of the load.
@@ -67,6 +71,23 @@ class Certificate:
         }
 
 
+def _stiffness_norm_ratio(AT, stiffness, g, r, q) -> float:
+    """``sqrt(g K0^+ g / max(r K0^+ r, q K0^+ q))`` plus the part of ``g`` nothing resists."""
+    K0 = (AT * stiffness) @ AT.T
+    vals, vecs = np.linalg.eigh(K0)
+    top = vals[-1] if vals.size else 0.0
+    keep = vals > UNRESISTED * max(top, 0.0)
+
+    def norm2(v):
+        w = vecs[:, keep].T @ v
+        return float(w @ (w / vals[keep]))
+
+    scale = max(norm2(r), norm2(q), 1e-300)
+    unresisted = vecs[:, ~keep].T @ g
+    rnorm = max(np.linalg.norm(r), np.linalg.norm(q), 1e-300)
+    return max(np.sqrt(norm2(g) / scale), float(np.linalg.norm(unresisted) / rnorm))
+
+
 def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate:
     """Check ``u`` against the law: equilibrium, sign, complementarity, optimality.
 
@@ -86,36 +107,37 @@ def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate
     compressed = np.minimum(eps, 0.0)
     with np.errstate(invalid="ignore", over="ignore"):
         sigma = law.stress(compressed)
-    force = layer.areas * sigma
-    reported = layer.areas * np.asarray(reported_stress, dtype=float)
-    # A^T (V sigma) = G_free^T (S sigma): the generalized spring force on the free dofs.
-    g = system.AT @ (system.volume * sigma) - system.load
-    length = np.repeat(problem.layer_radius, 6)[free]
-    length[[i for i, k in enumerate(free) if k % 6 < 3]] = 1.0
-    fmax = max(np.max(np.abs(force), initial=0.0), np.max(np.abs(reported), initial=0.0))
-    fscale = max(fmax, 1e-300)
-    scale = max(np.linalg.norm(system.load / length), np.sum(np.abs(force)), 1e-300)
-    equilibrium = float(np.linalg.norm(g / length) / scale) if free.size else 0.0
-    tension = float(max(np.max(reported, initial=0.0), 0.0) / fscale)
-    complementarity = float(np.max(np.abs(reported) * np.maximum(eps, 0.0), initial=0.0) / fscale)
-    consistency = float(np.max(np.abs(reported - force), initial=0.0) / fscale)
-    energy = 0.0
-    if free.size and len(eps):
+        force = layer.areas * sigma
+        reported = layer.areas * np.asarray(reported_stress, dtype=float)
+        # A^T (V sigma) = G_free^T (S sigma): the generalized spring force on the free dofs.
+        q = system.AT @ (system.volume * sigma)
+    g = q - system.load
+    if not (np.isfinite(sigma).all() and np.isfinite(reported).all()):
+        nan = float("nan")
+        return Certificate(nan, nan, nan, nan, nan, tolerance)
+    total = max(np.abs(force).sum(), np.abs(reported).sum(), 1e-300)
+    tension = float(np.maximum(reported, 0.0).sum() / total)
+    complementarity = float(np.abs(reported) @ np.maximum(eps, 0.0) / total)
+    consistency = float(np.abs(reported - force).sum() / total)
+    equilibrium = energy = 0.0
+    if free.size:
+        length = np.repeat(problem.layer_radius, 6)[free]
+        length[free % 6 < 3] = 1.0
+        per_dof = np.linalg.norm(g / length) / max(np.linalg.norm(system.load / length), np.abs(force).sum(), 1e-300)
+        stiffness = system.volume * (law.modulus if law.modulus > 0 else 1.0)
+        equilibrium = max(float(per_dof), _stiffness_norm_ratio(system.AT, stiffness, g, system.load, q))
         rows = np.flatnonzero(eps < 0)
-        with np.errstate(invalid="ignore", over="ignore"):
-            weight = system.volume[rows] * law.tangent(compressed[rows])
-        if np.isfinite(weight).all() and np.isfinite(g).all():
+        if rows.size:
+            with np.errstate(invalid="ignore", over="ignore"):
+                weight = system.volume[rows] * law.tangent(compressed[rows])
+                stored = float(system.volume[rows] @ law.energy(compressed[rows]))
             AT = system.AT[:, rows]
             K = (AT * weight) @ AT.T
-            decrement = float(g @ np.linalg.lstsq(K, g, rcond=1e-12)[0]) if np.any(K) else 0.0
-            with np.errstate(invalid="ignore", over="ignore"):
-                stored = float(system.volume[rows] @ law.energy(compressed[rows]))
-            work = abs(float(system.load @ x))
-            energy = 0.5 * abs(decrement) / max(stored + work, 1e-300)
-        else:
-            energy = float("nan")
-    if not np.isfinite(sigma).all():
-        equilibrium = float("nan")
+            if np.isfinite(K).all():
+                decrement = float(g @ np.linalg.lstsq(K, g, rcond=1e-12)[0])
+                energy = 0.5 * abs(decrement) / max(stored + abs(float(system.load @ x)), 1e-300)
+            else:
+                energy = float("nan")
     return Certificate(equilibrium, tension, complementarity, consistency, energy, tolerance)
 
 

@@ -144,6 +144,20 @@ def _run(problem: ContactProblem, method: str, certificate_tol: float, options: 
             x=np.zeros(0), stress=problem.law.stress(np.minimum(system.e0, 0.0)), success=True,
             status="no_free_dofs", message="every dof is fixed or prescribed",
         )
+    elif not system.load.any() and system.e0.min(initial=0.0) >= 0:
+        # Nothing pushes the bodies together: the springs stay as they are.
+        result = formulations.FormulationResult(
+            x=np.zeros(system.n_dofs), stress=np.zeros(system.n_springs), success=True,
+            status="unloaded", message="no load and no overlap: nothing to carry",
+        )
+    elif not system.load.any():
+        # Overlapping springs with no load only push the bodies apart until they no longer
+        # touch; every separated position is an equilibrium, so the constrained formulations
+        # face an unbounded optimal set. One answer is returned for every method: Newton's.
+        result = formulations.get("newton").solve(system, problem.law)
+        result.status = "unloaded"
+        result.message = ("no load: the overlap only pushes the bodies apart, and every separated "
+                          "position is an equilibrium (Newton's is returned)")
     else:
         if method != "newton":
             check_load_supported(problem)

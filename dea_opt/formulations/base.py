@@ -76,3 +76,80 @@ class FormulationResult:
     build_time: float = 0.0
     solve_time: float = 0.0
     info: dict = field(default_factory=dict)
+
+
+#: Eigenvalue ratio below which a direction of the bonded stiffness counts as unresisted.
+UNRESISTED = 1e-11
+
+
+@dataclass(frozen=True, eq=False)
+class Scaling:
+    """A change of variables that makes every formulation see a well-conditioned problem.
+
+    ``x = T xi`` with ``T = Q Lambda^(-1/2) s`` from the bonded stiffness
+    ``K0 = A^T diag(V H) A = Q Lambda Q^T`` (``formulations/energy.md``, "Scaling"):
+    directions no spring resists are dropped, the remaining ones are made K0-orthonormal
+    (so units, lever arms and far reference points no longer matter), and ``s`` makes
+    ``xi = O(1)`` for the reference load. Energies are divided by ``E0 = s^2`` and strains
+    are of order ``strain``.
+
+    Attributes
+    ----------
+    T : ndarray, shape (m, k)
+    AT : ndarray, shape (k, N)
+        ``T^T A^T``: the strain per unit ``xi``.
+    volume : ndarray, shape (N,)
+        ``V / E0``.
+    energy : float
+        ``E0``.
+    strain : float
+        A typical strain magnitude of the reference load (for scaling strain variables).
+    """
+
+    T: np.ndarray
+    AT: np.ndarray
+    volume: np.ndarray
+    energy: float
+    strain: float
+
+    @property
+    def n_dofs(self) -> int:
+        return self.T.shape[1]
+
+    def load(self, r) -> np.ndarray:
+        """The scaled load ``T^T r / E0`` for a load ``r`` on the free dofs."""
+        return self.T.T @ np.asarray(r, dtype=float) / self.energy
+
+    def to_x(self, xi) -> np.ndarray:
+        return self.T @ np.asarray(xi, dtype=float)
+
+    def to_xi(self, x) -> np.ndarray:
+        """Least-squares ``xi`` for a free-dof vector ``x`` (its resisted part)."""
+        return np.linalg.lstsq(self.T, np.asarray(x, dtype=float), rcond=None)[0]
+
+    def system(self, e0, load) -> SpringSystem:
+        """The scaled system, for a formulation that knows nothing of the scaling."""
+        return SpringSystem(self.AT, e0, self.volume, self.load(load))
+
+
+def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scaling:
+    """The :class:`Scaling` of ``system`` for a law of small-strain stiffness ``modulus``."""
+    AT, V = system.AT, system.volume
+    m = AT.shape[0]
+    stiffness = V * (modulus if modulus > 0 and np.isfinite(modulus) else 1.0)
+    K0 = (AT * stiffness) @ AT.T if AT.size else np.zeros((m, m))
+    vals, vecs = np.linalg.eigh(K0) if m else (np.zeros(0), np.zeros((0, 0)))
+    top = vals[-1] if vals.size else 0.0
+    keep = vals > UNRESISTED * max(top, 0.0)
+    T1 = vecs[:, keep] / np.sqrt(vals[keep])
+    r = system.load if reference_load is None else np.asarray(reference_load, dtype=float)
+    s = float(np.linalg.norm(T1.T @ r)) if r.size else 0.0
+    if s == 0.0:
+        # No load: the overlap the springs must push out sets the scale.
+        s = float(np.sqrt(stiffness @ np.minimum(system.e0, 0.0) ** 2))
+    if s == 0.0:
+        s = 1.0
+    T = T1 * s
+    total = float(stiffness.sum())
+    strain = s / np.sqrt(total) if total > 0 else 1.0
+    return Scaling(T=T, AT=np.ascontiguousarray(T.T @ AT), volume=V / s**2, energy=s**2, strain=strain)

@@ -3,10 +3,13 @@
 Written math: ``formulations/newton.md``. Each iteration evaluates the strains once,
 builds the gradient ``g = A^T (V sigma(min(eps, 0))) - r`` (Eq. 12) and the closed-form
 tangent ``K = A_act^T diag(V_i sigma'(eps_i)) A_act`` over the compressed springs
-(Eq. 15-18, one matrix product), solves ``K d = -g`` (Eq. 19) and backtracks on ``Phi``
-(Armijo). The first iteration treats every spring as active (the paper's extended
-range), which also starts problems whose gaps are all open; when the active tangent is
-singular the all-spring tangent is added, which keeps ``d`` a descent direction.
+(Eq. 15-18, one matrix product) and solves ``K d = -g`` (Eq. 19). The first iteration is the
+paper's extended range: every spring active, tension included, which also closes open
+gaps in one step. A line search on the directional derivative of the convex ``Phi``
+(Wolfe conditions, expanding too-short steps and bisecting overshoots) makes it converge
+from any start; where the active tangent misses a direction, the all-spring tangent is
+added. The problem is solved in the variables of :class:`~dea_opt.formulations.base.Scaling`,
+so units and reference points do not matter.
 """
 
 from __future__ import annotations
@@ -15,47 +18,81 @@ import time
 
 import numpy as np
 
-from .base import FormulationResult, SpringSystem
+from .base import FormulationResult, SpringSystem, scaling
 
 PAGE = "formulations/newton.md"
 LINEAR_ONLY = False
 
-_ARMIJO = 1e-4
 _SINGULAR = 1e-11  # eigenvalue ratio below which a tangent direction counts as missing
-
-
-def _energy(law, volume, eps) -> float:
-    return float(volume @ law.energy(np.minimum(eps, 0.0)))
+_WOLFE_DECREASE = 1e-4  # accept phi'(a) <= -this |phi'(0)| ...
+_WOLFE_CURVATURE = 0.9  # ... and >= -this |phi'(0)|
+_EXACT_STEP = 1e-8  # a unit step whose phi'(1) is below this |phi'(0)| is accepted at once
 
 
 def _tangent(AT, weight) -> np.ndarray:
-    """``AT diag(weight) AT^T``, shape (m, m): Eq. (16) as one matrix product."""
+    """``AT diag(weight) AT^T``, shape (k, k): Eq. (16) as one matrix product."""
     return (AT * weight) @ AT.T
 
 
-def _resisted_basis(K_all) -> np.ndarray:
-    """Orthonormal basis (m, k) of the directions some spring resists."""
-    vals, vecs = np.linalg.eigh(K_all)
-    top = vals[-1] if vals.size else 0.0
-    return vecs[:, vals > _SINGULAR * max(top, 0.0)]
-
-
-def _solve_step(K, g, Q, K_all_fn) -> np.ndarray:
-    """``-K^+ g`` within the resisted directions ``Q``.
-
-    Where the active tangent misses one of them (too few springs in contact), ``K + K_all``
-    is used instead, which keeps the step a descent direction.
-    """
-    if Q.shape[1] == 0:
-        return np.zeros_like(g)
-    Kr, gr = Q.T @ K @ Q, Q.T @ g
-    vals = np.linalg.eigvalsh(Kr)
+def _solve_step(K, g, K_all_fn) -> np.ndarray:
+    """``-K^{-1} g``; where ``K`` misses a direction, ``K + K_all`` is used instead."""
+    if not g.size:
+        return g.copy()
+    vals = np.linalg.eigvalsh(K)
     if vals[-1] <= 0 or vals[0] <= _SINGULAR * vals[-1]:
-        Kr = Kr + Q.T @ K_all_fn() @ Q
+        K = K + K_all_fn()
     try:
-        return -(Q @ np.linalg.solve(Kr, gr))
+        return -np.linalg.solve(K, g)
     except np.linalg.LinAlgError:
-        return -(Q @ np.linalg.lstsq(Kr, gr, rcond=_SINGULAR)[0])
+        return -np.linalg.lstsq(K, g, rcond=_SINGULAR)[0]
+
+
+class _Line:
+    """``phi'(a) = g(x + a d) . d`` along one Newton direction: one pass per evaluation."""
+
+    def __init__(self, law, V, r, eps, Ad, d):
+        self.law, self.V, self.eps, self.Ad = law, V, eps, Ad
+        self.rd = float(r @ d)
+
+    def slope(self, alpha):
+        trial = self.eps + alpha * self.Ad
+        if self.law.bounded_strain and trial.min(initial=0.0) <= -1.0:
+            return np.inf, trial  # beyond the law's domain: an overshoot
+        sigma = self.law.stress(np.minimum(trial, 0.0))
+        value = float((self.V * sigma) @ self.Ad) - self.rd
+        return (value if np.isfinite(value) else np.inf), trial
+
+
+def _line_search(line, slope0, max_evaluations=60):
+    """A step ``a`` with ``0.9 phi'(0) <= phi'(a) <= 1e-4 phi'(0)`` (``phi'(0) < 0``).
+
+    ``phi`` is convex, so ``phi'`` increases: such a step decreases ``Phi`` by at least
+    ``1e-4 a |phi'(0)|`` and is not too short. Only derivatives are used, never differences
+    of ``Phi``, which lose every digit near convergence.
+    """
+    upper_ok, lower_ok = _WOLFE_DECREASE * slope0, _WOLFE_CURVATURE * slope0
+    value, trial = line.slope(1.0)
+    if value <= abs(slope0) * _EXACT_STEP and value >= lower_ok:
+        return 1.0, trial, 1
+    lo, hi = 0.0, None
+    alpha = 1.0
+    for evaluation in range(2, max_evaluations + 1):
+        if value > upper_ok:
+            hi = alpha  # overshoot (or out of the law's domain)
+        elif value < lower_ok:
+            lo = alpha  # too short: still descending steeply
+        else:
+            return alpha, trial, evaluation - 1
+        alpha = 4.0 * alpha if hi is None else 0.5 * (lo + hi)
+        if hi is not None and hi - lo <= 1e-14 * hi:
+            break
+        if alpha > 1e12:
+            return None, None, evaluation  # Phi decreases without bound along d
+        value, trial = line.slope(alpha)
+    if lo > 0.0:
+        value, trial = line.slope(lo)
+        return lo, trial, max_evaluations
+    return None, None, max_evaluations
 
 
 def solve(
@@ -81,32 +118,33 @@ def solve(
         unchanged (the paper uses 1e-6).
     gtol : float
         Relative equilibrium residual ``|g| / max(|r|, |A^T V sigma|)`` that counts as
-        converged.
+        converged (in the scaled variables).
     max_iter : int
     extended_start : bool
-        Treat every spring as active in the first iteration.
+        Treat every spring as active, tension included, in the first iteration.
     """
     start = time.perf_counter()
-    AT, e0, V, r = system.AT, system.e0, system.volume, system.load
-    m = AT.shape[0]
-    x = np.zeros(m) if x0 is None else np.array(x0, dtype=float)
-    eps = e0 + x @ AT
+    scale = scaling(system, law.modulus)
+    AT, V, e0 = scale.AT, scale.volume, system.e0
+    r = scale.load(system.load)
+    k = AT.shape[0]
+    xi = np.zeros(k) if x0 is None else scale.to_xi(x0)
+    eps = e0 + xi @ AT
     if law.bounded_strain and (eps <= -1).any():
-        x = np.zeros(m)  # a warm start outside the law's domain is no start
+        xi = np.zeros(k)  # a warm start outside the law's domain is no start
         eps = e0.copy()
-    phi = _energy(law, V, eps) - r @ x
     previous_active = None
-    Q = None
     status, message, success = "max_iter", f"no convergence in {max_iter} iterations", False
-    history = []
+    history, evaluations = [], 0
     it = 0
     for it in range(1, max_iter + 1):
-        compressed = np.minimum(eps, 0.0)
-        sigma = law.stress(compressed)
+        # The extended range (first iteration) uses the law in tension too.
+        extended = it == 1 and extended_start and x0 is None
+        sigma = law.stress(np.minimum(eps, 0.0))
         internal = AT @ (V * sigma)
         g = internal - r
-        scale = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
-        gnorm = np.linalg.norm(g) / scale
+        norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
+        gnorm = np.linalg.norm(g) / norm
         if not np.isfinite(gnorm):
             status, message = "nan", "the law returned a non-finite stress"
             break
@@ -114,77 +152,66 @@ def solve(
         if gnorm <= gtol and it > 1:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
+        compressed = np.minimum(eps, 0.0)
 
         def all_springs():
             return _tangent(AT, V * law.tangent(compressed))
 
-        if Q is None:
-            # Directions no spring resists carry no load (checked before any method runs
-            # or after a failure); leaving them out keeps the Newton steps undamped.
-            K_all = all_springs()
-            Q = _resisted_basis(K_all)
-        if it == 1 and extended_start:
-            K = K_all
-        else:
+        d = None
+        if extended:
+            with np.errstate(over="ignore", invalid="ignore"):
+                bilateral = AT @ (V * law.stress(eps)) - r
+                K = _tangent(AT, V * law.tangent(eps))
+            if np.isfinite(K).all() and np.isfinite(bilateral).all():
+                d = _solve_step(K, bilateral, all_springs)
+                if not (g @ d < 0):
+                    d = None  # the bilateral step is no descent for the unilateral Phi
+        if d is None:
             rows = np.flatnonzero(eps < 0)
-            K = _tangent(AT[:, rows], V[rows] * law.tangent(compressed[rows])) if rows.size else np.zeros((m, m))
-        if not np.isfinite(K).all():
-            status, message = "nan", "the law returned a non-finite tangent"
-            break
-        d = _solve_step(K, g, Q, all_springs)
-        slope = g @ d
-        if slope >= 0 or not np.any(d):
-            # No descent direction is left: the gradient lies in directions nothing resists.
-            status, message = "stalled", "no descent direction (unsupported load direction?)"
+            K = _tangent(AT[:, rows], V[rows] * law.tangent(compressed[rows])) if rows.size else np.zeros((k, k))
+            if not np.isfinite(K).all():
+                status, message = "nan", "the law returned a non-finite tangent"
+                break
+            d = _solve_step(K, g, all_springs)
+        slope = float(g @ d)
+        if not slope < 0:
+            status, message = "stalled", "no descent direction (a load along a direction no spring resists?)"
             break
         Ad = d @ AT
-        alpha, accepted = 1.0, False
-        rounding = abs(slope) <= 1e-14 * max(abs(phi), 1e-300)
-        for _ in range(60):
-            trial = eps + alpha * Ad
-            phi_trial = _energy(law, V, trial) - r @ (x + alpha * d)
-            if np.isfinite(phi_trial) and (
-                phi_trial <= phi + _ARMIJO * alpha * slope or (rounding and phi_trial <= phi + 1e-13 * abs(phi))
-            ):
-                accepted = True
-                break
-            alpha *= 0.5
-        if not accepted:
-            if gnorm <= 1e3 * gtol or rounding:
-                status, message, success = "converged", "step below rounding of Phi", True
-            elif law.bounded_strain and eps.min() < -1 + 1e-6:
+        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d), slope)
+        evaluations += used
+        if alpha is None:
+            if law.bounded_strain and eps.min(initial=0.0) < -1 + 1e-6:
                 status, message = "crushed", (
                     "the springs reach eps = -1 (crushed through their thickness) before the load "
                     "is carried: the load is beyond what this layer can bear")
             else:
-                status, message = "line_search", "the line search found no decrease of Phi"
+                status, message = "line_search", "the line search found no acceptable step"
             break
         step = alpha * d
-        x = x + step
+        xi = xi + step
         eps = trial
-        phi = phi_trial
-        new_active = eps < 0
-        settled = previous_active is not None and np.array_equal(new_active, previous_active)
-        previous_active = new_active
-        if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(np.linalg.norm(x), 1e-300):
+        active = eps < 0
+        settled = previous_active is not None and np.array_equal(active, previous_active)
+        previous_active = active
+        if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(np.linalg.norm(xi), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
             internal = AT @ (V * law.stress(np.minimum(eps, 0.0)))
-            scale = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
-            if np.linalg.norm(internal - r) / scale <= max(gtol, 1e-9):
+            norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
+            if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
     if not success and law.bounded_strain and eps.min(initial=0.0) < -1 + 1e-4:
         status, message = "crushed", (
             f"{message}; springs reach eps = {eps.min():.6f}, crushed through their thickness before "
             f"the load is carried: the load is beyond what this layer can bear")
-    stress = law.stress(np.minimum(eps, 0.0))
     return FormulationResult(
-        x=x,
-        stress=stress,
+        x=scale.to_x(xi),
+        stress=law.stress(np.minimum(eps, 0.0)),
         success=success,
         status=status,
         message=message,
         iterations=it,
         solve_time=time.perf_counter() - start,
-        info={"residual_history": history},
+        info={"residual_history": history, "line_evaluations": evaluations},
     )

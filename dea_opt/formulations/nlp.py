@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
-from .base import FormulationResult, SpringSystem
+from .base import FormulationResult, SpringSystem, scaling
 
 PAGE = "formulations/nlp.md"
 LINEAR_ONLY = False
@@ -44,38 +44,41 @@ class NLPModel:
         ca = _casadi()
         start = time.perf_counter()
         self.system, self.law, self.form = system, law, form
-        m, n = system.n_dofs, system.n_springs
-        V = ca.DM(system.volume)
+        # Solved in the scaled variables xi (x = T xi) and c = strain * c_hat, with the
+        # energy divided by E0: IPOPT's tolerances then mean the same for every unit.
+        self.scale = sc = scaling(system, law.modulus)
+        k, n, s0 = sc.n_dofs, system.n_springs, sc.strain
+        V = ca.DM(sc.volume)
         e0 = system.e0
-        r = ca.MX.sym("r", m)
-        x = ca.MX.sym("x", m)
+        r = ca.MX.sym("r", k)
+        xi = ca.MX.sym("xi", k)
         if form == "constrained":
-            # Each block of about sqrt(N) springs sees its own copy of x, tied to x by
+            # Each block of about sqrt(N) springs sees its own copy of xi, tied to xi by
             # equalities: the KKT matrix then has no row as long as N, which MUMPS's ordering
             # handles badly (formulations/nlp.md, "Block copies").
             size = max(int(np.ceil(np.sqrt(n))), 1)
             self.n_blocks = nb = max(int(np.ceil(n / size)), 1)
             block = np.arange(n) // size
             select = ca.DM(ca.Sparsity.triplet(nb, n, block.tolist(), list(range(n))), 1.0)
-            copies = ca.MX.sym("x_blocks", m, nb)
-            c = ca.MX.sym("c", n)
-            z = ca.vertcat(x, ca.vec(copies), c)
-            energy = ca.dot(V, law.energy(-c))
-            contact = c + ca.sum1(ca.DM(system.AT) * ca.mtimes(copies, select)).T
-            tie = ca.vec(copies - ca.repmat(x, 1, nb))
+            copies = ca.MX.sym("xi_blocks", k, nb)
+            c = ca.MX.sym("c_hat", n)
+            z = ca.vertcat(xi, ca.vec(copies), c)
+            energy = ca.dot(V, law.energy(-s0 * c))
+            contact = c + ca.sum1(ca.DM(sc.AT / s0) * ca.mtimes(copies, select)).T
+            tie = ca.vec(copies - ca.repmat(xi, 1, nb))
             g = ca.vertcat(contact, tie)
-            self.lbg = np.concatenate([-e0, np.zeros(m * nb)])
-            self.ubg = np.concatenate([np.full(n, np.inf), np.zeros(m * nb)])
-            upper = 1.0 - _CRUSH_MARGIN if law.bounded_strain else np.inf
-            self.lbx = np.concatenate([np.full(m * (nb + 1), -np.inf), np.zeros(n)])
-            self.ubx = np.concatenate([np.full(m * (nb + 1), np.inf), np.full(n, upper)])
-            nlp = {"x": z, "p": r, "f": energy - ca.dot(r, x), "g": g}
+            self.lbg = np.concatenate([-e0 / s0, np.zeros(k * nb)])
+            self.ubg = np.concatenate([np.full(n, np.inf), np.zeros(k * nb)])
+            upper = (1.0 - _CRUSH_MARGIN) / s0 if law.bounded_strain else np.inf
+            self.lbx = np.concatenate([np.full(k * (nb + 1), -np.inf), np.zeros(n)])
+            self.ubx = np.concatenate([np.full(k * (nb + 1), np.inf), np.full(n, upper)])
+            nlp = {"x": z, "p": r, "f": energy - ca.dot(r, xi), "g": g}
         else:
-            eps = ca.DM(e0) + ca.mtimes(ca.DM(system.A), x)
+            eps = ca.DM(e0) + ca.mtimes(ca.DM(sc.AT.T), xi)
             energy = ca.dot(V, law.energy(ca.fmin(eps, 0)))
             self.lbg = self.ubg = np.zeros(0)
-            self.lbx, self.ubx = np.full(m, -np.inf), np.full(m, np.inf)
-            nlp = {"x": x, "p": r, "f": energy - ca.dot(r, x)}
+            self.lbx, self.ubx = np.full(k, -np.inf), np.full(k, np.inf)
+            nlp = {"x": xi, "p": r, "f": energy - ca.dot(r, xi)}
         options = {
             "print_time": False,
             "error_on_fail": False,
@@ -96,21 +99,19 @@ class NLPModel:
         self._warm = None
 
     def _start(self, x0):
-        system = self.system
-        m = system.n_dofs
-        x0 = np.zeros(m) if x0 is None else np.asarray(x0, dtype=float)
+        sc = self.scale
+        xi0 = np.zeros(sc.n_dofs) if x0 is None else sc.to_xi(x0)
         if self.form == "reduced":
-            return x0
-        c0 = np.maximum(-system.strain(x0), 0.0)
+            return xi0
+        c0 = np.maximum(-(self.system.e0 + xi0 @ sc.AT), 0.0)
         if self.law.bounded_strain:
             c0 = np.minimum(c0, 0.5)
-        return np.concatenate([x0, np.tile(x0, self.n_blocks), c0])
+        return np.concatenate([xi0, np.tile(xi0, self.n_blocks), c0 / sc.strain])
 
     def solve(self, load=None, *, x0=None, warm_start: bool = True) -> FormulationResult:
-        system = self.system
-        m = system.n_dofs
+        system, sc = self.system, self.scale
         load = system.load if load is None else np.asarray(load, dtype=float)
-        args = {"p": load, "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+        args = {"p": sc.load(load), "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
         if x0 is None and warm_start and self._warm is not None:
             args.update(self._warm)
         else:
@@ -123,9 +124,11 @@ class NLPModel:
         elapsed = time.perf_counter() - start
         stats = self.solver.stats()
         z = np.asarray(out["x"], dtype=float).reshape(-1)
-        x = z[:m]
+        x = sc.to_x(z[: sc.n_dofs])
         if self.form == "constrained":
-            stress = np.asarray(out["lam_g"], dtype=float).reshape(-1)[: system.n_springs] / system.volume
+            # d/dc_hat of V' w(-s0 c_hat) is -V' s0 sigma; CasADi's lam_g balances it.
+            lam = np.asarray(out["lam_g"], dtype=float).reshape(-1)[: system.n_springs]
+            stress = lam / (sc.volume * sc.strain)
             self._warm = {"x0": z, "lam_x0": out["lam_x"], "lam_g0": out["lam_g"]}
         else:
             stress = self.law.stress(np.minimum(system.strain(x), 0.0))

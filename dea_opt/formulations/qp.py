@@ -14,7 +14,7 @@ import warnings
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
-from .base import FormulationResult, SpringSystem
+from .base import FormulationResult, SpringSystem, scaling
 
 PAGE = "formulations/qp.md"
 LINEAR_ONLY = True
@@ -59,13 +59,16 @@ class QPModel:
         start = time.perf_counter()
         self.solver = solver
         self.system = system
-        m, n = system.n_dofs, system.n_springs
-        self.x = cp.Variable(m, name="x")
+        # Solved in the scaled variables xi (x = T xi) and c = strain * c_hat, so that the
+        # solver's absolute tolerances mean the same for every unit and load size.
+        self.scale = sc = scaling(system, law.H)
+        k, n = sc.n_dofs, system.n_springs
+        self.xi = cp.Variable(k, name="xi")
         self.c = cp.Variable(n, nonneg=True, name="c")
-        self.load = cp.Parameter(m, name="r")
-        weight = np.sqrt(system.volume * law.H)
-        objective = 0.5 * cp.sum_squares(cp.multiply(weight, self.c)) - self.load @ self.x
-        self.contact = self.c + system.A @ self.x >= -system.e0
+        self.load = cp.Parameter(k, name="r")
+        weight = np.sqrt(sc.volume * law.H) * sc.strain
+        objective = 0.5 * cp.sum_squares(cp.multiply(weight, self.c)) - self.load @ self.xi
+        self.contact = self.c + (sc.AT.T / sc.strain) @ self.xi >= -system.e0 / sc.strain
         self.problem = cp.Problem(cp.Minimize(objective), [self.contact])
         self.build_time = time.perf_counter() - start
         self.compiled = False
@@ -74,7 +77,7 @@ class QPModel:
         """Solve for ``load`` (default: the system's own load)."""
         import cvxpy as cp
 
-        self.load.value = np.asarray(self.system.load if load is None else load, dtype=float)
+        self.load.value = self.scale.load(self.system.load if load is None else load)
         options = {**TOLERANCE_OPTIONS.get(self.solver, lambda t: {})(tol), **solver_options}
         start = time.perf_counter()
         try:
@@ -89,13 +92,15 @@ class QPModel:
         status = self.problem.status
         first = not self.compiled
         self.compiled = True
-        x = self.x.value
-        lam = self.contact.dual_value
+        xi = self.xi.value
+        mu = self.contact.dual_value
         n = self.system.n_springs
-        if x is None or lam is None:
-            x = np.full(self.system.n_dofs, np.nan)
-            lam = np.full(n, np.nan)
-        stress = -np.asarray(lam, dtype=float).reshape(n) / self.system.volume
+        if xi is None or mu is None:
+            x, mu = np.full(self.system.n_dofs, np.nan), np.full(n, np.nan)
+        else:
+            x = self.scale.to_x(np.asarray(xi, dtype=float).reshape(-1))
+        # mu = V' H strain^2 c_hat = V' H strain c, so sigma = -H c = -mu / (V' strain)
+        stress = -np.asarray(mu, dtype=float).reshape(n) / (self.scale.volume * self.scale.strain)
         solver_time = stats.solve_time if stats and stats.solve_time is not None else float("nan")
         return FormulationResult(
             x=np.asarray(x, dtype=float).reshape(-1),
