@@ -243,7 +243,9 @@ class ContactProblem:
     def system(self) -> SpringSystem:
         """The reduced problem over the free dofs, for the formulations."""
         AT, e0, volume = self._geometry
-        return SpringSystem(AT, e0, volume, self.load_vector[self.free_indices])
+        lengths = np.concatenate([np.ones(3), np.full(3, self.layer_radius[0]),
+                                  np.ones(3), np.full(3, self.layer_radius[1])])
+        return SpringSystem(AT, e0, volume, self.load_vector[self.free_indices], lengths[self.free_indices])
 
     def full_u(self, x) -> np.ndarray:
         """The 12-vector ``u`` from the free-dof vector ``x``."""

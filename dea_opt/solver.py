@@ -64,6 +64,20 @@ def check_load_supported(problem: ContactProblem) -> None:
         )
     from scipy.optimize import nnls
 
+    from .formulations.base import bonded_basis
+
+    # A load along a direction no spring resists at all: named exactly, before the cone test
+    # (which could balance a nearly unresisted direction only with enormous forces).
+    _, null = bonded_basis(system.AT, system.volume, system.lengths)
+    unresisted = null @ (null.T @ r)
+    if np.linalg.norm(unresisted) > _CONE_TOL * rnorm:
+        raise LoadNotSupportedError(
+            f"no spring resists part of this load: {_describe_direction(names, unresisted, r)} "
+            f"({np.linalg.norm(unresisted) / rnorm:.3g} of the load) acts along a direction the springs "
+            f"cannot push back on. Fix that dof, remove that part of the load, or add springs.",
+            direction=dict(zip(names, unresisted.tolist())),
+        )
+
     # Columns scaled to unit length so that nnls sees a well-conditioned cone.
     columns = -system.A.T
     norms = np.linalg.norm(columns, axis=0)

@@ -38,6 +38,13 @@ class SpringSystem:
     e0: np.ndarray
     volume: np.ndarray
     load: np.ndarray
+    dof_length: np.ndarray | None = None
+
+    @property
+    def lengths(self) -> np.ndarray:
+        """Per-dof length (mm) that makes the dofs commensurate: 1 for a translation, the
+        layer's radius about the reference for a rotation (``dof_length``, default ones)."""
+        return np.ones(self.AT.shape[0]) if self.dof_length is None else self.dof_length
 
     @property
     def A(self) -> np.ndarray:
@@ -56,7 +63,7 @@ class SpringSystem:
         return self.e0 + np.asarray(x, dtype=float) @ self.AT
 
     def with_load(self, load) -> "SpringSystem":
-        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float))
+        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length)
 
 
 @dataclass
@@ -78,8 +85,9 @@ class FormulationResult:
     info: dict = field(default_factory=dict)
 
 
-#: Eigenvalue ratio below which a direction of the bonded stiffness counts as unresisted.
-UNRESISTED = 1e-11
+#: Ratio of a direction's stiffness "singular value" to the largest below which no spring
+#: resists it (rounding noise in the spring directions is about 1e-15).
+UNRESISTED = 1e-10
 
 
 @dataclass(frozen=True, eq=False)
@@ -132,16 +140,49 @@ class Scaling:
         return SpringSystem(self.AT, e0, self.volume, self.load(load))
 
 
+def bonded_basis(AT, stiffness, lengths=None) -> tuple[np.ndarray, np.ndarray]:
+    """``(T1, null)``: ``T1`` (m, k) with ``T1^T K0 T1 = I`` over the resisted directions of
+    ``K0 = AT diag(stiffness) AT^T``, and an orthonormal basis ``null`` (m, m - k) of the rest.
+
+    Computed by a pivoted QR factorization of ``W = diag(sqrt(stiffness)) A D^-1`` rather than
+    an eigendecomposition of ``K0``, which would square the condition number: a reference
+    point far from the layer makes the dofs nearly dependent, and the tilt of the layer must
+    survive that. ``D`` (``lengths``) measures rotations as arc lengths, so that the test for
+    "no spring resists this direction" compares like with like.
+    """
+    from scipy.linalg import qr, solve_triangular
+
+    m = AT.shape[0]
+    if not m:
+        return np.zeros((0, 0)), np.zeros((0, 0))
+    D = np.ones(m) if lengths is None else np.asarray(lengths, dtype=float)
+    W = (AT * np.sqrt(stiffness)).T / D  # (N, m), Fortran-ordered as LAPACK wants it
+    if W.shape[0] < m:
+        W = np.vstack([W, np.zeros((m - W.shape[0], m))])
+    R, perm = qr(W, mode="r", pivoting=True, check_finite=False)
+    R = R[:m]
+    diag = np.abs(np.diag(R))
+    k = int(np.sum(diag > UNRESISTED * max(diag[0], 0.0))) if diag.size and diag[0] > 0 else 0
+    # In the scaled coordinates y = D x: W T1 = Q1, and W null = 0.
+    T1 = np.zeros((m, k))
+    T1[perm[:k]] = solve_triangular(R[:k, :k], np.eye(k), check_finite=False)
+    null = np.zeros((m, m - k))
+    if k < m:
+        null[perm[:k]] = -solve_triangular(R[:k, :k], R[:k, k:], check_finite=False) if k else 0.0
+        null[perm[k:]] = np.eye(m - k)
+        ny = np.linalg.qr(null)[0]
+        # Free of null components, x = T1 xi is the minimum-norm motion (in y), the same
+        # whichever way the problem is turned.
+        T1 = T1 - ny @ (ny.T @ T1)
+        null = np.linalg.qr(null / D[:, None])[0]
+    return T1 / D[:, None], null
+
+
 def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scaling:
     """The :class:`Scaling` of ``system`` for a law of small-strain stiffness ``modulus``."""
     AT, V = system.AT, system.volume
-    m = AT.shape[0]
     stiffness = V * (modulus if modulus > 0 and np.isfinite(modulus) else 1.0)
-    K0 = (AT * stiffness) @ AT.T if AT.size else np.zeros((m, m))
-    vals, vecs = np.linalg.eigh(K0) if m else (np.zeros(0), np.zeros((0, 0)))
-    top = vals[-1] if vals.size else 0.0
-    keep = vals > UNRESISTED * max(top, 0.0)
-    T1 = vecs[:, keep] / np.sqrt(vals[keep])
+    T1, _ = bonded_basis(AT, stiffness, system.lengths)
     r = system.load if reference_load is None else np.asarray(reference_load, dtype=float)
     s = float(np.linalg.norm(T1.T @ r)) if r.size else 0.0
     if s == 0.0:

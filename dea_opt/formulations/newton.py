@@ -26,6 +26,8 @@ LINEAR_ONLY = False
 _SINGULAR = 1e-11  # eigenvalue ratio below which a tangent direction counts as missing
 _WOLFE_DECREASE = 1e-4  # accept phi'(a) <= -this |phi'(0)| ...
 _WOLFE_CURVATURE = 0.9  # ... and >= -this |phi'(0)|
+_WOLFE_CURVATURE_SAFE = 0.01  # ... or this, after a safe step
+_SAFE_WEIGHT = 1e-3  # weight of the all-spring tangent in a safe step
 _EXACT_STEP = 1e-8  # a unit step whose phi'(1) is below this |phi'(0)| is accepted at once
 
 
@@ -34,17 +36,19 @@ def _tangent(AT, weight) -> np.ndarray:
     return (AT * weight) @ AT.T
 
 
-def _solve_step(K, g, K_all_fn) -> np.ndarray:
-    """``-K^{-1} g``; where ``K`` misses a direction, ``K + K_all`` is used instead."""
+def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
+    """``(-K^{-1} g, safe)``; where ``K`` misses a direction, ``K + K_all`` is used instead
+    (``safe`` is then True)."""
     if not g.size:
-        return g.copy()
+        return g.copy(), False
     vals = np.linalg.eigvalsh(K)
-    if vals[-1] <= 0 or vals[0] <= _SINGULAR * vals[-1]:
-        K = K + K_all_fn()
+    safe = bool(vals[-1] <= 0 or vals[0] <= _SINGULAR * vals[-1])
+    if safe:
+        K = K + _SAFE_WEIGHT * K_all_fn()
     try:
-        return -np.linalg.solve(K, g)
+        return -np.linalg.solve(K, g), safe
     except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(K, g, rcond=_SINGULAR)[0]
+        return -np.linalg.lstsq(K, g, rcond=_SINGULAR)[0], safe
 
 
 class _Line:
@@ -53,6 +57,13 @@ class _Line:
     def __init__(self, law, V, r, eps, Ad, d):
         self.law, self.V, self.eps, self.Ad = law, V, eps, Ad
         self.rd = float(r @ d)
+
+    def energy(self, alpha) -> float:
+        """``Phi(x + a d) - Phi(x)`` up to the constant ``-r . x`` (one pass)."""
+        with np.errstate(over="ignore", invalid="ignore"):
+            w = self.law.energy(np.minimum(self.eps + alpha * self.Ad, 0.0))
+        value = float(self.V @ w) - alpha * self.rd
+        return value if np.isfinite(value) else np.inf
 
     def slope(self, alpha):
         trial = self.eps + alpha * self.Ad
@@ -63,17 +74,22 @@ class _Line:
         return (value if np.isfinite(value) else np.inf), trial
 
 
-def _line_search(line, slope0, max_evaluations=60):
-    """A step ``a`` with ``0.9 phi'(0) <= phi'(a) <= 1e-4 phi'(0)`` (``phi'(0) < 0``).
+def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
+    """A step ``a`` with ``curvature phi'(0) <= phi'(a) <= 1e-4 phi'(0)`` (``phi'(0) < 0``).
 
     ``phi`` is convex, so ``phi'`` increases: such a step decreases ``Phi`` by at least
     ``1e-4 a |phi'(0)|`` and is not too short. Only derivatives are used, never differences
     of ``Phi``, which lose every digit near convergence.
     """
-    upper_ok, lower_ok = _WOLFE_DECREASE * slope0, _WOLFE_CURVATURE * slope0
+    upper_ok, lower_ok = _WOLFE_DECREASE * slope0, curvature * slope0
     value, trial = line.slope(1.0)
     if value <= abs(slope0) * _EXACT_STEP and value >= lower_ok:
         return 1.0, trial, 1
+    if value > upper_ok and np.isfinite(value) and value <= abs(slope0):
+        # A slight overshoot of the full Newton step: accept it on Armijo's condition,
+        # checked with energies while they still resolve the decrease.
+        if line.energy(1.0) - line.energy(0.0) <= _WOLFE_DECREASE * slope0:
+            return 1.0, trial, 3
     lo, hi = 0.0, None
     alpha = 1.0
     for evaluation in range(2, max_evaluations + 1):
@@ -163,7 +179,7 @@ def solve(
                 bilateral = AT @ (V * law.stress(eps)) - r
                 K = _tangent(AT, V * law.tangent(eps))
             if np.isfinite(K).all() and np.isfinite(bilateral).all():
-                d = _solve_step(K, bilateral, all_springs)
+                d, safe = _solve_step(K, bilateral, all_springs)
                 if not (g @ d < 0):
                     d = None  # the bilateral step is no descent for the unilateral Phi
         if d is None:
@@ -172,13 +188,16 @@ def solve(
             if not np.isfinite(K).all():
                 status, message = "nan", "the law returned a non-finite tangent"
                 break
-            d = _solve_step(K, g, all_springs)
+            d, safe = _solve_step(K, g, all_springs)
         slope = float(g @ d)
         if not slope < 0:
             status, message = "stalled", "no descent direction (a load along a direction no spring resists?)"
             break
         Ad = d @ AT
-        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d), slope)
+        # A safe step only knows the missing directions roughly: search the line closely, so
+        # that the next spring to touch is reached rather than crept up on.
+        curvature = _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE
+        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d), slope, curvature)
         evaluations += used
         if alpha is None:
             if law.bounded_strain and eps.min(initial=0.0) < -1 + 1e-6:

@@ -37,7 +37,7 @@ def _casadi():
 class NLPModel:
     """A compiled IPOPT problem of one spring system, re-solvable for new loads."""
 
-    def __init__(self, system: SpringSystem, law, *, form: str = "constrained", tol: float = 1e-12,
+    def __init__(self, system: SpringSystem, law, *, form: str = "constrained", tol: float = 1e-14,
                  max_iter: int = 3000, ipopt_options: dict | None = None):
         if form not in ("constrained", "reduced"):
             raise InputError(f"form must be 'constrained' or 'reduced', got {form!r}")
@@ -147,7 +147,7 @@ class NLPModel:
         )
 
 
-def solve(system: SpringSystem, law, *, form: str = "constrained", tol: float = 1e-12, x0=None,
+def solve(system: SpringSystem, law, *, form: str = "constrained", tol: float = 1e-14, x0=None,
           max_iter: int = 3000, ipopt_options: dict | None = None) -> FormulationResult:
     """Build and solve the NLP once."""
     model = NLPModel(system, law, form=form, tol=tol, max_iter=max_iter, ipopt_options=ipopt_options)

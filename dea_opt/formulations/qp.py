@@ -73,7 +73,7 @@ class QPModel:
         self.build_time = time.perf_counter() - start
         self.compiled = False
 
-    def solve(self, load=None, *, tol: float = 1e-9, warm_start: bool = True, **solver_options) -> FormulationResult:
+    def solve(self, load=None, *, tol: float = 1e-10, warm_start: bool = True, **solver_options) -> FormulationResult:
         """Solve for ``load`` (default: the system's own load)."""
         import cvxpy as cp
 
@@ -115,7 +115,7 @@ class QPModel:
         )
 
 
-def solve(system: SpringSystem, law, *, solver: str = "CLARABEL", tol: float = 1e-9, x0=None, **solver_options):
+def solve(system: SpringSystem, law, *, solver: str = "CLARABEL", tol: float = 1e-10, x0=None, **solver_options):
     """Build and solve the QP once (``x0`` is ignored: interior-point solvers start cold)."""
     model = QPModel(system, law, solver=solver)
     result = model.solve(tol=tol, **solver_options)
