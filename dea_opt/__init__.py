@@ -14,6 +14,7 @@ from .layer import SpringLayer
 from .problem import Body, ContactProblem, Load
 from .solution import Certificate, Solution, certify
 from .solver import METHODS, check_load_supported, compare, solve
+from .path import solve_path
 
 __version__ = "0.1.0"
 
@@ -21,6 +22,6 @@ __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
     "METHODS", "MissingDependencyError", "PolynomialLaw", "Solution", "SolverError",
-    "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve",
+    "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
     "__version__",
 ]

@@ -1,0 +1,286 @@
+"""The ``dea-opt`` command: run, compare, sweep, demo, schema, version.
+
+Exit codes: 0 done; 1 outputs written but an answer failed its certificate; 2 bad input or
+an error dea-opt reports (a one-paragraph message on stderr, no traceback).
+"""
+
+from __future__ import annotations
+
+import functools
+import json
+import sys
+from pathlib import Path
+from typing import Annotated, Optional
+
+import typer
+
+from .errors import DeaError
+
+app = typer.Typer(
+    name="dea-opt",
+    help="Discrete element analysis of cartilage contact: scenario files in, certified results out.",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    # Plain help text: "[solve]" and "dea-opt[distributed]" are TOML and pip, not markup.
+    rich_markup_mode=None,
+)
+
+EXIT_UNCERTIFIED = 1
+EXIT_ERROR = 2
+
+
+def _fail(message: str, code: int = EXIT_ERROR):
+    # One paragraph: dea-opt's messages may hold newlines from nested errors.
+    typer.echo(f"dea-opt: error: {' '.join(str(message).split())}", err=True)
+    raise typer.Exit(code)
+
+
+def _reported(command):
+    """Turn every DeaError into a one-paragraph message on stderr and exit code 2."""
+
+    @functools.wraps(command)
+    def wrapper(*args, **kwargs):
+        try:
+            return command(*args, **kwargs)
+        except DeaError as exc:
+            _fail(exc)
+        except OSError as exc:  # a full disk, a folder we may not write: the user's to fix, not a bug
+            where = f" ({exc.filename})" if exc.filename else ""
+            _fail(f"{exc.strerror or exc}{where}")
+        except KeyboardInterrupt:
+            typer.echo("dea-opt: interrupted; finished outputs are complete (files are written atomically)",
+                       err=True)
+            raise typer.Exit(130) from None
+
+    return wrapper
+
+
+def _split(text: str | None) -> list[str] | None:
+    if text is None:
+        return None
+    return [item.strip() for item in text.split(",") if item.strip()]
+
+
+def _overrides(sets: list[str] | None) -> dict:
+    from .scenario import ScenarioError, parse_set
+
+    overrides = {}
+    for text in sets or []:
+        key, values = parse_set(text)
+        if len(values) != 1:
+            raise ScenarioError(f"--set {key} takes one value here (several values are for dea-opt sweep), got "
+                                f"{len(values)}")
+        overrides[key] = values[0]
+    return overrides
+
+
+def _report_outcome(outcome, quiet: bool = False) -> None:
+    for message in outcome.warnings:
+        typer.echo(f"dea-opt: warning: {' '.join(message.split())}", err=True)
+    if not quiet:
+        typer.echo(outcome.message)
+        for name, path in outcome.files.items():
+            typer.echo(f"  {name:13s} {path}")
+    if not outcome.success:
+        typer.echo(f"dea-opt: {' '.join(outcome.message.split())}", err=True)
+        raise typer.Exit(EXIT_UNCERTIFIED)
+
+
+ScenarioArg = Annotated[Path, typer.Argument(help="The scenario TOML file (see: dea-opt schema).",
+                                             show_default=False)]
+OutputOpt = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: the "
+                                                   "scenario's [output].directory).", show_default=False)]
+MethodOpt = Annotated[Optional[str], typer.Option("--method", "-m", help="auto | newton | qp | nlp "
+                                                  "(default: the scenario's [solve].method).", show_default=False)]
+SetOpt = Annotated[Optional[list[str]], typer.Option("--set", help="Override a scenario value, e.g. "
+                                                     "--set law.H=0.45 (repeatable).", show_default=False)]
+
+
+@app.command()
+@_reported
+def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = None, set_: SetOpt = None,
+        quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False):
+    """Solve a scenario (one load or a load path) and write its outputs.
+
+    A static load writes contact.vtu, contact.csv, contact.json and contact.png; a load
+    path writes frames.csv, series.pvd (+ series_frames/), exposure.vtu, cycle.png,
+    exposure.png and summary.json.
+    """
+    from .run import run_scenario
+    from .scenario import load_scenario
+
+    loaded = load_scenario(scenario, _overrides(set_))
+    outcome = run_scenario(loaded, output, method=method, progress=not quiet)
+    _report_outcome(outcome, quiet)
+
+
+@app.command()
+@_reported
+def compare(
+    scenario: ScenarioArg,
+    methods: Annotated[Optional[str], typer.Option(help="Comma-separated: newton,qp,nlp (default: [solve].methods).",
+                                                   show_default=False)] = None,
+    solvers: Annotated[Optional[str], typer.Option(help="QP solvers for qp, e.g. CLARABEL,OSQP,SCS,PIQP (default: "
+                                                   "[solve].solvers, cut to those installed).",
+                                                   show_default=False)] = None,
+    accuracy: Annotated[Optional[str], typer.Option(help="low | default | high, or several comma-separated "
+                                                    "(default: [solve].accuracy).", show_default=False)] = None,
+    repeat: Annotated[Optional[int], typer.Option(help="Runs per combination (default: [solve].repeat).",
+                                                  show_default=False)] = None,
+    frame: Annotated[Optional[int], typer.Option(help="For a load path: the frame to compare on (default: the "
+                                                 "largest force).", show_default=False)] = None,
+    output: OutputOpt = None,
+    set_: SetOpt = None,
+):
+    """Solve one problem by every method x solver x accuracy and tabulate the results.
+
+    A row is a success only if the solver claims success, dea-opt's certificate passes at
+    the accuracy's tolerance, and the answer agrees with Newton to that tolerance. Writes
+    compare.csv and compare_summary.csv.
+    """
+    from .scenario import load_scenario
+    from .study import run_study
+
+    loaded = load_scenario(scenario, _overrides(set_))
+    problem = _compare_problem(loaded, frame)
+    section = loaded.solve
+    # The default list is cut to the installed solvers by run_study; a list given is checked.
+    result = run_study(problem, methods=_split(methods) or section.methods,
+                       solvers=_split(solvers) or section.solvers, accuracy=_split(accuracy) or section.accuracy,
+                       repeat=section.repeat if repeat is None else repeat, progress=True)
+    files = result.to_csv(loaded.output_dir(output))
+    typer.echo(result.format_table())
+    typer.echo("")
+    typer.echo("Summary (success needs the certificate; time: shifted geometric mean, shift 10 ms, failures "
+               "count as 10 s; relative to the fastest):")
+    typer.echo(result.format_summary())
+    for note in result.skipped:
+        typer.echo(f"(skipped: {note})")
+    for name, path in files.items():
+        typer.echo(f"  {name:8s} {path}")
+
+
+def _compare_problem(loaded, frame):
+    from .errors import InputError
+    from .scenario import build_problem, read_load_path
+
+    problem = build_problem(loaded)
+    if loaded.load_path is None:
+        if frame is not None:
+            raise InputError("--frame applies to scenarios with a [load_path] only")
+        return problem
+    data = read_load_path(loaded.load_path)
+    if data.poses is not None:
+        raise InputError("compare on a load path with poses is not supported; compare one pose as a static "
+                         "[load] scenario")
+    import numpy as np
+
+    k = int(np.argmax(np.linalg.norm(data.loads[:, :3], axis=1))) if frame is None else frame
+    if not 0 <= k < len(data):
+        raise InputError(f"--frame must be in 0..{len(data) - 1}, got {frame}")
+    return problem.with_load(data.load_objects()[k], body=data.body)
+
+
+@app.command()
+@_reported
+def sweep(
+    scenario: ScenarioArg,
+    set_: Annotated[list[str], typer.Option("--set", help="KEY=V1,V2,... e.g. --set law.H=0.3,0.45,0.6 "
+                                            "(repeatable; the cases are the Cartesian product).",
+                                            show_default=False)],
+    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address (default: a LocalCluster); "
+                                                     "'synchronous' runs here, one case at a time.",
+                                                     show_default=False)] = None,
+    workers: Annotated[int, typer.Option(help="Worker processes of the LocalCluster.")] = 2,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Folder of sweep.csv and cases/ "
+                                                   "(default: <scenario output>/sweep).", show_default=False)] = None,
+    method: MethodOpt = None,
+    retry_failed: Annotated[bool, typer.Option(help="Run again the cases recorded as error or failed.")] = False,
+):
+    """Run the Cartesian product of --set values, each case a Dask task.
+
+    One row per finished case is added to sweep.csv as it finishes; each case writes its
+    outputs into cases/<case id>/. Rerunning the same command skips finished cases, so an
+    interrupted sweep resumes. Needs: pip install dea-opt[distributed].
+    """
+    from .sweep import run_sweep
+
+    result = run_sweep(scenario, set_, output, scheduler=scheduler, workers=workers, method=method,
+                       retry_failed=retry_failed, progress=True)
+    typer.echo(f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished; results: "
+               f"{result.results_path}")
+    if result.failed:
+        typer.echo(f"dea-opt: {len(result.failed)} case(s) did not finish cleanly: {', '.join(result.failed)} "
+                   f"(see the status and message columns of {result.results_path})", err=True)
+        raise typer.Exit(EXIT_UNCERTIFIED)
+
+
+@app.command()
+@_reported
+def demo(
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder.",
+                                                   show_default="./dea-opt-demo")] = None,
+    frames: Annotated[Optional[int], typer.Option(help="Resample the 101-frame gait cycle to N frames.",
+                                                  show_default=False, min=2)] = None,
+    coarse: Annotated[bool, typer.Option(help="A coarse socket and 11 frames: a few seconds.")] = False,
+    method: MethodOpt = None,
+    compare_: Annotated[bool, typer.Option("--compare/--no-compare", help="Solve and print the gait-peak "
+                                           "comparison table first.")] = True,
+):
+    """The embedded default: a hip under a synthetic 101-frame walking cycle.
+
+    First one gait-peak frame (2.4 kN tilted 20 degrees) by Newton, QP and NLP with the
+    linear and Ateshian laws, as a table; then the whole cycle, warm-started frame by
+    frame, written to ./dea-opt-demo/: frames.csv, series.pvd, cycle.png, exposure.png,
+    exposure.vtu, summary.json and comparison.csv.
+    """
+    from .run import run_demo
+
+    outcome = run_demo(output, frames=frames, coarse=coarse, method=method, compare=compare_, progress=True,
+                       echo=typer.echo)
+    for message in outcome.warnings:
+        typer.echo(f"dea-opt: warning: {' '.join(message.split())}", err=True)
+    if not outcome.success:
+        raise typer.Exit(EXIT_UNCERTIFIED)
+
+
+@app.command()
+@_reported
+def schema(json_: Annotated[bool, typer.Option("--json", help="Print the JSON Schema instead.")] = False):
+    """Print the documented scenario schema (every table, key, default and unit)."""
+    from .scenario import Scenario, schema_text
+
+    if json_:
+        typer.echo(json.dumps(Scenario.model_json_schema(), indent=2))
+    else:
+        typer.echo(schema_text(), nl=False)
+
+
+@app.command()
+def version():
+    """Print the dea-opt version and those of its solvers."""
+    from importlib.metadata import PackageNotFoundError
+    from importlib.metadata import version as installed
+
+    from . import __version__
+
+    typer.echo(f"dea-opt {__version__}")
+    for package in ("numpy", "scipy", "cvxpy", "clarabel", "casadi", "osqp", "scs", "piqp", "dask", "distributed"):
+        try:
+            typer.echo(f"  {package} {installed(package)}")
+        except PackageNotFoundError:
+            typer.echo(f"  {package} (not installed)")
+
+
+def main(argv=None) -> int:
+    """Console-script entry point (``dea-opt``)."""
+    try:
+        app(args=argv, prog_name="dea-opt", standalone_mode=True)
+    except SystemExit as exc:
+        return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_ERROR)
+    return 0
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,308 @@
+"""Comparison studies: one problem, every method x solver x accuracy setting, with repeats.
+
+Each run is :func:`dea_opt.solve` with ``strict=False``, so an answer that fails its
+certificate comes back as a row that says so instead of an exception. A row is a
+**success** only when the solver claims success, the certificate computed by dea_opt
+passes at the accuracy's tolerance, and the answer agrees with a reference Newton solution
+to that same tolerance (largest pressure difference relative to the peak, largest
+displacement difference relative to the largest displacement).
+
+The summary follows qpbenchmark (Caron et al.): per method and solver, the success rate
+and the shifted geometric mean of the run time (shift 10 ms; a failed run counts as the
+time limit), normalised so that the fastest is 1.
+
+Accuracy settings (:data:`ACCURACY`): the solver is asked for ``solver_tol`` and the answer
+is checked against ``check_tol``:
+
+=========  ====================  ==========
+setting    solver_tol            check_tol
+=========  ====================  ==========
+low        1e-3                  1e-3
+default    the formulation's     1e-6
+high       1e-10                 1e-9
+=========  ====================  ==========
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import DeaError, InputError
+
+__all__ = ["ACCURACY", "Accuracy", "StudyResult", "run_study", "shifted_geometric_mean", "installed_qp_solvers"]
+
+
+@dataclass(frozen=True)
+class Accuracy:
+    """What a setting asks of the solver (``solver_tol``) and of its answer (``check_tol``)."""
+
+    name: str
+    solver_tol: float | None
+    check_tol: float
+
+
+ACCURACY = {
+    "low": Accuracy("low", 1e-3, 1e-3),
+    "default": Accuracy("default", None, 1e-6),
+    "high": Accuracy("high", 1e-10, 1e-9),
+}
+METHOD_SOLVER = {"newton": "-", "nlp": "IPOPT"}
+#: The QP solvers compared by default (those cvxpy has installed are used).
+DEFAULT_SOLVERS = ("CLARABEL", "OSQP", "SCS", "PIQP")
+SHIFT = 0.010  # s, qpbenchmark's shift of the geometric mean
+TIME_LIMIT = 10.0  # s, the time a failed run counts as
+
+
+def installed_qp_solvers() -> list[str]:
+    """The QP solvers cvxpy can call here."""
+    import cvxpy as cp
+
+    return sorted(cp.installed_solvers())
+
+
+def _check_names(methods, solvers, accuracy):
+    from .formulations import FORMULATIONS
+
+    methods = [m.strip().lower() for m in methods]
+    bad = [m for m in methods if m not in FORMULATIONS]
+    if bad or not methods:
+        raise InputError(f"methods must be taken from {', '.join(FORMULATIONS)}, got {', '.join(bad) or 'none'}")
+    bad = [a for a in accuracy if a not in ACCURACY]
+    if bad or not accuracy:
+        raise InputError(f"accuracy must be taken from {', '.join(ACCURACY)}, got {', '.join(bad) or 'none'}")
+    solvers = [s.strip().upper() for s in solvers]
+    if "qp" in methods:
+        installed = installed_qp_solvers()
+        bad = [s for s in solvers if s not in installed]
+        if bad:
+            raise InputError(f"solver {', '.join(bad)} is not available to cvxpy here; installed QP solvers: "
+                             f"{', '.join(installed)} (pip install dea-opt[solvers] adds OSQP, SCS and PIQP)")
+        if not solvers:
+            raise InputError("solvers is empty: name at least one QP solver for method qp")
+    return methods, solvers, list(accuracy)
+
+
+def _cases(methods, solvers, accuracy, repeat, law):
+    skipped = []
+    cases = []
+    for acc in accuracy:
+        for method in methods:
+            if method == "qp" and not law.is_linear:
+                if "qp needs a linear law" not in skipped:
+                    skipped.append("qp needs a linear law")
+                continue
+            for solver in (solvers if method == "qp" else [METHOD_SOLVER[method]]):
+                for r in range(repeat):
+                    cases.append((ACCURACY[acc], method, solver, r))
+    return cases, skipped
+
+
+def _options(method, solver, accuracy: Accuracy) -> dict:
+    tol = accuracy.solver_tol
+    if method == "qp":
+        return {"solver": solver} | ({"tol": tol} if tol is not None else {})
+    if method == "nlp":
+        return {"tol": tol} if tol is not None else {}
+    return {"gtol": tol, "xtol": tol} if tol is not None else {}
+
+
+def _difference(solution, reference) -> tuple[float, float]:
+    if reference is None or not np.isfinite(solution.u).all():
+        return float("nan"), float("nan")
+    dp = float(np.abs(solution.pressure - reference.pressure).max(initial=0.0) / max(reference.peak_pressure, 1e-300))
+    du = float(np.abs(solution.u - reference.u).max() / max(np.abs(reference.u).max(), 1e-300))
+    return dp, du
+
+
+def _run_one(problem, accuracy, method, solver, repeat, reference) -> dict:
+    from .solver import solve
+
+    row = {"accuracy": accuracy.name, "method": method, "solver": solver, "repeat": repeat,
+           "check_tol": accuracy.check_tol, "solver_tol": accuracy.solver_tol}
+    start = time.perf_counter()
+    try:
+        import warnings
+
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # validity warnings belong to the problem, not to the solver
+            solution = solve(problem, method, certificate_tol=accuracy.check_tol, strict=False,
+                             **_options(method, solver, accuracy))
+    except DeaError as exc:
+        elapsed = time.perf_counter() - start
+        return row | {"success": False, "solver_success": False, "certified": False, "agrees": False,
+                      "status": "error", "message": str(exc).splitlines()[0][:200], "total_time": elapsed}
+    certificate = solution.certificate
+    dp, du = _difference(solution, reference)
+    agrees = bool(max(dp, du) <= accuracy.check_tol) if reference is not None else float("nan")
+    solver_success = bool(solution.info.get("solver_success", solution.success))
+    worst_name, worst = certificate.worst()
+    success = bool(solver_success and certificate.passed and (reference is None or agrees))
+    return row | {
+        "success": success, "solver_success": solver_success, "certified": certificate.passed,
+        "agrees": agrees, "status": solution.status, "message": _verdict(solution, agrees, accuracy, dp, du),
+        "build_time": solution.build_time, "solve_time": solution.solve_time,
+        "total_time": solution.build_time + solution.solve_time,
+        "solver_time": solution.info.get("solver_time", float("nan")),
+        "iterations": solution.iterations,
+        "equilibrium": certificate.equilibrium, "tension": certificate.tension,
+        "complementarity": certificate.complementarity, "consistency": certificate.consistency,
+        "energy": certificate.energy, "worst_residual": worst, "worst_name": worst_name,
+        "peak_pressure": solution.peak_pressure, "contact_area": solution.contact_area,
+        "d_pressure": dp, "d_displacement": du,
+    }
+
+
+def _verdict(solution, agrees, accuracy, dp, du) -> str:
+    if not solution.info.get("solver_success", True):
+        return f"solver reports {solution.status}"
+    if not solution.certificate.passed:
+        name, value = solution.certificate.worst()
+        return f"inaccurate: {name} {value:.1e} > {accuracy.check_tol:g}"
+    if agrees is False:
+        return f"disagrees with Newton: {max(dp, du):.1e} > {accuracy.check_tol:g}"
+    return "ok"
+
+
+def shifted_geometric_mean(times, shift: float = SHIFT) -> float:
+    """``exp(mean(log(t + shift))) - shift`` (s): qpbenchmark's runtime average."""
+    times = np.asarray(times, dtype=float)
+    if times.size == 0:
+        return float("nan")
+    return float(np.exp(np.mean(np.log(times + shift))) - shift)
+
+
+@dataclass(eq=False)
+class StudyResult:
+    """The rows of a comparison study, the reference solution and the summary.
+
+    Attributes
+    ----------
+    table : pandas.DataFrame
+        One row per run (see :func:`run_study` for the columns).
+    summary : pandas.DataFrame
+        Per accuracy, method and solver: ``runs``, ``success_rate`` (%),
+        ``shifted_gm_time`` (s), ``relative_time`` (1 = fastest at that accuracy),
+        ``worst_residual``, ``max_d_pressure``.
+    reference : Solution or None
+        The Newton solution differences are measured against.
+    skipped : list of str
+        Combinations that do not apply (qp with a nonlinear law).
+    """
+
+    table: object
+    summary: object
+    reference: object = None
+    skipped: list = field(default_factory=list)
+
+    def to_csv(self, directory) -> dict:
+        """``compare.csv`` and ``compare_summary.csv`` in ``directory``."""
+        from pathlib import Path
+
+        from ._atomic import write_text_atomic
+
+        directory = Path(directory)
+        return {
+            name: write_text_atomic(directory / file, frame.to_csv(index=False, lineterminator="\n"))
+            for name, file, frame in (("table", "compare.csv", self.table),
+                                      ("summary", "compare_summary.csv", self.summary))
+        }
+
+    def format_table(self) -> str:
+        """The runs as aligned text (the columns a reader looks at first)."""
+        columns = ["accuracy", "method", "solver", "repeat", "success", "status", "iterations", "total_time",
+                   "worst_residual", "d_pressure", "d_displacement", "message"]
+        table = self.table[[c for c in columns if c in self.table]]
+        return table.to_string(index=False, float_format=lambda v: f"{v:.3g}")
+
+    def format_summary(self) -> str:
+        return self.summary.to_string(index=False, float_format=lambda v: f"{v:.3g}")
+
+
+def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
+    """The qpbenchmark-style summary of a study table (see :class:`StudyResult`)."""
+    import pandas as pd
+
+    rows = []
+    for (accuracy, method, solver), group in table.groupby(["accuracy", "method", "solver"], sort=False):
+        success = group["success"].astype(bool)
+        times = np.where(success, group["total_time"].astype(float), time_limit)
+        rows.append({
+            "accuracy": accuracy, "method": method, "solver": solver, "runs": len(group),
+            "success_rate": 100.0 * success.mean(),
+            "shifted_gm_time": shifted_geometric_mean(times, shift),
+            "worst_residual": float(group.get("worst_residual", pd.Series([math.nan])).max()),
+            "max_d_pressure": float(group.get("d_pressure", pd.Series([math.nan])).max()),
+        })
+    summary = pd.DataFrame(rows)
+    if len(summary):
+        fastest = summary.groupby("accuracy")["shifted_gm_time"].transform("min")
+        summary.insert(6, "relative_time", summary["shifted_gm_time"] / fastest)
+    return summary
+
+
+def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS, accuracy=("default",),
+              repeat: int = 1, *, time_limit: float = TIME_LIMIT, progress: bool = False) -> StudyResult:
+    """Solve ``problem`` with every method x solver x accuracy setting, ``repeat`` times each.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+    methods : sequence of {"newton", "qp", "nlp"}
+    solvers : sequence of str
+        QP solvers for ``qp`` (cvxpy names). The default list is cut to the installed ones;
+        a solver named explicitly that is not installed is an :class:`InputError`.
+    accuracy : sequence of {"low", "default", "high"}
+        See :data:`ACCURACY`.
+    repeat : int
+        Runs per combination (for timing).
+    time_limit : float
+        Time (s) a failed run counts as in the summary.
+    progress : bool
+        Show a progress bar (on a terminal).
+
+    Returns
+    -------
+    StudyResult
+        ``table`` columns: accuracy, method, solver, repeat, check_tol, solver_tol,
+        success, solver_success, certified, agrees, status, message, build_time,
+        solve_time, total_time, solver_time (s), iterations, the certificate's
+        equilibrium, tension, complementarity, consistency, energy, worst_residual and
+        worst_name, peak_pressure (MPa), contact_area (mm^2), d_pressure and
+        d_displacement (relative differences from the Newton reference).
+
+    Raises
+    ------
+    InputError
+        Unknown method, solver or accuracy; ``repeat < 1``.
+    LoadNotSupportedError
+        The load cannot be carried (no method could answer).
+    """
+    import pandas as pd
+    from tqdm.auto import tqdm
+
+    from .solver import check_load_supported, solve
+
+    if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
+        raise InputError(f"repeat must be a positive integer, got {repeat!r}")
+    if tuple(solvers) == DEFAULT_SOLVERS:
+        installed = installed_qp_solvers()
+        solvers = [s for s in DEFAULT_SOLVERS if s in installed]
+    methods, solvers, accuracy = _check_names(methods, solvers, accuracy)
+    check_load_supported(problem)
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        reference = solve(problem, "newton", strict=False)
+    reference = reference if reference.success else None
+    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law)
+    rows = []
+    for acc, method, solver, r in tqdm(cases, desc="compare", unit="run", disable=None if progress else True,
+                                       leave=False):
+        rows.append(_run_one(problem, acc, method, solver, r, reference))
+    table = pd.DataFrame(rows)
+    return StudyResult(table=table, summary=summarize(table, time_limit), reference=reference, skipped=skipped)

@@ -1,0 +1,158 @@
+"""Sweeps: the Cartesian product of --set values on Dask, one row per case, resumable."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+from dea_opt.cli import app
+from dea_opt.errors import InputError, MissingDependencyError
+from dea_opt.sweep import RESULTS_NAME, case_id, make_cases, read_results, run_sweep
+
+pytest.importorskip("dask.distributed")
+
+# A small hip under a 5-frame gait: about a second per case with its outputs.
+SCENARIO = """\
+title = "sweep test"
+[geometry]
+kind = "socket"
+radius = 25.0
+thickness = 3.0
+coverage = 80.0
+gap = 0.1
+n_rings = 10
+n_sectors = 30
+[law]
+kind = "linear"
+H = 10.0
+[body2]
+free = ["ux", "uy", "uz"]
+[load_path]
+builtin = "hip_gait"
+frames = 5
+[output]
+formats = ["csv", "json", "vtk", "png"]
+"""
+TWELVE = ["law.H=5,10,20", "load_path.scale=0.5,1", "geometry.gap=0.05,0.1"]
+FOUR = ["law.H=5,10", "load_path.scale=0.5,1", "geometry.gap=0.05"]
+
+
+@pytest.fixture()
+def scenario(tmp_path):
+    path = tmp_path / "hip.toml"
+    path.write_text(SCENARIO)
+    return path
+
+
+def runs(out: Path) -> dict:
+    """How many times each case was computed (from its case.json)."""
+    return {p.parent.name: json.loads(p.read_text())["runs"] for p in (out / "cases").glob("*/case.json")}
+
+
+def test_cases_are_the_cartesian_product_with_stable_ids():
+    cases = make_cases(TWELVE)
+    assert len(cases) == 12 and len({c.id for c in cases}) == 12
+    assert cases[0].overrides == {"law.H": 5, "load_path.scale": 0.5, "geometry.gap": 0.05}
+    assert case_id({"a": 1, "b": 2}) == case_id({"b": 2, "a": 1}) != case_id({"a": 1, "b": 3})
+    subset = {c.id for c in make_cases(FOUR)}
+    assert subset < {c.id for c in cases}
+    with pytest.raises(InputError, match="more than once"):
+        make_cases(["law.H=1", "law.H=2"])
+
+
+def test_resume_runs_only_the_missing_cases(scenario, tmp_path):
+    out = tmp_path / "sweep"
+    first = run_sweep(scenario, FOUR, out, scheduler="synchronous")
+    assert len(first.ran) == 4 and len(read_results(out / RESULTS_NAME)) == 4
+    second = run_sweep(scenario, TWELVE, out, scheduler="synchronous")
+    assert sorted(second.skipped) == sorted(first.ran) and len(second.ran) == 8
+    table = second.table
+    assert len(table) == 12 and table["case_id"].is_unique and (table["status"] == "ok").all()
+    assert set(runs(out).values()) == {1}
+    for row in table.itertuples():
+        assert (Path(row.output_dir) / "frames.csv").is_file() and (Path(row.output_dir) / "series.pvd").is_file()
+    again = run_sweep(scenario, TWELVE, out, scheduler="synchronous")
+    assert again.ran == [] and len(again.skipped) == 12
+
+
+def test_a_failing_case_is_recorded_and_retried_on_request(scenario, tmp_path):
+    out = tmp_path / "sweep"
+    result = run_sweep(scenario, ["load_path.scale=1,-1"], out, scheduler="synchronous")
+    table = result.table.set_index("load_path.scale")
+    assert table.loc[1.0, "status"] == "ok"
+    assert table.loc[-1.0, "status"] == "error" and "cannot carry" in table.loc[-1.0, "message"]
+    assert len(result.failed) == 1
+    retry = run_sweep(scenario, ["load_path.scale=1,-1"], out, scheduler="synchronous", retry_failed=True)
+    assert retry.ran == result.failed
+
+
+def test_bad_overrides_stop_before_any_case_runs(scenario, tmp_path):
+    with pytest.raises(InputError, match="law.HH"):
+        run_sweep(scenario, ["law.HH=1,2"], tmp_path / "s", scheduler="synchronous")
+    with pytest.raises(InputError, match="law.H"):
+        run_sweep(scenario, ["law.H=1,abc"], tmp_path / "s", scheduler="synchronous")
+    assert not (tmp_path / "s").exists()
+
+
+def test_missing_dask_names_the_extra(scenario, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "dask.distributed", None)
+    with pytest.raises(MissingDependencyError, match=r"pip install dea-opt\[distributed\]"):
+        run_sweep(scenario, ["law.H=1"], tmp_path / "s")
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--set", "law.H=1", "-o", str(tmp_path / "s")])
+    assert result.exit_code == 2 and "dea-opt[distributed]" in result.stderr
+
+
+def _command() -> list[str]:
+    script = Path(sys.executable).with_name("dea-opt")
+    return [str(script)] if script.exists() else [sys.executable, "-m", "dea_opt.cli"]
+
+
+def test_twelve_cases_on_two_workers_survive_a_kill(scenario, tmp_path):
+    """Kill a sweep after some cases, run it again: 12 rows, nothing finished is computed twice."""
+    out = tmp_path / "sweep"
+    command = _command() + ["sweep", str(scenario), *sum((["--set", s] for s in TWELVE), []), "--workers", "2",
+                            "-o", str(out)]
+    process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
+    results = out / RESULTS_NAME
+    deadline = time.monotonic() + 120
+    try:
+        while time.monotonic() < deadline and process.poll() is None:
+            if len(read_results(results)) >= 2:
+                break
+            time.sleep(0.05)
+    finally:
+        if process.poll() is None:
+            os.killpg(process.pid, signal.SIGKILL)  # the sweep and its Dask workers, at once
+        process.communicate(timeout=60)
+    before = read_results(results)
+    assert 2 <= len(before) < 12, "the sweep should have been killed part way"
+
+    result = run_sweep(scenario, TWELVE, out, workers=2)
+    after = result.table
+    assert len(after) == 12 and after["case_id"].is_unique and (after["status"] == "ok").all()
+    assert sorted(result.skipped) == sorted(before["case_id"])
+    assert len(result.ran) == 12 - len(before)
+    counts = runs(out)
+    for case in before["case_id"]:
+        assert counts[case] == 1  # finished before the kill, never computed again
+    kept = after.set_index("case_id").loc[before["case_id"], "finished"].tolist()
+    assert kept == before["finished"].tolist()
+    assert len(set(after["pid"])) >= 2  # the rerun's cases ran in worker processes
+
+
+def test_sweep_command(scenario, tmp_path):
+    result = CliRunner().invoke(app, ["sweep", str(scenario), "--set", "law.H=5,10", "--scheduler", "synchronous",
+                                      "-o", str(tmp_path / "s")])
+    assert result.exit_code == 0, result.stderr
+    assert "2 case(s) run, 0 already finished" in result.stdout
+    table = pd.read_csv(tmp_path / "s" / RESULTS_NAME)
+    assert list(table["law.H"]) == [5, 10] or sorted(table["law.H"]) == [5, 10]
