@@ -5,6 +5,7 @@ from .errors import (
     InputError,
     LoadNotSupportedError,
     MissingDependencyError,
+    ScenarioError,
     SolverError,
     ValidityWarning,
 )
@@ -21,7 +22,7 @@ __version__ = "0.1.0"
 __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
-    "METHODS", "MissingDependencyError", "PolynomialLaw", "Solution", "SolverError",
+    "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
     "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
     "__version__",
 ]

@@ -19,6 +19,13 @@ class InputError(DeaError, ValueError):
     """
 
 
+class ScenarioError(InputError):
+    """A scenario file (or a value set on the command line) is invalid.
+
+    The message names the file, the key path (``law.H``) and, where known, the TOML line.
+    """
+
+
 class LoadNotSupportedError(DeaError):
     """Compression-only springs cannot carry the load.
 

@@ -38,7 +38,8 @@ from ._atomic import write_text_atomic
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
 from .io import write_atomic
 from .problem import ContactProblem, Load
-from .solution import Solution, certify
+from .solution import Solution
+from .solver import certified_solution
 
 __all__ = ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"]
 
@@ -101,40 +102,6 @@ def _frames(loads, times) -> tuple[list[Load], np.ndarray]:
     return loads, times
 
 
-def _share_geometry(base: ContactProblem, frame: ContactProblem) -> ContactProblem:
-    """Give ``frame`` the cached geometry arrays of ``base`` (same layer and bodies, new load).
-
-    A new load does not change ``A``, ``e0`` or the normal operator; sharing them saves
-    memory (one N x 12 array, not one per frame) and the time to rebuild them.
-    """
-    # Names of ContactProblem's cached properties; a name missing here is simply recomputed.
-    for name in ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius"):
-        if name in base.__dict__:
-            frame.__dict__[name] = base.__dict__[name]
-    return frame
-
-
-def _certified(problem: ContactProblem, result, method: str, certificate_tol: float, build_time: float) -> Solution:
-    """A :class:`Solution` from a formulation's raw result, certified as :func:`dea_opt.solve` does."""
-    u = problem.full_u(result.x)
-    finite = bool(np.isfinite(u).all())
-    n = len(problem.layer)
-    strain = problem.strain(u) if finite else np.full(n, np.nan)
-    with np.errstate(invalid="ignore", over="ignore"):
-        pressure = -problem.law.stress(np.minimum(strain, 0.0)) if finite else strain
-    if finite:
-        certificate = certify(problem, u, result.stress, certificate_tol)
-    else:
-        certificate = certify(problem, np.zeros(12), np.full(n, np.nan), certificate_tol)
-    success = bool(finite and certificate.passed and np.isfinite(pressure).all())
-    return Solution(
-        problem=problem, u=u, strain=strain, pressure=pressure, method=method, success=success,
-        status=result.status, message=result.message, iterations=result.iterations,
-        build_time=build_time, solve_time=result.solve_time, certificate=certificate,
-        info=dict(result.info, solver_success=result.success),
-    )
-
-
 # --- one solver per method, keeping its state between frames ---------------------------
 
 class _Stepper:
@@ -172,7 +139,7 @@ class _Stepper:
 
         options = {k: v for k, v in self.options.items() if k in ("gtol", "xtol", "max_iter")}
         result = newton.solve(system, problem.law, x0=self.x, **options)
-        solution = _certified(problem, result, "newton", self.certificate_tol, build)
+        solution = certified_solution(problem, result, "newton", self.certificate_tol, build)
         if not solution.success and self.method == "auto":
             # The previous frame's start may be poor (a jump in the load): solve cold,
             # falling back to the constrained formulation as dea_opt.solve does.
@@ -205,7 +172,7 @@ class _Stepper:
             # As dea_opt.solve does: a solver that raised gives a failed frame, not an abort.
             result = FormulationResult(x=np.full(system.n_dofs, np.nan), stress=np.full(system.n_springs, np.nan),
                                        success=False, status=exc.status or "solver_error", message=str(exc))
-        return _certified(problem, result, self.method, self.certificate_tol, build)
+        return certified_solution(problem, result, self.method, self.certificate_tol, build)
 
 
 def _frame_error(exc: Exception, k: int, t: float) -> Exception:
@@ -298,7 +265,7 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
             if poses is not None:
                 base = problem.with_layer(layer_for_pose(poses[k]))
                 new_geometry = True
-            frame = _share_geometry(base, base.with_load(load, body=body))
+            frame = base.with_load(load, body=body)  # shares the spring arrays
             try:
                 solution = stepper.solve(frame, new_geometry, setup if k == 0 else 0.0)
                 if not solution.success:

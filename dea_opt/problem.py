@@ -187,9 +187,17 @@ class ContactProblem:
 
     # --- copies -------------------------------------------------------------------------
     def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None, body: int = 2):
-        """A copy whose body ``body`` (1 or 2) carries a new load."""
+        """A copy whose body ``body`` (1 or 2) carries a new load.
+
+        The copy shares the spring arrays already built: a new load changes none of them, and
+        a load path would otherwise rebuild an N x 12 array per frame.
+        """
         key = _body_key(body)
-        return replace(self, **{key: getattr(self, key).with_load(load, force=force, moment=moment, point=point)})
+        new = replace(self, **{key: getattr(self, key).with_load(load, force=force, moment=moment, point=point)})
+        for name in _GEOMETRY_CACHE:
+            if name in self.__dict__:
+                new.__dict__[name] = self.__dict__[name]
+        return new
 
     def with_law(self, law: Law) -> "ContactProblem":
         return replace(self, law=law)
@@ -275,6 +283,11 @@ class ContactProblem:
             f"ContactProblem({self.layer!r}, {self.law.describe()}, free={self.free_names}, "
             f"load={self.load_vector.round(6).tolist()})"
         )
+
+
+#: Cached properties that depend on the layer, the references and the free and prescribed
+#: dofs only, never on the loads.
+_GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius")
 
 
 def _body_key(body) -> str:

@@ -48,7 +48,7 @@ from pydantic import (
     model_validator,
 )
 
-from .errors import InputError
+from .errors import InputError, ScenarioError
 from .kinematics import DOFS
 from .tables import read_numeric_csv, read_springs, write_springs
 
@@ -64,13 +64,6 @@ FORMATS = ("csv", "json", "vtk", "png")
 _FORCE_COLUMNS = ("Fx", "Fy", "Fz")
 _MOMENT_COLUMNS = ("Mx", "My", "Mz")
 _POSE_COLUMNS = ("pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz")
-
-
-class ScenarioError(InputError):
-    """A scenario file (or a value set on the command line) is invalid.
-
-    The message names the file, the key path (``law.H``) and, where known, the TOML line.
-    """
 
 
 # --- field types ------------------------------------------------------------------------

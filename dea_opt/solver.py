@@ -15,7 +15,7 @@ from .kinematics import DOF_NAMES
 from .problem import ContactProblem
 from .solution import Solution, certify
 
-__all__ = ["solve", "compare", "check_load_supported", "METHODS"]
+__all__ = ["solve", "compare", "check_load_supported", "certified_solution", "METHODS"]
 
 METHODS = ("auto", *formulations.FORMULATIONS)
 
@@ -185,18 +185,32 @@ def _run(problem: ContactProblem, method: str, certificate_tol: float, options: 
                 x=nan, stress=np.full(system.n_springs, np.nan), success=False,
                 status=exc.status or "solver_error", message=str(exc),
             )
+    return certified_solution(problem, result, method, certificate_tol, build + result.build_time)
+
+
+def certified_solution(problem: ContactProblem, result, method: str, certificate_tol: float = 1e-6,
+                       build_time: float = 0.0) -> Solution:
+    """Turn a formulation's raw :class:`~dea_opt.formulations.FormulationResult` into a
+    :class:`Solution` with dea_opt's own certificate (``success`` only if it passes).
+
+    For callers that drive the formulation models themselves (load paths, studies).
+    """
     u = problem.full_u(result.x)
-    finite = np.isfinite(u).all()
-    strain = problem.strain(u) if finite else np.full(len(problem.layer), np.nan)
+    n = len(problem.layer)
+    finite = bool(np.isfinite(u).all())
+    strain = problem.strain(u) if finite else np.full(n, np.nan)
     with np.errstate(invalid="ignore", over="ignore"):
-        pressure = -problem.law.stress(np.minimum(strain, 0.0)) if finite else strain
-    certificate = certify(problem, u, result.stress, certificate_tol) if finite else certify(
-        problem, np.zeros(12), np.full(len(problem.layer), np.nan), certificate_tol)
+        # 0.0 - sigma keeps an unloaded spring at +0.0 MPa, not -0.0.
+        pressure = 0.0 - problem.law.stress(np.minimum(strain, 0.0)) if finite else strain
+    if finite:
+        certificate = certify(problem, u, result.stress, certificate_tol)
+    else:
+        certificate = certify(problem, np.zeros(12), np.full(n, np.nan), certificate_tol)
     success = bool(finite and certificate.passed and np.isfinite(pressure).all())
     return Solution(
         problem=problem, u=u, strain=strain, pressure=pressure, method=method, success=success,
         status=result.status, message=result.message, iterations=result.iterations,
-        build_time=build + result.build_time, solve_time=result.solve_time,
+        build_time=build_time, solve_time=result.solve_time,
         certificate=certificate, info=dict(result.info, solver_success=result.success),
     )
 
