@@ -692,7 +692,10 @@ def _check_equivariant(case, Q, t, method):
     got = P2 @ other.u[free]
     scale = max(np.abs(want).max(), 1e-300)
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * scale)
-    if method == "newton":  # the minimum-norm answer is itself equivariant
+    if method == "newton" and np.allclose(P, np.eye(len(free))):
+        # A unique answer is equivariant in full. (Where the compressed springs leave a
+        # direction free, Newton's answer has no part along what no spring resists at all,
+        # but along directions only open springs resist it may be any point of a flat set.)
         np.testing.assert_allclose(other.u, transform_u(base.u, Q), rtol=0,
                                    atol=1e-6 * max(np.abs(base.u).max(), 1e-300))
     for s, p in ((base, problem), (other, moved)):

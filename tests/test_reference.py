@@ -149,6 +149,7 @@ def test_methods_agree(case):
         np.testing.assert_allclose(s.pressure, ref.pressure, rtol=0, atol=1e-6 * ref.peak_pressure)
 
 
+@pytest.mark.filterwarnings("ignore::dea_opt.ValidityWarning")
 def test_compare_reports_disagreement():
     out = d.compare(problem("plate-e10"), qp={"tol": 1e-10}, nlp={"tol": 1e-12})
     assert set(out["solutions"]) == {"qp", "nlp", "newton"}
