@@ -253,7 +253,51 @@ class ContactProblem:
         AT, e0, volume = self._geometry
         lengths = np.concatenate([np.ones(3), np.full(3, self.layer_radius[0]),
                                   np.ones(3), np.full(3, self.layer_radius[1])])
-        return SpringSystem(AT, e0, volume, self.load_vector[self.free_indices], lengths[self.free_indices])
+        return SpringSystem(AT, e0, volume, self.load_vector[self.free_indices], lengths[self.free_indices],
+                            self._factor)
+
+    @cached_property
+    def _factor(self) -> np.ndarray:
+        """``F`` (r, m) with ``F^T F = A^T diag(V) A``, built in a well-conditioned basis.
+
+        Every column of ``G`` is ``E c`` with ``E = [n, (x - g) x n]`` (translations, and
+        rotations about the layer's centroid ``g``) and a small exact ``c``: a rotation about a
+        reference ``c_k`` is the rotation about ``g`` plus the translation ``e x (g - c_k)``. So
+        ``A^T diag(V) A = C^T M C`` with the 6 x 6 ``M = E^T diag(S / h) E``, whose conditioning
+        does not suffer from references far from the layer (formulations/energy.md, "Scaling").
+        """
+        layer = self.layer
+        m = len(self.free_indices)
+        if not len(layer) or not m:
+            return np.zeros((0, m))
+        weight = layer.areas / layer.thickness
+        g = weight @ layer.points / weight.sum()
+        E = np.empty((6, len(layer)))
+        E[:3] = layer.normals.T
+        E[3:] = np.cross(layer.points - g, layer.normals).T
+        M = (E * weight) @ E.T
+        radius = float(np.sqrt(weight @ np.sum((layer.points - g) ** 2, axis=1) / weight.sum()))
+        radius = radius if radius > 1e-100 else 1.0  # springs at one point resist no rotation
+        Dg = np.array([1.0, 1.0, 1.0, radius, radius, radius])
+        vals, vecs = np.linalg.eigh(M / np.outer(Dg, Dg))
+        # A Gram matrix holds rounding noise at about 1e-16 of its largest eigenvalue: what
+        # lies below 1e-14 is a direction no spring resists (a singular value below 1e-7 in
+        # this basis, where far references no longer squeeze the tilt).
+        keep = vals > 1e-14 * max(vals[-1], 0.0)
+        L = Dg[:, None] * vecs[:, keep] * np.sqrt(vals[keep])  # M = L L^T
+        C = np.zeros((6, m))
+        for col, j in enumerate(self.free_indices):
+            body, k = divmod(int(j), 6)
+            sign = 1.0 if body == 1 else -1.0
+            reference = np.asarray((self.body1, self.body2)[body].reference)
+            if k < 3:
+                C[k, col] = sign
+            else:
+                e = np.zeros(3)
+                e[k - 3] = 1.0
+                C[:3, col] = sign * np.cross(e, g - reference)
+                C[3 + k - 3, col] = sign
+        return L.T @ C
 
     def full_u(self, x) -> np.ndarray:
         """The 12-vector ``u`` from the free-dof vector ``x``."""
@@ -287,7 +331,7 @@ class ContactProblem:
 
 #: Cached properties that depend on the layer, the references and the free and prescribed
 #: dofs only, never on the loads.
-_GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius")
+_GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius", "_factor")
 
 
 def _body_key(body) -> str:

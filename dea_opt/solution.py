@@ -72,9 +72,9 @@ class Certificate:
         }
 
 
-def _stiffness_norm_ratio(system, stiffness, g, q) -> float:
+def _stiffness_norm_ratio(system, modulus, g, q) -> float:
     """``sqrt(g K0^+ g / max(r K0^+ r, q K0^+ q))`` plus the part of ``g`` nothing resists."""
-    T1, null = bonded_basis(system.AT, stiffness, system.lengths)
+    T1, null = bonded_basis(system, modulus)
     r = system.load
 
     def norm(v):
@@ -131,8 +131,7 @@ def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate
         length = np.repeat(problem.layer_radius, 6)[free]
         length[free % 6 < 3] = 1.0
         per_dof = np.linalg.norm(g / length) / max(np.linalg.norm(system.load / length), np.abs(force).sum(), 1e-300)
-        stiffness = system.volume * (law.modulus if law.modulus > 0 else 1.0)
-        equilibrium = max(float(per_dof), _stiffness_norm_ratio(system, stiffness, g, q))
+        equilibrium = max(float(per_dof), _stiffness_norm_ratio(system, law.modulus, g, q))
         rows = np.flatnonzero(eps < 0)
         if rows.size:
             with np.errstate(invalid="ignore", over="ignore"):

@@ -68,7 +68,7 @@ def check_load_supported(problem: ContactProblem) -> None:
 
     # A load along a direction no spring resists at all: named exactly, before the cone test
     # (which could balance a nearly unresisted direction only with enormous forces).
-    _, null = bonded_basis(system.AT, system.volume, system.lengths)
+    _, null = bonded_basis(system)
     unresisted = null @ (null.T @ r)
     if np.linalg.norm(unresisted) > _CONE_TOL * rnorm:
         raise LoadNotSupportedError(

@@ -32,6 +32,12 @@ class SpringSystem:
         Spring volume ``S_i h_i`` in mm^3.
     load : ndarray, shape (m,)
         Generalized load on the free dofs (N, N mm).
+    dof_length : ndarray, shape (m,), optional
+        See :attr:`lengths`.
+    factor : ndarray, shape (r, m), optional
+        ``F`` with ``F^T F = A^T diag(V) A``, computed from the geometry in a well-conditioned
+        basis (rotations about the layer's centroid); lets :func:`bonded_basis` skip a QR
+        factorization of an N x m matrix.
     """
 
     AT: np.ndarray
@@ -39,6 +45,7 @@ class SpringSystem:
     volume: np.ndarray
     load: np.ndarray
     dof_length: np.ndarray | None = None
+    factor: np.ndarray | None = None
 
     @property
     def lengths(self) -> np.ndarray:
@@ -63,7 +70,8 @@ class SpringSystem:
         return self.e0 + np.asarray(x, dtype=float) @ self.AT
 
     def with_load(self, load) -> "SpringSystem":
-        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length)
+        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
+                            self.factor)
 
 
 @dataclass
@@ -140,23 +148,28 @@ class Scaling:
         return SpringSystem(self.AT, e0, self.volume, self.load(load))
 
 
-def bonded_basis(AT, stiffness, lengths=None) -> tuple[np.ndarray, np.ndarray]:
+def bonded_basis(system: SpringSystem, modulus: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
     """``(T1, null)``: ``T1`` (m, k) with ``T1^T K0 T1 = I`` over the resisted directions of
-    ``K0 = AT diag(stiffness) AT^T``, and an orthonormal basis ``null`` (m, m - k) of the rest.
+    ``K0 = A^T diag(V modulus) A``, and an orthonormal basis ``null`` (m, m - k) of the rest.
 
-    Computed by a pivoted QR factorization of ``W = diag(sqrt(stiffness)) A D^-1`` rather than
-    an eigendecomposition of ``K0``, which would square the condition number: a reference
-    point far from the layer makes the dofs nearly dependent, and the tilt of the layer must
-    survive that. ``D`` (``lengths``) measures rotations as arc lengths, so that the test for
-    "no spring resists this direction" compares like with like.
+    From a pivoted QR factorization of ``W D^-1``, ``W^T W = K0``, rather than an
+    eigendecomposition of ``K0``, which would square the condition number: a reference point
+    far from the layer makes the dofs nearly dependent, and the tilt of the layer must survive
+    that. ``W`` is the system's small ``factor`` when it has one, else the N x m matrix
+    ``diag(sqrt(V modulus)) A``. ``D`` (``lengths``) measures rotations as arc lengths, so that
+    the test for "no spring resists this direction" compares like with like.
     """
     from scipy.linalg import qr, solve_triangular
 
-    m = AT.shape[0]
+    m = system.n_dofs
     if not m:
         return np.zeros((0, 0)), np.zeros((0, 0))
-    D = np.ones(m) if lengths is None else np.asarray(lengths, dtype=float)
-    W = (AT * np.sqrt(stiffness)).T / D  # (N, m), Fortran-ordered as LAPACK wants it
+    D = system.lengths
+    modulus = modulus if modulus > 0 and np.isfinite(modulus) else 1.0
+    if system.factor is not None:
+        W = np.sqrt(modulus) * system.factor / D
+    else:
+        W = (system.AT * np.sqrt(system.volume * modulus)).T / D  # (N, m), Fortran-ordered
     if W.shape[0] < m:
         W = np.vstack([W, np.zeros((m - W.shape[0], m))])
     R, perm = qr(W, mode="r", pivoting=True, check_finite=False)
@@ -182,7 +195,7 @@ def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scalin
     """The :class:`Scaling` of ``system`` for a law of small-strain stiffness ``modulus``."""
     AT, V = system.AT, system.volume
     stiffness = V * (modulus if modulus > 0 and np.isfinite(modulus) else 1.0)
-    T1, _ = bonded_basis(AT, stiffness, system.lengths)
+    T1, _ = bonded_basis(system, modulus)
     r = system.load if reference_load is None else np.asarray(reference_load, dtype=float)
     s = float(np.linalg.norm(T1.T @ r)) if r.size else 0.0
     if s == 0.0:

@@ -37,18 +37,29 @@ def _tangent(AT, weight) -> np.ndarray:
 
 
 def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
-    """``(-K^{-1} g, safe)``; where ``K`` misses a direction, ``K + K_all`` is used instead
-    (``safe`` is then True)."""
+    """``(d, safe)``: Newton's ``d = -K^{-1} g``, or a safe step where ``K`` is singular.
+
+    A singular active tangent (too few springs in contact) is harmless when ``g`` lies in its
+    range: the step ``-K^+ g`` then moves only along what the compressed springs resist. When
+    ``g`` pushes along a direction ``K`` misses, ``d = -(K + 1e-3 K_all)^{-1} g`` (``safe``):
+    the missing directions take a long step toward the next springs to touch.
+    """
     if not g.size:
         return g.copy(), False
-    vals = np.linalg.eigvalsh(K)
-    safe = bool(vals[-1] <= 0 or vals[0] <= _SINGULAR * vals[-1])
-    if safe:
-        K = K + _SAFE_WEIGHT * K_all_fn()
+    vals, vecs = np.linalg.eigh(K)
+    top = max(vals[-1], 0.0)
+    if top > 0 and vals[0] > _SINGULAR * top:
+        return -np.linalg.solve(K, g), False
+    keep = vals > _SINGULAR * top
+    coeff = vecs[:, keep].T @ g
+    outside = g - vecs[:, keep] @ coeff
+    if keep.any() and np.linalg.norm(outside) <= 1e-9 * np.linalg.norm(g):
+        return -(vecs[:, keep] @ (coeff / vals[keep])), False
+    K = K + _SAFE_WEIGHT * K_all_fn()
     try:
-        return -np.linalg.solve(K, g), safe
+        return -np.linalg.solve(K, g), True
     except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(K, g, rcond=_SINGULAR)[0], safe
+        return -np.linalg.lstsq(K, g, rcond=_SINGULAR)[0], True
 
 
 class _Line:
