@@ -91,7 +91,7 @@ def test_newton_iteration_limit():
     assert _certified_or_solver_error(_plate(e=10.0), "newton", max_iter=1) is None
 
 
-@pytest.mark.parametrize("solver, options", [("SCS", {}), ("OSQP", {"polish": False})])
+@pytest.mark.parametrize("solver, options", [("SCS", {}), ("OSQP", {"polishing": False})])
 def test_inaccurate_answer_is_not_a_success(solver, options):
     import cvxpy as cp
 

@@ -22,7 +22,7 @@ LINEAR_ONLY = True
 #: Tolerance options of each solver cvxpy knows, as functions of one tolerance.
 TOLERANCE_OPTIONS = {
     "CLARABEL": lambda tol: {"tol_gap_abs": tol, "tol_gap_rel": tol, "tol_feas": tol, "tol_ktratio": tol * 1e-2},
-    "OSQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "polish": True, "max_iter": 200_000},
+    "OSQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "polishing": True, "max_iter": 200_000},
     "SCS": lambda tol: {"eps_abs": tol, "eps_rel": tol, "max_iters": 200_000},
     "PIQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "eps_duality_gap_abs": tol, "eps_duality_gap_rel": tol},
     "ECOS": lambda tol: {"abstol": tol, "reltol": tol, "feastol": tol},
