@@ -39,6 +39,7 @@ from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarn
 from .io import write_atomic
 from .problem import ContactProblem, Load
 from .solution import Solution
+from .formulations.base import single_threaded_blas
 from .solver import certified_solution
 
 __all__ = ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"]
@@ -239,6 +240,16 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
     SolverError
         With ``strict``, the first frame whose answer fails its certificate.
     """
+    # BLAS on one thread throughout: the frames are many small memory-bound products,
+    # which a second thread only slows down.
+    with single_threaded_blas():
+        return _solve_path(problem, loads, poses, method=method, times=times, body=body, certificate_tol=certificate_tol, strict=strict, keep_solutions=keep_solutions, layer_for_pose=layer_for_pose, threshold=threshold, progress=progress, **options)
+
+
+def _solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "auto", times=None, body: int = 2,
+               certificate_tol: float = 1e-6, strict: bool = False, keep_solutions: bool = True,
+               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, **options) -> "PathResult":
+    """The body of :func:`solve_path`."""
     from .solver import METHODS, check_load_supported
 
     if not isinstance(problem, ContactProblem):

@@ -11,6 +11,7 @@ import numpy as np
 
 from . import formulations
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
+from .formulations.base import single_threaded_blas
 from .kinematics import DOF_NAMES
 from .problem import ContactProblem
 from .solution import Solution, certify
@@ -112,21 +113,21 @@ def _warn_validity(solution: Solution) -> None:
             f"a spring reached strain {lowest:.3g} <= -1: the cartilage is crushed through its whole "
             f"thickness; the result is not physical (use a bounded law such as AteshianLaw, or a smaller load)",
             ValidityWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
     elif lowest <= -_NEARLY_CRUSHED:
         warnings.warn(
             f"a spring reached strain {lowest:.6g}: the cartilage is nearly crushed through its whole "
             f"thickness, where pressures grow without bound; check the load and the thickness",
             ValidityWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
     elif law.is_linear and lowest < -_LINEAR_VALIDITY:
         warnings.warn(
             f"the linear law met compressive strain {-lowest:.3g} > {_LINEAR_VALIDITY}, beyond the range "
             f"where Volokh, Chao & Armand find it valid; consider AteshianLaw",
             ValidityWarning,
-            stacklevel=3,
+            stacklevel=4,
         )
 
 
@@ -244,6 +245,11 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
     """
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
+    with single_threaded_blas():
+        return _solve(problem, method, certificate_tol, strict, options)
+
+
+def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     if method not in METHODS:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     if not isinstance(certificate_tol, (int, float)) or not (0 < certificate_tol < 1) or math.isnan(certificate_tol):

@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from .base import FormulationResult, SpringSystem, scaling
+from .base import FormulationResult, SpringSystem, scaling, single_threaded_blas
 
 PAGE = "formulations/newton.md"
 LINEAR_ONLY = False
@@ -122,16 +122,8 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     return None, None, max_evaluations
 
 
-def solve(
-    system: SpringSystem,
-    law,
-    *,
-    x0=None,
-    xtol: float = 1e-12,
-    gtol: float = 1e-12,
-    max_iter: int = 100,
-    extended_start: bool = True,
-) -> FormulationResult:
+def solve(system: SpringSystem, law, *, x0=None, xtol: float = 1e-12, gtol: float = 1e-12, max_iter: int = 100,
+          extended_start: bool = True) -> FormulationResult:
     """Minimize ``Phi`` by a damped semismooth Newton method with an active set.
 
     Parameters
@@ -142,14 +134,29 @@ def solve(
         Warm start (e.g. the previous frame of a load path); default zeros (Eq. 19).
     xtol : float
         Relative step of Eq. (20) that counts as converged once the contact set is
-        unchanged (the paper uses 1e-6).
+        unchanged (the paper uses 1e-6; default 1e-12).
     gtol : float
         Relative equilibrium residual ``|g| / max(|r|, |A^T V sigma|)`` that counts as
-        converged (in the scaled variables).
+        converged (in the scaled variables; default 1e-12).
     max_iter : int
+        Default 100.
     extended_start : bool
-        Treat every spring as active, tension included, in the first iteration.
+        Treat every spring as active, tension included, in the first iteration (default).
     """
+    with single_threaded_blas():
+        return _solve(system, law, x0=x0, xtol=xtol, gtol=gtol, max_iter=max_iter, extended_start=extended_start)
+
+
+def _solve(
+    system: SpringSystem,
+    law,
+    *,
+    x0=None,
+    xtol: float = 1e-12,
+    gtol: float = 1e-12,
+    max_iter: int = 100,
+    extended_start: bool = True,
+) -> FormulationResult:
     start = time.perf_counter()
     scale = scaling(system, law.modulus)
     AT, V, e0 = scale.AT, scale.volume, system.e0
