@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from functools import lru_cache
 
 import numpy as np
 
@@ -27,6 +28,14 @@ TOLERANCE_OPTIONS = {
     "PIQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "eps_duality_gap_abs": tol, "eps_duality_gap_rel": tol},
     "ECOS": lambda tol: {"abstol": tol, "reltol": tol, "feastol": tol},
 }
+
+
+@lru_cache(maxsize=1)
+def _installed_solvers() -> tuple:
+    """cvxpy's installed solvers (asking costs milliseconds, which a load path repeats)."""
+    import cvxpy as cp
+
+    return tuple(cp.installed_solvers())
 
 
 class QPModel:
@@ -50,10 +59,10 @@ class QPModel:
             import cvxpy as cp
         except ImportError as exc:  # pragma: no cover - cvxpy is a core dependency
             raise MissingDependencyError("method 'qp' needs cvxpy: pip install cvxpy") from exc
-        solver = solver.upper()
-        if solver not in cp.installed_solvers():
+        solver = str(solver).upper()
+        if solver not in _installed_solvers():
             raise InputError(
-                f"solver must be one of the QP solvers cvxpy has installed {sorted(cp.installed_solvers())}, "
+                f"solver must be one of the QP solvers cvxpy has installed {sorted(_installed_solvers())}, "
                 f"got {solver!r}"
             )
         start = time.perf_counter()
