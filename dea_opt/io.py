@@ -1106,7 +1106,7 @@ def plot_pressure(solution, path, *, view: str = "plane", cmap: str = "viridis",
     fig.colorbar(ScalarMappable(norm=norm, cmap=colormap), ax=ax, label="pressure (MPa)", shrink=0.85)
     if title is None:
         title = (f"{solution.method}: peak {solution.peak_pressure:.4g} MPa, "
-                 f"force {solution.total_normal_force:.4g} N, area {solution.contact_area:.4g} mm$^2$")
+                 f"resultant {np.linalg.norm(solution.contact_force):.4g} N, area {solution.contact_area:.4g} mm$^2$")
     ax.set_title(title, fontsize="medium")
     write_atomic(target, lambda tmp: fig.savefig(tmp, format=fmt[1:], dpi=dpi))
     return target

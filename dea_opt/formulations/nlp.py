@@ -82,6 +82,9 @@ class NLPModel:
         options = {
             "print_time": False,
             "error_on_fail": False,
+            # IPOPT answers an evaluation outside a law's domain by cutting its step; the
+            # NaN that triggered it is expected, not news.
+            "show_eval_warnings": False,
             "ipopt": {
                 "print_level": 0,
                 "sb": "yes",
