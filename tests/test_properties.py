@@ -24,7 +24,7 @@ configuration, chosen with the environment variable ``DEA_HYPOTHESIS_PROFILE``):
   run, so CI is reproducible), no deadline; about 45 s on two cores;
 * ``thorough``: 2 000 generated problems, derandomized as well; about 3 minutes::
 
-      DEA_HYPOTHESIS_PROFILE=thorough /work/venv/bin/pytest tests/test_properties.py -q
+      DEA_HYPOTHESIS_PROFILE=thorough python -m pytest tests/test_properties.py -q
 
 Also: ``DEA_HYPOTHESIS_SEED=<int>`` draws a different, seeded set of examples instead of
 the derandomized one, and ``DEA_HYPOTHESIS_SHRINK=1`` shrinks a failure to a minimal
