@@ -98,11 +98,11 @@ def hip_gait_load(n_frames: int = 101, body_weight: float = BODY_WEIGHT, cycle_t
 def write_hip_gait_csv(path=HIP_GAIT_CSV, n_frames: int = 101, body_weight: float = BODY_WEIGHT,
                        cycle_time: float = CYCLE_TIME) -> Path:
     """Write :func:`hip_gait_load` as CSV with its provenance header (atomically)."""
-    from ._atomic import write_text_atomic
+    from .io import write_data
 
     table = hip_gait_load(n_frames, body_weight, cycle_time)
     header = _HEADER.format(n=n_frames, bw=body_weight, ct=cycle_time)
-    return write_text_atomic(path, header + table.to_csv(index=False, float_format="%.6f", lineterminator="\n"))
+    return write_data(path, header + table.to_csv(index=False, float_format="%.6f", lineterminator="\n"))
 
 
 def load_hip_gait():

@@ -222,6 +222,19 @@ def write_atomic(path, writer, *, argument: str = "path") -> Path:
     return Path(path)
 
 
+def write_data(path, data, *, argument: str = "path") -> Path:
+    """Write ``data`` (``str`` as UTF-8, or ``bytes``) to ``path`` atomically; return the path."""
+
+    def writer(tmp) -> None:
+        if isinstance(data, (bytes, bytearray)):
+            Path(tmp).write_bytes(data)
+        else:
+            with open(tmp, "w", encoding="utf-8", newline="") as handle:
+                handle.write(data)
+
+    return write_atomic(path, writer, argument=argument)
+
+
 def _require(module: str, feature: str):
     import importlib
 

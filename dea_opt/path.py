@@ -34,12 +34,12 @@ from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ._atomic import write_text_atomic
+from .io import write_data
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
 from .io import write_atomic
 from .problem import ContactProblem, Load
 from .solution import Solution
-from .formulations.base import single_threaded_blas
+from .formulations.energy import single_threaded_blas
 from .solver import certified_solution
 
 __all__ = ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"]
@@ -550,12 +550,12 @@ class PathResult:
     # writers -----------------------------------------------------------------------------
     def to_csv(self, path) -> Path:
         """The per-frame table as CSV (columns :data:`TABLE_COLUMNS`)."""
-        return write_text_atomic(path, self.table.to_csv(index=False, lineterminator="\n"))
+        return write_data(path, self.table.to_csv(index=False, lineterminator="\n"))
 
     def to_json(self, path, extra: dict | None = None) -> Path:
         """:meth:`summary` (plus ``extra``) as JSON."""
         data = {**self.summary(), **(extra or {})}
-        return write_text_atomic(path, json.dumps(_plain(data), indent=2) + "\n")
+        return write_data(path, json.dumps(_plain(data), indent=2) + "\n")
 
     def to_pvd(self, path) -> Path:
         """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame beside it.
@@ -639,7 +639,7 @@ def write_pvd(path, times, files) -> Path:
         relative = Path(file).resolve().relative_to(path.parent.resolve()).as_posix()
         lines.append(f'    <DataSet timestep="{float(t):.9g}" group="" part="0" file={quoteattr(relative)}/>')
     lines += ["  </Collection>", "</VTKFile>", ""]
-    return write_text_atomic(path, "\n".join(lines))
+    return write_data(path, "\n".join(lines))
 
 
 def _plain(value):

@@ -10,7 +10,7 @@ import numpy as np
 
 from ._validate import finite_number, vector3
 from .errors import InputError
-from .formulations.base import SpringSystem
+from .formulations.energy import SpringSystem
 from .kinematics import DOF_NAMES, DOFS, normal_operator
 from .laws import Law, check_law
 from .layer import SpringLayer

@@ -288,7 +288,7 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
     """
     import pandas as pd
 
-    from ._atomic import write_text_atomic
+    from .io import write_data
     from .scenario import build_problem
 
     scenario = demo_scenario(frames, coarse)
@@ -299,7 +299,7 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
     if compare:
         rows = demo_comparison(scenario, progress)
         table = pd.DataFrame(rows)
-        write_text_atomic(out / "comparison.csv", table.to_csv(index=False, lineterminator="\n"))
+        write_data(out / "comparison.csv", table.to_csv(index=False, lineterminator="\n"))
         echo(f"Gait-peak frame: {_DEMO_PEAK:g} N tilted {_DEMO_TILT:g} degrees, "
              f"{len(build_problem(scenario).layer)} springs")
         echo(_format_comparison(table))

@@ -6,7 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .formulations.base import bonded_basis, single_threaded_blas
+from .formulations.energy import bonded_basis, single_threaded_blas
 from .kinematics import DOF_NAMES
 
 __all__ = ["Certificate", "Solution", "certify"]

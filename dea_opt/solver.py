@@ -11,7 +11,7 @@ import numpy as np
 
 from . import formulations
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
-from .formulations.base import single_threaded_blas
+from .formulations.energy import single_threaded_blas
 from .kinematics import DOF_NAMES
 from .problem import ContactProblem
 from .solution import Solution, certify
@@ -65,7 +65,7 @@ def check_load_supported(problem: ContactProblem) -> None:
         )
     from scipy.optimize import nnls
 
-    from .formulations.base import bonded_basis
+    from .formulations.energy import bonded_basis
 
     # A load along a direction no spring resists at all: named exactly, before the cone test
     # (which could balance a nearly unresisted direction only with enormous forces).

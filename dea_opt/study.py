@@ -202,11 +202,11 @@ class StudyResult:
         """``compare.csv`` and ``compare_summary.csv`` in ``directory``."""
         from pathlib import Path
 
-        from ._atomic import write_text_atomic
+        from .io import write_data
 
         directory = Path(directory)
         return {
-            name: write_text_atomic(directory / file, frame.to_csv(index=False, lineterminator="\n"))
+            name: write_data(directory / file, frame.to_csv(index=False, lineterminator="\n"))
             for name, file, frame in (("table", "compare.csv", self.table),
                                       ("summary", "compare_summary.csv", self.summary))
         }

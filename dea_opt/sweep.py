@@ -97,7 +97,7 @@ def _write_case_record(case_dir: Path, row: dict) -> None:
     ``runs`` above 1 means a case was computed again (its row never reached the results
     table, e.g. the sweep was killed between the two).
     """
-    from ._atomic import write_text_atomic
+    from .io import write_data
 
     record = case_dir / "case.json"
     runs = 0
@@ -107,7 +107,7 @@ def _write_case_record(case_dir: Path, row: dict) -> None:
         except (ValueError, OSError):
             runs = 0
     data = {**row, "runs": runs + 1}
-    write_text_atomic(record, json.dumps(data, indent=2, default=str) + "\n")
+    write_data(record, json.dumps(data, indent=2, default=str) + "\n")
 
 
 # --- the results table ------------------------------------------------------------------
@@ -130,11 +130,11 @@ def append_row(path, row: dict) -> None:
     """Add ``row`` to the results table, replacing the file atomically."""
     import pandas as pd
 
-    from ._atomic import write_text_atomic
+    from .io import write_data
 
     table = read_results(path)
     table = pd.concat([table, pd.DataFrame([row])], ignore_index=True) if len(table) else pd.DataFrame([row])
-    write_text_atomic(path, table.to_csv(index=False, lineterminator="\n"))
+    write_data(path, table.to_csv(index=False, lineterminator="\n"))
 
 
 # --- the sweep --------------------------------------------------------------------------

@@ -127,11 +127,11 @@ def write_springs(layer, path) -> Path:
     """Write a layer as a springs CSV that :func:`read_springs` reads back (atomically)."""
     import pandas as pd
 
-    from ._atomic import write_text_atomic
+    from .io import write_data
 
     table = pd.DataFrame({
         "x": layer.points[:, 0], "y": layer.points[:, 1], "z": layer.points[:, 2],
         "nx": layer.normals[:, 0], "ny": layer.normals[:, 1], "nz": layer.normals[:, 2],
         "area": layer.areas, "thickness": layer.thickness, "gap": layer.gap,
     })
-    return write_text_atomic(path, table.to_csv(index=False, float_format="%.10g", lineterminator="\n"))
+    return write_data(path, table.to_csv(index=False, float_format="%.10g", lineterminator="\n"))

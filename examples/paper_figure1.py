@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import argparse
 import io
-import os
 from pathlib import Path
 
 import matplotlib
@@ -35,6 +34,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 import dea_opt  # noqa: E402
+from dea_opt.io import write_data  # noqa: E402
 
 NAME = "paper_figure1"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME
@@ -142,36 +142,8 @@ def deviation_curves(H: float = 0.6, betas=BETAS, approximations=APPROXIMATIONS,
 
 # --- files ------------------------------------------------------------------------------
 def write_atomic(path, data) -> Path:
-    """Write ``data`` (str or bytes) to ``path`` so that no half-written file is ever seen.
-
-    Uses :func:`dea_opt.io.write_atomic` when the installed dea-opt has it; otherwise a
-    temporary file in the same directory, then :func:`os.replace`.
-    """
-    path = Path(path)
-
-    def writer(tmp) -> None:
-        if isinstance(data, bytes):
-            Path(tmp).write_bytes(data)
-        else:
-            with open(tmp, "w", encoding="utf-8", newline="") as f:
-                f.write(data)
-
-    try:
-        from dea_opt.io import write_atomic as core_write_atomic
-    except ImportError:  # an older dea-opt: do the same by hand
-        path.parent.mkdir(parents=True, exist_ok=True)
-        # A sibling file (same file system, so os.replace is atomic), opened the ordinary
-        # way so that the result gets the user's usual permissions.
-        tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-        try:
-            writer(tmp)
-            os.replace(tmp, path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
-        return path
-    core_write_atomic(path, writer)
-    return path
+    """Write ``data`` (str or bytes) to ``path`` so that no half-written file is ever seen."""
+    return write_data(path, data)
 
 
 def figure_bytes(fig) -> bytes:

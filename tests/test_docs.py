@@ -24,6 +24,16 @@ def test_each_formulation_module_and_page_link_both_ways(name):
     assert f"dea_opt/formulations/{name}.py" in page.read_text(), "the page must name its module"
 
 
+def test_every_module_of_the_formulations_package_has_its_page():
+    for path in sorted((ROOT / "dea_opt" / "formulations").glob("*.py")):
+        if path.stem == "__init__":
+            continue
+        page = ROOT / "formulations" / f"{path.stem}.md"
+        assert page.is_file(), f"{path.name} has no written math at formulations/{path.stem}.md"
+        assert f"formulations/{path.stem}.md" in path.read_text(), f"{path.name} does not name its page"
+        assert f"dea_opt/formulations/{path.stem}.py" in page.read_text(), f"{page.name} does not name {path.name}"
+
+
 def test_every_page_names_an_existing_module():
     pages = sorted((ROOT / "formulations").glob("*.md"))
     assert {p.stem for p in pages} >= {"energy", "qp", "nlp", "newton"}

@@ -1,7 +1,7 @@
 """The formulations of the DEA problem, by name.
 
-Each module takes a :class:`~dea_opt.formulations.base.SpringSystem` (arrays) and a law and
-returns a :class:`~dea_opt.formulations.base.FormulationResult`; each names its written
+Each module takes a :class:`~dea_opt.formulations.energy.SpringSystem` (arrays) and a law and
+returns a :class:`~dea_opt.formulations.energy.FormulationResult`; each names its written
 math in ``PAGE`` (``formulations/<name>.md`` at the repository's top).
 """
 
@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from importlib import import_module
 
-from .base import FormulationResult, SpringSystem
+from .energy import FormulationResult, SpringSystem
 
 #: name -> module path; modules are imported on first use (cvxpy and CasADi are heavy).
 FORMULATIONS = {

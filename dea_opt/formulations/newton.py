@@ -8,7 +8,7 @@ paper's extended range: every spring active, tension included, which also closes
 gaps in one step. A line search on the directional derivative of the convex ``Phi``
 (Wolfe conditions, expanding too-short steps and bisecting overshoots) makes it converge
 from any start; where the active tangent misses a direction, the all-spring tangent is
-added. The problem is solved in the variables of :class:`~dea_opt.formulations.base.Scaling`,
+added. The problem is solved in the variables of :class:`~dea_opt.formulations.energy.Scaling`,
 so units and reference points do not matter.
 """
 
@@ -18,7 +18,7 @@ import time
 
 import numpy as np
 
-from .base import FormulationResult, SpringSystem, scaling, single_threaded_blas
+from .energy import FormulationResult, SpringSystem, scaling, single_threaded_blas
 
 PAGE = "formulations/newton.md"
 LINEAR_ONLY = False

@@ -18,7 +18,7 @@ import time
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
-from .base import FormulationResult, SpringSystem, scaling
+from .energy import FormulationResult, SpringSystem, scaling
 
 PAGE = "formulations/nlp.md"
 LINEAR_ONLY = False

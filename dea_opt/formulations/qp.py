@@ -15,7 +15,7 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
-from .base import FormulationResult, SpringSystem, scaling
+from .energy import FormulationResult, SpringSystem, scaling
 
 PAGE = "formulations/qp.md"
 LINEAR_ONLY = True
