@@ -10,7 +10,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .io import write_atomic
+from .io import _point_triangulation, write_atomic
 
 
 def _figure(figsize):
@@ -128,24 +128,10 @@ def _draw_sites(ax, layer, values, frame, moving, cmap, norm):
         ax.set_ylim(xy[faces].reshape(-1, 2)[:, 1].min(), xy[faces].reshape(-1, 2)[:, 1].max())
         return
     xy = (layer.points - origin) @ axes[:2].T
-    triangulation = _triangulate(xy, layer.areas)
+    triangulation = _point_triangulation(xy, layer.areas)
     if triangulation is None:
         ax.scatter(xy[:, 0], xy[:, 1], c=values, s=6, cmap=cmap, norm=norm)
     else:
         ax.tripcolor(triangulation, values, cmap=cmap, norm=norm, shading="flat")
 
 
-def _triangulate(xy, areas):
-    """Delaunay triangles of the spring points without those that bridge holes; None if degenerate."""
-    from matplotlib.tri import Triangulation
-
-    try:
-        tri = Triangulation(xy[:, 0], xy[:, 1])
-    except (RuntimeError, ValueError):
-        return None
-    t = tri.triangles
-    a, b, c = xy[t[:, 0]], xy[t[:, 1]], xy[t[:, 2]]
-    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
-    # A triangle much larger than the cells around it spans a hole or a concave edge.
-    tri.set_mask(area > 4.0 * np.asarray(areas)[t].max(axis=1))
-    return tri
