@@ -130,6 +130,8 @@ def compare(
                                                   show_default=False)] = None,
     frame: Annotated[Optional[int], typer.Option(help="For a load path: the frame to compare on (default: the "
                                                  "largest force).", show_default=False)] = None,
+    nlp_forms: Annotated[str, typer.Option(help="NLP forms for nlp, comma-separated: constrained,reduced.")]
+    = "constrained",
     output: OutputOpt = None,
     set_: SetOpt = None,
 ):
@@ -148,7 +150,8 @@ def compare(
     # The default list is cut to the installed solvers by run_study; a list given is checked.
     result = run_study(problem, methods=_split(methods) or section.methods,
                        solvers=_split(solvers) or section.solvers, accuracy=_split(accuracy) or section.accuracy,
-                       repeat=section.repeat if repeat is None else repeat, progress=True)
+                       repeat=section.repeat if repeat is None else repeat, nlp_forms=_split(nlp_forms),
+                       progress=True)
     files = result.to_csv(loaded.output_dir(output))
     typer.echo(result.format_table())
     typer.echo("")

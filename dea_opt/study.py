@@ -86,7 +86,11 @@ def _check_names(methods, solvers, accuracy):
     return methods, solvers, list(accuracy)
 
 
-def _cases(methods, solvers, accuracy, repeat, law):
+#: The ``solver`` label of each NLP form in a study's table.
+NLP_FORMS = {"constrained": "IPOPT", "reduced": "IPOPT-reduced"}
+
+
+def _cases(methods, solvers, accuracy, repeat, law, nlp_forms=("IPOPT",)):
     skipped = []
     cases = []
     for acc in accuracy:
@@ -95,7 +99,8 @@ def _cases(methods, solvers, accuracy, repeat, law):
                 if "qp needs a linear law" not in skipped:
                     skipped.append("qp needs a linear law")
                 continue
-            for solver in (solvers if method == "qp" else [METHOD_SOLVER[method]]):
+            choices = solvers if method == "qp" else nlp_forms if method == "nlp" else [METHOD_SOLVER[method]]
+            for solver in choices:
                 for r in range(repeat):
                     cases.append((ACCURACY[acc], method, solver, r))
     return cases, skipped
@@ -106,7 +111,8 @@ def _options(method, solver, accuracy: Accuracy) -> dict:
     if method == "qp":
         return {"solver": solver} | ({"tol": tol} if tol is not None else {})
     if method == "nlp":
-        return {"tol": tol} if tol is not None else {}
+        form = {label: name for name, label in NLP_FORMS.items()}[solver]
+        return {"form": form} | ({"tol": tol} if tol is not None else {})
     return {"gtol": tol, "xtol": tol} if tol is not None else {}
 
 
@@ -245,7 +251,8 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
 
 
 def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS, accuracy=("default",),
-              repeat: int = 1, *, time_limit: float = TIME_LIMIT, progress: bool = False) -> StudyResult:
+              repeat: int = 1, *, nlp_forms=("constrained",), time_limit: float = TIME_LIMIT,
+              progress: bool = False) -> StudyResult:
     """Solve ``problem`` with every method x solver x accuracy setting, ``repeat`` times each.
 
     Parameters
@@ -259,6 +266,8 @@ def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS,
         See :data:`ACCURACY`.
     repeat : int
         Runs per combination (for timing).
+    nlp_forms : sequence of {"constrained", "reduced"}
+        The NLP forms to run; each is a row labelled ``IPOPT`` or ``IPOPT-reduced``.
     time_limit : float
         Time (s) a failed run counts as in the summary.
     progress : bool
@@ -299,7 +308,11 @@ def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS,
         warnings.simplefilter("ignore")
         reference = solve(problem, "newton", strict=False)
     reference = reference if reference.success else None
-    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law)
+    bad = [f for f in nlp_forms if f not in NLP_FORMS]
+    if bad or not nlp_forms:
+        raise InputError(f"nlp_forms must be taken from {', '.join(NLP_FORMS)}, got {', '.join(map(str, bad)) or 'none'}")
+    forms = [NLP_FORMS[f] for f in nlp_forms]
+    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms)
     rows = []
     for acc, method, solver, r in tqdm(cases, desc="compare", unit="run", disable=None if progress else True,
                                        leave=False):

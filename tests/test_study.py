@@ -150,3 +150,12 @@ def test_compare_on_a_load_path_uses_the_peak_frame(tmp_path):
     assert table["success"].all()
     bad = CliRunner().invoke(app, ["compare", str(scenario), "--methods", "newton", "--frame", "500"])
     assert bad.exit_code == 2 and "--frame must be in 0..100" in bad.stderr
+
+
+def test_both_nlp_forms_are_rows(hip):
+    table = run_study(hip, methods=("newton", "nlp"), nlp_forms=("constrained", "reduced")).table
+    nlp = table[table["method"] == "nlp"]
+    assert sorted(nlp["solver"]) == ["IPOPT", "IPOPT-reduced"]
+    assert nlp["success"].all()
+    with pytest.raises(InputError, match="nlp_forms must be taken from constrained, reduced, got exact"):
+        run_study(hip, methods=("nlp",), nlp_forms=("exact",))
