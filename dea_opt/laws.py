@@ -68,6 +68,10 @@ class Law:
     bounded_strain = False
     #: True for the one law the QP formulation accepts.
     is_linear = False
+    #: Largest compressive strain (a positive fraction) over which the law describes
+    #: cartilage, or ``None`` if it states no range of its own: :mod:`dea_opt.validity` then
+    #: applies only its crushing limit to it. Override it in a law of your own.
+    valid_compression = None
 
     @property
     def modulus(self) -> float:
@@ -134,6 +138,8 @@ class LinearLaw(Law):
     H: float
     name = "linear"
     is_linear = True
+    #: The paper's limit of validity: Eq. (2) is almost linear up to 30 % strain.
+    valid_compression = 0.30
 
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))
