@@ -60,9 +60,13 @@ class MissingDependencyError(DeaError, ImportError):
 
 
 class ValidityWarning(UserWarning):
-    """A result lies outside the range where its spring law is trustworthy.
+    """A certified result lies outside the model it solved.
 
-    Issued when a linear law meets compressive strain beyond 30 % (the limit of validity
-    stated by Volokh, Chao & Armand) and whenever a strain reaches -1 (a spring crushed
-    through its whole thickness).
+    Issued by :func:`dea_opt.solve` when ``solution.validity`` (:mod:`dea_opt.validity`)
+    has a failed check: compressive strain beyond the law's range (30 % for the linear law,
+    the limit of validity stated by Volokh, Chao & Armand) or near crushing (80 % for every
+    law), rotations beyond the small-rotation kinematics (3 deg, or a gap error above 1 % of
+    the thickness), a layer whose size looks like metres or micrometres, or a peak pressure
+    above what cartilage survives (35 MPa). One warning names every failed check with its
+    value, limit and advice.
     """

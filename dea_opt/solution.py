@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -158,6 +159,8 @@ class Solution:
 
     Spring quantities have shape (N,), in the layer's spring order. ``stress`` and
     ``spring_force`` are tension positive (so ``<= 0``); ``pressure = -stress >= 0``.
+    ``certificate`` says the answer solves the equations; ``validity`` says whether the
+    equations still describe cartilage there (:mod:`dea_opt.validity`).
     """
 
     problem: object
@@ -256,6 +259,18 @@ class Solution:
         """``-min(eps)`` over the springs in contact (0 without contact)."""
         return float(max(-self.strain.min(initial=0.0), 0.0))
 
+    @cached_property
+    def validity(self):
+        """The :class:`~dea_opt.validity.Validity` report of this answer with the default limits.
+
+        For other limits, or a count of springs dropped at the solved pose, call
+        :func:`dea_opt.validity.assess` ``(solution.problem, solution.u, solution.strain,
+        solution.pressure, limits=..., dropped=...)``.
+        """
+        from .validity import assess
+
+        return assess(self.problem, self.u, self.strain, self.pressure)
+
     @property
     def reactions(self) -> dict:
         """Generalized force the supports apply at every dof that is not free (N, N mm)."""
@@ -285,13 +300,14 @@ class Solution:
             "build_time": self.build_time,
             "solve_time": self.solve_time,
             "certificate": self.certificate.as_dict(),
+            "validity": self.validity.as_dict(),
             "reactions": self.reactions,
         }
 
     def __repr__(self) -> str:
         return (
             f"Solution(method={self.method!r}, success={self.success}, peak={self.peak_pressure:.6g} MPa, "
-            f"area={self.contact_area:.6g} mm^2, nit={self.iterations})"
+            f"area={self.contact_area:.6g} mm^2, nit={self.iterations}, valid={self.validity.valid})"
         )
 
     # --- output files (dea_opt.io) ----------------------------------------------------

@@ -22,9 +22,6 @@ METHODS = ("auto", *formulations.FORMULATIONS)
 
 #: Relative residual of the cone test above which a load counts as not carried.
 _CONE_TOL = 1e-7
-_LINEAR_VALIDITY = 0.3
-#: Compressive strain beyond which any law's answer is flagged as a nearly crushed layer.
-_NEARLY_CRUSHED = 0.95
 
 
 def _describe_direction(names, vector, load_vector) -> str:
@@ -103,32 +100,11 @@ def check_load_supported(problem: ContactProblem) -> None:
 
 
 def _warn_validity(solution: Solution) -> None:
-    strain = solution.strain
-    if not len(strain):
-        return
-    lowest = float(strain.min())
-    law = solution.problem.law
-    if lowest <= -1.0:
-        warnings.warn(
-            f"a spring reached strain {lowest:.3g} <= -1: the cartilage is crushed through its whole "
-            f"thickness; the result is not physical (use a bounded law such as AteshianLaw, or a smaller load)",
-            ValidityWarning,
-            stacklevel=4,
-        )
-    elif lowest <= -_NEARLY_CRUSHED:
-        warnings.warn(
-            f"a spring reached strain {lowest:.6g}: the cartilage is nearly crushed through its whole "
-            f"thickness, where pressures grow without bound; check the load and the thickness",
-            ValidityWarning,
-            stacklevel=4,
-        )
-    elif law.is_linear and lowest < -_LINEAR_VALIDITY:
-        warnings.warn(
-            f"the linear law met compressive strain {-lowest:.3g} > {_LINEAR_VALIDITY}, beyond the range "
-            f"where Volokh, Chao & Armand find it valid; consider AteshianLaw",
-            ValidityWarning,
-            stacklevel=4,
-        )
+    """One :class:`ValidityWarning` naming every failed check of ``solution.validity``
+    (value, limit and advice), or none when the answer is valid."""
+    validity = solution.validity
+    if not validity.valid:
+        warnings.warn(validity.message(), ValidityWarning, stacklevel=4)
 
 
 def _check_options(module, method: str, options: dict) -> None:
