@@ -266,7 +266,7 @@ def version():
     from importlib.metadata import PackageNotFoundError
     from importlib.metadata import version as installed
 
-    from . import __version__
+    from ._version import __version__
 
     typer.echo(f"dea-opt {__version__}")
     for package in ("numpy", "scipy", "cvxpy", "clarabel", "casadi", "osqp", "scs", "piqp", "dask", "distributed"):
