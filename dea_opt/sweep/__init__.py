@@ -27,11 +27,13 @@ running cluster instead (its workers must see the same file system), and
 from __future__ import annotations
 
 import contextlib
+import math
 import secrets
 import sys
 from collections import deque
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Any
 
 from ..errors import InputError, MissingDependencyError
 from ..scenario import METHOD_NAMES, load_scenario
@@ -41,8 +43,19 @@ from .journal import JOURNAL_NAME, LOG_NAME, RESULTS_NAME, read_results
 from .keys import FileHashes, content_key, stale_reason
 from .logs import routed_to_log
 
-__all__ = ["Case", "SweepResult", "make_cases", "case_id", "run_case", "run_sweep", "read_results",
-           "format_row", "RESULTS_NAME", "JOURNAL_NAME", "LOG_NAME"]
+__all__ = [
+    "JOURNAL_NAME",
+    "LOG_NAME",
+    "RESULTS_NAME",
+    "Case",
+    "SweepResult",
+    "case_id",
+    "format_row",
+    "make_cases",
+    "read_results",
+    "run_case",
+    "run_sweep",
+]
 
 _DASK_HINT = "sweeps run on Dask: pip install dea-opt[distributed] (or: pip install 'dask[distributed]')"
 
@@ -69,7 +82,7 @@ class SweepResult:
         Cases whose row was stale (or failed, with ``retry_failed``), and why.
     """
 
-    table: object
+    table: Any
     results_path: Path
     cases: list = field(default_factory=list)
     ran: list = field(default_factory=list)
@@ -91,7 +104,7 @@ def format_row(row: dict, overrides: dict, note: str = "") -> str:
     values = " ".join(f"{k}={row.get(k, v)}" for k, v in overrides.items())
     line = f"case {row.get('case_id')}  {values}  {row.get('status')}"
     peak = row.get("peak_pressure")
-    if isinstance(peak, (int, float)) and peak == peak:
+    if isinstance(peak, (int, float)) and not math.isnan(peak):
         line += f"  peak {peak:.4g} MPa"
     wall = row.get("wall_time")
     if isinstance(wall, (int, float)):

@@ -16,8 +16,17 @@ from ..scenario import parse_scenario, parse_set
 from . import journal
 from .keys import ContentKey, content_key
 
-__all__ = ["Case", "CaseTask", "make_cases", "case_id", "run_case", "work", "work_claimed", "read_text",
-           "STATUSES"]
+__all__ = [
+    "STATUSES",
+    "Case",
+    "CaseTask",
+    "case_id",
+    "make_cases",
+    "read_text",
+    "run_case",
+    "work",
+    "work_claimed",
+]
 
 #: Every status a case's row can have.
 STATUSES = ("ok", "failed", "error")

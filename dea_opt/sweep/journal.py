@@ -38,9 +38,24 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["RESULTS_NAME", "JOURNAL_NAME", "LOG_NAME", "claim", "append", "read_records", "line_of",
-           "holds", "results_table", "publish_table", "check_results_csv", "seed_from_csv", "read_results",
-           "read_case_record", "write_case_record", "TablePublisher"]
+__all__ = [
+    "JOURNAL_NAME",
+    "LOG_NAME",
+    "RESULTS_NAME",
+    "TablePublisher",
+    "append",
+    "check_results_csv",
+    "claim",
+    "holds",
+    "line_of",
+    "publish_table",
+    "read_case_record",
+    "read_records",
+    "read_results",
+    "results_table",
+    "seed_from_csv",
+    "write_case_record",
+]
 
 RESULTS_NAME = "sweep.csv"
 JOURNAL_NAME = "sweep.jsonl"

@@ -19,7 +19,7 @@ from pathlib import Path
 
 from .._version import __version__
 
-__all__ = ["ContentKey", "content_key", "input_files", "stale_reason", "sha256_file", "FileHashes"]
+__all__ = ["ContentKey", "FileHashes", "content_key", "input_files", "sha256_file", "stale_reason"]
 
 _CHUNK = 1 << 20
 
@@ -159,7 +159,7 @@ def stale_reason(record: dict, key: ContentKey) -> str | None:
         reasons.append(f"it was computed by dea-opt {record.get('dea_opt_version')}, this is {key.version}")
     if record.get("scenario_sha256") != key.scenario:
         reasons.append("the scenario changed since its row was computed")
-    before = record.get("inputs") if isinstance(record.get("inputs"), dict) else {}
+    before = record["inputs"] if isinstance(record.get("inputs"), dict) else {}
     now = {where: (name, h) for where, name, h in key.inputs}
     for where in sorted(set(before) | set(now)):
         then = before.get(where)
