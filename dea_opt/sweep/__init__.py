@@ -38,7 +38,16 @@ from typing import Any
 from ..errors import InputError, MissingDependencyError
 from ..scenario import METHOD_NAMES, load_scenario
 from . import journal
-from .cases import Case, CaseTask, case_id, make_cases, read_text, run_case, work
+from .cases import (
+    Case,
+    CaseTask,
+    case_id,
+    make_cases,
+    parse_case,
+    read_text,
+    run_case,
+    work,
+)
 from .journal import JOURNAL_NAME, LOG_NAME, RESULTS_NAME, read_results
 from .keys import FileHashes, content_key, stale_reason
 from .logs import routed_to_log
@@ -200,11 +209,12 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
         raise InputError("a sweep needs at least one --set KEY=VALUES")
     scenario_path = Path(scenario_path).expanduser().resolve()
     base = load_scenario(scenario_path)
-    text, sha = read_text(scenario_path)
+    text, sha = read_text(scenario_path)  # from here on every case is parsed from these very bytes
     hashes = FileHashes()
     keys = {}
     for case in cases:  # every case must be a valid scenario before anything starts
-        keys[case.id] = content_key(load_scenario(scenario_path, case.overrides), sha, case.overrides, method, hashes)
+        keys[case.id] = content_key(parse_case(scenario_path, text, case.overrides), sha, case.overrides, method,
+                                    hashes)
     out = Path(output_dir).expanduser().resolve() if output_dir is not None else base.output_dir() / "sweep"
     if out.exists() and not out.is_dir():
         raise InputError(f"the sweep's output folder {out} is a file")

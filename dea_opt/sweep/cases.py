@@ -22,6 +22,7 @@ __all__ = [
     "CaseTask",
     "case_id",
     "make_cases",
+    "parse_case",
     "read_text",
     "run_case",
     "work",
@@ -74,7 +75,8 @@ def read_text(path: Path) -> tuple[str, str]:
     return text, hashlib.sha256(data).hexdigest()
 
 
-def _parse(scenario_path: Path, text: str, overrides: dict):
+def parse_case(scenario_path: Path, text: str, overrides: dict):
+    """The scenario of a case, parsed from ``text`` (the file's contents) as ``load_scenario`` would."""
     return parse_scenario(text, name=str(scenario_path), base_dir=scenario_path.resolve().parent,
                           overrides=overrides)
 
@@ -101,7 +103,8 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
     dict
         The case's row: ``case_id``, the overrides, ``status`` (``ok``; ``failed`` when an
         answer failed its certificate; ``error`` with ``message`` otherwise), headline
-        numbers (for a load path: the largest over the frames), ``wall_time`` (s),
+        numbers (for a load path: the largest over the frames), ``warnings`` (the run's
+        validity warnings, joined by `` | ``), ``wall_time`` (s),
         ``output_dir``, ``finished``, ``pid`` and the content key's fields.
     """
     from ..run import run_scenario
@@ -115,10 +118,11 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
             text, sha = read_text(path)
         else:
             sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-        scenario = _parse(path, text, overrides)
+        scenario = parse_case(path, text, overrides)
         columns = (key or content_key(scenario, sha, overrides, method)).columns()
         outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False)
-        row |= {"status": "ok" if outcome.success else "failed", "message": outcome.message, **outcome.headline}
+        row |= {"status": "ok" if outcome.success else "failed", "message": outcome.message, **outcome.headline,
+                "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings)}
     except DeaError as exc:
         row |= {"status": "error", "message": " ".join(str(exc).split())}
     except Exception as exc:  # noqa: BLE001 - one broken case must not end the sweep
@@ -176,7 +180,7 @@ def work_claimed(task: CaseTask) -> dict:
     out = Path(task.out)
     path = Path(task.scenario_path)
     try:
-        key = content_key(_parse(path, task.scenario_text, task.overrides), task.scenario_sha256, task.overrides,
+        key = content_key(parse_case(path, task.scenario_text, task.overrides), task.scenario_sha256, task.overrides,
                           task.method)
     except DeaError:
         key = None  # run_case records the error
