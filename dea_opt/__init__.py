@@ -1,5 +1,6 @@
 """dea-opt: discrete element analysis of cartilage contact, solved three ways and certified."""
 
+from ._version import __version__
 from .errors import (
     DeaError,
     InputError,
@@ -12,12 +13,10 @@ from .errors import (
 from .kinematics import DOFS
 from .laws import AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw
 from .layer import SpringLayer
+from .loadpath import solve_path
 from .problem import Body, ContactProblem, Load
 from .solution import Certificate, Solution, certify
 from .solver import METHODS, check_load_supported, compare, solve
-from .path import solve_path
-
-__version__ = "0.1.0"
 
 __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",

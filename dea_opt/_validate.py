@@ -64,3 +64,33 @@ def finite_number(name: str, value) -> float:
     if not math.isfinite(v):
         raise InputError(f"{name} must be finite, got {v}")
     return v
+
+
+def number_in_range(name: str, value, low=None, high=None, *, low_open: bool = False) -> float:
+    """``value`` as a float, finite and in range, or an InputError naming ``name`` and the range.
+
+    ``low <= value`` (``low < value`` with ``low_open``) and ``value <= high``; a bound
+    that is None is not checked. Only real numbers are taken: a bool or a string is an
+    error, not a number.
+    """
+    from numbers import Real
+
+    if low is not None and high is not None and not low_open:
+        expected = f"a finite number in [{low:g}, {high:g}]"
+    else:
+        bounds = ([f"{'>' if low_open else '>='} {low:g}"] if low is not None else []) + (
+            [f"<= {high:g}"] if high is not None else [])
+        expected = " ".join(["a finite number", " and ".join(bounds)]).strip()
+    ok = not isinstance(value, bool) and isinstance(value, Real) and math.isfinite(value)
+    if ok and low is not None:
+        ok = value > low if low_open else value >= low
+    if not ok or (high is not None and value > high):
+        raise InputError(f"{name} must be {expected}, got {value!r}")
+    return float(value)
+
+
+def positive_integer(name: str, value) -> int:
+    """``value`` as an int >= 1 (an integral float is accepted), or a named InputError."""
+    if isinstance(value, bool) or int(value) != value or value < 1:
+        raise InputError(f"{name} must be a positive integer, got {value!r}")
+    return int(value)

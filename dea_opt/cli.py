@@ -196,23 +196,42 @@ def sweep(
                                                      "'synchronous' runs here, one case at a time.",
                                                      show_default=False)] = None,
     workers: Annotated[int, typer.Option(help="Worker processes of the LocalCluster.")] = 2,
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Folder of sweep.csv and cases/ "
-                                                   "(default: <scenario output>/sweep).", show_default=False)] = None,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Folder of sweep.csv, sweep.jsonl, "
+                                                   "sweep.log and cases/ (default: <scenario output>/sweep).",
+                                                   show_default=False)] = None,
     method: MethodOpt = None,
-    retry_failed: Annotated[bool, typer.Option(help="Run again the cases recorded as error or failed.")] = False,
+    retry_failed: Annotated[bool, typer.Option(help="Recompute the cases recorded as error or failed (their "
+                                               "rows are replaced).")] = False,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but the final summary.")] = False,
 ):
     """Run the Cartesian product of --set values, each case a Dask task.
 
-    One row per finished case is added to sweep.csv as it finishes; each case writes its
-    outputs into cases/<case id>/. Rerunning the same command skips finished cases, so an
-    interrupted sweep resumes. Needs: pip install dea-opt[distributed].
+    Each finished case is appended to the journal sweep.jsonl; sweep.csv (one row per case)
+    is rewritten from it as the sweep goes and at the end; each case writes its outputs into
+    cases/<case id>/. A rerun skips the cases whose row was computed from the same scenario,
+    input files, overrides and dea-opt version, and recomputes the others, saying why.
+    Sweeps may share a folder at once: no case is computed twice and no row is lost. On a
+    terminal each finished case is printed with a progress bar; Dask's and Python's
+    messages go to sweep.log. Needs: pip install dea-opt[distributed].
     """
+    from collections import Counter
+
+    from tqdm.auto import tqdm
+
     from .sweep import run_sweep
 
+    live = not quiet and sys.stdout.isatty()
+
+    def report(line: str) -> None:
+        tqdm.write(line, file=sys.stdout)
+
     result = run_sweep(scenario, set_, output, scheduler=scheduler, workers=workers, method=method,
-                       retry_failed=retry_failed, progress=True)
-    typer.echo(f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished; results: "
+                       retry_failed=retry_failed, progress=live, on_report=report if live else None)
+    adopted = f", {len(result.adopted)} finished by another sweep meanwhile" if result.adopted else ""
+    typer.echo(f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished{adopted}; results: "
                f"{result.results_path}")
+    for reason, count in Counter(result.recomputed.values()).items():
+        typer.echo(f"  recomputed {count} case(s): {reason}")
     if result.failed:
         typer.echo(f"dea-opt: {len(result.failed)} case(s) did not finish cleanly: {', '.join(result.failed)} "
                    f"(see the status and message columns of {result.results_path})", err=True)
@@ -266,7 +285,7 @@ def version():
     from importlib.metadata import PackageNotFoundError
     from importlib.metadata import version as installed
 
-    from . import __version__
+    from ._version import __version__
 
     typer.echo(f"dea-opt {__version__}")
     for package in ("numpy", "scipy", "cvxpy", "clarabel", "casadi", "osqp", "scs", "piqp", "dask", "distributed"):

@@ -14,14 +14,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._validate import positive_integer
 from .errors import InputError
 from .layer import SpringLayer
-
-
-def _positive_int(name, value):
-    if isinstance(value, bool) or int(value) != value or value < 1:
-        raise InputError(f"{name} must be a positive integer, got {value!r}")
-    return int(value)
 
 
 def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: int = 10,
@@ -31,7 +26,7 @@ def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: in
     Springs sit at the cell centres, normals +z (body 1 below, body 2 above), x along the
     ``length`` (mm) and y along the ``width`` (mm); the plate is centred at the origin.
     """
-    nx, ny = _positive_int("nx", nx), _positive_int("ny", ny)
+    nx, ny = positive_integer("nx", nx), positive_integer("ny", ny)
     dx, dy = length / nx, width / ny
     xs = -length / 2 + dx * (np.arange(nx) + 0.5)
     ys = -width / 2 + dy * (np.arange(ny) + 0.5)
@@ -49,7 +44,7 @@ def sphere_on_bed_layer(radius: float = 25.0, thickness: float = 2.0, extent: fl
     sphere's height above the bed at the cell's centroid radius, ``R - sqrt(R^2 - rho^2)``.
     Normals +z: body 1 is the bed, body 2 the sphere (centre at ``(0, 0, radius)``).
     """
-    n_rings, n_sectors = _positive_int("n_rings", n_rings), _positive_int("n_sectors", n_sectors)
+    n_rings, n_sectors = positive_integer("n_rings", n_rings), positive_integer("n_sectors", n_sectors)
     if extent >= radius:
         raise InputError(f"extent must be smaller than radius={radius}, got {extent}")
     edges = np.linspace(0.0, extent, n_rings + 1)
@@ -73,7 +68,7 @@ def socket_layer(radius: float = 25.0, thickness: float = 2.0, coverage: float =
     ``(0, 0, -radius)``. Cells are exact spherical patches; normals point from the socket
     (body 1) to the ball (body 2), i.e. toward the centre.
     """
-    n_rings, n_sectors = _positive_int("n_rings", n_rings), _positive_int("n_sectors", n_sectors)
+    n_rings, n_sectors = positive_integer("n_rings", n_rings), positive_integer("n_sectors", n_sectors)
     if not 0 < coverage <= 180:
         raise InputError(f"coverage must be in (0, 180] degrees, got {coverage}")
     edges = np.radians(np.linspace(0.0, coverage, n_rings + 1))
@@ -187,7 +182,7 @@ def slab_mesh(length: float = 40.0, width: float = 40.0, thickness: float = 2.0,
     trimesh.Trimesh
         Watertight, outward normals; ``2 nx ny`` articular faces come first.
     """
-    nx, ny = _positive_int("nx", nx), _positive_int("ny", ny)
+    nx, ny = positive_integer("nx", nx), positive_integer("ny", ny)
     if facing not in ("up", "down"):
         raise InputError(f"facing must be 'up' or 'down', got {facing!r}")
     for name, value in (("length", length), ("width", width), ("thickness", thickness)):

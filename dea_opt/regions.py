@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._tolerances import ZERO_LENGTH
 from ._validate import as_float_array, finite_number
 from .errors import InputError
 
@@ -128,7 +129,7 @@ def _label_masks(labels, n) -> dict:
 def _unit_vector(name: str, value) -> np.ndarray:
     vector = as_float_array(name, value, (3,))
     length = np.linalg.norm(vector)
-    if length <= 1e-12:
+    if length <= ZERO_LENGTH:
         raise InputError(f"{name} must be a nonzero vector, got {vector.tolist()}")
     return vector / length
 

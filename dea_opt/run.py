@@ -141,7 +141,7 @@ def _run_static(scenario, problem, method, options, out) -> RunOutcome:
 
 
 def _run_path(scenario, problem, method, options, out, progress, extra_summary=None) -> RunOutcome:
-    from .path import solve_path
+    from .loadpath import solve_path
     from .scenario import read_load_path
 
     data = read_load_path(scenario.load_path)

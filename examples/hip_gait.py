@@ -18,7 +18,7 @@ Run it with::
 
 (``--coarse``: a 432-spring socket and 21 frames, the tests' setting; ``--method`` to walk
 the cycle with ``qp`` or ``nlp``; ``--no-series`` to skip the 101 ParaView frames). It writes,
-with :meth:`dea_opt.path.PathResult.write`, ``frames.csv`` (one row per frame),
+with :meth:`dea_opt.loadpath.PathResult.write`, ``frames.csv`` (one row per frame),
 ``series.pvd`` with ``series_frames/frame_NNNN.vtu`` (open the ``.pvd`` in ParaView and press
 play), ``exposure.vtu``, ``cycle.png`` (force, peak and mean pressure, contact area over the
 cycle), ``exposure.png`` (pressure-time integral and time above 1 MPa) and ``summary.json``;
@@ -171,7 +171,7 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, method: str
     -------
     dict
         ``problem`` (ContactProblem), ``loads`` (DataFrame), ``path``
-        (:class:`dea_opt.path.PathResult`), ``summary`` (its :meth:`summary`),
+        (:class:`dea_opt.loadpath.PathResult`), ``summary`` (its :meth:`summary`),
         ``closed_form`` (:func:`closed_form_table`) and ``files`` (name -> path).
     """
     out = Path(out)

@@ -236,7 +236,7 @@ def test_embree_and_grid_engines_agree():
 def test_without_embree_auto_falls_back_to_the_grid(monkeypatch):
     pair = geometry.hip_meshes(step=8.0)
     with_embree = pair.layer()
-    monkeypatch.setattr(M, "_has_embree", lambda: False)
+    monkeypatch.setattr(M.raycast, "_has_embree", lambda: False)
     fallback = pair.layer()
     np.testing.assert_allclose(fallback.gap, with_embree.gap, atol=1e-9)
     with pytest.raises(d.MissingDependencyError, match="embreex"):
@@ -600,6 +600,33 @@ def test_bad_options(options, words):
     pair = geometry.plate_meshes(nx=4, ny=2)
     with pytest.raises(d.InputError, match=words):
         M.springs_from_meshes(pair.mesh1, pair.mesh2, **{"thickness2": 0.0, **options})
+
+
+@pytest.mark.parametrize("name, value, expected", [
+    ("max_gap", -1.0, "max_gap must be a finite number >= 0, got -1.0"),
+    ("max_gap", True, "max_gap must be a finite number >= 0, got True"),
+    ("max_overlap", "1", "max_overlap must be a finite number >= 0, got '1'"),
+    ("max_overlap", float("inf"), "max_overlap must be a finite number >= 0, got inf"),
+    ("max_angle", 120.0, r"max_angle must be a finite number in \[0, 90\], got 120.0"),
+    ("max_angle", -1e-9, r"max_angle must be a finite number in \[0, 90\], got -1e-09"),
+])
+def test_window_errors_name_the_range_and_what_came(name, value, expected):
+    pair = geometry.plate_meshes(nx=4, ny=2)
+    with pytest.raises(d.InputError, match=f"^{expected}$"):
+        M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0, **{name: value})
+
+
+@pytest.mark.parametrize("value", [0.0, -2.0, float("nan"), False, "1000"])
+def test_scale_must_be_a_positive_number(value):
+    with pytest.raises(d.InputError, match=f"^scale must be a finite number > 0, got {re.escape(repr(value))}$"):
+        M.as_mesh(small_slab(), scale=value)
+
+
+def test_window_edges_are_accepted():
+    pair = geometry.plate_meshes(nx=4, ny=2)
+    layer = M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0, max_gap=0, max_overlap=0.0,
+                                  max_angle=90)
+    assert len(layer) > 0 and (layer.gap == 0).all()
 
 
 def test_bad_mesh_argument():

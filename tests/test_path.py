@@ -12,7 +12,7 @@ import dea_opt as d
 from dea_opt.errors import InputError, LoadNotSupportedError, SolverError
 from dea_opt.gait import BODY_WEIGHT, HIP_GAIT_CSV, hip_gait_load, load_hip_gait
 from dea_opt.geometry import socket_layer
-from dea_opt.path import TABLE_COLUMNS, exposure, solve_path
+from dea_opt.loadpath import TABLE_COLUMNS, exposure, solve_path
 
 
 @pytest.fixture(scope="module")

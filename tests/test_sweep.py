@@ -16,7 +16,14 @@ from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError, MissingDependencyError
-from dea_opt.sweep import RESULTS_NAME, case_id, make_cases, read_results, run_sweep
+from dea_opt.sweep import (
+    JOURNAL_NAME,
+    RESULTS_NAME,
+    case_id,
+    make_cases,
+    read_results,
+    run_sweep,
+)
 
 pytest.importorskip("dask.distributed")
 
@@ -54,8 +61,13 @@ def scenario(tmp_path):
 
 
 def runs(out: Path) -> dict:
-    """How many times each case was computed (from its case.json)."""
-    return {p.parent.name: json.loads(p.read_text())["runs"] for p in (out / "cases").glob("*/case.json")}
+    """How many times each case was computed (from its record in .sweep/records/)."""
+    return {p.stem: json.loads(p.read_text())["runs"] for p in (out / ".sweep" / "records").glob("[!.]*.json")}
+
+
+def journal_lines(out: Path) -> list[dict]:
+    """Every record of the journal, in order (read here with plain json, not dea-opt's reader)."""
+    return [json.loads(line) for line in (out / JOURNAL_NAME).read_text().splitlines() if line.strip()]
 
 
 def test_cases_are_the_cartesian_product_with_stable_ids():
@@ -84,15 +96,32 @@ def test_resume_runs_only_the_missing_cases(scenario, tmp_path):
     assert again.ran == [] and len(again.skipped) == 12
 
 
-def test_a_failing_case_is_recorded_and_retried_on_request(scenario, tmp_path):
+def test_a_failing_case_is_recorded_and_its_retry_replaces_the_row(scenario, tmp_path):
     out = tmp_path / "sweep"
     result = run_sweep(scenario, ["load_path.scale=1,-1"], out, scheduler="synchronous")
     table = result.table.set_index("load_path.scale")
     assert table.loc[1.0, "status"] == "ok"
     assert table.loc[-1.0, "status"] == "error" and "cannot carry" in table.loc[-1.0, "message"]
     assert len(result.failed) == 1
+    first_row = table.loc[-1.0].to_dict()
     retry = run_sweep(scenario, ["load_path.scale=1,-1"], out, scheduler="synchronous", retry_failed=True)
-    assert retry.ran == result.failed
+    assert retry.ran == result.failed and retry.skipped == [table.loc[1.0, "case_id"]]
+    assert retry.recomputed == {result.failed[0]: "its row says error; retrying"}
+    # The CSV a user opens: one row per case, the failed one replaced by its retry.
+    csv = pd.read_csv(out / RESULTS_NAME, dtype={"case_id": str})
+    assert len(csv) == 2 and csv["case_id"].is_unique
+    assert runs(out) == {table.loc[1.0, "case_id"]: 1, result.failed[0]: 2}
+    retried = csv.set_index("case_id").loc[result.failed[0]]
+    assert retried["status"] == "error" and retried["wall_time"] != first_row["wall_time"]
+    # The journal keeps both computations of the failed case; the later one is the row.
+    lines = journal_lines(out)
+    assert [r["case_id"] for r in lines].count(result.failed[0]) == 2 and len(lines) == 3
+    assert lines[-1]["wall_time"] == retried["wall_time"]
+    # Through the CLI: --retry-failed replaces again and exits 1 (the case still fails).
+    cli = CliRunner().invoke(app, ["sweep", str(scenario), "--set", "load_path.scale=1,-1", "--scheduler",
+                                   "synchronous", "-o", str(out), "--retry-failed"])
+    assert cli.exit_code == 1 and "1 case(s) run, 1 already finished" in cli.stdout
+    assert len(pd.read_csv(out / RESULTS_NAME)) == 2 and runs(out)[result.failed[0]] == 3
 
 
 def test_bad_overrides_stop_before_any_case_runs(scenario, tmp_path):
@@ -116,37 +145,45 @@ def _command() -> list[str]:
     return [str(script)] if script.exists() else [sys.executable, "-m", "dea_opt.cli"]
 
 
-def test_twelve_cases_on_two_workers_survive_a_kill(scenario, tmp_path):
+LIGHT = SCENARIO.replace('formats = ["csv", "json", "vtk", "png"]', 'formats = ["json"]')
+
+
+@pytest.mark.slow
+def test_twelve_cases_on_two_workers_survive_a_kill(tmp_path):
     """Kill a sweep after some cases, run it again: 12 rows, nothing finished is computed twice."""
+    scenario = tmp_path / "hip.toml"
+    scenario.write_text(LIGHT)
     out = tmp_path / "sweep"
-    command = _command() + ["sweep", str(scenario), *sum((["--set", s] for s in TWELVE), []), "--workers", "2",
+    command = _command() + ["sweep", str(scenario), *[a for s in TWELVE for a in ("--set", s)], "--workers", "2",
                             "-o", str(out)]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
-    results = out / RESULTS_NAME
     deadline = time.monotonic() + 120
     try:
         while time.monotonic() < deadline and process.poll() is None:
-            if len(read_results(results)) >= 2:
+            if (out / JOURNAL_NAME).is_file() and len(read_results(out)) >= 2:
                 break
             time.sleep(0.05)
     finally:
         if process.poll() is None:
             os.killpg(process.pid, signal.SIGKILL)  # the sweep and its Dask workers, at once
         process.communicate(timeout=60)
-    before = read_results(results)
+    before = read_results(out)
     assert 2 <= len(before) < 12, "the sweep should have been killed part way"
 
-    result = run_sweep(scenario, TWELVE, out, workers=2)
-    after = result.table
+    rerun = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
+    assert rerun.returncode == 0, rerun.stderr
+    assert rerun.stderr == ""  # no Dask log line, traceback or warning on the terminal
+    assert rerun.stdout.startswith(f"{12 - len(before)} case(s) run, {len(before)} already finished")
+    after = pd.read_csv(out / RESULTS_NAME, dtype={"case_id": str})
     assert len(after) == 12 and after["case_id"].is_unique and (after["status"] == "ok").all()
-    assert sorted(result.skipped) == sorted(before["case_id"])
-    assert len(result.ran) == 12 - len(before)
-    counts = runs(out)
-    for case in before["case_id"]:
-        assert counts[case] == 1  # finished before the kill, never computed again
+    assert set(after["case_id"]) == {c.id for c in make_cases(TWELVE)}
+    # Every case computed and journaled exactly once. (A kill between a case's journal line
+    # and its record file leaves that case without a record file: it is not computed again.)
+    assert sorted(r["case_id"] for r in journal_lines(out)) == sorted(after["case_id"])
+    assert set(runs(out).values()) == {1}
     kept = after.set_index("case_id").loc[before["case_id"], "finished"].tolist()
     assert kept == before["finished"].tolist()
-    assert len(set(after["pid"])) >= 2  # the rerun's cases ran in worker processes
+    assert len(set(after["pid"])) >= 2  # the cases ran in worker processes
 
 
 def test_sweep_command(scenario, tmp_path):

@@ -1,0 +1,19 @@
+"""Optional dependencies: import one where it is needed, or say how to install it."""
+
+from __future__ import annotations
+
+import importlib
+
+from .errors import MissingDependencyError
+
+
+def require(module: str, feature: str):
+    """The imported ``module``, or a :class:`MissingDependencyError` naming ``feature`` and the fix."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        package = module.split(".")[0]
+        raise MissingDependencyError(
+            f"{feature} needs {package}; install it with `pip install {package}` "
+            f"(or reinstall dea-opt with its dependencies)"
+        ) from None

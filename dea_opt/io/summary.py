@@ -1,0 +1,147 @@
+"""JSON: the summary of a solution, and the one sanitiser every JSON file of dea_opt goes through.
+
+:func:`jsonable` makes plain JSON values of what dea_opt reports (numpy scalars and arrays,
+objects with ``as_dict``, paths), NaN and infinities becoming ``null``, so the files are
+strict JSON. Units: mm, mm^2, N, N mm, MPa.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+
+from .._version import __version__
+from ..errors import InputError
+from .atomic import file_path, write_data
+from .surface import label_codes
+
+__all__ = ["jsonable", "read_json", "summary_dict", "to_json", "write_json"]
+
+
+def jsonable(value):
+    """Plain JSON values: NaN and infinities become ``None``, arrays become lists.
+
+    Mappings and sequences are converted item by item, objects with ``as_dict`` through
+    it, numpy scalars to Python ones, paths to strings, anything else to ``str``.
+    """
+    if isinstance(value, Mapping):
+        return {str(k): jsonable(v) for k, v in value.items()}
+    if hasattr(value, "as_dict"):
+        return jsonable(value.as_dict())
+    if isinstance(value, np.ndarray):
+        return jsonable(value.tolist())
+    if isinstance(value, (list, tuple)):
+        return [jsonable(v) for v in value]
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, (int, np.integer)):
+        return int(value)
+    if isinstance(value, (float, np.floating)):
+        value = float(value)
+        return value if math.isfinite(value) else None
+    if value is None or isinstance(value, str):
+        return value
+    if isinstance(value, os.PathLike):
+        return os.fspath(value)
+    return str(value)
+
+
+def write_json(data, path, indent: int = 2) -> Path:
+    """Write ``jsonable(data)`` as strict JSON (atomically) and return the path."""
+    return write_data(path, json.dumps(jsonable(data), indent=indent, allow_nan=False) + "\n")
+
+
+_UNITS = {
+    "length": "mm", "area": "mm^2", "force": "N", "moment": "N mm", "pressure": "MPa",
+    "strain": "1", "rotation": "rad", "time": "s",
+}
+
+
+def summary_dict(solution, *, labels=None, planes=None, regions=None) -> dict:
+    """Everything :func:`to_json` writes, as JSON-safe Python values (NaN -> ``None``).
+
+    Builds on :meth:`Solution.summary` (method, status, law, ``n_springs``, peak and mean
+    pressure, contact area, centre of pressure, contact force and moment, ``u``,
+    iterations, build and solve times, certificate, reactions) and adds ``message``,
+    ``total_normal_force``, ``moment_about`` (the body 2 reference the moment is taken
+    about), ``units``, ``regions``, ``label_codes`` (text labels only), ``info`` and the
+    dea_opt version.
+
+    Parameters
+    ----------
+    solution : Solution
+    labels, planes :
+        Passed to :func:`dea_opt.regions.regional_statistics`. Without both, the layer's
+        labels make the regions when it has any.
+    regions : mapping {name: RegionStats}, optional
+        Further regions, e.g. from :func:`dea_opt.regions.split_by_axis`.
+
+    Returns
+    -------
+    dict
+    """
+    from ..regions import RegionStats, regional_statistics
+
+    layer = solution.problem.layer
+    found = {}
+    if labels is not None or planes is not None:
+        found = regional_statistics(solution, labels=labels, planes=planes)
+    elif layer.labels is not None:
+        found = regional_statistics(solution)
+    if regions is not None:
+        if not hasattr(regions, "items"):
+            raise InputError(f"regions must be a mapping {{name: RegionStats}}, got {type(regions).__name__}")
+        for name, stats in regions.items():
+            if not isinstance(stats, RegionStats):
+                raise InputError(f"regions[{name!r}] must be a RegionStats, got {type(stats).__name__}")
+            if str(name) in found:
+                raise InputError(f"regions repeats the region name {name!r}")
+            found[str(name)] = stats
+    out = {"dea_opt_version": __version__, **solution.summary()}
+    out.update(
+        message=solution.message,
+        total_normal_force=solution.total_normal_force,
+        moment_about=list(solution.problem.body2.reference),
+        units=_UNITS,
+        regions={name: stats.as_dict() for name, stats in found.items()},
+        info=solution.info,
+    )
+    if layer.labels is not None and not np.issubdtype(layer.labels.dtype, np.integer):
+        out["label_codes"] = label_codes(layer.labels)
+    return jsonable(out)
+
+
+def to_json(solution, path, *, labels=None, planes=None, regions=None, indent: int = 2) -> Path:
+    """Write the summary of ``solution`` as JSON (see :func:`summary_dict` for the keys).
+
+    The file is strict JSON: NaN (e.g. the centre of pressure without contact) is
+    written as ``null``.
+
+    Parameters
+    ----------
+    solution : Solution
+    path : str or os.PathLike
+    labels, planes, regions :
+        Regions to report; see :func:`summary_dict`.
+    indent : int
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    return write_json(summary_dict(solution, labels=labels, planes=planes, regions=regions), path, indent)
+
+
+def read_json(path) -> dict:
+    """Read a JSON file (e.g. written by :func:`to_json`)."""
+    target = file_path(path)
+    if not target.is_file():
+        raise InputError(f"path: no such file {str(target)!r}")
+    with open(target, encoding="utf-8") as handle:
+        return json.load(handle)
+

@@ -1,0 +1,259 @@
+"""Tables as CSV: the per-spring results of a solution, springs tables, and numeric tables read with errors that name the place.
+
+Every file is written with the standard library's :mod:`csv` and floats as ``repr(float)``,
+the shortest text that reads back to the same double, so a table written here reads back
+bit for bit. Readers check their columns (a missing one, and one they do not know, are both
+errors: a misspelt column must not be ignored) and every cell (a word, an empty cell or a
+NaN is an error naming the file, the line and the column). Lines starting with ``#`` are
+comments in the numeric tables.
+
+A springs table has columns ``x, y, z`` (mm), ``nx, ny, nz`` (the normal from body 1 to
+body 2), ``area`` (mm^2), ``thickness`` (mm), and optionally ``gap`` (mm, default 0) and
+``label`` (an integer region label, CSV only).
+"""
+
+from __future__ import annotations
+
+import csv
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .atomic import atomic_open, file_path
+
+__all__ = ["CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
+           "write_springs"]
+
+#: Columns of :func:`to_csv`, in order.
+CSV_COLUMNS = (
+    "x", "y", "z", "nx", "ny", "nz", "area", "thickness", "gap", "strain", "pressure",
+    "spring_force", "in_contact", "source_face", "label",
+)
+_FLOAT_COLUMNS = CSV_COLUMNS[:12]
+#: Required columns of a springs table (``gap`` and ``label`` are optional).
+SPRING_COLUMNS = ("x", "y", "z", "nx", "ny", "nz", "area", "thickness")
+
+
+def _write_rows(path, header, columns) -> Path:
+    """``header`` and the ``columns`` (lists of equal length) as CSV; floats as ``repr``."""
+    with atomic_open(path, "w", newline="") as handle:
+        writer = csv.writer(handle, lineterminator="\n")
+        writer.writerow(header)
+        writer.writerows(zip(*columns))
+    return Path(path)
+
+
+# --- the results of a solution, one row per spring --------------------------------------
+def to_csv(solution, path) -> Path:
+    """Write one row per spring, in spring order, with a header row.
+
+    Columns (:data:`CSV_COLUMNS`):
+
+    ============  =====  ===============================================================
+    column        unit   meaning
+    ============  =====  ===============================================================
+    x, y, z       mm     spring position (face centroid)
+    nx, ny, nz    1      unit normal, body 1 to body 2
+    area          mm^2   area the spring stands for
+    thickness     mm     unloaded spring length (total cartilage thickness)
+    gap           mm     initial gap along the normal (< 0 where the surfaces overlap)
+    strain        1      spring strain (< 0 in compression)
+    pressure      MPa    contact pressure (>= 0)
+    spring_force  N      ``-pressure * area``, tension positive (<= 0)
+    in_contact    -      1 where ``strain < 0``, else 0
+    source_face   -      index of the spring's face in ``layer.surface``; -1 if unknown
+    label         -      the spring's region label; empty if the layer has none
+    ============  =====  ===============================================================
+
+    Floats are written with Python's shortest round-trip representation, so
+    :func:`read_csv` gives back the same numbers bit for bit.
+
+    Parameters
+    ----------
+    solution : Solution
+    path : str or os.PathLike
+        The ``.csv`` file; any extension is accepted.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    layer = solution.problem.layer
+    n = len(layer)
+    floats = [
+        layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
+        layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
+        layer.areas, layer.thickness, layer.gap, solution.strain, solution.pressure, solution.spring_force,
+    ]
+    columns = [np.asarray(c, dtype=float).tolist() for c in floats]
+    columns.append(solution.in_contact.astype(int).tolist())
+    columns.append(layer.source_face.tolist() if layer.source_face is not None else [-1] * n)
+    columns.append(layer.labels.astype(str).tolist() if layer.labels is not None else [""] * n)
+    return _write_rows(path, CSV_COLUMNS, columns)
+
+
+def read_csv(path) -> dict:
+    """Read a file written by :func:`to_csv` back into arrays.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    dict {column: ndarray, shape (N,)}
+        float64 for the float columns, bool for ``in_contact``, int64 for
+        ``source_face``, str for ``label``.
+    """
+    target = file_path(path)
+    if not target.is_file():
+        raise InputError(f"path: no such file {str(target)!r}")
+    with open(target, encoding="utf-8", newline="") as handle:
+        rows = list(csv.reader(handle))
+    header = ",".join(rows[0]) if rows else ""
+    if header != ",".join(CSV_COLUMNS):
+        raise InputError(
+            f"path: {str(target)!r} is not a dea_opt spring table; expected the header "
+            f"{','.join(CSV_COLUMNS)}, got {header or 'an empty file'}"
+        )
+    rows = rows[1:]
+    short = next((i for i, row in enumerate(rows) if len(row) != len(CSV_COLUMNS)), None)
+    if short is not None:
+        raise InputError(f"path: row {short + 1} of {str(target)!r} has {len(rows[short])} fields, "
+                         f"expected {len(CSV_COLUMNS)}")
+    text = np.array(rows, dtype=object).reshape(len(rows), len(CSV_COLUMNS))
+    out = {}
+    for k, name in enumerate(CSV_COLUMNS):
+        column = text[:, k]
+        try:
+            # Python's float() is correctly rounded, so repr() text reads back bit for bit.
+            if name in _FLOAT_COLUMNS:
+                out[name] = column.astype(np.float64)
+            elif name in ("in_contact", "source_face"):
+                out[name] = column.astype(np.int64)
+            else:
+                out[name] = column.astype(str)
+        except ValueError as exc:
+            raise InputError(f"path: column {name!r} of {str(target)!r} does not parse ({exc})") from None
+    out["in_contact"] = out["in_contact"].astype(bool)
+    return out
+
+
+# --- numeric tables: load paths and springs ---------------------------------------------
+def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "table"):
+    """A CSV of numbers as a DataFrame, with errors that name the file, line and column.
+
+    Lines starting with ``#`` are comments. Columns outside ``required + optional`` are
+    an error (a misspelt column should not be silently ignored). Numbers are parsed by
+    Python's correctly rounded ``float``, so a table written by :func:`write_springs` reads
+    back bit for bit.
+    """
+    import pandas as pd
+
+    path = Path(path)
+    try:
+        table = pd.read_csv(path, comment="#", dtype=str, skipinitialspace=True)
+    except pd.errors.EmptyDataError:
+        raise InputError(f"{what} {path} is empty: expected a header line with columns "
+                         f"{','.join(required)}") from None
+    except (pd.errors.ParserError, UnicodeDecodeError) as exc:
+        raise InputError(f"{what} {path} is not a readable CSV: {exc}".replace("\n", " ")) from None
+    table.columns = [str(c).strip() for c in table.columns]
+    missing = [c for c in required if c not in table.columns]
+    unknown = [c for c in table.columns if c not in required and c not in optional]
+    if missing or unknown:
+        problems = []
+        if missing:
+            problems.append(f"missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
+        if unknown:
+            problems.append(f"unknown column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}")
+        raise InputError(f"{what} {path}: {' and '.join(problems)}; expected columns {','.join(required)}"
+                            + (f" and optionally {','.join(optional)}" if optional else ""))
+    if table.empty:
+        raise InputError(f"{what} {path} has a header but no rows")
+    lines = _data_lines(path)
+    numeric = {}
+    for column in table.columns:
+        raw = table[column]
+        stripped = raw.str.strip()
+        values = pd.to_numeric(stripped, errors="coerce")
+        bad = values.isna() | ~np.isfinite(values.fillna(0.0))
+        if bad.any():
+            row = int(np.argmax(bad.to_numpy()))
+            cell = raw.iloc[row]
+            line = lines[row] if row < len(lines) else None
+            where = f"line {line}" if line else f"row {row + 1}"
+            got = "an empty cell" if pd.isna(cell) or str(cell).strip() == "" else f"{str(cell).strip()!r}"
+            raise InputError(f"{what} {path}, {where}, column {column}: expected a finite number, got {got}")
+        try:
+            numeric[column] = stripped.to_numpy(dtype=object).astype(np.float64)
+        except ValueError:  # a spelling pandas reads and Python's float does not
+            numeric[column] = values.to_numpy(dtype=float)
+    return pd.DataFrame(numeric)
+
+
+def _data_lines(path: Path) -> list[int]:
+    """1-based line numbers of the data rows (after the header; comments and blanks skipped)."""
+    numbers = []
+    with open(path, encoding="utf-8", errors="replace") as handle:
+        for number, line in enumerate(handle, start=1):
+            stripped = line.strip()
+            if stripped and not stripped.startswith("#"):
+                numbers.append(number)
+    return numbers[1:]
+
+
+def read_springs(path):
+    """A :class:`~dea_opt.layer.SpringLayer` from a springs table (CSV or NPZ).
+
+    Columns (CSV) or arrays (NPZ): ``x, y, z`` (mm), ``nx, ny, nz`` (normal from body 1 to
+    body 2), ``area`` (mm^2), ``thickness`` (mm), optional ``gap`` (mm, default 0) and, in
+    CSV, optional ``label`` (an integer region label).
+    """
+    from ..layer import SpringLayer
+
+    path = Path(path)
+    if path.suffix.lower() == ".npz":
+        return _springs_from_npz(path)
+    table = read_numeric_csv(path, SPRING_COLUMNS, ("gap", "label"), "springs table")
+    points = table[["x", "y", "z"]].to_numpy()
+    normals = table[["nx", "ny", "nz"]].to_numpy()
+    gap = table["gap"].to_numpy() if "gap" in table else 0.0
+    labels = table["label"].to_numpy().astype(int) if "label" in table else None
+    try:
+        return SpringLayer(points, normals, table["area"].to_numpy(), table["thickness"].to_numpy(), gap,
+                           labels=labels)
+    except InputError as exc:
+        raise InputError(f"springs table {path}: {exc}") from None
+
+
+def _springs_from_npz(path: Path):
+    from ..layer import SpringLayer
+
+    try:
+        data = np.load(path)
+    except (OSError, ValueError) as exc:
+        raise InputError(f"springs table {path} is not a readable NPZ file: {exc}") from None
+    missing = [c for c in SPRING_COLUMNS if c not in data.files]
+    if missing:
+        raise InputError(f"springs table {path}: missing array{'s' if len(missing) > 1 else ''} "
+                         f"{', '.join(missing)}; expected {','.join(SPRING_COLUMNS)} and optionally gap")
+    points = np.column_stack([data["x"], data["y"], data["z"]])
+    normals = np.column_stack([data["nx"], data["ny"], data["nz"]])
+    try:
+        gap = data["gap"] if "gap" in data.files else 0.0
+        return SpringLayer(points, normals, data["area"], data["thickness"], gap)
+    except InputError as exc:
+        raise InputError(f"springs table {path}: {exc}") from None
+
+
+def write_springs(layer, path) -> Path:
+    """Write a layer as a springs CSV that :func:`read_springs` reads back bit for bit (atomically).
+
+    Columns ``x, y, z, nx, ny, nz, area, thickness, gap`` (labels are not written).
+    """
+    columns = [layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
+               layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
+               layer.areas, layer.thickness, layer.gap]
+    return _write_rows(path, (*SPRING_COLUMNS, "gap"), [np.asarray(c, dtype=float).tolist() for c in columns])

@@ -1,0 +1,251 @@
+"""ParaView files of the contact surface: ``.vtu`` (through meshio) and ``.vtp`` (written here).
+
+Both are VTK XML with the cell data of :func:`~dea_opt.io.surface.contact_surface`;
+:func:`read_vtk` reads both back and :func:`vtk_differences` compares a file with a
+solution field by field. Units: mm, mm^2, N, MPa.
+"""
+
+from __future__ import annotations
+
+import base64
+import math
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from .._optional import require
+from ..errors import InputError
+from .atomic import file_path, write_atomic
+from .surface import SurfaceData, contact_surface
+
+__all__ = ["VTK_EXTENSIONS", "read_vtk", "to_vtk", "vtk_differences"]
+
+_VTK_TYPES = {
+    np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32",
+    np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32", np.dtype(np.int16): "Int16",
+    np.dtype(np.int8): "Int8", np.dtype(np.uint64): "UInt64", np.dtype(np.uint32): "UInt32",
+    np.dtype(np.uint16): "UInt16", np.dtype(np.uint8): "UInt8",
+}
+_NUMPY_TYPES = {v: k for k, v in _VTK_TYPES.items()}
+#: The extensions :func:`to_vtk` writes: VTK XML UnstructuredGrid and PolyData.
+VTK_EXTENSIONS = (".vtu", ".vtp")
+
+
+def _vtk_path(path) -> tuple:
+    target = file_path(path)
+    ext = target.suffix.lower()
+    if ext not in VTK_EXTENSIONS:
+        raise InputError(
+            f"path must end in .vtu (UnstructuredGrid) or .vtp (PolyData), got {str(path)!r}"
+        )
+    return target, ext
+
+
+def to_vtk(solution, path, *, cells: str = "springs", binary: bool = True) -> Path:
+    """Write the contact surface with its cell data for ParaView.
+
+    Parameters
+    ----------
+    solution : Solution
+    path : str or os.PathLike
+        ``.vtu`` (VTK XML UnstructuredGrid, written by meshio) or ``.vtp`` (VTK XML
+        PolyData, written here). Both open in ParaView; :func:`read_vtk` reads both back,
+        and ``meshio.read`` reads the ``.vtu``.
+    cells : {"springs", "surface"}
+        Which cells to write; see :func:`contact_surface` (fields, units, and what faces
+        without a spring carry).
+    binary : bool
+        Base64 binary (default; exact, zlib-compressed in ``.vtu``) or ASCII (``.vtu``
+        ASCII keeps 12 significant digits, ``.vtp`` ASCII all 17).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    InputError
+        ``path`` has another extension or cannot be written; ``cells`` is unknown.
+    """
+    target, ext = _vtk_path(path)
+    surface = contact_surface(solution, cells=cells)
+    if ext == ".vtu":
+        meshio = require("meshio", "writing .vtu")
+        mesh = meshio.Mesh(
+            surface.points,
+            [(surface.cell_type, surface.cells)],
+            cell_data={name: [value] for name, value in surface.cell_data.items()},
+        )
+        return write_atomic(target, lambda tmp: meshio.write(tmp, mesh, file_format="vtu", binary=binary))
+    return write_atomic(target, lambda tmp: _write_vtp(tmp, surface, binary=binary))
+
+
+def _data_array(name: str, values: np.ndarray, binary: bool, indent: str) -> str:
+    values = np.ascontiguousarray(values)
+    vtk_type = _VTK_TYPES.get(values.dtype)
+    if vtk_type is None:
+        raise InputError(f"cell data {name!r} has dtype {values.dtype}, which VTK cannot store")
+    components = f' NumberOfComponents="{values.shape[1]}"' if values.ndim == 2 else ""
+    head = f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components}'
+    if binary:
+        raw = values.astype(values.dtype.newbyteorder("<"), copy=False).tobytes()
+        text = base64.b64encode(np.uint64(len(raw)).astype("<u8").tobytes() + raw).decode("ascii")
+        return f'{head} format="binary">{text}</DataArray>\n'
+    flat = values.ravel().tolist()
+    text = " ".join(repr(float(v)) if vtk_type.startswith("Float") else str(int(v)) for v in flat)
+    return f'{head} format="ascii">{text}</DataArray>\n'
+
+
+def _write_vtp(path, surface: SurfaceData, *, binary: bool = True) -> None:
+    """Write ``surface`` as VTK XML PolyData (inline data, no compression)."""
+    n_cells, per_cell = surface.cells.shape
+    kind = "Verts" if surface.cell_type == "vertex" else "Polys"
+    counts = {"Verts": 0, "Lines": 0, "Strips": 0, "Polys": 0}
+    counts[kind] = n_cells
+    offsets = per_cell * np.arange(1, n_cells + 1, dtype=np.int64)
+    scalars = ' Scalars="pressure"' if "pressure" in surface.cell_data else ""
+    parts = [
+        '<?xml version="1.0"?>\n',
+        '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
+        "  <PolyData>\n",
+        f'    <Piece NumberOfPoints="{len(surface.points)}" '
+        + " ".join(f'NumberOf{k}="{v}"' for k, v in counts.items())
+        + ">\n",
+        "      <Points>\n",
+        _data_array("Points", surface.points.astype(np.float64), binary, "        "),
+        "      </Points>\n",
+        f"      <{kind}>\n",
+        _data_array("connectivity", surface.cells.astype(np.int64).ravel(), binary, "        "),
+        _data_array("offsets", offsets, binary, "        "),
+        f"      </{kind}>\n",
+        f"      <CellData{scalars}>\n",
+        *(_data_array(name, value, binary, "        ") for name, value in surface.cell_data.items()),
+        "      </CellData>\n",
+        "    </Piece>\n",
+        "  </PolyData>\n",
+        "</VTKFile>\n",
+    ]
+    with open(path, "w", encoding="ascii", newline="\n") as handle:
+        handle.writelines(parts)
+
+
+def _read_data_array(element, header_dtype, byte_order) -> np.ndarray:
+    vtk_type = element.get("type")
+    if vtk_type not in _NUMPY_TYPES:
+        raise InputError(f"read_vtk: unsupported DataArray type {vtk_type!r}")
+    dtype = _NUMPY_TYPES[vtk_type].newbyteorder(byte_order)
+    text = (element.text or "").strip()
+    fmt = element.get("format", "ascii")
+    if fmt == "binary":
+        raw = base64.b64decode(text)
+        size = header_dtype.itemsize
+        n_bytes = int(np.frombuffer(raw[:size], header_dtype)[0])
+        values = np.frombuffer(raw[size:size + n_bytes], dtype).astype(dtype.newbyteorder("="))
+    elif fmt == "ascii":
+        values = np.array(text.split(), dtype=dtype.newbyteorder("="))
+    else:
+        raise InputError(f"read_vtk reads inline ascii or binary .vtp data, got format={fmt!r}")
+    components = int(element.get("NumberOfComponents", "1"))
+    return values.reshape(-1, components) if components > 1 else values
+
+
+def _read_vtp(path: Path) -> SurfaceData:
+    from xml.etree import ElementTree
+
+    try:
+        root = ElementTree.parse(path).getroot()
+    except ElementTree.ParseError as exc:
+        raise InputError(f"path: {str(path)!r} is not a VTK XML file ({exc})") from None
+    if root.tag != "VTKFile" or root.get("type") != "PolyData":
+        raise InputError(f"path: {str(path)!r} is not VTK XML PolyData")
+    if root.get("compressor"):
+        raise InputError(f"read_vtk reads uncompressed .vtp files, {str(path)!r} is compressed")
+    header = np.dtype(_NUMPY_TYPES[root.get("header_type", "UInt32")])
+    order = "<" if root.get("byte_order", "LittleEndian") == "LittleEndian" else ">"
+    header = header.newbyteorder(order)
+    piece = root.find("PolyData/Piece")
+    if piece is None or piece.find("Points/DataArray") is None:
+        raise InputError(f"path: {str(path)!r} has no PolyData Piece with Points")
+    points = _read_data_array(piece.find("Points/DataArray"), header, order).reshape(-1, 3)
+    cells, cell_type = np.zeros((0, 1), dtype=np.int64), "vertex"
+    for kind, name in (("Verts", "vertex"), ("Polys", "triangle")):
+        block = piece.find(kind)
+        if block is None or int(piece.get(f"NumberOf{kind}", "0")) == 0:
+            continue
+        arrays = {a.get("Name"): _read_data_array(a, header, order) for a in block.findall("DataArray")}
+        offsets = arrays["offsets"].astype(np.int64)
+        sizes = np.diff(np.concatenate([[0], offsets]))
+        if len(np.unique(sizes)) > 1:
+            raise InputError(f"read_vtk reads one cell size per file, {str(path)!r} mixes {np.unique(sizes)}")
+        cells = arrays["connectivity"].astype(np.int64).reshape(len(offsets), -1)
+        cell_type = name if name == "vertex" or cells.shape[1] == 3 else f"polygon{cells.shape[1]}"
+    cell_data = {a.get("Name"): _read_data_array(a, header, order) for a in piece.findall("CellData/DataArray")}
+    return SurfaceData(points, cells, cell_type, cell_data)
+
+
+def read_vtk(path) -> SurfaceData:
+    """Read a ``.vtu`` (with meshio) or a ``.vtp`` written by :func:`to_vtk`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    SurfaceData
+        Points (mm), cells, cell type and every cell data array.
+    """
+    target, ext = _vtk_path(path)
+    if not target.is_file():
+        raise InputError(f"path: no such file {str(target)!r}")
+    if ext == ".vtp":
+        return _read_vtp(target)
+    meshio = require("meshio", "reading .vtu")
+    mesh = meshio.read(target, file_format="vtu")
+    if len(mesh.cells) != 1:
+        raise InputError(f"read_vtk reads one cell block, {str(target)!r} has {len(mesh.cells)}")
+    block = mesh.cells[0]
+    data = {name: np.asarray(values[0]) for name, values in mesh.cell_data.items()}
+    return SurfaceData(np.asarray(mesh.points), np.asarray(block.data, dtype=np.int64), block.type, data)
+
+
+def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
+    """How far a VTK file written by :func:`to_vtk` is from ``solution``, field by field.
+
+    Parameters
+    ----------
+    solution : Solution
+    path : str or os.PathLike
+        A ``.vtu`` or ``.vtp`` file.
+    cells : {"springs", "surface"}
+        As given to :func:`to_vtk`.
+
+    Returns
+    -------
+    dict {name: float}
+        Largest absolute difference for ``points``, ``cells`` and every field of
+        :func:`contact_surface` (NaN equal to NaN); ``inf`` for a field that is missing
+        or has the wrong shape. All zeros for a binary file.
+
+    Examples
+    --------
+    >>> assert max(vtk_differences(solution, "knee.vtu").values()) <= 1e-12  # doctest: +SKIP
+    """
+    expected = contact_surface(solution, cells=cells)
+    found = read_vtk(path)
+    pairs = {"points": (expected.points, found.points), "cells": (expected.cells, found.cells)}
+    for name, value in expected.cell_data.items():
+        pairs[name] = (value, found.cell_data.get(name))
+    out = {}
+    for name, (want, got) in pairs.items():
+        if got is None or np.shape(got) != np.shape(want):
+            out[name] = math.inf
+            continue
+        want, got = np.asarray(want, dtype=float), np.asarray(got, dtype=float)
+        both_nan = np.isnan(want) & np.isnan(got)
+        diff = np.where(both_nan, 0.0, np.abs(want - got))
+        out[name] = float(np.nan_to_num(diff, nan=math.inf).max(initial=0.0))
+    return out
+

@@ -1,0 +1,56 @@
+"""Triangle meshes in, springs out: reading surfaces, ray casting gaps and cartilage thickness.
+
+A researcher's data are cartilage surfaces segmented from MRI or CT. This package reads them
+(:func:`load_mesh`), checks and repairs them, and turns two of them into a
+:class:`~dea_opt.layer.SpringLayer` (:func:`springs_from_meshes`): one spring per articular
+face of mesh 1, at its centroid, along its normal, with the gap to mesh 2 and the cartilage
+thickness measured by ray casting. Lengths are in mm throughout.
+
+Ray casting uses trimesh with Intel Embree (the ``embreex`` package) when it is importable and
+a numpy uniform-grid caster with exact float64 ray/triangle tests otherwise (trimesh's own
+``ray_triangle`` fallback queries its r-tree once per ray and takes minutes on a knee); both
+give the same springs. Every step is vectorized over faces.
+
+Two faults of OpenSim-JAM's elastic foundation are avoided on purpose:
+
+* a ray never takes a hit on the far (back) side of a curved mesh 2: only faces of mesh 2 that
+  face the ray count, and of those the one nearest the spring;
+* results need not depend on which mesh casts: :func:`springs_both_ways` casts both ways and
+  measures the difference.
+
+The modules: :mod:`~dea_opt.mesh.readers` (file formats; the legacy-VTK parser in
+:mod:`~dea_opt.mesh.legacy_vtk`), :mod:`~dea_opt.mesh.repair`, :mod:`~dea_opt.mesh.raycast`
+(grid and Embree), :mod:`~dea_opt.mesh.springs` (springs from two meshes, poses) and
+:mod:`~dea_opt.mesh.both_ways`.
+"""
+
+from .both_ways import TwoWaySprings, springs_both_ways
+from .raycast import ENGINES, surface_thickness
+from .readers import LOADERS, as_mesh, concatenate_meshes, load_mesh
+from .springs import (
+    MAX_ANGLE,
+    MAX_GAP,
+    MAX_OVERLAP,
+    SpringCast,
+    cast_springs,
+    check_pose,
+    springs_from_meshes,
+)
+
+__all__ = [
+    "ENGINES",
+    "LOADERS",
+    "MAX_ANGLE",
+    "MAX_GAP",
+    "MAX_OVERLAP",
+    "SpringCast",
+    "TwoWaySprings",
+    "as_mesh",
+    "cast_springs",
+    "check_pose",
+    "concatenate_meshes",
+    "load_mesh",
+    "springs_both_ways",
+    "springs_from_meshes",
+    "surface_thickness",
+]

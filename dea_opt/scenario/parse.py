@@ -1,0 +1,251 @@
+"""Reading scenario files: TOML in, a validated :class:`~dea_opt.scenario.schema.Scenario` out.
+
+Errors name the file, the key path (``law.H``) and, when it can be found, the TOML line;
+``--set`` overrides (:func:`parse_set`, :func:`apply_overrides`) are applied before
+validation and named as such in the errors.
+"""
+
+from __future__ import annotations
+
+import copy
+import re
+import tomllib
+from pathlib import Path
+
+from pydantic import BaseModel, ValidationError
+
+from ..errors import ScenarioError
+from .schema import GEOMETRY_KINDS, Scenario
+
+__all__ = ["apply_overrides", "load_scenario", "parse_scenario", "parse_set"]
+
+
+def load_scenario(path, overrides: dict | None = None) -> Scenario:
+    """Read and validate a scenario file.
+
+    Parameters
+    ----------
+    path : str or Path
+        The TOML file.
+    overrides : dict, optional
+        ``{"law.H": 0.45, ...}`` applied to the file's values before validation
+        (see :func:`parse_set`).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, the key path and (when known) the line.
+    """
+    path = Path(path).expanduser()
+    if not path.is_file():
+        raise ScenarioError(f"scenario file not found: {path}")
+    text = path.read_text(encoding="utf-8")
+    return parse_scenario(text, name=str(path), base_dir=path.resolve().parent, overrides=overrides)
+
+
+def parse_scenario(text: str, *, name: str = "<scenario>", base_dir=None, overrides: dict | None = None) -> Scenario:
+    """Validate scenario TOML ``text``; relative paths resolve against ``base_dir``."""
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError(f"{name} is not valid TOML: {exc}") from None
+    if overrides:
+        data = apply_overrides(data, overrides)
+    base_dir = Path.cwd() if base_dir is None else Path(base_dir)
+    try:
+        scenario = Scenario.model_validate(data, context={"base_dir": base_dir})
+    except ValidationError as exc:
+        raise ScenarioError(_describe_errors(exc, name, text, data, overrides or {})) from None
+    if name != "<scenario>":
+        scenario._source = str(Path(base_dir) / Path(name).name)
+    return scenario
+
+
+def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, overrides: dict) -> str:
+    parts = []
+    for error in exc.errors():
+        loc = _clean_loc(error["loc"])
+        if error["type"] in ("union_tag_invalid", "union_tag_not_found"):
+            loc = (*loc, "kind")
+        key = _key_path(loc)
+        line = None if error["type"] == "missing" else _find_line(text, loc)
+        if any(key == k or key.startswith(k + ".") or key.startswith(k + "[") for k in overrides):
+            where = f"{key} (from --set)"
+        else:
+            where = f"{key} (line {line})" if line else (key or "top level")
+        parts.append(f"{where}: {_message(error, loc, data)}")
+    plural = "s" if len(parts) > 1 else ""
+    return f"{name} has {len(parts)} error{plural}: " + "; ".join(parts)
+
+
+def _clean_loc(loc: tuple) -> tuple:
+    # pydantic puts the union tag (e.g. "socket") into the location of [geometry] errors.
+    if len(loc) >= 2 and loc[0] == "geometry" and loc[1] in GEOMETRY_KINDS:
+        loc = loc[:1] + loc[2:]
+    return tuple(p for p in loc if not (isinstance(p, str) and p.startswith(("function-", "literal["))))
+
+
+def _key_path(loc: tuple) -> str:
+    text = ""
+    for part in loc:
+        text += f"[{part}]" if isinstance(part, int) else (f".{part}" if text else str(part))
+    return text
+
+
+def _message(error: dict, loc: tuple, data: dict) -> str:
+    kind = error["type"]
+    given = error.get("input")
+    if kind == "extra_forbidden":
+        allowed = _allowed_keys(loc[:-1], data)
+        hint = f"; allowed here: {', '.join(allowed)}" if allowed else ""
+        return f"unknown key {loc[-1]!r}{hint}"
+    if kind == "missing":
+        return "required table is missing" if len(loc) == 1 and loc[0] in Scenario.model_fields else \
+            "required key is missing"
+    if kind == "union_tag_invalid":
+        return f"unknown kind {error['ctx']['tag']!r}; expected one of {error['ctx']['expected_tags']}"
+    if kind == "union_tag_not_found":
+        return f"required key is missing; expected one of {', '.join(repr(k) for k in GEOMETRY_KINDS)}"
+    message = error["msg"]
+    if message.startswith("Value error, "):
+        message = message[len("Value error, "):]
+    if kind in ("float_type", "int_type", "string_type", "bool_type", "list_type", "dict_type",
+                "literal_error", "int_from_float", "float_parsing"):
+        message += f", got {_short(given)}" + (" (a string)" if isinstance(given, str) else "")
+    return message
+
+
+def _short(value) -> str:
+    text = repr(value)
+    return text if len(text) <= 50 else text[:47] + "..."
+
+
+def _allowed_keys(loc: tuple, data: dict) -> list[str]:
+    """The keys the table at ``loc`` accepts (for 'unknown key' messages)."""
+    model = Scenario
+    node = data
+    for part in loc:
+        if not isinstance(part, str) or model is None:
+            return []
+        node = node.get(part, {}) if isinstance(node, dict) else {}
+        field = model.model_fields.get(part)
+        if field is None:
+            return []
+        model = _section_model(field.annotation, node)
+    if model is None:
+        return []
+    return list(model.model_fields)
+
+
+def _section_model(annotation, node):
+    """The model class behind a field annotation (picking the geometry variant by ``kind``)."""
+    from typing import get_args
+
+    candidates = [a for a in _flatten(annotation) if isinstance(a, type) and issubclass(a, BaseModel)]
+    if len(candidates) > 1 and isinstance(node, dict):
+        for model in candidates:
+            kind = model.model_fields.get("kind")
+            if kind is not None and node.get("kind") in get_args(kind.annotation):
+                return model
+        return None
+    return candidates[0] if candidates else None
+
+
+def _flatten(annotation):
+    from typing import get_args
+
+    args = get_args(annotation)
+    if not args:
+        return [annotation]
+    return [x for a in args for x in _flatten(a)]
+
+
+def _find_line(text: str, loc: tuple) -> int | None:
+    """The 1-based line of the key ``loc`` in the TOML ``text`` (best effort, else None).
+
+    Falls back to the enclosing key's line (an inline table or a list element).
+    """
+    keys = [p for p in loc if isinstance(p, str)]
+    while keys:
+        line = _find_key_line(text, keys)
+        if line is not None:
+            return line
+        keys = keys[:-1]
+    return None
+
+
+def _find_key_line(text: str, keys: list) -> int | None:
+    table, key = keys[:-1], keys[-1]
+    header = re.compile(r"^\s*\[\s*([A-Za-z0-9_.\s]+?)\s*\]\s*(#.*)?$")
+    assignment = re.compile(rf"^\s*{re.escape(key)}\s*=")
+    current: list[str] = []
+    table_line = None
+    for number, line in enumerate(text.splitlines(), start=1):
+        match = header.match(line)
+        if match:
+            current = [p.strip() for p in match.group(1).split(".")]
+            if current == keys and table_line is None:
+                table_line = number
+            continue
+        if current == table and assignment.match(line):
+            return number
+    return table_line
+
+
+# --- --set overrides --------------------------------------------------------------------
+
+def parse_set(text: str) -> tuple[str, list]:
+    """Split ``"law.H=0.3,0.45,0.6"`` into ``("law.H", [0.3, 0.45, 0.6])``.
+
+    Values are read as TOML values (numbers, booleans, ``[1, 2, 3]``, quoted strings);
+    anything else is kept as a string. Commas inside brackets or quotes do not split.
+    """
+    key, sep, values = text.partition("=")
+    key = key.strip()
+    if not sep or not key or not re.fullmatch(r"[A-Za-z0-9_]+(\.[A-Za-z0-9_]+)*", key):
+        raise ScenarioError(f"--set must look like KEY.PATH=VALUE[,VALUE...], e.g. law.H=0.3,0.45, got {text!r}")
+    items = _split_values(values)
+    if not items or any(item == "" for item in items):
+        raise ScenarioError(f"--set {key} has an empty value in {text!r}")
+    return key, [_parse_value(item) for item in items]
+
+
+def _split_values(text: str) -> list[str]:
+    items, depth, quote, current = [], 0, None, ""
+    for char in text:
+        if quote:
+            quote = None if char == quote else quote
+        elif char in "\"'":
+            quote = char
+        elif char in "[{":
+            depth += 1
+        elif char in "]}":
+            depth -= 1
+        elif char == "," and depth == 0:
+            items.append(current.strip())
+            current = ""
+            continue
+        current += char
+    items.append(current.strip())
+    return items
+
+
+def _parse_value(text: str):
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def apply_overrides(data: dict, overrides: dict) -> dict:
+    """A deep copy of the TOML ``data`` with ``{"table.key": value}`` set (tables created)."""
+    data = copy.deepcopy(data)
+    for key, value in overrides.items():
+        node = data
+        parts = key.split(".")
+        for depth, part in enumerate(parts[:-1]):
+            node = node.setdefault(part, {})
+            if not isinstance(node, dict):
+                raise ScenarioError(f"--set {key}: {'.'.join(parts[:depth + 1])} is a value, not a table")
+        node[parts[-1]] = value
+    return data

@@ -1,0 +1,198 @@
+"""Cases of a sweep and the work of one case: claim it, check it is not done, compute, record."""
+
+from __future__ import annotations
+
+import hashlib
+import itertools
+import json
+import os
+import time
+import traceback
+from dataclasses import dataclass
+from pathlib import Path
+
+from ..errors import DeaError, InputError, ScenarioError
+from ..scenario import parse_scenario, parse_set
+from . import journal
+from .keys import ContentKey, content_key
+
+__all__ = [
+    "STATUSES",
+    "Case",
+    "CaseTask",
+    "case_id",
+    "make_cases",
+    "parse_case",
+    "read_text",
+    "run_case",
+    "work",
+    "work_claimed",
+]
+
+#: Every status a case's row can have.
+STATUSES = ("ok", "failed", "error")
+
+
+def case_id(overrides: dict) -> str:
+    """A stable 12-character id of a case: the hash of its overrides (key order does not matter).
+
+    The id names the case's row and folder; whether its row is still valid is decided by its
+    content key (:mod:`dea_opt.sweep.keys`), so an edited scenario replaces the row.
+    """
+    text = json.dumps(overrides, sort_keys=True, separators=(",", ":"))
+    return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+@dataclass(frozen=True)
+class Case:
+    """One combination of overrides."""
+
+    overrides: dict
+
+    @property
+    def id(self) -> str:
+        return case_id(self.overrides)
+
+
+def make_cases(sets) -> list[Case]:
+    """The Cartesian product of ``["law.H=0.3,0.45", "load.scale=1,2"]`` as cases (in order)."""
+    parsed = [parse_set(text) for text in sets]
+    keys = [key for key, _ in parsed]
+    duplicated = {k for k in keys if keys.count(k) > 1}
+    if duplicated:
+        raise InputError(f"--set names {', '.join(sorted(duplicated))} more than once; give all its values in one "
+                         f"--set, separated by commas")
+    return [Case(dict(zip(keys, values))) for values in itertools.product(*(v for _, v in parsed))]
+
+
+def read_text(path: Path) -> tuple[str, str]:
+    """``(text, SHA-256 of the bytes)`` of a scenario file."""
+    data = Path(path).read_bytes()
+    try:
+        text = data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(f"scenario file {path} is not UTF-8 text (byte {exc.start})") from None
+    return text, hashlib.sha256(data).hexdigest()
+
+
+def parse_case(scenario_path: Path, text: str, overrides: dict):
+    """The scenario of a case, parsed from ``text`` (the file's contents) as ``load_scenario`` would."""
+    return parse_scenario(text, name=str(scenario_path), base_dir=scenario_path.resolve().parent,
+                          overrides=overrides)
+
+
+def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None, *, text: str | None = None,
+             key: ContentKey | None = None) -> dict:
+    """Run one case and write its outputs into ``case_dir``; never raises.
+
+    Parameters
+    ----------
+    scenario_path : str or Path
+    overrides : dict
+    case_dir : str or Path
+    method : str, optional
+        Overrides ``[solve].method``.
+    text : str, optional
+        The scenario's text (default: read from ``scenario_path``); the sweep passes the
+        text it hashed, so the row is computed from exactly what its key says.
+    key : ContentKey, optional
+        The case's content key (default: computed here).
+
+    Returns
+    -------
+    dict
+        The case's row: ``case_id``, the overrides, ``status`` (``ok``; ``failed`` when an
+        answer failed its certificate; ``error`` with ``message`` otherwise), headline
+        numbers (for a load path: the largest over the frames), ``warnings`` (the run's
+        validity warnings, joined by `` | ``), ``wall_time`` (s),
+        ``output_dir``, ``finished``, ``pid`` and the content key's fields.
+    """
+    from ..run import run_scenario
+
+    start = time.perf_counter()
+    path = Path(scenario_path)
+    row = {"case_id": case_id(overrides), **overrides}
+    columns = {}
+    try:
+        if text is None:
+            text, sha = read_text(path)
+        else:
+            sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
+        scenario = parse_case(path, text, overrides)
+        columns = (key or content_key(scenario, sha, overrides, method)).columns()
+        outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False)
+        row |= {"status": "ok" if outcome.success else "failed", "message": outcome.message, **outcome.headline,
+                "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings)}
+    except DeaError as exc:
+        row |= {"status": "error", "message": " ".join(str(exc).split())}
+    except Exception as exc:  # noqa: BLE001 - one broken case must not end the sweep
+        last = traceback.extract_tb(exc.__traceback__)[-1]
+        where = f"{Path(last.filename).name}:{last.lineno}"
+        row |= {"status": "error", "message": f"{type(exc).__name__}: {exc} ({where})"}
+    row |= {"wall_time": time.perf_counter() - start, "output_dir": str(case_dir),
+            "finished": time.strftime("%Y-%m-%dT%H:%M:%S"), "pid": os.getpid(), **columns}
+    return row
+
+
+@dataclass(frozen=True)
+class CaseTask:
+    """One case as a worker receives it (picklable).
+
+    ``wait`` says whether to wait for a claim another process holds (True) or to hand
+    the case back as ``busy`` (False) so the sweep does other cases first.
+    """
+
+    out: str
+    scenario_path: str
+    scenario_text: str
+    scenario_sha256: str
+    case_id: str
+    overrides: dict
+    method: str | None = None
+    retry_failed: bool = False
+    wait: bool = False
+
+
+def work(task: CaseTask) -> dict:
+    """Do one case of a sweep, at most once across every process working on its folder.
+
+    Returns ``{"outcome": "busy"}`` when another live process holds the case's claim (and
+    ``task.wait`` is False), else :func:`work_claimed`'s answer.
+    """
+    with journal.claim(task.out, task.case_id, wait=task.wait) as held:
+        if not held:
+            return {"outcome": "busy", "case_id": task.case_id}
+        return work_claimed(task)
+
+
+def _accepted(record: dict, retry_failed: bool) -> bool:
+    return record.get("status") == "ok" or (not retry_failed and record.get("status") in STATUSES)
+
+
+def work_claimed(task: CaseTask) -> dict:
+    """The work of :func:`work` once the claim is held.
+
+    If the case's last record was computed from the same content (another process finished
+    it while this one waited), that record is the answer (``"adopted"``); otherwise the case
+    is computed, its record appended to the journal and then written to
+    ``.sweep/records/<id>.json`` with the count of its computations (``"ran"``).
+    """
+    out = Path(task.out)
+    path = Path(task.scenario_path)
+    try:
+        key = content_key(parse_case(path, task.scenario_text, task.overrides), task.scenario_sha256, task.overrides,
+                          task.method)
+    except DeaError:
+        key = None  # run_case records the error
+    previous = journal.read_case_record(out, task.case_id)
+    record = previous.get("record") or {}
+    if key is not None and record.get("key") == key.digest and _accepted(record, task.retry_failed):
+        if not journal.holds(out, previous.get("journal"), record):  # the journal was moved away: restore it
+            pointer = journal.append(out, record)
+            journal.write_case_record(out, task.case_id, record, int(previous.get("runs", 1)), pointer)
+        return {"outcome": "adopted", "row": record}
+    row = run_case(path, task.overrides, out / "cases" / task.case_id, task.method, text=task.scenario_text, key=key)
+    pointer = journal.append(out, row)
+    record = json.loads(journal.line_of(row))
+    journal.write_case_record(out, task.case_id, record, int(previous.get("runs", 0)) + 1, pointer)
+    return {"outcome": "ran", "row": record}

@@ -1,0 +1,189 @@
+"""The package's layout: no import cycle, small modules, and the old import paths still work.
+
+The import graph is read from the source with :mod:`ast` (nothing is imported to build it):
+a node per module of ``dea_opt`` (a package is its ``__init__``), an edge per import of
+another ``dea_opt`` module. ``from . import x`` is an edge to the submodule ``x`` when there
+is one, else to the package. Importing ``dea_opt.a.b`` runs ``dea_opt/a/__init__`` first,
+but that implicit edge to a parent package is left out: every module would otherwise sit in
+a cycle with ``dea_opt/__init__``, which imports the public API from its submodules.
+
+Two graphs are checked. The imports that run when a module is imported (module level, class
+bodies) must have no cycle at all. Adding the imports inside functions, which run only when
+the function is called (after every module has loaded, so they cannot fail half-initialised),
+the graph must have no cycle either, except through the edges of ``CALL_TIME_FRONTS``: methods
+that are thin fronts to a subpackage which itself builds the front's class.
+"""
+
+from __future__ import annotations
+
+import ast
+import graphlib
+import importlib
+import tomllib
+from pathlib import Path
+
+import pytest
+
+import dea_opt
+
+PACKAGE = Path(dea_opt.__file__).resolve().parent
+#: Modules stay under this many lines (the project's guide says "~500").
+MAX_LINES = 500
+#: Function-level imports allowed to close a cycle, and why.
+CALL_TIME_FRONTS = {
+    # SpringLayer.from_meshes is a front to dea_opt.mesh, which builds SpringLayer objects.
+    ("dea_opt.layer", "dea_opt.mesh"),
+}
+
+
+def _module_name(path: Path) -> str:
+    parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def _target(name: str) -> str | None:
+    """The dea_opt module ``name`` loads: itself, or the longest prefix that is a module."""
+    while name:
+        if name in MODULES:
+            return name
+        name = name.rpartition(".")[0]
+    return None
+
+
+class _Imports(ast.NodeVisitor):
+    """Every intra-package import of one module, with whether it runs at import time."""
+
+    def __init__(self, module: str, is_package: bool):
+        self.package = module if is_package else module.rpartition(".")[0]
+        self.depth = 0  # functions around the current node
+        self.found: list[tuple[str, bool]] = []  # (target module, at import time)
+
+    def _function(self, node):
+        self.depth += 1
+        self.generic_visit(node)
+        self.depth -= 1
+
+    visit_FunctionDef = visit_AsyncFunctionDef = visit_Lambda = _function
+
+    def _add(self, name: str):
+        target = _target(name) if name.startswith("dea_opt") else None
+        if target is not None:
+            self.found.append((target, self.depth == 0))
+
+    def visit_Import(self, node):
+        for alias in node.names:
+            self._add(alias.name)
+
+    def visit_ImportFrom(self, node):
+        if node.level:
+            parts = self.package.split(".")
+            base = ".".join(parts[: len(parts) - node.level + 1])
+            base = f"{base}.{node.module}" if node.module else base
+        else:
+            base = node.module or ""
+        for alias in node.names:
+            self._add(f"{base}.{alias.name}" if f"{base}.{alias.name}" in MODULES else base)
+
+
+def import_edges() -> dict[tuple[str, str], bool]:
+    """``{(importer, imported): True if some import of it runs at import time}``."""
+    edges: dict[tuple[str, str], bool] = {}
+    for name, path in MODULES.items():
+        visitor = _Imports(name, path.name == "__init__.py")
+        visitor.visit(ast.parse(path.read_text(encoding="utf-8"), filename=str(path)))
+        for target, at_import in visitor.found:
+            if target != name:
+                edges[(name, target)] = edges.get((name, target), False) or at_import
+    return edges
+
+
+def _cycle(edges) -> list[str] | None:
+    graph = {name: set() for name in MODULES}
+    for importer, imported in edges:
+        graph[importer].add(imported)
+    try:
+        tuple(graphlib.TopologicalSorter(graph).static_order())
+    except graphlib.CycleError as exc:
+        return exc.args[1]
+    return None
+
+
+EDGES = import_edges()
+
+
+def test_the_graph_sees_the_imports_it_must():
+    # a module-level import, a function-level one, and the package front
+    assert EDGES[("dea_opt.mesh.springs", "dea_opt.layer")] is True
+    assert EDGES[("dea_opt.loadpath.stepper", "dea_opt.formulations.qp")] is False
+    assert EDGES[("dea_opt", "dea_opt.loadpath")] is True
+    assert ("dea_opt.scenario.build", "dea_opt.laws") in EDGES  # `from .. import laws`
+    assert len(EDGES) > 100
+
+
+def test_no_import_cycle_at_import_time():
+    cycle = _cycle([edge for edge, at_import in EDGES.items() if at_import])
+    assert cycle is None, " -> ".join(cycle)
+
+
+def test_no_import_cycle_with_function_level_imports():
+    cycle = _cycle([edge for edge in EDGES if edge not in CALL_TIME_FRONTS])
+    assert cycle is None, " -> ".join(cycle)
+
+
+@pytest.mark.parametrize("front", sorted(CALL_TIME_FRONTS))
+def test_each_allowed_front_is_real_and_only_a_call_time_import(front):
+    """An entry of CALL_TIME_FRONTS that no longer closes a cycle must be removed from it."""
+    assert EDGES.get(front) is False, f"{front} is not a function-level import"
+    assert _cycle([edge for edge in EDGES if edge not in CALL_TIME_FRONTS - {front}]) is not None
+
+
+@pytest.mark.parametrize("name", sorted(MODULES))
+def test_modules_are_small(name):
+    lines = MODULES[name].read_text(encoding="utf-8").count("\n")
+    assert lines <= MAX_LINES, f"{name} has {lines} lines; split it (the guide's limit is ~{MAX_LINES})"
+
+
+def test_version_is_the_projects():
+    project = tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text(encoding="utf-8"))["project"]
+    from dea_opt._version import __version__
+
+    assert dea_opt.__version__ == __version__ == project["version"]
+
+
+# The public names of the modules that became packages, as they were before the split.
+FORMER_NAMES = {
+    "dea_opt.io": ["CSV_COLUMNS", "SurfaceData", "atomic_open", "atomic_path", "best_fit_frame",
+                   "contact_surface", "label_codes", "plot_pressure", "read_csv", "read_json", "read_vtk",
+                   "summary_dict", "to_csv", "to_json", "to_vtk", "vtk_differences", "write_atomic",
+                   "write_data", "write_results"],
+    "dea_opt.mesh": ["ENGINES", "LOADERS", "MAX_ANGLE", "MAX_GAP", "MAX_OVERLAP", "SpringCast", "TwoWaySprings",
+                     "as_mesh", "cast_springs", "check_pose", "concatenate_meshes", "load_mesh",
+                     "springs_both_ways", "springs_from_meshes", "surface_thickness"],
+    "dea_opt.scenario": ["Scenario", "ScenarioError", "LoadPathData", "load_scenario", "parse_scenario",
+                         "build_problem", "build_layer", "build_geometry", "build_law", "pose_builder",
+                         "read_load_path", "read_springs", "write_springs", "parse_set", "apply_overrides",
+                         "schema_text", "METHOD_NAMES", "FORMATS", "GEOMETRY_KINDS", "pose_matrices",
+                         "load_meshes", "springs_from_mesh_section", "MeshGeometry", "LawSection"],
+    "dea_opt.path": ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"],
+}
+
+
+@pytest.mark.parametrize("module", sorted(FORMER_NAMES))
+def test_former_import_paths_still_work(module):
+    loaded = importlib.import_module(module)
+    missing = [name for name in FORMER_NAMES[module] if not hasattr(loaded, name)]
+    assert not missing, f"{module} lost {missing}"
+    for name in getattr(loaded, "__all__", ()):
+        assert hasattr(loaded, name), f"{module}.__all__ names {name}, which it does not have"
+
+
+def test_path_is_loadpath():
+    import dea_opt.loadpath
+    import dea_opt.path
+
+    for name in dea_opt.path.__all__:
+        assert getattr(dea_opt.path, name) is getattr(dea_opt.loadpath, name)
+    assert dea_opt.solve_path is dea_opt.loadpath.solve_path
