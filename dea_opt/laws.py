@@ -18,6 +18,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
+from ._tolerances import LINEAR_VALIDITY
 from .errors import InputError
 
 __all__ = [
@@ -139,7 +140,7 @@ class LinearLaw(Law):
     name = "linear"
     is_linear = True
     #: The paper's limit of validity: Eq. (2) is almost linear up to 30 % strain.
-    valid_compression = 0.30
+    valid_compression = LINEAR_VALIDITY
 
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))

@@ -9,6 +9,7 @@ import numpy as np
 
 from .formulations.energy import bonded_basis, single_threaded_blas
 from .kinematics import DOF_NAMES
+from .validity import Validity, assess
 
 __all__ = ["Certificate", "Solution", "certify"]
 
@@ -260,15 +261,13 @@ class Solution:
         return float(max(-self.strain.min(initial=0.0), 0.0))
 
     @cached_property
-    def validity(self):
+    def validity(self) -> Validity:
         """The :class:`~dea_opt.validity.Validity` report of this answer with the default limits.
 
         For other limits, or a count of springs dropped at the solved pose, call
         :func:`dea_opt.validity.assess` ``(solution.problem, solution.u, solution.strain,
         solution.pressure, limits=..., dropped=...)``.
         """
-        from .validity import assess
-
         return assess(self.problem, self.u, self.strain, self.pressure)
 
     @property

@@ -21,30 +21,26 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ._validate import number_in_range
 from .errors import InputError
+from .problem import ContactProblem
 
 __all__ = ["DEFAULT_LIMITS", "Check", "Validity", "ValidityLimits", "assess", "rotation_gap_error"]
 
 
-def _number(name, value, *, high=math.inf) -> float:
-    """A limit in ``(0, high]``; ``inf`` (where ``high`` allows it) switches a check off."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise InputError(f"{name} must be a number, got {value!r}") from None
-    if not (0.0 < v <= high):
-        raise InputError(f"{name} must be a number in (0, {high:g}], got {value!r}")
-    return v
+def _limit(name, value, high=None) -> float:
+    """A limit in ``(0, high]``, or an InputError naming it."""
+    return number_in_range(name, value, 0.0, high, low_open=True)
 
 
 def _range(name, value) -> tuple[float, float]:
+    """A pair ``(low, high)`` with ``0 <= low < high``, or an InputError naming it."""
     try:
-        low, high = (float(v) for v in value)
+        low, high = value
     except (TypeError, ValueError):
         raise InputError(f"{name} must be a pair (low, high) of numbers, got {value!r}") from None
-    if not (0 <= low < high) or math.isnan(high):
-        raise InputError(f"{name} must be a pair (low, high) with 0 <= low < high, got {value!r}")
-    return low, high
+    low = number_in_range(f"{name}[0]", low, 0.0)
+    return low, number_in_range(f"{name}[1]", high, low, low_open=True)
 
 
 @dataclass(frozen=True)
@@ -91,11 +87,11 @@ class ValidityLimits:
     def __post_init__(self):
         set_ = object.__setattr__
         if self.compression is not None:
-            set_(self, "compression", _number("ValidityLimits.compression", self.compression, high=1.0))
-        set_(self, "crushing", _number("ValidityLimits.crushing", self.crushing, high=1.0))
-        set_(self, "rotation", _number("ValidityLimits.rotation", self.rotation, high=180.0))
-        set_(self, "gap_error", _number("ValidityLimits.gap_error", self.gap_error))
-        set_(self, "peak_pressure", _number("ValidityLimits.peak_pressure", self.peak_pressure))
+            set_(self, "compression", _limit("ValidityLimits.compression", self.compression, 1.0))
+        set_(self, "crushing", _limit("ValidityLimits.crushing", self.crushing, 1.0))
+        set_(self, "rotation", _limit("ValidityLimits.rotation", self.rotation, 180.0))
+        set_(self, "gap_error", _limit("ValidityLimits.gap_error", self.gap_error))
+        set_(self, "peak_pressure", _limit("ValidityLimits.peak_pressure", self.peak_pressure))
         for name in ("extent", "layer_area", "thickness"):
             set_(self, name, _range(f"ValidityLimits.{name}", getattr(self, name)))
         dropped = self.dropped_springs
@@ -252,7 +248,7 @@ _NOT_FINITE = "the value is not finite: the solution failed (see its certificate
 def _strain_check(law, strain, limits: ValidityLimits) -> Check:
     own = limits.compression if limits.compression is not None else getattr(law, "valid_compression", None)
     if own is not None:
-        own = _number(f"{type(law).__name__}.valid_compression", own, high=1.0)
+        own = _limit(f"{type(law).__name__}.valid_compression", own, 1.0)
     limit = limits.crushing if own is None else min(own, limits.crushing)
     value = float(max(-np.min(strain), 0.0)) if len(strain) else 0.0
     if np.isnan(strain).any():
@@ -430,8 +426,6 @@ def assess(problem, u, strain=None, pressure=None, *, limits: ValidityLimits = D
         The checks ``strain``, ``rotation``, ``gap_error``, ``extent``, ``layer_area``,
         ``thickness``, ``peak_pressure`` and ``dropped_springs``, in that order.
     """
-    from .problem import ContactProblem
-
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
     if not isinstance(limits, ValidityLimits):
