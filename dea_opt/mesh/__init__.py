@@ -27,10 +27,21 @@ The modules: :mod:`~dea_opt.mesh.readers` (file formats; the legacy-VTK parser i
 from .both_ways import TwoWaySprings, springs_both_ways
 from .raycast import ENGINES, surface_thickness
 from .readers import LOADERS, as_mesh, concatenate_meshes, load_mesh
+from .recast import (
+    Recast,
+    body_pose,
+    recast,
+    recast_at_solution,
+    relative_pose,
+    tangent_plane_gap,
+)
 from .springs import (
+    DROP_REASONS,
+    LOST_REASONS,
     MAX_ANGLE,
     MAX_GAP,
     MAX_OVERLAP,
+    Dropped,
     SpringCast,
     cast_springs,
     check_pose,
@@ -38,19 +49,28 @@ from .springs import (
 )
 
 __all__ = [
+    "DROP_REASONS",
     "ENGINES",
     "LOADERS",
+    "LOST_REASONS",
     "MAX_ANGLE",
     "MAX_GAP",
     "MAX_OVERLAP",
+    "Dropped",
+    "Recast",
     "SpringCast",
     "TwoWaySprings",
     "as_mesh",
+    "body_pose",
     "cast_springs",
     "check_pose",
     "concatenate_meshes",
     "load_mesh",
+    "recast",
+    "recast_at_solution",
+    "relative_pose",
     "springs_both_ways",
     "springs_from_meshes",
     "surface_thickness",
+    "tangent_plane_gap",
 ]
