@@ -400,7 +400,11 @@ def springs_from_meshes(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=
 
     One spring per articular face of mesh 1: a face whose normal ray meets a face of mesh 2
     that faces it inside the proximity window ``-max_overlap <= gap <= max_gap`` with the two
-    normals within ``max_angle`` of facing each other.
+    normals within ``max_angle`` of facing each other. A face of mesh 2 met behind mesh 1's own
+    far (bone) side is never taken: the ray went back through the spring layer itself. Faces
+    dropped by the window or rejected are counted in :attr:`SpringCast.dropped`
+    (:func:`cast_springs`); :func:`~dea_opt.mesh.recast` re-casts at another pose with the
+    window following it.
 
     Parameters
     ----------
@@ -435,13 +439,16 @@ def springs_from_meshes(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=
         2; ``areas`` (N,): face areas (mm^2); ``gap`` (N,): signed distance along the normal
         to mesh 2 (mm, negative where the meshes overlap); ``thickness`` (N,): ``h1 + h2`` (mm);
         ``source_face`` (N,): the face of ``surface`` = mesh 1 (vertices, faces) under each
-        spring; ``labels`` as given.
+        spring; ``labels`` as given; ``target_points``, ``target_normals`` (N, 3) and
+        ``target_faces`` (N,): where each ray met mesh 2 and that face's unit normal, in mesh
+        2's own frame (before ``pose``).
 
     Raises
     ------
     InputError
-        Bad meshes, a pose that is not rigid, a bad window or thickness, or no face of mesh 1
-        facing mesh 2 within the window (the message gives the smallest distance found).
+        Bad meshes, a pose that is not rigid, a bad window or thickness, meshes whose cast
+        would not fit in memory, or no face of mesh 1 facing mesh 2 within the window (the
+        message gives the smallest distance found).
     """
     return cast_springs(mesh1, mesh2, thickness1=thickness1, thickness2=thickness2, pose=pose,
                         max_gap=max_gap, max_overlap=max_overlap, max_angle=max_angle, flip=flip,
