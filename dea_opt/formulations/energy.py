@@ -44,12 +44,11 @@ class SpringSystem:
         basis (rotations about the layer's centroid); lets :func:`resistance` skip a singular
         value decomposition of an N x m matrix.
     stiffness : float, optional
-        The layer's own stiffness scale per unit modulus, ``k = sum_i S_i / h_i`` (mm): the
-        bonded stiffness of a translation along any axis of a layer whose normals cover the
-        sphere evenly, and independent of which dofs are free. Directions are judged
-        unresisted against it (:func:`unresisted`). Without it (a system built by hand) the
-        largest stiffness among the free dofs stands in, which cannot tell a layer that
-        resists none of its free dofs from one that resists them all.
+        The layer's own stiffness scale per unit modulus, ``k = sum_i S_i / h_i`` (mm): the sum
+        of every spring's stiffness along its normal, independent of which dofs are free.
+        Directions are judged unresisted against it (:func:`unresisted`). Without it (a system
+        built by hand) the largest stiffness among the free dofs stands in, which cannot tell
+        a layer that resists none of its free dofs from one that resists them all.
     """
 
     AT: np.ndarray
@@ -244,8 +243,11 @@ class Resistance:
     def load_part(self, r) -> np.ndarray:
         """The part of the generalized load ``r`` (N, N mm) along unresisted directions, in
         the same units: what no spring force can balance."""
+        r = np.asarray(r, dtype=float)
+        if not self.n_resisted:
+            return r.copy()  # all of it, exactly
         D = self.lengths
-        return D * (self.null @ (self.null.T @ (np.asarray(r, dtype=float) / D)))
+        return D * (self.null @ (self.null.T @ (r / D)))
 
     def load_fraction(self, r) -> float:
         """``|P r / D| / |r / D|``: the fraction of the load (moments over the layer radius)
@@ -263,14 +265,21 @@ class Resistance:
         return (self.null @ (self.null.T @ (np.asarray(x, dtype=float) * D))) / D
 
     def describe(self, names) -> list[str]:
-        """Each unresisted direction in words, e.g. ``"body2.rx"`` or
-        ``"0.707 body2.ux + 0.707 body2.rz"`` (arc-length units)."""
-        out = []
-        for v in self.null.T:
-            big = np.flatnonzero(np.abs(v) >= 1e-6 * np.abs(v).max())
-            if big.size == 1:
-                out.append(names[big[0]])
-            else:
+        """The unresisted directions in words: each free dof that lies wholly among them by its
+        name (``"body2.rx"``), then any further direction as a combination
+        (``"0.707 body2.ux + 0.707 body2.rz"``, in arc lengths)."""
+        p = self.null.shape[1]
+        if not p:
+            return []
+        whole = [j for j in range(len(names)) if float(self.null[j] @ self.null[j]) > 1.0 - 1e-9]
+        out = [names[j] for j in whole]
+        if len(whole) < p:
+            rest = self.null.copy()
+            rest[whole] = 0.0  # what is left once the whole dofs are named
+            u, sv, _ = np.linalg.svd(rest, full_matrices=False)
+            for v in u[:, : p - len(whole)].T:
+                v = v / v[np.argmax(np.abs(v))]
+                big = np.flatnonzero(np.abs(v) >= 1e-6)
                 out.append(" + ".join(f"{v[i]:.3g} {names[i]}" for i in big).replace("+ -", "- "))
         return out
 
