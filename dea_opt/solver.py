@@ -187,42 +187,47 @@ def _run(problem: ContactProblem, method: str, certificate_tol: float, options: 
     system = problem.system()
     build = time.perf_counter() - start
     _check_common_options(system, options)
+    result = _formulation_result(problem, system, method, module, options)
+    return certified_solution(problem, result, method, certificate_tol, build + result.build_time)
+
+
+def _formulation_result(problem: ContactProblem, system, method: str, module, options: dict):
+    """The raw answer of ``method``, or of no solver where none is needed."""
     if system.n_dofs == 0:
-        result = formulations.FormulationResult(
+        return formulations.FormulationResult(
             x=np.zeros(0), stress=problem.law.stress(np.minimum(system.e0, 0.0)), success=True,
             status="no_free_dofs", message="every dof is fixed or prescribed",
         )
-    else:
-        # Every method, Newton included: a load along a direction no spring resists is never
-        # "solved" (the same test as the scaling and the certificate).
-        if system.load.any():
-            _check_unresisted(problem, system)
-        result = trivial_result(system, problem.law)
-        if result is None and not system.load.any():
-            # Overlapping springs with no load: they push the bodies apart until they no longer
-            # touch (every separated position is then an equilibrium, an unbounded set for the
-            # constrained formulations), or, where they surround a body, to the position where
-            # they balance. One answer is returned for every method: Newton's.
-            result = formulations.get("newton").solve(system, problem.law)
-            if result.success:
-                result.status = "preloaded"
-                result.message = ("no load: only the initial overlap compresses springs; the bodies move until "
-                                  "the springs balance each other (Newton's answer, for every method)")
-            result.info["solved_by"] = "newton"
-        elif result is None:
-            if method != "newton":
-                _check_cone(problem, system)
-            try:
-                result = module.solve(system, problem.law, **options)
-            except SolverError as exc:
-                # A solver that raised still yields a (failed) Solution, so that auto can fall
-                # back and strict=False can report it like any other failure.
-                nan = np.full(system.n_dofs, np.nan)
-                result = formulations.FormulationResult(
-                    x=nan, stress=np.full(system.n_springs, np.nan), success=False,
-                    status=exc.status or "solver_error", message=str(exc),
-                )
-    return certified_solution(problem, result, method, certificate_tol, build + result.build_time)
+    # Every method, Newton included: a load along a direction no spring resists is never
+    # "solved" (the same test as the scaling and the certificate).
+    if system.load.any():
+        _check_unresisted(problem, system)
+    trivial = trivial_result(system, problem.law)
+    if trivial is not None:
+        return trivial
+    if not system.load.any():
+        # Overlapping springs with no load: they push the bodies apart until they no longer
+        # touch (every separated position is then an equilibrium, an unbounded set for the
+        # constrained formulations), or, where they surround a body, to the position where
+        # they balance. One answer is returned for every method: Newton's.
+        result = formulations.get("newton").solve(system, problem.law)
+        if result.success:
+            result.status = "preloaded"
+            result.message = ("no load: only the initial overlap compresses springs; the bodies move until "
+                              "the springs balance each other (Newton's answer, for every method)")
+        result.info["solved_by"] = "newton"
+        return result
+    if method != "newton":
+        _check_cone(problem, system)
+    try:
+        return module.solve(system, problem.law, **options)
+    except SolverError as exc:
+        # A solver that raised still yields a (failed) Solution, so that auto can fall
+        # back and strict=False can report it like any other failure.
+        return formulations.FormulationResult(
+            x=np.full(system.n_dofs, np.nan), stress=np.full(system.n_springs, np.nan), success=False,
+            status=exc.status or "solver_error", message=str(exc),
+        )
 
 
 def _check_common_options(system, options: dict) -> None:

@@ -32,7 +32,16 @@ from dataclasses import dataclass
 import numpy as np
 from hypothesis import event, given, note
 from hypothesis import strategies as st
-from test_properties import SEEDED, _cap, _grid_plate, applicable, assert_agree, budget, laws, quiet_solve
+from test_properties import (
+    SEEDED,
+    _cap,
+    _grid_plate,
+    applicable,
+    assert_agree,
+    budget,
+    laws,
+    quiet_solve,
+)
 
 import dea_opt as d
 

@@ -173,7 +173,7 @@ def test_a_cube_press_fitted_into_a_box_under_no_load(method):
     """Overlaps a = 0.12 (-x face) and b = 0.04 (+x face): the cube moves by (a - b) / 2 along x,
     where both faces press with H (a + b) / (2 h); the other faces keep H * 0.1 / h."""
     a, b, H = 0.12, 0.04, 2.0
-    layer, face = box_layer(overlap=(a, b, 0.1, 0.1, 0.1, 0.1))
+    layer, _ = box_layer(overlap=(a, b, 0.1, 0.1, 0.1, 0.1))
     problem = d.ContactProblem(layer, d.LinearLaw(H), reference=(0, 0, 0))
     s = d.solve(problem, method)
     assert s.success and s.certificate.passed

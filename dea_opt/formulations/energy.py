@@ -276,7 +276,7 @@ class Resistance:
         if len(whole) < p:
             rest = self.null.copy()
             rest[whole] = 0.0  # what is left once the whole dofs are named
-            u, sv, _ = np.linalg.svd(rest, full_matrices=False)
+            u = np.linalg.svd(rest, full_matrices=False)[0]
             for v in u[:, : p - len(whole)].T:
                 v = v / v[np.argmax(np.abs(v))]
                 big = np.flatnonzero(np.abs(v) >= 1e-6)

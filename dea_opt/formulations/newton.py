@@ -160,6 +160,7 @@ def solve(system: SpringSystem, law, *, x0=None, xtol: float = 1e-12, gtol: floa
     """
     check_options(xtol=xtol, gtol=gtol, max_iter=max_iter)
     x0 = start_vector(system, x0)
+    require_finite("the load", system.load)
     trivial = trivial_result(system, law)
     if trivial is not None:
         return trivial
