@@ -242,7 +242,9 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     """Turn a formulation's raw :class:`~dea_opt.formulations.FormulationResult` into a
     :class:`Solution` with dea_opt's own certificate (``success`` only if it passes).
 
-    For callers that drive the formulation models themselves (load paths, studies).
+    Where some free directions are unresisted, ``info["held"]`` names them (they take no
+    motion and carry no load) and the message says so. For callers that drive the formulation
+    models themselves (load paths, studies).
     """
     u = problem.full_u(result.x)
     n = len(problem.layer)

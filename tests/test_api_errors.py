@@ -73,9 +73,10 @@ def test_ipopt_options_must_be_a_dict_of_names(bed, options):
         d.solve(pressed(bed), "nlp", ipopt_options=options)
 
 
-def test_an_unknown_qp_solver_setting_is_an_input_error(bed):
-    with pytest.raises(d.InputError, match="CLARABEL rejected the options \\['bogus'\\]"):
-        d.solve(pressed(bed), "qp", bogus=1)
+@pytest.mark.parametrize("solver", ["CLARABEL", "OSQP", "SCS", "PIQP"])
+def test_an_unknown_qp_solver_setting_is_an_input_error(bed, solver):
+    with pytest.raises(d.InputError, match=f"{solver} rejected the options \\['bogus'\\]"):
+        d.solve(pressed(bed), "qp", solver=solver, bogus=1)
 
 
 # --- values whose products overflow or underflow -----------------------------------------------

@@ -248,3 +248,17 @@ def test_solve_is_quiet_for_held_and_preloaded_answers():
         warnings.simplefilter("error")
         d.solve(rotations_only(ball_in_socket(-0.1)), "auto")
         d.solve(d.ContactProblem(box_layer()[0], d.LinearLaw(1.0), reference=(0, 0, 0)), "auto")
+
+
+def test_the_cli_rejects_the_ball_in_socket_reproducer(tmp_path):
+    """Through the command line the issue's scenario exited 0 with the garbage answer."""
+    import subprocess
+    import sys
+
+    scenario = tmp_path / "socket.toml"
+    scenario.write_text('[geometry]\nkind = "socket"\nn_rings = 6\nn_sectors = 12\n[law]\nkind = "linear"\nH = 1.0\n'
+                        '[body2]\nreference = [0, 0, 0]\nfree = ["rx", "ry", "rz"]\n[load]\nmoment = [1000, 0, 0]\n')
+    done = subprocess.run([sys.executable, "-m", "dea_opt.cli", "run", str(scenario), "-o", str(tmp_path / "out")],
+                          capture_output=True, text=True, timeout=300, check=False)
+    assert done.returncode == 2, done.stdout[-2000:] + done.stderr[-2000:]
+    assert done.stderr.startswith("dea-opt: error:") and "no spring resists any of the free dofs" in done.stderr

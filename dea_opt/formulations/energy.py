@@ -8,6 +8,11 @@ The reduced problem over the ``m`` free degrees of freedom ``x`` (``formulations
 ``A`` holds the rows ``n_i^T B_i / h_i`` of Eq. (11) restricted to the free dofs and ``e0``
 the strain at ``x = 0`` (gap and prescribed motion). Spring stress is ``sigma_i`` (MPa,
 tension positive); the spring force is ``S_i sigma_i``.
+
+Also here: the one test of "no spring resists this direction" (:func:`unresisted`,
+:func:`resistance`), the guards every formulation runs before compiled code
+(:func:`require_finite`, :func:`check_options`, :func:`start_vector`) and the answers that need
+no solver (:func:`trivial_result`).
 """
 
 from __future__ import annotations
@@ -116,10 +121,10 @@ class Scaling:
 
     ``x = T xi`` with ``T = Q Lambda^(-1/2) s`` from the bonded stiffness
     ``K0 = A^T diag(V H) A = Q Lambda Q^T`` (``formulations/energy.md``, "Scaling"):
-    directions no spring resists are dropped, the remaining ones are made K0-orthonormal
-    (so units, lever arms and far reference points no longer matter), and ``s`` makes
-    ``xi = O(1)`` for the reference load. Energies are divided by ``E0 = s^2`` and strains
-    are of order ``strain``.
+    directions no spring resists (:func:`resistance`) are dropped, the remaining ones are
+    made K0-orthonormal (so units, lever arms and far reference points no longer matter), and
+    ``s`` makes ``xi = O(1)`` for the larger of the reference load and the overlap. Energies
+    are divided by ``E0 = s^2`` and strains are of order ``strain``.
 
     Attributes
     ----------
@@ -321,12 +326,6 @@ def resistance(system: SpringSystem) -> Resistance:
     keep = ~unresisted(stiffness, scale) if scale > 0 else np.zeros(m, dtype=bool)
     T1 = vt[keep].T / np.sqrt(stiffness[keep]) / D[:, None]
     return Resistance(T1, vt[~keep].T, D, vt[keep].T, scale)
-
-
-def bonded_basis(system: SpringSystem, modulus: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """``(T1, null)`` of :attr:`SpringSystem.resistance`, ``T1`` for ``modulus``."""
-    res = system.resistance
-    return res.basis(modulus), res.null
 
 
 def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scaling:

@@ -113,14 +113,15 @@ class QPModel:
                 # dea_opt certifies every answer itself; cvxpy's own doubt adds nothing.
                 warnings.filterwarnings("ignore", message="Solution may be inaccurate")
                 self.problem.solve(solver=self.solver, warm_start=warm_start, **options)
-        except cp.error.SolverError as exc:
-            raise SolverError(f"{self.solver} failed: {exc}", status="solver_error") from exc
-        except (TypeError, ValueError, KeyError) as exc:
-            if solver_options:
+        except (cp.error.SolverError, TypeError, ValueError, KeyError) as exc:
+            # An option the solver does not know is the caller's input (Clarabel and PIQP raise
+            # TypeError, SCS a TypeError of its own, OSQP a SolverError naming the setting).
+            named = any(str(key) in str(exc) for key in solver_options)
+            if solver_options and (named or not isinstance(exc, cp.error.SolverError)):
                 raise InputError(
                     f"{self.solver} rejected the options {sorted(solver_options)}: {exc} (dea_opt's own qp "
                     f"options are solver, tol and warm_start; the rest go to the solver)") from None
-            raise SolverError(f"{self.solver} rejected the problem: {exc}", status="solver_error") from exc
+            raise SolverError(f"{self.solver} failed: {exc}", status="solver_error") from exc
         elapsed = time.perf_counter() - start
         stats = self.problem.solver_stats
         status = self.problem.status
