@@ -144,8 +144,10 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
         return Certificate(nan, nan, nan, nan, nan, tolerance)
     r, L = system.load, system.lengths
     H = modulus_scale(law.modulus)
-    overlap = np.maximum(-system.e0, 0.0)
-    F = max(float(np.abs(r / L).max(initial=0.0)), float(np.abs(force).sum()), H * float(layer.areas @ overlap))
+    # The initial overlap (gaps and prescribed motion): usually none, and then no pass over it.
+    overlap = np.maximum(-system.e0, 0.0) if system.e0.min(initial=0.0) < 0 else None
+    preload = 0.0 if overlap is None else H * float(layer.areas @ overlap)
+    F = max(float(np.abs(r / L).max(initial=0.0)), float(np.abs(force).sum()), preload)
     g = q - r
     equilibrium = _ratio(float(np.abs(g / L).max(initial=0.0)), F)
     if res.null.shape[1]:
@@ -160,7 +162,7 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
     # A reported force is consistent when the law gives it at a strain within the certified
     # precision of the compression: springs on the edge of the contact, where interior-point
     # duals are of order sqrt(mu), are judged on what the strain allows.
-    delta = tolerance * max(float(-compressed.min(initial=0.0)), float(overlap.max(initial=0.0)))
+    delta = tolerance * max(float(-compressed.min(initial=0.0)), float(-system.e0.min(initial=0.0)))
     with np.errstate(invalid="ignore", over="ignore"):
         low = layer.areas * law.stress(np.minimum(eps - delta, 0.0))
         high = layer.areas * law.stress(np.minimum(eps + delta, 0.0))
@@ -193,7 +195,8 @@ def _energy_residual(system, res, law, eps, g, x, H, overlap) -> float:
     keep = ~unresisted(vals, max(float(vals[-1]), 1.0))
     coeff = vecs[:, keep].T @ gt
     decrement = float(coeff @ (coeff / vals[keep]))
-    scale = max(stored + abs(float(system.load @ x)), 0.5 * H * float(system.volume @ overlap**2))
+    preload = 0.0 if overlap is None else 0.5 * H * float(system.volume @ overlap**2)
+    scale = max(stored + abs(float(system.load @ x)), preload)
     return _ratio(0.5 * abs(decrement), scale)
 
 
