@@ -87,8 +87,11 @@ class SpringSystem:
         return self.e0 + np.asarray(x, dtype=float) @ self.AT
 
     def with_load(self, load) -> SpringSystem:
-        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
-                            self.factor, self.stiffness)
+        new = SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
+                           self.factor, self.stiffness)
+        if "resistance" in self.__dict__:  # the same geometry: the same decision
+            new.__dict__["resistance"] = self.__dict__["resistance"]
+        return new
 
     @cached_property
     def resistance(self) -> Resistance:
