@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import as_float_array
+from ._validate import as_float_array, check_range
 from .errors import InputError
 
 __all__ = ["SpringLayer"]
@@ -17,6 +17,22 @@ _TARGETS = ("target_points", "target_normals", "target_faces")
 def _readonly(arr: np.ndarray) -> np.ndarray:
     arr.setflags(write=False)
     return arr
+
+
+def _unit_normals(normals: np.ndarray) -> np.ndarray:
+    """Each finite row divided by its length, without overflow or underflow: scaled by its
+    largest component first (a row of 1e200 would square to inf, one of 1e-200 to 0, and
+    either would silently become a zero normal). A zero row is an :class:`InputError`; no
+    row is ever dropped."""
+    top = np.abs(normals).max(axis=1, initial=0.0)
+    if normals.shape[0] and not (top > 0).all():
+        i = int(np.argmin(top))
+        raise InputError(f"normals must be nonzero vectors, got {normals[i].tolist()} at index {i}")
+    scaled = normals / top[:, None] if normals.shape[0] else normals
+    unit = scaled / np.linalg.norm(scaled, axis=1)[:, None]
+    # Every scaled row has a component of magnitude 1, so its length lies in [1, sqrt(3)].
+    assert np.isfinite(unit).all()
+    return unit
 
 
 @dataclass(frozen=True, eq=False)
@@ -72,22 +88,18 @@ class SpringLayer:
 
     def __post_init__(self):
         points = as_float_array("points", self.points, (None, 3))
+        check_range("points", points, "mm")
         n = points.shape[0]
-        normals = as_float_array("normals", self.normals, (n, 3))
-        length = np.linalg.norm(normals, axis=1)
-        if n and not (length > 1e-12).all():
-            i = int(np.argmin(length))
-            raise InputError(
-                f"normals must be nonzero vectors, got {normals[i].tolist()} at index {i}"
-            )
-        normals = normals / length[:, None]
+        normals = _unit_normals(as_float_array("normals", self.normals, (n, 3)))
         areas = as_float_array("areas", self.areas, (n,), allow_scalar_for=n)
         thickness = as_float_array("thickness", self.thickness, (n,), allow_scalar_for=n)
         gap = as_float_array("gap", self.gap, (n,), allow_scalar_for=n)
-        for name, arr in (("areas", areas), ("thickness", thickness)):
+        for name, arr, unit in (("areas", areas, "mm^2"), ("thickness", thickness, "mm")):
             if n and not (arr > 0).all():
                 i = int(np.argmin(arr))
                 raise InputError(f"{name} must be > 0 everywhere, got {arr[i]} at index {i}")
+            check_range(name, arr, unit, positive=True)
+        check_range("gap", gap, "mm")
         set_ = object.__setattr__
         set_(self, "points", _readonly(points))
         set_(self, "normals", _readonly(np.ascontiguousarray(normals)))
@@ -127,6 +139,7 @@ class SpringLayer:
             raise InputError(f"target_points, target_normals and target_faces are given together or not "
                              f"at all; missing {', '.join(missing)}")
         points = as_float_array("target_points", self.target_points, (n, 3))
+        check_range("target_points", points, "mm")
         normals = as_float_array("target_normals", self.target_normals, (n, 3))
         length = np.linalg.norm(normals, axis=1)
         if n and np.abs(length - 1.0).max() > 1e-6:
