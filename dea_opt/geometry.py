@@ -344,9 +344,14 @@ class MeshPair:
 
     def layer(self, **options) -> SpringLayer:
         """Springs from mesh 1 onto mesh 2; ``options`` override :attr:`options`."""
-        from .mesh import springs_from_meshes
+        return self.cast(**options).layer
 
-        return springs_from_meshes(self.mesh1, self.mesh2, **{**self.options, **options})
+    def cast(self, **options):
+        """The :class:`~dea_opt.mesh.SpringCast` of :meth:`layer` (for
+        :func:`~dea_opt.mesh.recast` and :func:`~dea_opt.mesh.recast_at_solution`)."""
+        from .mesh import cast_springs
+
+        return cast_springs(self.mesh1, self.mesh2, **{**self.options, **options})
 
     def problem(self, law, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0), free=("uz",), **options):
         """A :class:`~dea_opt.problem.ContactProblem`: body 1 fixed, body 2 loaded at ``reference2``."""

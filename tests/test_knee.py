@@ -257,3 +257,15 @@ def test_validity_counts_the_springs_dropped_at_the_solved_pose(recast, solution
     bad = assess(s.problem, s.u, s.strain, s.pressure, dropped=fixed.dropped["overlap"])
     assert ok["dropped_springs"].passed and ok.valid
     assert not bad["dropped_springs"].passed
+
+
+def test_tangent_plane_gaps_at_the_solved_pose_equal_the_recast_where_targets_stay(recast, knee):
+    start, again = knee["cast"].layer, recast.cast.layer
+    predicted = M.tangent_plane_gap(start, recast.pose)
+    _, i, j = np.intersect1d(start.source_face, again.source_face, return_indices=True)
+    same = start.target_faces[i] == again.target_faces[j]
+    assert same.mean() > 0.25  # the femur moved 1.2 mm: many hits stay on their face
+    np.testing.assert_allclose(predicted[i][same], again.gap[j][same], rtol=0, atol=1e-9)
+    # the targets are in the femur's own frame: moved by the pose they are the recast's hits
+    moved = again.target_points @ recast.pose[:3, :3].T + recast.pose[:3, 3]
+    np.testing.assert_allclose(moved, recast.cast.hit_point, atol=1e-9)

@@ -339,3 +339,14 @@ def test_bad_concatenations_are_named():
         d.SpringLayer.concatenate([])
     with pytest.raises(d.InputError, match="one label per layer"):
         d.SpringLayer.concatenate([layer, layer], labels=["a"])
+
+
+def test_a_mesh_pair_gives_its_cast_and_the_cast_recasts():
+    pair = geometry.knee_meshes(n_plateau=12, step=4.0)
+    cast = pair.cast()
+    np.testing.assert_array_equal(cast.layer.source_face, pair.layer().source_face)
+    assert set(cast.layer.labels) == {"medial", "lateral"}
+    again = M.recast(cast, translation(-0.5))
+    assert again.kept == len(cast.layer) and again.dropped == 0
+    label_of = dict(zip(cast.layer.source_face.tolist(), cast.layer.labels.tolist()))
+    assert again.cast.layer.labels.tolist() == [label_of[f] for f in again.cast.layer.source_face.tolist()]
