@@ -132,6 +132,13 @@ def test_good_files_still_read(tmp_path, ext):
     assert len(M.load_mesh(path).faces) == len(slab.faces)
 
 
+def test_comment_lines_before_the_header_are_allowed(tmp_path):
+    (tmp_path / "c.off").write_text("# made by hand\nOFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2\n")
+    (tmp_path / "c.obj").write_text("# made by hand\n" + OBJ)
+    for name in ("c.off", "c.obj"):
+        assert len(M.load_mesh(tmp_path / name).faces) == 1
+
+
 def test_an_ascii_stl_and_a_binary_stl_whose_header_says_solid_read(tmp_path):
     (tmp_path / "a.stl").write_text(ascii_stl())
     assert len(M.load_mesh(tmp_path / "a.stl").faces) == 1

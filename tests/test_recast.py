@@ -188,6 +188,24 @@ def test_recast_at_a_translated_solution_carries_the_load_exactly():
     assert report["dropped_springs"].passed
 
 
+def test_recast_at_solution_takes_body_1s_motion_out():
+    # The bed (body 1) pushed up into the rigid sphere (body 2, held): the same relative
+    # motion as the sphere pushed down, so the same re-cast force on body 2.
+    pair = geometry.sphere_on_bed_meshes(radius=25.0, thickness=2.0, extent=6.0, n_bed=24, step=3.0)
+    cast = pair.cast(max_gap=1.0)
+    law = d.LinearLaw(10.0)
+    body1 = d.Body(reference=pair.reference1, free=("uz",), force=(0.0, 0.0, 200.0))
+    body2 = d.Body(reference=pair.reference2, free=())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", d.ValidityWarning)
+        solution = d.solve(d.ContactProblem(cast.layer, law, body1=body1, body2=body2), "newton")
+    assert solution.u[2] > 0.3
+    again = M.recast_at_solution(solution, cast)
+    np.testing.assert_allclose(again.pose, translation(-solution.u[2]), atol=1e-15)
+    np.testing.assert_allclose(again.force, [0.0, 0.0, 200.0], atol=1e-7)
+    assert again.force_error < 1e-9
+
+
 def test_recast_at_solution_needs_the_cast_of_its_layer(plate):
     pair, start = plate
     other = M.cast_springs(pair.mesh1, pair.mesh2, pose=translation(0.5), **pair.options)

@@ -92,18 +92,19 @@ def sniff(path: Path, suffix: str = "") -> tuple[str, str]:
                        f"{84 + 50 * count} bytes: truncated, or not an STL")
         return "binary", detail + ")"
     lines = [line.strip() for line in text.splitlines() if line.strip()]
-    first = lines[0] if lines else ""
-    words = first.split()
-    key = words[0].lower() if words else ""
-    if key.upper().endswith("OFF") and key.upper() in {"OFF", "COFF", "NOFF", "CNOFF", "STOFF", "4OFF"}:
+    content = [line for line in lines if not line.startswith("#")]  # comments do not say the format
+    key = content[0].split()[0] if content else ""
+    if key.upper() in {"OFF", "COFF", "NOFF", "CNOFF", "STOFF", "4OFF"}:
         return "off", ""
-    if key == "solid":
+    if key.lower() == "solid":
         return "stl-ascii", ""
-    content = [line.split()[0].lower() for line in lines if not line.startswith("#")]
-    if "v" in content and all(word in _OBJ_KEYS for word in content[:5]):
+    words = [line.split()[0].lower() for line in content]
+    if "v" in words and all(word in _OBJ_KEYS for word in words[:5]):
         return "obj", ""
-    shown = first if len(first) <= 60 else first[:57] + "..."
-    return "text", f"text whose first line is {shown!r}" if lines else "only blank lines"
+    if not lines:
+        return "text", "only blank lines"
+    first = lines[0] if len(lines[0]) <= 60 else lines[0][:57] + "..."
+    return "text", f"text whose first line is {first!r}"
 
 
 def _as_text(head: bytes) -> str | None:
