@@ -89,6 +89,21 @@ def test_a_bad_mesh_file_is_named_with_what_is_wrong(tmp_path, case):
     assert not isinstance(info.value, ImportError)
 
 
+def test_text_trimesh_cannot_decode_is_named_not_a_missing_module(tmp_path, monkeypatch):
+    # trimesh asks the optional charset_normalizer for text that is not UTF-8; its absence is
+    # the file's fault, not a broken install
+    path = tmp_path / "latin.obj"
+    path.write_bytes("v 0 0 0 \xe9\n".encode("latin-1") * 3 + b"f 1 2 3\n")
+
+    def load(*args, **kwargs):
+        raise ModuleNotFoundError("No module named 'charset_normalizer'", name="charset_normalizer")
+
+    monkeypatch.setattr(trimesh, "load", load)
+    with pytest.raises(d.InputError, match="could not be read as OBJ: its bytes are not text in UTF-8") as info:
+        M.load_mesh(path)
+    assert str(path) in str(info.value) and "No module" not in str(info.value)
+
+
 def test_a_directory_is_not_a_mesh_file(tmp_path):
     path = tmp_path / "femur.stl"
     path.mkdir()

@@ -4,7 +4,7 @@ An oversized request (``hip_meshes(step=0.01)``, a cast between two meshes of te
 millions of faces, a multi-gigabyte mesh file) is an :class:`~dea_opt.errors.InputError`
 that names the parameter and gives an estimate of the memory it would need, rather than a
 process killed by the operating system. The estimates are peak bytes per face, measured on
-this code (``tests/test_budget.py`` checks they are upper bounds on a small case), compared
+this code (``tests/test_mesh_errors.py`` checks one is an upper bound on a measured peak), compared
 with the memory the machine has available.
 """
 

@@ -29,7 +29,10 @@ def _read_with_trimesh(path: Path, kind: str) -> tuple[np.ndarray, np.ndarray]:
 
     try:
         loaded = trimesh.load(str(path), file_type=kind, force="mesh", process=False)
-    except ImportError as exc:  # trimesh guesses the encoding of undecodable text with an optional package
+    except ImportError as exc:
+        if getattr(exc, "name", None) != "charset_normalizer":
+            raise InputError(f"mesh file {path} could not be read as {kind.upper()}: {exc}") from exc
+        # trimesh guesses the encoding of text that is not UTF-8 with an optional package
         raise InputError(f"mesh file {path} could not be read as {kind.upper()}: its bytes are not text in "
                          f"UTF-8 or another encoding trimesh reads; expected {EXPECTED[path.suffix.lower()]}") from exc
     except Exception as exc:  # trimesh raises many types for a malformed file
