@@ -246,6 +246,16 @@ class Solution:
         return self.u[6:]
 
     @property
+    def pose(self) -> np.ndarray:
+        """Body 2's 4x4 pose relative to body 1 that ``u`` implies: each body's rotation vector taken as
+        an exact rotation about its reference, ``T1^-1 T2`` (for ``kinematics="small"``, the rigid
+        pose closest to the linearised motion; for ``"finite"``, the solved pose itself)."""
+        from .formulations._finite_geometry import pose_matrix
+
+        c1, c2 = self.problem.body1.reference, self.problem.body2.reference
+        return np.linalg.inv(pose_matrix(self.u[:6], c1)) @ pose_matrix(self.u[6:], c2)
+
+    @property
     def in_contact(self) -> np.ndarray:
         return self.strain < 0
 
