@@ -170,12 +170,16 @@ def test_bad_input_exits_2_with_one_paragraph(tmp_path, name, toml, loads, extra
 def test_unknown_solver_in_compare(tmp_path):
     scenario = tmp_path / "case.toml"
     scenario.write_text(PLATE)
-    text = one_paragraph_error(invoke("compare", scenario, "--solvers", "CLARABEL,NOSUCH", "-o", tmp_path))
+    out = tmp_path / "out"
+    text = one_paragraph_error(invoke("compare", scenario, "--solvers", "CLARABEL,NOSUCH", "-o", out))
     assert "NOSUCH is not available" in text and "installed QP solvers" in text
-    text = one_paragraph_error(invoke("compare", scenario, "--methods", "newton,simplex", "-o", tmp_path))
+    text = one_paragraph_error(invoke("compare", scenario, "--methods", "newton,simplex", "-o", out))
     assert "simplex" in text
-    text = one_paragraph_error(invoke("compare", scenario, "--accuracy", "extreme", "-o", tmp_path))
+    text = one_paragraph_error(invoke("compare", scenario, "--accuracy", "extreme", "-o", out))
     assert "extreme" in text
+    # the scenario's own folder holds case.toml: compare refuses to write there
+    text = one_paragraph_error(invoke("compare", scenario, "-o", tmp_path))
+    assert str(tmp_path) in text and "case.toml" in text and "--force" in text
 
 
 def test_console_script_reports_errors_without_traceback(tmp_path):

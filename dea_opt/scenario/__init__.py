@@ -9,8 +9,9 @@ Relative paths resolve against the scenario file's folder. ``dea-opt schema`` pr
 
 The modules: :mod:`~dea_opt.scenario.schema` (the models and the documented schema),
 :mod:`~dea_opt.scenario.parse` (reading, errors with key paths and TOML lines, ``--set``),
-:mod:`~dea_opt.scenario.build` (law, springs, bodies, problem) and
-:mod:`~dea_opt.scenario.load_path` (the frames of a load path).
+:mod:`~dea_opt.scenario.build` (law, springs, bodies, problem),
+:mod:`~dea_opt.scenario.load_path` (the frames of a load path) and
+:mod:`~dea_opt.scenario.opensim` (OpenSim ``.sto``/``.mot`` load paths).
 
 Units everywhere: mm, N, N mm, MPa, s.
 
@@ -37,6 +38,7 @@ from .build import (
     build_law,
     build_layer,
     build_problem,
+    label_by_axis,
     load_meshes,
     pose_builder,
     springs_from_mesh_section,
@@ -46,6 +48,7 @@ from .parse import apply_overrides, load_scenario, parse_scenario, parse_set
 from .schema import (
     FORMATS,
     GEOMETRY_KINDS,
+    LOAD_PATH_COLUMNS,
     METHOD_NAMES,
     BodySection,
     GeneratorGeometry,
@@ -55,6 +58,7 @@ from .schema import (
     MeshGeometry,
     OutputSection,
     PlateGeometry,
+    RegionsSection,
     Scenario,
     SocketGeometry,
     SolveSection,
@@ -66,6 +70,7 @@ from .schema import (
 __all__ = [
     "FORMATS",
     "GEOMETRY_KINDS",
+    "LOAD_PATH_COLUMNS",
     "METHOD_NAMES",
     "BodySection",
     "GeneratorGeometry",
@@ -76,6 +81,7 @@ __all__ = [
     "MeshGeometry",
     "OutputSection",
     "PlateGeometry",
+    "RegionsSection",
     "Scenario",
     "ScenarioError",
     "SocketGeometry",
@@ -87,6 +93,7 @@ __all__ = [
     "build_law",
     "build_layer",
     "build_problem",
+    "label_by_axis",
     "load_meshes",
     "load_scenario",
     "parse_scenario",
