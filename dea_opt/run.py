@@ -188,7 +188,7 @@ def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, 
         outcome = solve_and_write(publication.folder)
         outcome.allow_outside_validity = scenario.solve.allow_outside_validity
         messages.collect()
-        _drop_repeats(outcome, messages)
+        _drop_repeats(outcome, messages, scenario.notes)
         log = messages.log_text(f"dea-opt {info.get('command', 'run')} of {scenario.source or scenario.title}")
         if log:
             from .io.atomic import write_data
@@ -200,10 +200,12 @@ def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, 
     return outcome
 
 
-def _drop_repeats(outcome: RunOutcome, messages) -> None:
-    """The run's own warnings, without the ones its validity lines already state."""
-    said = " ".join(outcome.validity)
-    outcome.warnings = [w for w in messages.own if w not in said]
+def _drop_repeats(outcome: RunOutcome, messages, notes=()) -> None:
+    """The scenario's notes and the run's own warnings, but for the validity warnings: the
+    validity lines of the outcome state them, with every check."""
+    assessed = outcome.valid is not None
+    outcome.warnings = [*notes, *(w for w in messages.own
+                                  if not (assessed and messages.categories.get(w) == "ValidityWarning"))]
 
 
 # --- one load ---------------------------------------------------------------------------

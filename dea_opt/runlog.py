@@ -48,6 +48,8 @@ class Messages:
 
     own: list = field(default_factory=list)
     log: list = field(default_factory=list)
+    #: The category name of each of ``own`` (``"ValidityWarning"``, ``"UserWarning"``, ...).
+    categories: dict = field(default_factory=dict)
     _caught: list = field(default_factory=list, repr=False)
 
     def collect(self) -> "Messages":
@@ -62,6 +64,7 @@ class Messages:
             text = one_line(message.message)
             if text not in self.own:
                 self.own.append(text)
+                self.categories[text] = message.category.__name__
         else:
             where = f"{Path(message.filename).name}:{message.lineno}"
             self.log.append(f"{message.category.__name__} ({where}): {one_line(message.message)}")

@@ -189,6 +189,11 @@ def _message(error: dict, loc: tuple, data: dict) -> str:
         return f"unknown kind {error['ctx']['tag']!r}; expected one of {error['ctx']['expected_tags']}"
     if kind == "union_tag_not_found":
         return f"required key is missing; expected one of {', '.join(repr(k) for k in GEOMETRY_KINDS)}"
+    bounds = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
+    if kind in bounds:
+        limit = next(iter(error.get("ctx", {}).values()), None)
+        shown = f"{limit:g}" if isinstance(limit, (int, float)) else repr(limit)
+        return f"must be {bounds[kind]} {shown}, got {_short(given)}"
     message = error["msg"]
     if message.startswith("Value error, "):
         message = message[len("Value error, "):]

@@ -69,9 +69,29 @@ def _dof_list(value):
     return value
 
 
+def _mesh_files(value, info: ValidationInfo):
+    """One mesh file, or a non-empty table ``{label = file}`` of labelled meshes, each existing."""
+    if isinstance(value, str):
+        return _existing_file(value, info)
+    if not isinstance(value, dict) or not value:
+        raise ValueError(f'expected a path or a table of labelled paths {{medial = "medial.stl", ...}}, got '
+                         f"{value!r}" + (" (a number)" if isinstance(value, (int, float)) else ""))
+    files = {}
+    for label, path in value.items():
+        if not isinstance(path, str):
+            raise ValueError(f"the mesh labelled {label!r} must be a path (a string), got {path!r}")
+        try:
+            files[label] = _existing_file(path, info)
+        except ValueError as exc:
+            raise ValueError(f"the mesh labelled {label!r}: {exc}") from None
+    return files
+
+
 File = Annotated[str, AfterValidator(_existing_file)]
 #: One mesh, or a table of labelled meshes ``{medial = "medial.stl", lateral = "lateral.stl"}``.
-MeshFiles = Union[File, Annotated[dict[str, File], Field(min_length=1)]]
+MeshFiles = Annotated[Any, AfterValidator(_mesh_files),
+                      Field(json_schema_extra={"anyOf": [{"type": "string"},
+                                                         {"type": "object", "additionalProperties": {"type": "string"}}]})]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
