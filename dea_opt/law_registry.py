@@ -17,12 +17,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._validate import LARGEST
 from .errors import InputError
 
 __all__ = ["HUGE", "LawKind", "LawParameter", "LawRegistry", "Range", "kind_name", "label"]
 
 #: Largest magnitude of a law parameter: products with volumes, strains and lever arms stay finite.
-HUGE = 1e30
+HUGE = LARGEST
 
 
 class Range(typing.NamedTuple):

@@ -20,12 +20,13 @@ from __future__ import annotations
 import dataclasses
 import math
 import typing
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from types import SimpleNamespace
 
 import numpy as np
 
 from ._tolerances import LINEAR_VALIDITY
+from ._validate import LARGEST, SMALLEST, check_range
 from .errors import InputError
 from .law_registry import HUGE as _HUGE
 from .law_registry import LawKind, LawParameter, LawRegistry, Range, kind_name, label
@@ -56,14 +57,19 @@ def _namespace(eps):
     )
 
 
-def _positive(name, value, *, allow_zero=False):
+def _positive(name, value, *, allow_zero=False, unit="MPa", sets_scale=True):
+    """A law parameter: a finite number > 0 (or >= 0) of magnitude at most
+    :data:`~dea_opt._validate.LARGEST` and, when it ``sets_scale`` (a modulus), at least
+    :data:`~dea_opt._validate.SMALLEST`, so that ``H`` times volumes, strains and lever arms can
+    neither overflow nor underflow."""
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{name} must be a number, got {value!r}") from None
     if not math.isfinite(v) or v < 0 or (v == 0 and not allow_zero):
         bound = ">= 0" if allow_zero else "> 0"
         raise InputError(f"{name} must be a finite number {bound}, got {value!r}")
+    check_range(name, v, unit, positive=sets_scale)
     return v
 
 
@@ -203,7 +209,7 @@ class AteshianLaw(Law):
 
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))
-        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True))
+        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True, unit="", sets_scale=False))
 
     def _parameters(self):
         return {"H": self.H, "beta": self.beta}
@@ -285,7 +291,7 @@ class CubicLaw(_PolynomialStress):
 
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))
-        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True))
+        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True, unit="", sets_scale=False))
 
     def _parameters(self):
         return {"H": self.H, "beta": self.beta}
@@ -344,14 +350,17 @@ class PolynomialLaw(_PolynomialStress):
 
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))
-        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True))
+        object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True, unit="", sets_scale=False))
         if isinstance(self.order, bool) or not isinstance(self.order, (int, np.integer)) or not (
             1 <= self.order <= 40
         ):
             raise InputError(f"order must be an integer from 1 to 40, got {self.order!r}")
-        object.__setattr__(
-            self, "_coefficients", ateshian_taylor_coefficients(self.H, self.beta, int(self.order))
-        )
+        coefficients = ateshian_taylor_coefficients(self.H, self.beta, int(self.order))
+        if not (np.isfinite(coefficients).all() and np.abs(coefficients).max() <= LARGEST):
+            raise InputError(
+                f"PolynomialLaw(H={self.H:g}, beta={self.beta:g}, order={self.order}) has Taylor coefficients "
+                f"beyond {LARGEST:g} MPa (largest {np.abs(coefficients).max():g}): use a smaller beta or order")
+        object.__setattr__(self, "_coefficients", coefficients)
 
     def _parameters(self):
         return {"H": self.H, "beta": self.beta, "order": self.order}
@@ -394,6 +403,10 @@ def check_law(law) -> Law:
             f"law must be a dea_opt Law (one of the registered kinds {', '.join(LAWS)}, or a subclass of Law), "
             f"got {type(law).__name__}"
         )
+    modulus = law.modulus
+    if not (math.isfinite(modulus) and modulus >= 0 and (modulus == 0 or SMALLEST <= modulus <= LARGEST)):
+        raise InputError(f"the law's small-strain stiffness (tangent at eps = 0) must be 0 or between {SMALLEST:g} "
+                         f"and {LARGEST:g} MPa, got {modulus!r} from {law.describe()}")
     return law
 
 

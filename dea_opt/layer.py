@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import as_float_array
+from ._validate import as_float_array, check_range
 from .errors import InputError
 
 __all__ = ["SpringLayer"]
@@ -15,6 +15,22 @@ __all__ = ["SpringLayer"]
 def _readonly(arr: np.ndarray) -> np.ndarray:
     arr.setflags(write=False)
     return arr
+
+
+def _unit_normals(normals: np.ndarray) -> np.ndarray:
+    """Each finite row divided by its length, without overflow or underflow: scaled by its
+    largest component first (a row of 1e200 would square to inf, one of 1e-200 to 0, and
+    either would silently become a zero normal). A zero row is an :class:`InputError`; no
+    row is ever dropped."""
+    top = np.abs(normals).max(axis=1, initial=0.0)
+    if normals.shape[0] and not (top > 0).all():
+        i = int(np.argmin(top))
+        raise InputError(f"normals must be nonzero vectors, got {normals[i].tolist()} at index {i}")
+    scaled = normals / top[:, None] if normals.shape[0] else normals
+    unit = scaled / np.linalg.norm(scaled, axis=1)[:, None]
+    # Every scaled row has a component of magnitude 1, so its length lies in [1, sqrt(3)].
+    assert np.isfinite(unit).all()
+    return unit
 
 
 @dataclass(frozen=True, eq=False)
@@ -53,22 +69,18 @@ class SpringLayer:
 
     def __post_init__(self):
         points = as_float_array("points", self.points, (None, 3))
+        check_range("points", points, "mm")
         n = points.shape[0]
-        normals = as_float_array("normals", self.normals, (n, 3))
-        length = np.linalg.norm(normals, axis=1)
-        if n and not (length > 1e-12).all():
-            i = int(np.argmin(length))
-            raise InputError(
-                f"normals must be nonzero vectors, got {normals[i].tolist()} at index {i}"
-            )
-        normals = normals / length[:, None]
+        normals = _unit_normals(as_float_array("normals", self.normals, (n, 3)))
         areas = as_float_array("areas", self.areas, (n,), allow_scalar_for=n)
         thickness = as_float_array("thickness", self.thickness, (n,), allow_scalar_for=n)
         gap = as_float_array("gap", self.gap, (n,), allow_scalar_for=n)
-        for name, arr in (("areas", areas), ("thickness", thickness)):
+        for name, arr, unit in (("areas", areas, "mm^2"), ("thickness", thickness, "mm")):
             if n and not (arr > 0).all():
                 i = int(np.argmin(arr))
                 raise InputError(f"{name} must be > 0 everywhere, got {arr[i]} at index {i}")
+            check_range(name, arr, unit, positive=True)
+        check_range("gap", gap, "mm")
         set_ = object.__setattr__
         set_(self, "points", _readonly(points))
         set_(self, "normals", _readonly(np.ascontiguousarray(normals)))
@@ -107,7 +119,7 @@ class SpringLayer:
         return self.points.shape[0]
 
     @classmethod
-    def from_meshes(cls, mesh1, mesh2, **options) -> "SpringLayer":
+    def from_meshes(cls, mesh1, mesh2, **options) -> SpringLayer:
         """Springs between two triangle surfaces, by ray casting from mesh 1 onto mesh 2.
 
         A thin front to :func:`dea_opt.mesh.springs_from_meshes`; ``options`` are its keywords:
@@ -128,7 +140,7 @@ class SpringLayer:
 
         return springs_from_meshes(mesh1, mesh2, **options)
 
-    def with_gap(self, gap) -> "SpringLayer":
+    def with_gap(self, gap) -> SpringLayer:
         """A copy with new initial gaps (shape (N,) or scalar, mm)."""
         from dataclasses import replace
 
