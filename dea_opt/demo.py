@@ -159,7 +159,7 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
 
         outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
                               info=run_info(scenario, "demo", method))
-    out = outcome.folder
+    out = outcome.folder or out
     echo(f"Gait cycle: {outcome.message}")
     for line in outcome.validity:
         echo(line)

@@ -164,7 +164,7 @@ class LinearLaw(Law):
     """
 
     H: float
-    ranges = {"H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True)}
+    ranges: typing.ClassVar[dict] = {"H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True)}
     name = "linear"
     is_linear = True
     #: The paper's limit of validity: Eq. (2) is almost linear up to 30 % strain.
@@ -202,8 +202,10 @@ class AteshianLaw(Law):
 
     H: float
     beta: float
-    ranges = {"H": Range(0.0, _HUGE, "MPa", "aggregate modulus H_A0 (0.3-0.6 for human cartilage)", low_open=True),
-              "beta": Range(0.0, _HUGE, "", "stiffening exponent (0.05-0.6 for human cartilage)")}
+    ranges: typing.ClassVar[dict] = {
+        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus H_A0 (0.3-0.6 for human cartilage)", low_open=True),
+        "beta": Range(0.0, _HUGE, "", "stiffening exponent (0.05-0.6 for human cartilage)"),
+    }
     name = "ateshian"
     bounded_strain = True
 
@@ -285,8 +287,10 @@ class CubicLaw(_PolynomialStress):
 
     H: float
     beta: float
-    ranges = {"H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True),
-              "beta": Range(0.0, _HUGE, "", "Ateshian's stiffening exponent")}
+    ranges: typing.ClassVar[dict] = {
+        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True),
+        "beta": Range(0.0, _HUGE, "", "Ateshian's stiffening exponent"),
+    }
     name = "cubic"
 
     def __post_init__(self):
@@ -343,9 +347,11 @@ class PolynomialLaw(_PolynomialStress):
     H: float
     beta: float
     order: int = 5
-    ranges = {"H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True),
-              "beta": Range(0.0, _HUGE, "", "Ateshian's stiffening exponent"),
-              "order": Range(1, 40, "", "Taylor order")}
+    ranges: typing.ClassVar[dict] = {
+        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True),
+        "beta": Range(0.0, _HUGE, "", "Ateshian's stiffening exponent"),
+        "order": Range(1, 40, "", "Taylor order"),
+    }
     name = "polynomial"
 
     def __post_init__(self):
@@ -379,7 +385,7 @@ class BlankevoortLaw(Law):
     """
 
     H: float
-    ranges = {"H": Range(0.0, _HUGE, "MPa", "modulus", low_open=True)}
+    ranges: typing.ClassVar[dict] = {"H": Range(0.0, _HUGE, "MPa", "modulus", low_open=True)}
     name = "blankevoort"
     bounded_strain = True
 

@@ -300,8 +300,9 @@ def _run_path(scenario, problem, method, options, out, progress, extra_summary=N
     valid = frame_validity(result)
     outside = [] if valid is None else result.table.loc[~valid, "frame"].astype(int).tolist()
     checks = [] if valid is None else _failed_checks(result, valid)
+    run_valid = None if valid is None else not outside
     run_validity = {
-        "valid": None if valid is None else not outside,
+        "valid": run_valid,
         "frames_outside_validity": outside,
         "failed_checks": checks,
     }
@@ -318,7 +319,7 @@ def _run_path(scenario, problem, method, options, out, progress, extra_summary=N
         "iterations": summary["iterations_total"], "solve_time": summary["solve_time_total"],
         "worst_residual": summary["worst_certificate_residual"],
         "max_pressure_time_integral": summary["exposure"]["max_pressure_time_integral"],
-        "valid": run_validity["valid"], "frames_outside_validity": len(outside),
+        "valid": run_valid, "frames_outside_validity": len(outside),
         "validity_failed": ";".join(checks),
     }
     message = (f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure']:.4g} MPa at "
@@ -330,8 +331,8 @@ def _run_path(scenario, problem, method, options, out, progress, extra_summary=N
                     f"in frames.csv")
     reasons = []
     if valid is None:
-        lines = ["validity: not assessed (the frames' validity needs their solutions: add \"vtk\" to "
-                 "[output].formats)"]
+        lines = [("validity: not assessed (the frames' validity needs their solutions: add \"vtk\" to "
+                  "[output].formats)")]
     elif outside:
         reasons = [f"{len(outside)} of {len(valid)} frame(s) outside validity ({_frames_text(outside)}), failed "
                    f"checks: {', '.join(checks)}"]
@@ -340,5 +341,5 @@ def _run_path(scenario, problem, method, options, out, progress, extra_summary=N
         lines = [f"validity: NOT VALID: {reasons[0]}", *(f"  {r}" for r in reasons[1:])]
     else:
         lines = [f"validity: valid (every one of {len(valid)} frames)"]
-    return RunOutcome("path", result.success, message, files, headline, result, valid=run_validity["valid"],
-                      validity=lines, reasons=reasons)
+    return RunOutcome("path", result.success, message, files, headline, result, valid=run_valid, validity=lines,
+                      reasons=reasons)

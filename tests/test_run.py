@@ -292,7 +292,8 @@ def test_a_toy_law_through_a_scenario_the_schema_and_the_cli(toy, tmp_path):
 def test_unregistered_kinds_and_bad_parameters_name_the_key():
     with pytest.raises(d.ScenarioError, match="law.kind.*'linear', 'ateshian'"):
         parse_scenario(PLATE_TOY)
-    text = PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0', 'kind = "polynomial"\nH = 1.0\nbeta = 0.1\norder = 2.5')
+    text = PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0',
+                             'kind = "polynomial"\nH = 1.0\nbeta = 0.1\norder = 2.5')
     with pytest.raises(d.ScenarioError, match="law.order"):
         parse_scenario(text)
     with pytest.raises(d.ScenarioError, match=r"law.H \(line 7\): must be <= 1e\+30, got 1e\+308"):
@@ -361,3 +362,23 @@ def test_an_unexpected_failure_is_one_paragraph_with_the_traceback_in_a_file(tmp
     crash = Path(text[0].rsplit("the traceback is in ", 1)[1])
     assert "ZeroDivisionError" in crash.read_text() and "Traceback" in crash.read_text()
     crash.unlink()
+
+
+def test_the_readme_law_example_registers_a_law_a_scenario_can_use():
+    import re
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("`dea_opt.laws.LAWS` is the registry of law kinds", 1)[1]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    try:
+        namespace: dict = {}
+        exec(compile(code, "README.md", "exec"), namespace)
+        assert LAWS["stiffening"].cls is namespace["StiffeningLaw"]
+        scenario = parse_scenario(PLATE_TOY.replace('kind = "toy"', 'kind = "stiffening"'))
+        from dea_opt.scenario import build_law
+
+        law = build_law(scenario.law)
+        assert law.describe() == "stiffening(k=10, c=50)"
+        assert law.stress(np.array([-0.5]))[0] == pytest.approx(-10.0 * 0.5 - 50.0 * 0.125)
+    finally:
+        LAWS.unregister("stiffening")

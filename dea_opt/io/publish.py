@@ -277,7 +277,7 @@ class OutputRun:
                 raise
         if interrupted:
             raise RunInterrupted(self.state())
-        return self.manifest
+        return self.manifest or {}
 
     def _swap(self, pending: dict, files: dict, summary: dict) -> None:
         folder = self.folder

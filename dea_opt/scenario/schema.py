@@ -89,9 +89,8 @@ def _mesh_files(value, info: ValidationInfo):
 
 File = Annotated[str, AfterValidator(_existing_file)]
 #: One mesh, or a table of labelled meshes ``{medial = "medial.stl", lateral = "lateral.stl"}``.
-MeshFiles = Annotated[Any, AfterValidator(_mesh_files),
-                      Field(json_schema_extra={"anyOf": [{"type": "string"},
-                                                         {"type": "object", "additionalProperties": {"type": "string"}}]})]
+_MESH_FILES_SCHEMA = {"anyOf": [{"type": "string"}, {"type": "object", "additionalProperties": {"type": "string"}}]}
+MeshFiles = Annotated[Any, AfterValidator(_mesh_files), Field(json_schema_extra=_MESH_FILES_SCHEMA)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -303,8 +302,8 @@ class LoadPathSection(_Section):
             raise ValueError("give exactly one of file or builtin")
         opensim = self.file is not None and Path(self.file).suffix.lower() in (".sto", ".mot")
         if opensim and self.columns is None:
-            raise ValueError("an OpenSim .sto/.mot load path needs columns = {Fx = \"...\", Fy = \"...\", Fz = \"...\", "
-                             "...}: which column of the file is which")
+            raise ValueError('an OpenSim .sto/.mot load path needs columns = {Fx = "...", Fy = "...", '
+                             'Fz = "...", ...}: which column of the file is which')
         if not opensim and (self.columns is not None or self.units is not None):
             raise ValueError("columns and units apply to OpenSim .sto/.mot load paths only")
         if opensim and not {"Fx", "Fy", "Fz"} <= set(self.columns):
