@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .run import RunOutcome, _run_path, check_method, publish_run, run_info, solve_options
+from .run import RunOutcome, run_path_outputs, check_method, publish_run, run_info, solve_options
 from .runlog import captured
 
 __all__ = ["DEMO_SCENARIO", "demo_comparison", "demo_scenario", "run_demo"]
@@ -151,7 +151,7 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
                 echo(f"Gait-peak frame: {_DEMO_PEAK:g} N tilted {_DEMO_TILT:g} degrees, {len(problem.layer)} springs")
                 echo(_format_comparison(table))
                 echo("")
-            outcome = _run_path(scenario, problem, method, options, folder, progress,
+            outcome = run_path_outputs(scenario, problem, method, options, folder, progress,
                                 extra_summary={"comparison": rows, "scenario": DEMO_SCENARIO})
             if compare:
                 outcome.files["comparison"] = comparison

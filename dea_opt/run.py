@@ -30,7 +30,8 @@ import numpy as np
 from .errors import InputError
 from .runlog import LOG_NAME, captured, one_line
 
-__all__ = ["EXIT_CODES", "RunOutcome", "run_info", "run_scenario", "solve_options", "status_of"]
+__all__ = ["EXIT_CODES", "RunOutcome", "check_method", "frame_validity", "publish_run", "run_info", "run_path_outputs",
+           "run_scenario", "solve_options", "status_of"]
 
 #: Exit status of a run, by its status.
 EXIT_CODES = {"ok": 0, "certificate failed": 1, "bad input": 2, "outside validity": 3}
@@ -173,7 +174,7 @@ def run_scenario(scenario, output_dir=None, *, method: str | None = None, progre
         def solve_and_write(folder):
             if scenario.load_path is None:
                 return _run_static(scenario, problem, method, options, folder)
-            return _run_path(scenario, problem, method, options, folder, progress)
+            return run_path_outputs(scenario, problem, method, options, folder, progress)
 
         outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
                               info=run_info(scenario, "run", method))
@@ -281,7 +282,8 @@ def _frames_text(frames) -> str:
     return shown + (", ..." if len(frames) > 10 else "")
 
 
-def _run_path(scenario, problem, method, options, out, progress, extra_summary=None) -> RunOutcome:
+def run_path_outputs(scenario, problem, method, options, out, progress, extra_summary=None) -> RunOutcome:
+    """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller)."""
     from .loadpath import solve_path
     from .scenario import read_load_path
 

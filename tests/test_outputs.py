@@ -314,3 +314,17 @@ def test_kill_and_ctrl_c_at_random_moments_never_leave_two_runs_in_one_folder(tm
     done = _run(["run", scenario, "-q"], tmp_path)  # the next run cleans up and publishes
     assert done.returncode == 0, done.stderr
     assert consistent(folder) and temporary_files(folder) == [] and not (folder / INCOMPLETE_NAME).exists()
+
+
+def test_a_run_leaves_the_temporary_files_of_a_comparison_or_sweep_below_it_alone(tmp_path):
+    folder = tmp_path / "out"
+    (folder / "sweep").mkdir(parents=True)
+    (folder / "sweep" / "sweep.jsonl").write_text("")
+    busy = folder / "sweep" / ".sweep.csv.0123abcd.tmp.csv"  # a live sweep is writing sweep.csv
+    busy.write_text("being written")
+    (folder / "series_frames").mkdir()
+    stale = folder / "series_frames" / ".frame_0000.vtu.0123abcd.tmp.vtu"
+    stale.write_text("left by kill -9")
+    with output_run(folder) as run:
+        run.publish()
+    assert busy.exists() and not stale.exists()

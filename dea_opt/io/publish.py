@@ -46,7 +46,7 @@ LOCK_NAME = ".dea-opt.lock"
 _MANIFEST_FORMAT = "dea-opt run manifest"
 _INCOMPLETE_FORMAT = "dea-opt incomplete run"
 #: Sub-folders another dea-opt command made (a sweep's or a comparison's), recognised by these names.
-_OWN_SUBFOLDER_MARKS = (MANIFEST_NAME, INCOMPLETE_NAME, "sweep.jsonl", ".sweep")
+_OWN_SUBFOLDER_MARKS = (MANIFEST_NAME, INCOMPLETE_NAME, LOCK_NAME, "sweep.jsonl", ".sweep")
 
 
 class RunInterrupted(KeyboardInterrupt):
@@ -179,11 +179,15 @@ def _folder_lock(folder: Path):
 
 
 def _remove_stale(folder: Path) -> list[Path]:
-    """Remove the temporary files a killed run left in ``folder`` and its sub-folders (one level)."""
+    """Remove the temporary files a killed run left in ``folder`` and its sub-folders (one level).
+
+    A sub-folder that is another run's (a comparison's, a sweep's) is left alone: that run may
+    be writing there now, and cleans it itself.
+    """
     removed = []
     folders = [folder]
     with contextlib.suppress(OSError), os.scandir(folder) as entries:
-        folders += [Path(e.path) for e in entries if e.is_dir(follow_symlinks=False)]
+        folders += [Path(e.path) for e in entries if e.is_dir(follow_symlinks=False) and not _internal(e)]
     for where in folders:
         with contextlib.suppress(OSError), os.scandir(where) as entries:
             for entry in entries:
