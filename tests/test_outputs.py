@@ -325,6 +325,7 @@ def test_a_run_leaves_the_temporary_files_of_a_comparison_or_sweep_below_it_alon
     (folder / "series_frames").mkdir()
     stale = folder / "series_frames" / ".frame_0000.vtu.0123abcd.tmp.vtu"
     stale.write_text("left by kill -9")
+    (folder / INCOMPLETE_NAME).write_text(json.dumps({"format": "dea-opt incomplete run"}))  # killed mid-swap
     with output_run(folder) as run:
         run.publish()
     assert busy.exists() and not stale.exists()
