@@ -7,7 +7,8 @@ errors the line), and turned into a :class:`~dea_opt.problem.ContactProblem` by
 Relative paths resolve against the scenario file's folder. ``dea-opt schema`` prints
 :func:`schema_text`, which is generated from the models, so it cannot drift.
 
-The modules: :mod:`~dea_opt.scenario.schema` (the models and the documented schema),
+The modules: :mod:`~dea_opt.scenario.schema` (the models), :mod:`~dea_opt.scenario.docs`
+(the documented schema),
 :mod:`~dea_opt.scenario.parse` (reading, errors with key paths and TOML lines, ``--set``),
 :mod:`~dea_opt.scenario.build` (law, springs, bodies, problem),
 :mod:`~dea_opt.scenario.load_path` (the frames of a load path) and
@@ -64,8 +65,8 @@ from .schema import (
     SolveSection,
     SphereOnBedGeometry,
     SpringsGeometry,
-    schema_text,
 )
+from .docs import schema_text
 
 __all__ = [
     "FORMATS",

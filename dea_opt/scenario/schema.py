@@ -2,13 +2,12 @@
 
 Unknown keys and wrong types are errors (``extra="forbid"``, strict types); files are
 resolved against the scenario's folder (``base_dir`` in the validation context) and must
-exist. ``dea-opt schema`` prints :func:`schema_text`, which is generated from the models
-below, so it cannot drift. Units: mm, N, N mm, MPa, s.
+exist. ``dea-opt schema`` prints :func:`dea_opt.scenario.docs.schema_text`, which is
+generated from the models below, so it cannot drift. Units: mm, N, N mm, MPa, s.
 """
 
 from __future__ import annotations
 
-import textwrap
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -30,7 +29,7 @@ __all__ = [
     "FORMATS", "GEOMETRY_KINDS", "LOAD_PATH_COLUMNS", "METHOD_NAMES", "BodySection", "GeneratorGeometry",
     "LawSection", "LoadPathSection", "LoadSection", "MeshGeometry", "OutputSection", "PlateGeometry",
     "RegionsSection", "Scenario", "SocketGeometry", "SolveSection", "SphereOnBedGeometry", "SpringsGeometry",
-    "law_model", "schema_text",
+    "law_model",
 ]
 
 METHOD_NAMES = ("auto", "newton", "qp", "nlp")
@@ -202,11 +201,16 @@ GEOMETRY_KINDS = ("plate", "sphere_on_bed", "socket", "generator", "meshes", "sp
 
 # --- [law], [body1], [body2] ------------------------------------------------------------
 
+def _law_json_schema(schema: dict) -> None:
+    # The JSON Schema of [law]: one alternative per registered kind, made when asked.
+    schema["oneOf"] = [law_model(kind).model_json_schema() for kind in LAWS]
+
+
 class LawSection(_Section):
     """The spring law (stress positive in tension, moduli in MPa): a kind registered in
     dea_opt.laws.LAWS and that kind's parameters, listed below for each kind."""
 
-    model_config = ConfigDict(extra="allow", strict=True)
+    model_config = ConfigDict(extra="allow", strict=True, json_schema_extra=_law_json_schema)
 
     kind: str = Field("linear", description=" | ".join(LAWS))
 
@@ -420,76 +424,3 @@ class Scenario(_Section):
             return Path(override).expanduser().resolve()
         path = Path(self.output.directory).expanduser()
         return path if path.is_absolute() else (self.base_dir / path).resolve()
-
-
-# --- the documented schema --------------------------------------------------------------
-
-_SECTIONS = (
-    ("geometry", (PlateGeometry, SphereOnBedGeometry, SocketGeometry, MeshGeometry, SpringsGeometry,
-                  GeneratorGeometry)),
-    ("law", None),  # one model per registered kind, made when the schema is printed
-    ("body1", (BodySection,)),
-    ("body2", (BodySection,)),
-    ("load", (LoadSection,)),
-    ("load_path", (LoadPathSection,)),
-    ("regions", (RegionsSection,)),
-    ("solve", (SolveSection,)),
-    ("output", (OutputSection,)),
-)
-
-
-def schema_text() -> str:
-    """The scenario schema as commented TOML: every table, key, type, default and meaning."""
-    lines = [
-        "# dea-opt scenario file (TOML). Units: mm, N, N mm, MPa, s.",
-        "# Relative paths resolve against the scenario file's folder. Unknown keys are errors.",
-        "# Give exactly one of [load] and [load_path].",
-        "",
-        'title = ""  # string, optional: a name for reports',
-    ]
-    for table, models in _SECTIONS:
-        if models is None:
-            models = tuple(law_model(kind) for kind in LAWS)
-        lines.append("")
-        lines.append(f"[{table}]")
-        if len(models) > 1:
-            kinds = " | ".join(m.model_fields["kind"].annotation.__args__[0] for m in models)
-            lines.append(f"# Choose one kind ({kinds}); each kind takes the keys listed under it.")
-        for model in models:
-            doc = " ".join((model.__doc__ or "").replace("``", "").split())
-            if len(models) > 1:
-                kind = model.model_fields["kind"].annotation.__args__[0]
-                lines.append("")
-                lines.extend(textwrap.wrap(f"--- {doc}", 96, initial_indent="# ", subsequent_indent="#     "))
-                lines.append(f'kind = "{kind}"')
-            else:
-                lines.extend(textwrap.wrap(doc, 96, initial_indent="# ", subsequent_indent="# "))
-            for name, field in model.model_fields.items():
-                if name == "kind" and len(models) > 1:
-                    continue
-                lines.append(_field_line(name, field))
-    return "\n".join(lines) + "\n"
-
-
-def _field_line(name: str, field) -> str:
-    from pydantic_core import PydanticUndefined
-
-    description = field.description or ""
-    if field.default is PydanticUndefined and field.default_factory is None:
-        return f"{name} = ...  # required; {description}"
-    default = field.default_factory() if field.default_factory is not None else field.default
-    if default is None:
-        return f"# {name} = ...  # optional; {description}"
-    return f"{name} = {_toml_value(default)}  # {description}"
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    return repr(value)
