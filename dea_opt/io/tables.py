@@ -9,7 +9,7 @@ comments in the numeric tables.
 
 A springs table has columns ``x, y, z`` (mm), ``nx, ny, nz`` (the normal from body 1 to
 body 2), ``area`` (mm^2), ``thickness`` (mm), and optionally ``gap`` (mm, default 0) and
-``label`` (a region label per spring: text such as ``medial``, or an integer), in CSV or NPZ.
+``label`` (a region label: an integer or a word such as ``medial``; CSV or NPZ).
 """
 
 from __future__ import annotations
@@ -147,7 +147,7 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
     Lines starting with ``#`` are comments. Columns outside ``required + optional`` are
     an error (a misspelt column should not be silently ignored). Numbers are parsed by
     Python's correctly rounded ``float``, so a table written by :func:`write_springs` reads
-    back bit for bit. The columns named in ``text`` are kept as stripped strings (not empty).
+    back bit for bit. Columns named in ``text`` are kept as strings (stripped).
     """
     import pandas as pd
 
@@ -178,12 +178,7 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
         raw = table[column]
         stripped = raw.str.strip()
         if column in text:
-            empty = stripped.isna() | (stripped == "")
-            if empty.any():
-                row = int(np.argmax(empty.to_numpy()))
-                where = f"line {lines[row]}" if row < len(lines) else f"row {row + 1}"
-                raise InputError(f"{what} {path}, {where}, column {column}: expected a label, got an empty cell")
-            numeric[column] = stripped.to_numpy(dtype=str)
+            numeric[column] = stripped.fillna("").to_numpy(dtype=str)
             continue
         values = pd.to_numeric(stripped, errors="coerce")
         bad = values.isna() | ~np.isfinite(values.fillna(0.0))
@@ -216,8 +211,8 @@ def read_springs(path):
     """A :class:`~dea_opt.layer.SpringLayer` from a springs table (CSV or NPZ).
 
     Columns (CSV) or arrays (NPZ): ``x, y, z`` (mm), ``nx, ny, nz`` (normal from body 1 to
-    body 2), ``area`` (mm^2), ``thickness`` (mm), optional ``gap`` (mm, default 0) and optional
-    ``label`` (a region label per spring: text, or integers when every label is one).
+    body 2), ``area`` (mm^2), ``thickness`` (mm), optional ``gap`` (mm, default 0) and
+    optional ``label`` (a region label: integers, or words such as ``medial``).
     """
     from ..layer import SpringLayer
 
@@ -225,23 +220,15 @@ def read_springs(path):
     if path.suffix.lower() == ".npz":
         return _springs_from_npz(path)
     table = read_numeric_csv(path, SPRING_COLUMNS, ("gap", "label"), "springs table", text=("label",))
-    points = table[["x", "y", "z"]].to_numpy()
-    normals = table[["nx", "ny", "nz"]].to_numpy()
-    gap = table["gap"].to_numpy() if "gap" in table else 0.0
-    labels = _labels(table["label"].to_numpy(dtype=str)) if "label" in table else None
+    points = table[["x", "y", "z"]].to_numpy(dtype=float)
+    normals = table[["nx", "ny", "nz"]].to_numpy(dtype=float)
+    gap = table["gap"].to_numpy(dtype=float) if "gap" in table else 0.0
+    labels = _labels(table["label"].to_numpy(dtype=str), path) if "label" in table else None
     try:
-        return SpringLayer(points, normals, table["area"].to_numpy(), table["thickness"].to_numpy(), gap,
-                           labels=labels)
+        return SpringLayer(points, normals, table["area"].to_numpy(dtype=float),
+                           table["thickness"].to_numpy(dtype=float), gap, labels=labels)
     except InputError as exc:
         raise InputError(f"springs table {path}: {exc}") from None
-
-
-def _labels(text: np.ndarray) -> np.ndarray:
-    """Labels read as text: integers when every one is an integer literal, else strings."""
-    try:
-        return np.array([int(t) for t in text], dtype=np.int64)
-    except ValueError:
-        return text.astype(str)
 
 
 def _npz_array(data, name: str, path: Path, n: int | None, numeric: bool = True) -> np.ndarray:
@@ -294,28 +281,49 @@ def _springs_from_npz(path: Path):
         raise InputError(f"springs table {path}: {exc}") from None
 
 
-def write_springs(layer, path) -> Path:
-    """Write a layer as a springs table that :func:`read_springs` reads back bit for bit (atomically).
+def _labels(text: np.ndarray, path) -> np.ndarray:
+    """Region labels read as text: integers when every one is an integer, else the words."""
+    if (text == "").any():
+        row = int(np.argmax(text == ""))
+        raise InputError(f"springs table {path}, row {row + 1}, column label: expected a region label, "
+                         f"got an empty cell")
+    try:
+        return np.array([int(v) for v in text.tolist()], dtype=np.int64)
+    except ValueError:
+        return text
 
-    CSV (any extension but ``.npz``): columns ``x, y, z, nx, ny, nz, area, thickness, gap`` and
-    ``label`` when the layer has labels. ``.npz``: one array per column.
+
+def write_springs(layer, path) -> Path:
+    """Write a layer as a springs CSV that :func:`read_springs` reads back bit for bit (atomically).
+
+    Columns ``x, y, z, nx, ny, nz, area, thickness, gap``, and ``label`` when the layer has
+    labels (integers, or words such as ``medial``, quoted where the csv module must).
+    A path ending in ``.npz`` gets an NPZ file instead, one array per column.
     """
-    columns = {name: np.asarray(values, dtype=float) for name, values in (
+    if Path(path).suffix.lower() == ".npz":
+        return _write_springs_npz(layer, path)
+    columns = [layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
+               layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
+               layer.areas, layer.thickness, layer.gap]
+    header = (*SPRING_COLUMNS, "gap")
+    rows = [np.asarray(c, dtype=float).tolist() for c in columns]
+    if layer.labels is not None:
+        labels = np.asarray(layer.labels)
+        integer = np.issubdtype(labels.dtype, np.integer)
+        rows.append(labels.astype(np.int64).tolist() if integer else labels.astype(str).tolist())
+        header = (*header, "label")
+    return _write_rows(path, header, rows)
+
+
+def _write_springs_npz(layer, path) -> Path:
+    arrays = {name: np.asarray(values, dtype=float) for name, values in (
         ("x", layer.points[:, 0]), ("y", layer.points[:, 1]), ("z", layer.points[:, 2]),
         ("nx", layer.normals[:, 0]), ("ny", layer.normals[:, 1]), ("nz", layer.normals[:, 2]),
         ("area", layer.areas), ("thickness", layer.thickness), ("gap", layer.gap))}
-    labels = None if layer.labels is None else np.asarray(layer.labels)
-    if labels is not None and labels.dtype.kind not in "iu":
-        labels = labels.astype(str)
-        if any(not label.strip() or label != label.strip() or "\n" in label for label in labels):
-            raise InputError("layer.labels must be non-empty text without surrounding blanks or newlines to be "
-                             "written to a springs table")
-    if Path(path).suffix.lower() == ".npz":
-        arrays = {**columns, **({"label": labels} if labels is not None else {})}
-        return write_atomic(path, lambda tmp: _save_npz(tmp, arrays))
-    header = (*SPRING_COLUMNS, "gap", *(("label",) if labels is not None else ()))
-    values = [c.tolist() for c in columns.values()] + ([labels.tolist()] if labels is not None else [])
-    return _write_rows(path, header, values)
+    if layer.labels is not None:
+        labels = np.asarray(layer.labels)
+        arrays["label"] = labels.astype(np.int64) if np.issubdtype(labels.dtype, np.integer) else labels.astype(str)
+    return write_atomic(path, lambda tmp: _save_npz(tmp, arrays))
 
 
 def _save_npz(tmp: Path, arrays: dict) -> None:

@@ -35,11 +35,11 @@ Example::
 from ..errors import ScenarioError
 from ..io.tables import read_springs, write_springs
 from .build import (
+    apply_regions,
     build_geometry,
     build_law,
     build_layer,
     build_problem,
-    label_by_axis,
     load_meshes,
     pose_builder,
     springs_from_mesh_section,
@@ -94,7 +94,7 @@ __all__ = [
     "build_law",
     "build_layer",
     "build_problem",
-    "label_by_axis",
+    "apply_regions",
     "load_meshes",
     "load_scenario",
     "parse_scenario",

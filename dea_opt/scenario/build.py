@@ -23,7 +23,7 @@ from .schema import (
     SpringsGeometry,
 )
 
-__all__ = ["build_geometry", "build_layer", "build_law", "build_problem", "label_by_axis", "load_meshes",
+__all__ = ["apply_regions", "build_geometry", "build_layer", "build_law", "build_problem", "load_meshes",
            "pose_builder", "springs_from_mesh_section"]
 
 
@@ -163,7 +163,7 @@ def pose_builder(scenario):
         return cast
     # One cut for every frame: the springs of the start pose decide where it lies.
     cut = _cut(cast(None), regions)
-    return lambda pose: label_by_axis(cast(pose), regions, cut)
+    return lambda pose: apply_regions(cast(pose), regions, cut)
 
 
 def _load_part(files, scale: float):
@@ -247,8 +247,9 @@ def _cut(layer, regions) -> float:
     return float(layer.areas @ coordinate / layer.areas.sum())
 
 
-def label_by_axis(layer, regions, cut: float | None = None):
-    """``layer`` with labels from ``[regions]``: ``names[0]`` below the cut along the axis, ``names[1]`` above."""
+def apply_regions(layer, regions, cut: float | None = None):
+    """``layer`` with labels from ``[regions]``: ``names[0]`` below the cut along the axis, ``names[1]``
+    above (at ``cut`` when given: a load path's frames share the cut of its first layer)."""
     import dataclasses
 
     if layer.labels is not None:
@@ -280,7 +281,7 @@ def build_problem(scenario: Scenario, layer=None):
     else:
         reference1 = reference2 = None
     if scenario.regions is not None:
-        layer = label_by_axis(layer, scenario.regions)
+        layer = apply_regions(layer, scenario.regions)
     problem = ContactProblem(
         layer, build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),
