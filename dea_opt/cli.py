@@ -181,7 +181,10 @@ def _main(version: Annotated[bool, typer.Option("--version", callback=_version_c
 @_reported
 def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = None, set_: SetOpt = None,
         quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors and warnings.")] = False,
-        force: ForceOpt = False):
+        force: ForceOpt = False,
+        stop_on_error: Annotated[bool, typer.Option("--stop-on-error", help="A load path stops at its first frame "
+                                                    "without a certified answer (exit 2, nothing published) instead "
+                                                    "of recording it and going on.")] = False):
     """Solve a scenario (one load or a load path) and publish its outputs into one folder.
 
     A static load writes contact.vtu, contact.csv, contact.json and contact.png; a load
@@ -194,7 +197,8 @@ def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = Non
     from .scenario import load_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
-    outcome = run_scenario(loaded, output, method=method, progress=not quiet, force=force)
+    outcome = run_scenario(loaded, output, method=method, progress=not quiet, force=force,
+                           stop_on_error=stop_on_error)
     _report_outcome(outcome, quiet)
 
 

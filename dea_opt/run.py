@@ -132,7 +132,7 @@ def run_info(scenario, command: str, method: str | None = None) -> dict:
 
 
 def run_scenario(scenario, output_dir=None, *, method: str | None = None, progress: bool = False,
-                 force: bool = False) -> RunOutcome:
+                 force: bool = False, stop_on_error: bool = False) -> RunOutcome:
     """Solve a scenario and publish its outputs into one folder.
 
     Parameters
@@ -147,6 +147,9 @@ def run_scenario(scenario, output_dir=None, *, method: str | None = None, progre
         Progress bar over the frames of a load path (on a terminal).
     force : bool
         Write into a folder that holds other files.
+    stop_on_error : bool
+        A load path stops at its first frame without a certified answer (a DeaError, and
+        nothing published) instead of recording it and going on.
 
     Returns
     -------
@@ -174,7 +177,7 @@ def run_scenario(scenario, output_dir=None, *, method: str | None = None, progre
         def solve_and_write(folder):
             if scenario.load_path is None:
                 return _run_static(scenario, problem, method, options, folder)
-            return run_path_outputs(scenario, problem, method, options, folder, progress)
+            return run_path_outputs(scenario, problem, method, options, folder, progress, stop=stop_on_error)
 
         outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
                               info=run_info(scenario, "run", method))
@@ -282,7 +285,8 @@ def _frames_text(frames) -> str:
     return shown + (", ..." if len(frames) > 10 else "")
 
 
-def run_path_outputs(scenario, problem, method, options, out, progress, extra_summary=None) -> RunOutcome:
+def run_path_outputs(scenario, problem, method, options, out, progress, extra_summary=None,
+                     stop: bool = False) -> RunOutcome:
     """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller)."""
     from .loadpath import solve_path
     from .scenario import read_load_path
@@ -298,9 +302,11 @@ def run_path_outputs(scenario, problem, method, options, out, progress, extra_su
     result = solve_path(problem, data.load_objects(), data.poses, method=method, times=data.times, body=data.body,
                         certificate_tol=scenario.solve.certificate_tol, keep_solutions="vtk" in formats,
                         layer_for_pose=layer_for_pose, threshold=scenario.output.exposure_threshold,
-                        progress=progress, **options)
+                        progress=progress, strict=stop, **options)
     valid = frame_validity(result)
-    outside = [] if valid is None else result.table.loc[~valid, "frame"].astype(int).tolist()
+    # Outside validity: certified frames only (a failed frame has its own status).
+    certified = result.table["success"].to_numpy(dtype=bool)
+    outside = [] if valid is None else result.table.loc[certified & ~valid, "frame"].astype(int).tolist()
     checks = [] if valid is None else _failed_checks(result, valid)
     run_valid = None if valid is None else not outside
     run_validity = {

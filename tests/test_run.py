@@ -127,6 +127,12 @@ def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):
     scenario.write_text(HIP_PATH.format(H=4.0))
     result = invoke("run", scenario, "-o", tmp_path / "out", "-m", "newton", "--set", "solve.certificate_tol=1e-30")
     assert result.exit_code == 1 and "failed their certificate" in result.stderr
+    assert read_manifest(tmp_path / "out")["status"] == "certificate failed"
+    # --stop-on-error: the first failed frame ends the run, a named error, nothing published
+    result = invoke("run", scenario, "-o", tmp_path / "stopped", "-m", "newton", "--stop-on-error",
+                    "--set", "solve.certificate_tol=1e-30")
+    assert result.exit_code == 2 and stderr_lines(result)[-1].startswith("dea-opt: error: frame 0")
+    assert read_manifest(tmp_path / "stopped") is None
 
 
 # --- the reproducers on the real knee, through dea-opt run ------------------------------
