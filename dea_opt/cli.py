@@ -82,8 +82,10 @@ def _reported(command):
                 try:
                     return command(*args, **kwargs)
                 finally:
+                    # A run logs the libraries' messages into its folder; any left here (before a run
+                    # starts, or in a command without a folder) become one line each.
                     messages.collect()
-                    _warn(messages.own)
+                    _warn(messages.own + [f"from a library: {line}" for line in messages.log])
         except typer.Exit:
             raise
         except DeaError as exc:

@@ -76,12 +76,19 @@ class Messages:
         return f"# {title}, {time.strftime('%Y-%m-%dT%H:%M:%S%z')}\n" + "\n".join(self.log) + "\n"
 
 
+#: The :class:`Messages` of the blocks of :func:`captured` under way, innermost last.
+_ACTIVE: list = []
+
+
 class _ListHandler(logging.Handler):
     def __init__(self, messages: Messages):
         super().__init__(logging.WARNING)
         self.messages = messages
 
     def emit(self, record: logging.LogRecord) -> None:
+        # Only the innermost block records: a run inside a command logs into its own folder.
+        if _ACTIVE and _ACTIVE[-1] is not self.messages:
+            return
         with contextlib.suppress(Exception):
             self.messages.log.append(f"{record.levelname} {record.name}: {one_line(record.getMessage())}")
 
@@ -98,6 +105,7 @@ def captured():
     handler = _ListHandler(messages)
     root = logging.getLogger()
     root.addHandler(handler)
+    _ACTIVE.append(messages)
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always")
@@ -107,4 +115,5 @@ def captured():
             finally:
                 messages.collect()
     finally:
+        _ACTIVE.remove(messages)
         root.removeHandler(handler)

@@ -388,3 +388,23 @@ def test_the_readme_law_example_registers_a_law_a_scenario_can_use():
         assert law.stress(np.array([-0.5]))[0] == pytest.approx(-10.0 * 0.5 - 50.0 * 0.125)
     finally:
         LAWS.unregister("stiffening")
+
+
+def test_a_library_warning_outside_a_run_is_one_line(tmp_path, monkeypatch):
+    import dea_opt.scenario as scenario_package
+
+    original = scenario_package.load_scenario
+
+    def noisy(*args, **kwargs):  # before the run starts: no output folder to log into yet
+        warnings.warn("a library's future change", FutureWarning)
+        return original(*args, **kwargs)
+
+    monkeypatch.setattr(scenario_package, "load_scenario", noisy)
+    result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path / "out", "-q")
+    assert result.exit_code == 0
+    import re
+
+    lines = stderr_lines(result)
+    assert len(lines) == 1
+    assert re.fullmatch(r"dea-opt: warning: from a library: FutureWarning \(test_run.py:\d+\): a library's future change",
+                        lines[0])
