@@ -406,5 +406,5 @@ def test_a_library_warning_outside_a_run_is_one_line(tmp_path, monkeypatch):
 
     lines = stderr_lines(result)
     assert len(lines) == 1
-    assert re.fullmatch(r"dea-opt: warning: from a library: FutureWarning \(test_run.py:\d+\): a library's future change",
-                        lines[0])
+    expected = r"dea-opt: warning: from a library: FutureWarning \(test_run.py:\d+\): a library's future change"
+    assert re.fullmatch(expected, lines[0])
