@@ -16,9 +16,8 @@ and removed when the writer fails.
 ``read_json``
 =====================  ===========================================================
 
-The modules: :mod:`~dea_opt.io.atomic` (the atomic writer, staging),
-:mod:`~dea_opt.io.publish` (a run's output folder: the folder rule, the manifest written
-last), :mod:`~dea_opt.io.surface` (the contact surface as a mesh with cell data), :mod:`~dea_opt.io.vtk` (VTK files),
+The modules: :mod:`~dea_opt.io.atomic` (the atomic writer), :mod:`~dea_opt.io.surface`
+(the contact surface as a mesh with cell data), :mod:`~dea_opt.io.vtk` (VTK files),
 :mod:`~dea_opt.io.tables` (CSV: results, springs and numeric tables),
 :mod:`~dea_opt.io.summary` (JSON), :mod:`~dea_opt.io.plots` (pressure maps, cycle and
 exposure plots), :mod:`~dea_opt.io.results` (everything at once).
