@@ -39,7 +39,7 @@ METHODS = {"auto": "auto", "newton": "newton", "nlp": "nlp", "finite_newton": "n
 
 #: Options of the finite solve, with their defaults.
 DEFAULTS = {"x0": None, "xtol": 1e-12, "gtol": 1e-12, "max_iter": 100, "extended_start": True,
-            "recast": True, "recast_shift": 0.01, "max_recasts": 10, "form": "reduced", "tol": 1e-14,
+            "recast": True, "recast_shift": 0.01, "max_recasts": 10, "form": "constrained", "tol": 1e-14,
             "outer_tol": 1e-12, "max_outer": 60, "ipopt_options": None}
 _NEWTON = ("xtol", "gtol", "max_iter", "extended_start")
 _NLP = ("form", "tol", "outer_tol", "max_outer", "ipopt_options", "max_iter")
@@ -268,6 +268,13 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
     if tracker is not None:
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
     dropped = None if tracker is None else tracker.counts["dropped"]
+    message = inner.message
+    held = problem.system().resistance.describe(problem.free_names) if len(system.free) else []
+    if held:
+        # As for the small kinematics: directions no spring resists at zero displacement take no
+        # motion and carry no load (the minimum-norm answer).
+        info["held"] = held
+        message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
     return FiniteSolution(problem=final, u=u, strain=state.eps, pressure=pressure, method=method, success=success,
-                          status=status, message=inner.message, iterations=inner.iterations, build_time=build,
+                          status=status, message=message, iterations=inner.iterations, build_time=build,
                           solve_time=solve_time, certificate=cert, info=info, targets=targets, dropped=dropped)

@@ -26,6 +26,7 @@ import time
 import numpy as np
 
 from ..errors import InputError
+from ._finite_geometry import FACING
 from ._finite_newton import InnerResult
 from ._finite_solution import generalized
 from .nlp import _casadi
@@ -34,6 +35,13 @@ PAGE = "formulations/finite_nlp.md"
 
 _TERMS = 16  # Taylor terms of the rotation's coefficients: exact to rounding below 120 degrees
 _CRUSH_MARGIN = 1e-9
+_OPEN = 1e6  # mm: the gap of a spring whose ray misses its target (open, as in the Newton's inf)
+#: Largest scaled step of one outer iteration: the surrogate may be unbounded where springs are
+#: open (a sphere passing through the bed), so each solve stays in a box and the next re-centres.
+_STEP_BOUND = 4.0
+#: IPOPT's statuses that still give a usable centre for the next outer iteration: the residual
+#: test of the fixed point, and the certificate, judge the end.
+_ACCEPTABLE = ("Solved_To_Acceptable_Level", "Search_Direction_Becomes_Too_Small")
 
 
 def _series(ca, tau, first):
@@ -81,13 +89,13 @@ class _Surrogate:
             energy = ca.dot(V, law.energy(-s0 * c))
             g = c + eps / s0
             upper = (1.0 - _CRUSH_MARGIN) / s0 if law.bounded_strain else np.inf
-            self.lbx = np.concatenate([np.full(k, -np.inf), np.zeros(n)])
-            self.ubx = np.concatenate([np.full(k, np.inf), np.full(n, upper)])
+            self.lbx = np.concatenate([np.full(k, -_STEP_BOUND), np.zeros(n)])
+            self.ubx = np.concatenate([np.full(k, _STEP_BOUND), np.full(n, upper)])
             self.lbg, self.ubg = np.zeros(n), np.full(n, np.inf)
             nlp = {"x": z, "p": params, "f": energy - ca.dot(load, xi), "g": g}
         else:
             energy = ca.dot(V, law.energy(ca.fmin(eps, 0)))
-            self.lbx, self.ubx = np.full(k, -np.inf), np.full(k, np.inf)
+            self.lbx, self.ubx = np.full(k, -_STEP_BOUND), np.full(k, _STEP_BOUND)
             self.lbg = self.ubg = np.zeros(0)
             nlp = {"x": xi, "p": params, "f": energy - ca.dot(load, xi)}
         options = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False,
@@ -121,18 +129,24 @@ class _Surrogate:
             moved = ca.repmat(centre.T, len(rows), 1) + ca.mtimes(ca.DM(q0[rows]) - ca.repmat(c.T, len(rows), 1), R.T)
             ahead = ca.sum2((moved - p[rows, :]) * mq)
             along = ca.sum2(nrm[rows, :] * mq)
-            out.append((rows, ahead / along))
+            facing = along < -FACING
+            out.append((rows, ca.if_else(facing, ahead / ca.if_else(facing, along, -1), _OPEN)))
         if (~plane).any():
             rows = np.flatnonzero(~plane)
             o = ca.repmat(centre.T, len(rows), 1) + ca.mtimes(ca.DM(q0[rows]) - ca.repmat(c.T, len(rows), 1), R.T)
             d = p[rows, :] - o
             beta = ca.sum2(nrm[rows, :] * d)
             gamma = ca.sum2(d * d) - ca.DM(targets.radius[rows] ** 2)
-            root = ca.sqrt(ca.fmax(beta**2 - gamma, 0))
+            rho = ca.DM(targets.radius[rows])
+            disc = beta**2 - gamma
+            meets = disc > (FACING * rho) ** 2
+            root = ca.sqrt(ca.if_else(meets, disc, 1))
             near = ca.if_else(beta <= 0, gamma / (root - beta), -beta - root)
             far = ca.if_else(beta >= 0, -gamma / (beta + root), root - beta)
             concave = ca.DM(targets.concave[rows].astype(float))
-            out.append((rows, concave * far + (1 - concave) * near))
+            behind = (1 - concave) * (gamma > 0) * (beta > 0)
+            gap = concave * far + (1 - concave) * near
+            out.append((rows, ca.if_else(meets * (1 - behind), gap, _OPEN)))
         if len(out) == 1:
             return out[0][1]
         order = np.argsort(np.concatenate([r for r, _ in out]))
@@ -168,6 +182,40 @@ class _Surrogate:
         return x_k + T @ z[:k], z[:k], stress, stats
 
 
+def _scaled_residual(state, T, energy_scale) -> float:
+    """The physical residual in the scaled variables, relative to the load and the springs' force."""
+    free = state.system.free
+    g = T.T @ state.residual() / energy_scale
+    norm = max(float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
+               float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale, 1.0)
+    value = float(np.linalg.norm(g)) / norm
+    return value if np.isfinite(value) else np.inf
+
+
+class _Anderson:
+    """Anderson acceleration of the fixed-point map ``x_k -> argmin Phi_k`` (in the scaled
+    variables): the next centre combines the last few maps so that their residuals cancel."""
+
+    def __init__(self, T, memory: int = 5):
+        self.T, self.memory = T, memory
+        self.points: list = []
+        self.maps: list = []
+
+    def next(self, x, mapped) -> np.ndarray:
+        to_xi = np.linalg.pinv(self.T)
+        self.points.append(to_xi @ x)
+        self.maps.append(to_xi @ mapped)
+        self.points, self.maps = self.points[-self.memory - 1:], self.maps[-self.memory - 1:]
+        if len(self.points) < 2:
+            return mapped
+        X = np.array(self.points).T
+        F = np.array(self.maps).T - X  # residuals of the map
+        dF, dX = np.diff(F, axis=1), np.diff(X, axis=1)
+        gamma = np.linalg.lstsq(dF, F[:, -1], rcond=1e-12)[0]
+        xi = X[:, -1] + F[:, -1] - (dX + dF) @ gamma
+        return x + self.T @ (xi - X[:, -1])
+
+
 def solve(system, law, T, energy_scale, *, x0, form="constrained", tol=1e-14, outer_tol=1e-12, max_outer=60,
           max_iter=3000, ipopt_options=None) -> InnerResult:
     """The fixed point of the re-centred IPOPT solves (targets fixed).
@@ -183,21 +231,27 @@ def solve(system, law, T, energy_scale, *, x0, form="constrained", tol=1e-14, ou
     state = system.state(system.coordinates(x), law)
     status, message, success = "max_iterations", f"no fixed point in {max_outer} outer iterations", False
     history, iterations, stress = [], 0, None
+    anderson = _Anderson(T)
     for outer in range(1, max_outer + 1):
         x_new, step, stress, stats = model.solve(x, state)
         iterations += int(stats.get("iter_count", 0))
         if not np.isfinite(x_new).all():
             status, message = "non_finite", f"IPOPT returned NaN ({stats.get('return_status')})"
             break
-        x, state = x_new, system.state(system.coordinates(x_new), law)
-        g = T.T @ state.residual() / energy_scale
-        norm = max(float(np.linalg.norm(T.T @ state.load6[system.free])) / energy_scale,
-                   float(np.linalg.norm(T.T @ state.internal6[system.free])) / energy_scale, 1.0)
-        history.append(float(np.linalg.norm(g)) / norm)
-        if not stats.get("success", False) and str(stats.get("return_status")) != "Solved_To_Acceptable_Level":
+        if not stats.get("success", False) and str(stats.get("return_status")) not in _ACCEPTABLE:
             status, message = "solver_error", f"IPOPT ({form}): {stats.get('return_status')}"
             break
-        if float(np.linalg.norm(step)) <= outer_tol and history[-1] <= max(outer_tol, 1e-9):
+        converged = float(np.linalg.norm(step)) <= outer_tol
+        candidates = [x_new] if converged else [x_new, anderson.next(x, x_new)]
+        best = None
+        for candidate in candidates:
+            trial = system.state(system.coordinates(candidate), law)
+            value = _scaled_residual(trial, T, energy_scale)
+            if best is None or value < best[0]:
+                best = (value, candidate, trial)
+        residual, x, state = best
+        history.append(residual)
+        if converged and residual <= max(outer_tol, 1e-9):
             status, message, success = "converged", f"IPOPT ({form}) fixed point in {outer} outer iterations", True
             break
     info = {"residual_history": history, "outer_iterations": outer, "form": form}
