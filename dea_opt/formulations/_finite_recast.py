@@ -19,18 +19,16 @@ from ._finite_geometry import Targets
 __all__ = ["MeshTracker", "off_face"]
 
 
-def off_face(state, mesh2, tolerance: float = 1e-9) -> np.ndarray:
-    """Which springs' hits left the face of mesh 2 their target plane belongs to (bool, (N,)).
+def off_face(hits, valid, faces, transform, mesh2, tolerance: float = 1e-9) -> np.ndarray:
+    """Which hits left the face of mesh 2 their target plane belongs to (bool, (N,)).
 
-    The hit is taken back to mesh 2's own frame and its barycentric coordinates in the face are
-    computed; a coordinate below ``-tolerance`` puts it outside. Springs whose ray misses its
-    plane count as off.
+    ``hits`` (N, 3, world frame) are taken back to mesh 2's own frame by ``transform`` (its
+    pose, 4x4) and their barycentric coordinates in faces ``faces`` (N,) computed; a coordinate
+    below ``-tolerance`` puts a hit outside. Springs whose ray misses its plane (``~valid``)
+    count as off.
     """
-    system, gaps = state.system, state.gaps
-    faces = system.targets.faces
-    T = system.transform(state.y)
-    R, shift = T[:3, :3], T[:3, 3]
-    own = (np.nan_to_num(gaps.hit) - shift) @ R
+    R, shift = transform[:3, :3], transform[:3, 3]
+    own = (np.nan_to_num(hits) - shift) @ R
     tri = np.asarray(mesh2.triangles)[faces]
     a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
     w = own - a
@@ -41,7 +39,7 @@ def off_face(state, mesh2, tolerance: float = 1e-9) -> np.ndarray:
         b1 = (d22 * w1 - d12 * w2) / det
         b2 = (d11 * w2 - d12 * w1) / det
     inside = (b1 >= -tolerance) & (b2 >= -tolerance) & (b1 + b2 <= 1 + tolerance)
-    return ~(inside & gaps.valid)
+    return ~(inside & valid)
 
 
 class MeshTracker:
@@ -86,7 +84,7 @@ class MeshTracker:
         from ..mesh import recast
 
         pose = system.transform(state.y)
-        left = off_face(state, self.cast.mesh2)
+        left = off_face(state.gaps.hit, state.gaps.valid, system.targets.faces, pose, self.cast.mesh2)
         if not left.any() and self.moved(pose) <= self.recast_shift:
             return None
         new = recast(self.cast, pose)
