@@ -7,6 +7,7 @@ from .errors import (
     LoadNotSupportedError,
     MissingDependencyError,
     ScenarioError,
+    SizeLimitError,
     SolverError,
     ValidityWarning,
 )
@@ -21,7 +22,7 @@ from .solver import METHODS, check_load_supported, compare, solve
 __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
-    "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
+    "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "SizeLimitError", "Solution", "SolverError",
     "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
     "__version__",
 ]

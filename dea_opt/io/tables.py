@@ -9,12 +9,13 @@ comments in the numeric tables.
 
 A springs table has columns ``x, y, z`` (mm), ``nx, ny, nz`` (the normal from body 1 to
 body 2), ``area`` (mm^2), ``thickness`` (mm), and optionally ``gap`` (mm, default 0) and
-``label`` (an integer region label, CSV only).
+``label`` (a region label: an integer or a word such as ``medial``; CSV only).
 """
 
 from __future__ import annotations
 
 import csv
+import io
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,7 @@ import numpy as np
 from ..errors import InputError
 from .atomic import atomic_open, file_path
 
-__all__ = ["CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
+__all__ = ["CHUNK_ROWS", "CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
            "write_springs"]
 
 #: Columns of :func:`to_csv`, in order.
@@ -45,6 +46,19 @@ def _write_rows(path, header, columns) -> Path:
 
 
 # --- the results of a solution, one row per spring --------------------------------------
+#: Rows per chunk of :func:`to_csv`: the text of one chunk is all that is built in memory.
+CHUNK_ROWS = 1 << 16
+
+
+def _quoted(text: str) -> str:
+    """``text`` as the csv module writes it in a row of several fields (quoted when needed)."""
+    if text == "":
+        return ""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow([text])  # as in the file: a newline is quoted
+    return buffer.getvalue()[:-1]
+
+
 def to_csv(solution, path) -> Path:
     """Write one row per spring, in spring order, with a header row.
 
@@ -67,7 +81,9 @@ def to_csv(solution, path) -> Path:
     ============  =====  ===============================================================
 
     Floats are written with Python's shortest round-trip representation, so
-    :func:`read_csv` gives back the same numbers bit for bit.
+    :func:`read_csv` gives back the same numbers bit for bit. The file is written in chunks
+    of :data:`CHUNK_ROWS` rows (atomically): memory stays near one chunk's text whatever
+    the number of springs, and the bytes are those the :mod:`csv` module writes.
 
     Parameters
     ----------
@@ -86,11 +102,26 @@ def to_csv(solution, path) -> Path:
         layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
         layer.areas, layer.thickness, layer.gap, solution.strain, solution.pressure, solution.spring_force,
     ]
-    columns = [np.asarray(c, dtype=float).tolist() for c in floats]
-    columns.append(solution.in_contact.astype(int).tolist())
-    columns.append(layer.source_face.tolist() if layer.source_face is not None else [-1] * n)
-    columns.append(layer.labels.astype(str).tolist() if layer.labels is not None else [""] * n)
-    return _write_rows(path, CSV_COLUMNS, columns)
+    contact = solution.in_contact
+    source = layer.source_face
+    if layer.labels is not None:
+        names, codes = np.unique(np.asarray(layer.labels).astype(str), return_inverse=True)
+        quoted = [_quoted(name) for name in names.tolist()]
+    row = ",".join(["%r"] * len(floats) + ["%d", "%d", "%s"])
+    with atomic_open(path, "w", newline="") as handle:
+        handle.write(",".join(CSV_COLUMNS) + "\n")
+        for start in range(0, n, CHUNK_ROWS):
+            part = slice(start, min(start + CHUNK_ROWS, n))
+            columns = [np.asarray(c[part], dtype=float).tolist() for c in floats]
+            columns.append(contact[part].astype(np.int64).tolist())
+            columns.append(source[part].tolist() if source is not None else [-1] * (part.stop - start))
+            if layer.labels is not None:
+                columns.append([quoted[c] for c in codes[part].tolist()])
+            else:
+                columns.append([""] * (part.stop - start))
+            handle.write("\n".join([row % values for values in zip(*columns)]))
+            handle.write("\n")
+    return Path(path)
 
 
 def read_csv(path) -> dict:
@@ -141,13 +172,13 @@ def read_csv(path) -> dict:
 
 
 # --- numeric tables: load paths and springs ---------------------------------------------
-def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "table"):
+def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "table", text: tuple = ()):
     """A CSV of numbers as a DataFrame, with errors that name the file, line and column.
 
     Lines starting with ``#`` are comments. Columns outside ``required + optional`` are
     an error (a misspelt column should not be silently ignored). Numbers are parsed by
     Python's correctly rounded ``float``, so a table written by :func:`write_springs` reads
-    back bit for bit.
+    back bit for bit. Columns named in ``text`` are kept as strings (stripped).
     """
     import pandas as pd
 
@@ -177,6 +208,9 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
     for column in table.columns:
         raw = table[column]
         stripped = raw.str.strip()
+        if column in text:
+            numeric[column] = stripped.fillna("").to_numpy(dtype=str)
+            continue
         values = pd.to_numeric(stripped, errors="coerce")
         bad = values.isna() | ~np.isfinite(values.fillna(0.0))
         if bad.any():
@@ -209,21 +243,21 @@ def read_springs(path):
 
     Columns (CSV) or arrays (NPZ): ``x, y, z`` (mm), ``nx, ny, nz`` (normal from body 1 to
     body 2), ``area`` (mm^2), ``thickness`` (mm), optional ``gap`` (mm, default 0) and, in
-    CSV, optional ``label`` (an integer region label).
+    CSV, optional ``label`` (a region label: integers, or words such as ``medial``).
     """
     from ..layer import SpringLayer
 
     path = Path(path)
     if path.suffix.lower() == ".npz":
         return _springs_from_npz(path)
-    table = read_numeric_csv(path, SPRING_COLUMNS, ("gap", "label"), "springs table")
-    points = table[["x", "y", "z"]].to_numpy()
-    normals = table[["nx", "ny", "nz"]].to_numpy()
-    gap = table["gap"].to_numpy() if "gap" in table else 0.0
-    labels = table["label"].to_numpy().astype(int) if "label" in table else None
+    table = read_numeric_csv(path, SPRING_COLUMNS, ("gap", "label"), "springs table", text=("label",))
+    points = table[["x", "y", "z"]].to_numpy(dtype=float)
+    normals = table[["nx", "ny", "nz"]].to_numpy(dtype=float)
+    gap = table["gap"].to_numpy(dtype=float) if "gap" in table else 0.0
+    labels = _labels(table["label"].to_numpy(dtype=str), path) if "label" in table else None
     try:
-        return SpringLayer(points, normals, table["area"].to_numpy(), table["thickness"].to_numpy(), gap,
-                           labels=labels)
+        return SpringLayer(points, normals, table["area"].to_numpy(dtype=float),
+                           table["thickness"].to_numpy(dtype=float), gap, labels=labels)
     except InputError as exc:
         raise InputError(f"springs table {path}: {exc}") from None
 
@@ -248,12 +282,32 @@ def _springs_from_npz(path: Path):
         raise InputError(f"springs table {path}: {exc}") from None
 
 
+def _labels(text: np.ndarray, path) -> np.ndarray:
+    """Region labels read as text: integers when every one is an integer, else the words."""
+    if (text == "").any():
+        row = int(np.argmax(text == ""))
+        raise InputError(f"springs table {path}, row {row + 1}, column label: expected a region label, "
+                         f"got an empty cell")
+    try:
+        return np.array([int(v) for v in text.tolist()], dtype=np.int64)
+    except ValueError:
+        return text
+
+
 def write_springs(layer, path) -> Path:
     """Write a layer as a springs CSV that :func:`read_springs` reads back bit for bit (atomically).
 
-    Columns ``x, y, z, nx, ny, nz, area, thickness, gap`` (labels are not written).
+    Columns ``x, y, z, nx, ny, nz, area, thickness, gap``, and ``label`` when the layer has
+    labels (integers, or words such as ``medial``, quoted where the csv module must).
     """
     columns = [layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
                layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
                layer.areas, layer.thickness, layer.gap]
-    return _write_rows(path, (*SPRING_COLUMNS, "gap"), [np.asarray(c, dtype=float).tolist() for c in columns])
+    header = (*SPRING_COLUMNS, "gap")
+    rows = [np.asarray(c, dtype=float).tolist() for c in columns]
+    if layer.labels is not None:
+        labels = np.asarray(layer.labels)
+        integer = np.issubdtype(labels.dtype, np.integer)
+        rows.append(labels.astype(np.int64).tolist() if integer else labels.astype(str).tolist())
+        header = (*header, "label")
+    return _write_rows(path, header, rows)
