@@ -27,8 +27,10 @@ __all__ = ["AXES", "AnatomicalFrame"]
 AXES = {"medial": "lateral", "anterior": "posterior", "proximal": "distal"}
 _OPPOSITE = {**AXES, **{v: k for k, v in AXES.items()}}
 _SIDES = ("right", "left")
-#: Directions given explicitly must be this close to perpendicular (cosine).
-_PERPENDICULAR = 0.1
+#: Three directions given together must be within 10 degrees of perpendicular (cosine).
+_PERPENDICULAR = 0.174
+#: Two directions given together must be at least 45 degrees apart (cosine).
+_APART = 0.707
 
 
 def _direction(name: str, value) -> np.ndarray:
@@ -116,6 +118,9 @@ class AnatomicalFrame:
             Default the layer's centroid.
         origin_name : str, optional
             Default ``"origin"`` when ``origin`` is given.
+
+        Two directions need only be far from parallel: proximal (else medial) is kept and the
+        other made perpendicular to it. Three must be within 10 degrees of perpendicular.
         """
         given = {n: v for n, v in (("medial", medial), ("anterior", anterior), ("proximal", proximal))
                  if v is not None}
@@ -125,6 +130,13 @@ class AnatomicalFrame:
         side = _side(side)
         vectors = {n: _direction(f"anatomy.{n}", v) for n, v in given.items()}
         if len(vectors) == 2:
+            # The first of proximal, medial, anterior is kept; the other made perpendicular to it.
+            (first, a), (second, b) = sorted(vectors.items(), key=lambda item: ("proximal", "medial",
+                                                                                 "anterior").index(item[0]))
+            if abs(float(a @ b)) > _APART:
+                raise InputError(f"anatomy.{first} and anatomy.{second} must be far from parallel (more than 45 "
+                                 f"degrees apart), got {np.degrees(np.arccos(min(abs(float(a @ b)), 1.0))):.3g}")
+            vectors[second] = (b - (b @ a) * a) / np.linalg.norm(b - (b @ a) * a)
             if side is None:
                 missing = next(n for n in AXES if n not in vectors)
                 raise InputError(f"anatomy gives two directions, so side ('right' or 'left') must say which way "

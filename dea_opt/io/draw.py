@@ -163,25 +163,39 @@ def _pixels(geometry: MapGeometry):
     return iy * nx + ix, (ny, nx), low, pixel
 
 
+def _fill(image: np.ndarray, present: np.ndarray):
+    """Pixels without a sample but surrounded by pixels with one (a finer mesh than the
+    raster here, a coarser one there) take the largest neighbour: no speckles of background."""
+    from scipy.ndimage import binary_closing, maximum_filter
+
+    holes = binary_closing(present, structure=np.ones((3, 3), bool)) & ~present
+    if holes.any():
+        grown = maximum_filter(np.where(present, image, -np.inf), size=3, mode="constant", cval=-np.inf)
+        image = np.where(holes & np.isfinite(grown), grown, image)
+    return image, present | holes
+
+
 def _raster(ax, geometry, values, cmap, norm, contact, grey) -> bool:
     flat, shape, low, pixel = _pixels(geometry)
     size = shape[0] * shape[1]
-    count = np.bincount(flat, minlength=size)
+    count = np.bincount(flat, minlength=size).reshape(shape)
     extent = (low[0], low[0] + shape[1] * pixel, low[1], low[1] + shape[0] * pixel)
     shown = np.isfinite(values) if contact is None else contact & np.isfinite(values)
     image = np.full(size, -np.inf)
     np.maximum.at(image, flat[shown], values[shown])
+    image, _ = _fill(image.reshape(shape), image.reshape(shape) > -np.inf)
     image[~np.isfinite(image)] = np.nan
     style = {"origin": "lower", "extent": extent, "interpolation": "nearest", "aspect": "equal"}
     if contact is not None:
-        layer = np.where(count > 0, 0.0, np.nan).reshape(shape)
-        ax.imshow(layer, cmap=grey, vmin=0, vmax=1, **style)
-    ax.imshow(image.reshape(shape), cmap=cmap, norm=norm, **style)
+        _, inside = _fill(np.zeros(shape), count > 0)
+        ax.imshow(np.where(inside, 0.0, np.nan), cmap=grey, vmin=0, vmax=1, **style)
+    ax.imshow(image, cmap=cmap, norm=norm, **style)
     if contact is None:
         return False
-    touching = np.bincount(flat, weights=contact.astype(float), minlength=size)
+    touching = np.bincount(flat, weights=contact.astype(float), minlength=size).reshape(shape)
     with np.errstate(invalid="ignore", divide="ignore"):
-        fraction = np.where(count > 0, touching / count, 0.0).reshape(shape)
+        fraction = np.where(count > 0, touching / count, 0.0)
+    fraction, _ = _fill(fraction, count > 0)
     if 0 < fraction.max() and fraction.min() < 1:
         x = low[0] + (np.arange(shape[1]) + 0.5) * pixel
         y = low[1] + (np.arange(shape[0]) + 0.5) * pixel
@@ -200,29 +214,45 @@ def boundary_edges(triangles: np.ndarray) -> np.ndarray:
 
 
 def draw_regions(ax, geometry: MapGeometry, labels) -> None:
-    """Outline each region of ``labels`` (one per sample) and write its name at its centre."""
+    """Outline the borders between the regions of ``labels`` (one per sample) and write each
+    region's name at its centre."""
     from matplotlib.collections import LineCollection
+    from matplotlib.tri import Triangulation
 
     labels = np.asarray(labels)
     names = np.unique(labels)
     if len(names) < 2:
         return
-    if geometry.raster or geometry.triangles is None:
+    style = {"colors": "w", "linewidths": 1.2, "linestyles": "--"}
+    raster = geometry.raster or geometry.triangles is None
+    if raster:
         flat, shape, low, pixel = _pixels(geometry)
         x = low[0] + (np.arange(shape[1]) + 0.5) * pixel
         y = low[1] + (np.arange(shape[0]) + 0.5) * pixel
+        codes = np.searchsorted(names, labels)
+        votes = np.bincount(flat * len(names) + codes, minlength=shape[0] * shape[1] * len(names))
+        votes = votes.reshape(shape[0] * shape[1], len(names))
+        majority = votes.argmax(axis=1).reshape(shape)
+        present = _fill(np.zeros(shape), votes.sum(axis=1).reshape(shape) > 0)[1]
+    elif geometry.on == "faces":
+        outline = {tuple(e) for e in boundary_edges(geometry.triangles).tolist()}
+    else:
+        tri = Triangulation(geometry.xy[:, 0], geometry.xy[:, 1], geometry.triangles)
     for name in names:
         mask = labels == name
-        if geometry.raster or geometry.triangles is None:
-            size = shape[0] * shape[1]
-            inside = np.bincount(flat[mask], minlength=size) > 0
-            ax.contour(x, y, inside.reshape(shape).astype(float), levels=[0.5], colors="w", linewidths=1.2,
-                       linestyles="--")
+        if raster:
+            # the border of the pixels where this region has most springs, where the layer is
+            inside = np.ma.masked_where(~present, (majority == np.searchsorted(names, name)).astype(float))
+            if inside.min() < 0.5 < inside.max():
+                ax.contour(x, y, inside, levels=[0.5], **style)
+        elif geometry.on == "faces":
+            # the edges of the region's outline that are not the outline of the whole layer
+            edges = [e for e in boundary_edges(geometry.triangles[mask]).tolist() if tuple(e) not in outline]
+            if edges:
+                ax.add_collection(LineCollection(geometry.xy[np.array(edges)], **style))
         else:
-            tris = geometry.triangles
-            members = mask if geometry.on == "faces" else mask[tris].all(axis=1)
-            edges = boundary_edges(tris[members])
-            ax.add_collection(LineCollection(geometry.xy[edges], colors="w", linewidths=1.2, linestyles="--"))
+            # half way between a region's springs and its neighbours': one line per border
+            ax.tricontour(tri, mask.astype(float), levels=[0.5], **style)
         centre = geometry.samples[mask].mean(axis=0)
         ax.text(centre[0], centre[1], str(name), ha="center", va="center", fontsize="small", fontweight="bold",
                 color="k", bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.7},

@@ -153,7 +153,7 @@ class PathResult:
                  for name, c in summary["checks"].items()]
         warnings.warn(f"{len(summary['frames_outside_validity'])} of {len(self)} frames are outside the model's "
                       f"validity: {'; '.join(parts)}; see the validity columns of the table",
-                      ValidityWarning, stacklevel=3)
+                      ValidityWarning, stacklevel=4)
 
     def summary(self) -> dict:
         """Headline numbers of the path (plain Python values; NaN where no frame has an answer)."""
