@@ -11,6 +11,7 @@ outlines and labels are drawn on either. Units: mm on the axes.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -22,7 +23,7 @@ RASTER_LIMIT = 100_000
 RASTER_PIXELS = 700
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class MapGeometry:
     """What a map draws, in map coordinates (mm).
 
@@ -31,7 +32,8 @@ class MapGeometry:
     xy : ndarray (P, 2)
         The vertices of ``triangles``.
     triangles : ndarray (T, 3) or None
-        Triangles; None when the springs cannot be triangulated (drawn as dots).
+        Triangles; None when the springs cannot be triangulated (drawn as dots). For springs
+        on points they are made when first asked for (a raster needs none).
     on : {"faces", "points"}
         Values sit on the triangles (one per face) or on the vertices (one per spring).
     samples : ndarray (S, 2)
@@ -41,18 +43,30 @@ class MapGeometry:
     """
 
     xy: np.ndarray
-    triangles: np.ndarray | None
+    faces: np.ndarray | None
     on: str
     samples: np.ndarray
     spacing: float
+    layer: object = None
+
+    @property
+    def triangles(self) -> np.ndarray | None:
+        if self.on == "faces":
+            return self.faces
+        from .triangulate import point_triangulation
+
+        return point_triangulation(self.layer)
 
     @property
     def raster(self) -> bool:
         return len(self.samples) > RASTER_LIMIT
 
-    @property
+    @cached_property
     def extent(self) -> tuple:
-        used = self.samples if self.triangles is None or self.raster else self.xy[np.unique(self.triangles)]
+        if self.raster or self.on == "points":
+            used = self.samples
+        else:
+            used = self.xy[np.unique(self.faces)]
         return used.min(axis=0), used.max(axis=0)
 
 
@@ -62,8 +76,6 @@ def map_geometry(layer, frame, sites: str = "springs") -> MapGeometry:
     ``sites="springs"``: one value per spring (on its face, or on its point). ``sites="faces"``:
     one value per face of ``layer.surface`` (the exposure of moving meshes).
     """
-    from .triangulate import point_triangulation
-
     if sites == "faces" or (layer.surface is not None and layer.source_face is not None):
         vertices, faces = layer.surface
         faces = np.asarray(faces) if sites == "faces" else np.asarray(faces)[layer.source_face]
@@ -76,7 +88,7 @@ def map_geometry(layer, frame, sites: str = "springs") -> MapGeometry:
         areas = 0.5 * np.linalg.norm(np.cross(b - a, c - a), axis=1) if sites == "faces" else layer.areas
         return MapGeometry(xy, faces, "faces", centroids, _spacing(areas))
     xy = frame.project(layer.points)
-    return MapGeometry(xy, point_triangulation(layer), "points", xy, _spacing(layer.areas))
+    return MapGeometry(xy, None, "points", xy, _spacing(layer.areas), layer)
 
 
 def _spacing(areas) -> float:

@@ -95,7 +95,8 @@ class MapFrame:
 
     def project(self, points) -> np.ndarray:
         """Map coordinates (..., 2) in mm of ``points`` (..., 3)."""
-        return (np.asarray(points, dtype=float) - self.origin) @ self.axes[:2].T
+        # no (N, 3) temporary: project, then shift
+        return np.asarray(points, dtype=float) @ self.axes[:2].T - self.origin @ self.axes[:2].T
 
 
 def _nearest_axis(axis) -> str:

@@ -22,8 +22,9 @@ class SurfaceData:
     ----------
     points : ndarray, shape (P, 3)
         Vertex coordinates (mm).
-    cells : ndarray of int64, shape (C, 3) or (C, 1)
-        Triangles, or one vertex per spring.
+    cells : ndarray of int32 or int64, shape (C, 3) or (C, 1)
+        Triangles, or one vertex per spring (int32 for a layer triangulated through its
+        springs, to halve the memory of the largest).
     cell_type : {"triangle", "vertex"}
     cell_data : dict {name: ndarray, shape (C,) or (C, 3)}
         See :func:`contact_surface` for the names and units.

@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import csv
 import io
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -48,6 +49,16 @@ def _write_rows(path, header, columns) -> Path:
 # --- the results of a solution, one row per spring --------------------------------------
 #: Rows per chunk of :func:`to_csv`: the text of one chunk is all that is built in memory.
 CHUNK_ROWS = 1 << 16
+
+
+def _texts(values: np.ndarray):
+    """The CSV text of each value: ``repr`` of a float (its shortest round-trip form), ``str`` of
+    an int; a column of one repeated value is formatted once."""
+    if len(values) and values[0] == values[-1] and (values == values[0]).all():
+        one = values[0].item()
+        return itertools.repeat(repr(one) if isinstance(one, float) else str(one), len(values))
+    values = values.tolist()
+    return list(map(repr, values)) if values and isinstance(values[0], float) else list(map(str, values))
 
 
 def _quoted(text: str) -> str:
@@ -102,24 +113,21 @@ def to_csv(solution, path) -> Path:
         layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
         layer.areas, layer.thickness, layer.gap, solution.strain, solution.pressure, solution.spring_force,
     ]
-    contact = solution.in_contact
-    source = layer.source_face
+    columns = [*floats, solution.in_contact.astype(np.int64),
+               layer.source_face if layer.source_face is not None else np.full(n, -1, dtype=np.int64)]
     if layer.labels is not None:
         names, codes = np.unique(np.asarray(layer.labels).astype(str), return_inverse=True)
         quoted = [_quoted(name) for name in names.tolist()]
-    row = ",".join(["%r"] * len(floats) + ["%d", "%d", "%s"])
     with atomic_open(path, "w", newline="") as handle:
         handle.write(",".join(CSV_COLUMNS) + "\n")
         for start in range(0, n, CHUNK_ROWS):
-            part = slice(start, min(start + CHUNK_ROWS, n))
-            columns = [np.asarray(c[part], dtype=float).tolist() for c in floats]
-            columns.append(contact[part].astype(np.int64).tolist())
-            columns.append(source[part].tolist() if source is not None else [-1] * (part.stop - start))
+            stop = min(start + CHUNK_ROWS, n)
+            texts = [_texts(c[start:stop]) for c in columns]
             if layer.labels is not None:
-                columns.append([quoted[c] for c in codes[part].tolist()])
+                texts.append([quoted[c] for c in codes[start:stop].tolist()])
             else:
-                columns.append([""] * (part.stop - start))
-            handle.write("\n".join([row % values for values in zip(*columns)]))
+                texts.append(itertools.repeat("", stop - start))
+            handle.write("\n".join(map(",".join, zip(*texts))))
             handle.write("\n")
     return Path(path)
 

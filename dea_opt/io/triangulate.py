@@ -66,7 +66,7 @@ def _triangulate(points, normals, areas):
     mean = mean / length if length > 0 else axes[2]
     cos = normals @ mean
     if cos.min() > math.cos(math.radians(_PLANE_ANGLE)):
-        return _chart(points, areas, (points - origin) @ axes[:2].T)
+        return _chart(points, areas, points @ axes[:2].T - origin @ axes[:2].T)
     if cos.min() > -1.0 + 1e-6:
         # Stereographic projection of the normals from -mean onto the plane normal to mean.
         e1 = axes[0] - (axes[0] @ mean) * mean
@@ -92,7 +92,7 @@ def _by_axis(points, normals, areas):
         if len(index) < 3:
             continue
         origin, axes = best_fit_frame(points[index], areas[index], normals[index])
-        triangles = _chart(points[index], areas[index], (points[index] - origin) @ axes[:2].T)
+        triangles = _chart(points[index], areas[index], points[index] @ axes[:2].T - origin @ axes[:2].T)
         if triangles is not None:
             found.append(index[triangles])
     return np.concatenate(found) if found else None
@@ -101,34 +101,61 @@ def _by_axis(points, normals, areas):
 def _chart(points, areas, xy):
     """Triangles of the springs at chart coordinates ``xy`` (N, 2), bridges dropped."""
     triangles = _grid(xy)
-    if triangles is None:
-        triangles = _delaunay(xy)
+    if triangles is not None:
+        return triangles  # a complete grid: no triangle bridges anything
+    triangles = _delaunay(xy)
     if triangles is None or not len(triangles):
         return None
     return _drop_bridges(points, areas, triangles)
 
 
+def _index_dtype(n: int):
+    """int32 indices while they fit: half the memory of int64 for the largest layers."""
+    return np.int32 if n < np.iinfo(np.int32).max else np.int64
+
+
 def _grid(xy):
     """Triangles of a tensor grid from its indices, or None when ``xy`` is not one."""
     n = len(xy)
-    span = float(np.ptp(xy, axis=0).max()) if n else 0.0
+    if n < 4:
+        return None
+    low, high = xy.min(axis=0), xy.max(axis=0)
+    span = float((high - low).max())
     if span == 0.0:
         return None
     tolerance = 1e-6 * span
-    keys = np.round(xy / tolerance).astype(np.int64)
-    u, iu = np.unique(keys[:, 0], return_inverse=True)
-    if len(u) < 2 or n % len(u):
+    iu, nu = _levels(xy[:, 0], low[0], tolerance)
+    if nu < 2 or n % nu:
         return None
-    v, iv = np.unique(keys[:, 1], return_inverse=True)
-    if len(v) < 2 or len(u) * len(v) != n:
+    iv, nv = _levels(xy[:, 1], low[1], tolerance)
+    if nv < 2 or nu * nv != n:
         return None
-    where = np.full((len(u), len(v)), -1, dtype=np.int64)
-    where[iu.ravel(), iv.ravel()] = np.arange(n)
-    if (where < 0).any():
+    dtype = _index_dtype(n)
+    where = np.full(n, -1, dtype=dtype)
+    iu *= nv
+    iu += iv
+    del iv
+    where[iu] = np.arange(n, dtype=dtype)
+    del iu
+    if (where < 0).any():  # two springs on one grid point: not a tensor grid
         return None
-    a, b = where[:-1, :-1].ravel(), where[1:, :-1].ravel()
-    c, d = where[1:, 1:].ravel(), where[:-1, 1:].ravel()
-    return np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
+    where = where.reshape(nu, nv)
+    m = (nu - 1) * (nv - 1)
+    triangles = np.empty((2 * m, 3), dtype=dtype)
+    corners = (where[:-1, :-1], where[1:, :-1], where[1:, 1:], where[:-1, 1:])  # a, b, c, d: views
+    for row, (i, j, k) in enumerate(((0, 1, 2), (0, 2, 3))):
+        for column, corner in enumerate((i, j, k)):
+            triangles[row * m:(row + 1) * m, column] = corners[corner].reshape(-1)
+    return triangles
+
+
+def _levels(values, low, tolerance):
+    """The index of each value among the distinct levels (within ``tolerance``), and their number."""
+    keys = np.rint((values - low) / tolerance).astype(np.int64)
+    levels = np.unique(keys)  # a sort; searchsorted then beats unique's argsort for the inverse
+    if 2 * len(levels) > len(keys):
+        return None, 0  # too many levels for a grid
+    return np.searchsorted(levels, keys), len(levels)
 
 
 def _delaunay(xy):
@@ -141,7 +168,7 @@ def _delaunay(xy):
         return None
     try:
         # Qbb Qc Qz Q12: scipy's defaults; QJ joggles cocircular points (grids) into general position.
-        return Delaunay(xy, qhull_options="QJ").simplices.astype(np.int64)
+        return Delaunay(xy, qhull_options="QJ").simplices.astype(_index_dtype(len(xy)))
     except (QhullError, ValueError):
         return None
 

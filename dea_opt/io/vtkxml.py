@@ -33,49 +33,81 @@ _ROWS = 1 << 16  # values per line batch of ASCII arrays
 _LEVEL = 1  # zlib level: the fastest, within a few per cent of the default's size on these arrays
 
 
-def _encode(handle, raw: memoryview, prefix: bytes = b"") -> None:
-    """``base64(prefix + raw)`` written in chunks."""
-    carry = prefix
-    for start in range(0, len(raw), _CHUNK):
-        block = carry + raw[start:start + _CHUNK].tobytes()
+class _Ramp:
+    """``step * (1, 2, ..., n)`` or ``n`` copies of ``step`` without the array: VTK's offsets
+    and cell types, made a chunk at a time."""
+
+    def __init__(self, n: int, step: int, dtype, constant: bool = False):
+        self.n, self.step, self.dtype, self.constant = int(n), int(step), np.dtype(dtype), constant
+        self.shape, self.ndim, self.size = (self.n,), 1, self.n
+
+    def chunk(self, start: int, stop: int) -> np.ndarray:
+        if self.constant:
+            return np.full(stop - start, self.step, dtype=self.dtype)
+        return (self.step * np.arange(start + 1, stop + 1)).astype(self.dtype)
+
+
+def _chunks(values, items: int):
+    """The values, flattened, ``items`` at a time (views of an array, or made by a _Ramp)."""
+    if isinstance(values, _Ramp):
+        for start in range(0, values.n, items):
+            yield values.chunk(start, min(start + items, values.n))
+        return
+    flat = np.ascontiguousarray(values.astype(values.dtype.newbyteorder("<"), copy=False)).reshape(-1)
+    for start in range(0, len(flat), items):
+        yield flat[start:start + items]
+
+
+class _Base64:
+    """base64 of a stream of byte pieces, written as it comes (pieces need not align to 3)."""
+
+    def __init__(self, handle):
+        self.handle, self.carry = handle, b""
+
+    def write(self, piece) -> None:
+        block = self.carry + bytes(piece)
         cut = len(block) - len(block) % 3
-        handle.write(base64.b64encode(block[:cut]).decode("ascii"))
-        carry = block[cut:]
-    if carry or not len(raw):
-        handle.write(base64.b64encode(carry).decode("ascii"))
+        self.handle.write(base64.b64encode(block[:cut]).decode("ascii"))
+        self.carry = block[cut:]
 
-
-def _raw(values: np.ndarray) -> memoryview:
-    little = values.astype(values.dtype.newbyteorder("<"), copy=False)
-    return memoryview(np.ascontiguousarray(little).reshape(-1)).cast("B")
+    def close(self) -> None:
+        self.handle.write(base64.b64encode(self.carry).decode("ascii"))
+        self.carry = b""
 
 
 def _write_array(handle, name: str, values, fmt: str, indent: str) -> None:
-    values = np.asarray(values)
-    vtk_type = VTK_TYPES.get(values.dtype)
+    vtk_type = VTK_TYPES.get(np.dtype(values.dtype))
     if vtk_type is None:
         raise InputError(f"data array {name!r} has dtype {values.dtype}, which VTK cannot store")
     components = f' NumberOfComponents="{values.shape[1]}"' if values.ndim == 2 else ""
     kind = "ascii" if fmt == "ascii" else "binary"
     handle.write(f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components} format="{kind}">')
-    raw = _raw(values) if fmt != "ascii" else None
+    itemsize = np.dtype(values.dtype).itemsize
+    n_bytes = int(values.size) * itemsize
     if fmt == "ascii":
-        flat = values.reshape(-1)
         floating = vtk_type.startswith("Float")
-        for start in range(0, len(flat), _ROWS):
-            part = flat[start:start + _ROWS].tolist()
-            text = " ".join(map(repr, part)) if floating else " ".join(map(str, part))
-            handle.write(text + " ")
+        for part in _chunks(values, _ROWS):
+            part = part.tolist()
+            handle.write((" ".join(map(repr, part)) if floating else " ".join(map(str, part))) + " ")
     elif fmt == "zlib":
-        blocks = [zlib.compress(raw[i:i + _BLOCK], _LEVEL) for i in range(0, len(raw), _BLOCK)]
-        last = len(raw) - _BLOCK * (len(blocks) - 1) if blocks else 0
-        header = np.array([len(blocks), _BLOCK, last, *map(len, blocks)], dtype="<u8")
+        # The header lists every block's compressed size, so the blocks are made first (they
+        # are the compressed array: no larger than it), then written one by one.
+        blocks = [zlib.compress(part, _LEVEL) for part in _chunks(values, _BLOCK // itemsize)]
+        size = (_BLOCK // itemsize) * itemsize
+        last = n_bytes % size  # VTK: the last block's size when it is partial, else 0
+        header = np.array([len(blocks), size, last, *map(len, blocks)], dtype="<u8")
         handle.write(base64.b64encode(header.tobytes()).decode("ascii"))
-        data = b"".join(blocks)
-        del blocks
-        _encode(handle, memoryview(data))
+        stream = _Base64(handle)
+        for k in range(len(blocks)):
+            stream.write(blocks[k])
+            blocks[k] = None
+        stream.close()
     else:
-        _encode(handle, raw, np.array([len(raw)], dtype="<u8").tobytes())
+        stream = _Base64(handle)
+        stream.write(np.array([n_bytes], dtype="<u8").tobytes())
+        for part in _chunks(values, max(_CHUNK // itemsize, 1)):
+            stream.write(memoryview(part).cast("B"))
+        stream.close()
     handle.write("</DataArray>\n")
 
 
@@ -92,14 +124,16 @@ def write_vtk_xml(path, surface, *, binary: bool = True, polydata: bool = False)
     polydata : bool
         PolyData (``.vtp``) instead of UnstructuredGrid (``.vtu``).
     """
-    cells = np.asarray(surface.cells, dtype=np.int64)
+    cells = np.asarray(surface.cells)
+    if cells.dtype not in (np.dtype(np.int32), np.dtype(np.int64)):
+        cells = cells.astype(np.int64)
     n_cells, per_cell = cells.shape
     arrays = [surface.points, cells, *surface.cell_data.values(), *surface.point_data.values()]
     compress = binary and not polydata and all(np.asarray(a).size for a in arrays)
     fmt = "ascii" if not binary else ("zlib" if compress else "raw")
     compressor = ' compressor="vtkZLibDataCompressor"' if compress else ""
     kind = "PolyData" if polydata else "UnstructuredGrid"
-    offsets = per_cell * np.arange(1, n_cells + 1, dtype=np.int64)
+    offsets = _Ramp(n_cells, per_cell, np.int64)
     with open(path, "w", encoding="ascii", newline="\n") as handle:
         handle.write('<?xml version="1.0"?>\n')
         handle.write(f'<VTKFile type="{kind}" version="1.0" byte_order="LittleEndian" '
@@ -117,7 +151,7 @@ def write_vtk_xml(path, surface, *, binary: bool = True, polydata: bool = False)
             scalars = ' Scalars="pressure"' if "pressure" in data else ""
             handle.write(f"      <{tag}{scalars}>\n")
             for name, value in data.items():
-                _write_array(handle, name, value, fmt, "        ")
+                _write_array(handle, name, np.asarray(value), fmt, "        ")
             handle.write(f"      </{tag}>\n")
         handle.write("      <Points>\n")
         _write_array(handle, "Points", np.asarray(surface.points, dtype=np.float64), fmt, "        ")
@@ -128,5 +162,5 @@ def write_vtk_xml(path, surface, *, binary: bool = True, polydata: bool = False)
             cell_type = _CELL_TYPES.get(surface.cell_type)
             if cell_type is None:
                 raise InputError(f"cannot write cells of type {surface.cell_type!r} to .vtu")
-            _write_array(handle, "types", np.full(n_cells, cell_type, dtype=np.uint8), fmt, "        ")
+            _write_array(handle, "types", _Ramp(n_cells, cell_type, np.uint8, constant=True), fmt, "        ")
         handle.write(f"      </{block}>\n    </Piece>\n  </{kind}>\n</VTKFile>\n")
