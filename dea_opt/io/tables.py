@@ -53,12 +53,19 @@ CHUNK_ROWS = 1 << 16
 
 def _texts(values: np.ndarray):
     """The CSV text of each value: ``repr`` of a float (its shortest round-trip form), ``str`` of
-    an int; a column of one repeated value is formatted once."""
-    if len(values) and values[0] == values[-1] and (values == values[0]).all():
+    an int. A column of one repeated value is formatted once; a chunk of few distinct values
+    (a grid's coordinates, flags) formats each distinct value once and indexes them."""
+    if not len(values):
+        return []
+    if values[0] == values[-1] and (values == values[0]).all():
         one = values[0].item()
         return itertools.repeat(repr(one) if isinstance(one, float) else str(one), len(values))
-    values = values.tolist()
-    return list(map(repr, values)) if values and isinstance(values[0], float) else list(map(str, values))
+    form = repr if values.dtype.kind == "f" else str
+    # Formatting a float costs about seven times sorting it: worth a sort to format fewer.
+    distinct, index = np.unique(values, return_inverse=True)
+    if len(distinct) <= len(values) // 4:
+        return np.array(list(map(form, distinct.tolist())), dtype=object)[index].tolist()
+    return list(map(form, values.tolist()))
 
 
 def _quoted(text: str) -> str:
