@@ -16,6 +16,42 @@ def _describe(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+#: Largest magnitude of any dimensional input (mm, N, N mm, MPa, rad), and smallest magnitude of
+#: one that sets a scale (an area, a thickness, a modulus, a nonzero load). The arithmetic
+#: multiplies up to about eight of them (a stiffness V H / h^2 times a lever arm squared, an
+#: energy, their sums over up to 1e9 springs), and within these bounds every such product
+#: stays far inside float64 (1e+-308): nothing overflows to inf, underflows to 0, or becomes
+#: subnormal. They are far beyond any joint: 1e30 mm is 1e11 light years.
+LARGEST = 1e30
+SMALLEST = 1e-30
+
+
+def check_range(name: str, arr, unit: str = "", *, positive: bool = False) -> None:
+    """Raise :class:`InputError` unless every ``|value| <= LARGEST`` and, with ``positive``,
+    every value is ``>= SMALLEST`` (a scale); ``arr`` is already finite."""
+    arr = np.asarray(arr, dtype=float)
+    flat = arr.reshape(-1)
+    unit = f" {unit}" if unit else ""
+    big = np.flatnonzero(np.abs(flat) > LARGEST)
+    if big.size:
+        i = int(big[0])
+        raise InputError(f"{name} must be at most {LARGEST:g}{unit} in magnitude (products of such values overflow "
+                         f"float64), got {flat[i]:g}{_at(arr, i)}")
+    if positive:
+        small = np.flatnonzero(flat < SMALLEST)
+        if small.size:
+            i = int(small[0])
+            raise InputError(f"{name} must be at least {SMALLEST:g}{unit} (it divides and sets a scale; smaller "
+                             f"values underflow float64), got {flat[i]:g}{_at(arr, i)}")
+
+
+def _at(arr: np.ndarray, flat_index: int) -> str:
+    if arr.ndim == 0:
+        return ""
+    index = tuple(int(i) for i in np.unravel_index(flat_index, arr.shape))
+    return f" at index {index[0] if len(index) == 1 else index}"
+
+
 def as_float_array(name: str, value, shape: tuple, *, allow_scalar_for=None) -> np.ndarray:
     """``value`` as a float64 C-contiguous array of ``shape`` (``None`` entries free).
 
@@ -43,7 +79,8 @@ def _shape(shape) -> str:
     return f"({inner},)" if len(shape) == 1 else f"({inner})"
 
 
-def vector3(name: str, value) -> tuple:
+def vector3(name: str, value, unit: str = "mm") -> tuple:
+    """A finite 3-vector of magnitude at most :data:`LARGEST` per component, as a tuple."""
     if value is None:
         value = (0.0, 0.0, 0.0)
     if np.ndim(value) == 0:
@@ -53,16 +90,19 @@ def vector3(name: str, value) -> tuple:
         except (TypeError, ValueError):
             pass
     arr = as_float_array(name, value, (3,))
+    check_range(name, arr, unit)
     return tuple(float(v) for v in arr)
 
 
-def finite_number(name: str, value) -> float:
+def finite_number(name: str, value, unit: str = "") -> float:
+    """A finite number of magnitude at most :data:`LARGEST`."""
     try:
         v = float(value)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError, OverflowError):
         raise InputError(f"{name} must be a number, got {_describe(value)}") from None
     if not math.isfinite(v):
         raise InputError(f"{name} must be finite, got {v}")
+    check_range(name, v, unit)
     return v
 
 

@@ -8,9 +8,9 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ._validate import finite_number, vector3
+from ._validate import SMALLEST, finite_number, vector3
 from .errors import InputError
-from .formulations.energy import SpringSystem
+from .formulations.energy import SpringSystem, require_finite, resistance, unresisted
 from .kinematics import DOF_NAMES, DOFS, normal_operator
 from .laws import Law, check_law
 from .layer import SpringLayer
@@ -37,10 +37,10 @@ class Load:
     point: tuple | None = None
 
     def __post_init__(self):
-        object.__setattr__(self, "force", vector3("force", self.force))
-        object.__setattr__(self, "moment", vector3("moment", self.moment))
+        object.__setattr__(self, "force", vector3("force", self.force, "N"))
+        object.__setattr__(self, "moment", vector3("moment", self.moment, "N mm"))
         if self.point is not None:
-            object.__setattr__(self, "point", vector3("point", self.point))
+            object.__setattr__(self, "point", vector3("point", self.point, "mm"))
 
     def about(self, reference) -> tuple[tuple, tuple]:
         """``(force, moment)`` with the moment taken about ``reference``."""
@@ -94,16 +94,16 @@ class Body:
 
     def __post_init__(self):
         set_ = object.__setattr__
-        set_(self, "reference", vector3("reference", self.reference))
-        set_(self, "force", vector3("force", self.force))
-        set_(self, "moment", vector3("moment", self.moment))
+        set_(self, "reference", vector3("reference", self.reference, "mm"))
+        set_(self, "force", vector3("force", self.force, "N"))
+        set_(self, "moment", vector3("moment", self.moment, "N mm"))
         if not hasattr(self.prescribed, "items"):
             raise InputError(f"prescribed must be a mapping {{dof: value}}, got {self.prescribed!r}")
         prescribed = {}
         for dof, value in self.prescribed.items():
             if dof not in DOFS:
                 raise InputError(f"prescribed must use dof names from {DOFS}, got {dof!r}")
-            prescribed[dof] = finite_number(f"prescribed[{dof!r}]", value)
+            prescribed[dof] = finite_number(f"prescribed[{dof!r}]", value, "mm or rad")
         set_(self, "prescribed", MappingProxyType(prescribed))
         set_(self, "free", tuple(d for d in _dof_tuple("free", self.free) if d not in prescribed))
 
@@ -184,6 +184,7 @@ class ContactProblem:
         if not isinstance(body2, Body):
             raise InputError(f"body2 must be a dea_opt.Body, got {type(body2).__name__}")
         object.__setattr__(self, "body2", body2)
+        _check_load_scale(self.load_vector)
 
     # --- copies -------------------------------------------------------------------------
     def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None, body: int = 2):
@@ -253,8 +254,20 @@ class ContactProblem:
         AT, e0, volume = self._geometry
         lengths = np.concatenate([np.ones(3), np.full(3, self.layer_radius[0]),
                                   np.ones(3), np.full(3, self.layer_radius[1])])
-        return SpringSystem(AT, e0, volume, self.load_vector[self.free_indices], lengths[self.free_indices],
-                            self._factor)
+        system = SpringSystem(AT, e0, volume, self.load_vector[self.free_indices], lengths[self.free_indices],
+                              self._factor, self._stiffness)
+        # Which directions the springs resist depends on the geometry only: decided once per
+        # geometry and shared by every load (the cache is copied by with_load).
+        if "_resistance" not in self.__dict__:
+            self.__dict__["_resistance"] = resistance(system)
+        system.__dict__["resistance"] = self.__dict__["_resistance"]
+        return system
+
+    @cached_property
+    def _stiffness(self) -> float:
+        """``sum_i S_i / h_i`` (mm): the layer's stiffness scale per unit modulus, against
+        which directions are judged unresisted (:func:`~dea_opt.formulations.energy.unresisted`)."""
+        return float(np.sum(self.layer.areas / self.layer.thickness))
 
     @cached_property
     def _factor(self) -> np.ndarray:
@@ -279,11 +292,13 @@ class ContactProblem:
         radius = float(np.sqrt(weight @ np.sum((layer.points - g) ** 2, axis=1) / weight.sum()))
         radius = radius if radius > 1e-100 else 1.0  # springs at one point resist no rotation
         Dg = np.array([1.0, 1.0, 1.0, radius, radius, radius])
-        vals, vecs = np.linalg.eigh(M / np.outer(Dg, Dg))
-        # A Gram matrix holds rounding noise at about 1e-16 of its largest eigenvalue: what
-        # lies below 1e-14 is a direction no spring resists (a singular value below 1e-7 in
-        # this basis, where far references no longer squeeze the tilt).
-        keep = vals > 1e-14 * max(vals[-1], 0.0)
+        M = M / np.outer(Dg, Dg)
+        require_finite("the layer's stiffness matrix", M)
+        vals, vecs = np.linalg.eigh(M)
+        # A Gram matrix holds rounding noise at about 1e-16 of its largest eigenvalue; the one
+        # test of "unresisted", against the layer's stiffness sum S / h (the trace of M's
+        # translation block), drops those directions (formulations/energy.md).
+        keep = ~unresisted(vals, max(float(weight.sum()), float(vals[-1])))
         L = Dg[:, None] * vecs[:, keep] * np.sqrt(vals[keep])  # M = L L^T
         C = np.zeros((6, m))
         for col, j in enumerate(self.free_indices):
@@ -331,7 +346,18 @@ class ContactProblem:
 
 #: Cached properties that depend on the layer, the references and the free and prescribed
 #: dofs only, never on the loads.
-_GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius", "_factor")
+_GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius", "_factor",
+                   "_stiffness", "_resistance")
+
+
+def _check_load_scale(load: np.ndarray) -> None:
+    """A nonzero load sets the scale the formulations solve in: its largest component must be
+    at least :data:`~dea_opt._validate.SMALLEST` (0 means no load)."""
+    top = float(np.abs(load).max(initial=0.0))
+    if 0.0 < top < SMALLEST:
+        raise InputError(
+            f"the load's largest component is {top:g} (N or N mm): a nonzero load must reach at least "
+            f"{SMALLEST:g} in some component (it sets the scale the problem is solved in); use 0 for no load")
 
 
 def _body_key(body) -> str:

@@ -1,4 +1,20 @@
-"""One result type for every formulation, carrying the certificate dea_opt computes itself."""
+"""One result type for every formulation, carrying the certificate dea_opt computes itself.
+
+The certificate (:func:`certify`) is a check a reader can redo with the problem's arrays and
+``u``; ``formulations/energy.md`` ("The certificate") and the README state the same
+definitions. With ``f_i = S_i sigma(min(eps_i, 0))`` the law's spring forces at ``u`` (N,
+tension positive), ``f^rep_i`` the forces the formulation reported, ``q = G_free^T f`` the
+generalized spring force on the free dofs and ``r`` the load there (N; N mm for rotations),
+``L_j`` 1 for a translation and the layer's radius about the body's reference for a
+rotation (mm), and ``H`` the law's small-strain modulus, every force residual is relative
+to one force scale
+
+    F = max( max_j |r_j| / L_j,  sum_i |f_i|,  H sum_i S_i max(-e0_i, 0) )
+
+(the load, the springs' total force, and the force of the initial overlap of gaps and
+prescribed motion), none of which is rounding noise when the others vanish. A residual whose
+numerator is exactly 0 is 0 (also when ``F = 0``).
+"""
 
 from __future__ import annotations
 
@@ -7,7 +23,12 @@ from functools import cached_property
 
 import numpy as np
 
-from .formulations.energy import bonded_basis, single_threaded_blas
+from .formulations.energy import (
+    modulus_scale,
+    require_finite,
+    single_threaded_blas,
+    unresisted,
+)
 from .kinematics import DOF_NAMES
 from .validity import Validity, assess
 
@@ -18,26 +39,33 @@ __all__ = ["Certificate", "Solution", "certify"]
 class Certificate:
     """Residuals computed by dea_opt from ``u``, never taken from a solver.
 
+    Notation as in the module docstring (``F`` the force scale, ``L_j`` the dof lengths).
+
     Attributes
     ----------
     equilibrium : float
-        The residual ``g = q - r`` over the free dofs (``q`` the generalized force of the
-        law's spring forces at ``u``), the larger of two measures: in the norm of the bonded
-        stiffness ``K0``, ``sqrt(g K0^+ g / r K0^+ r)`` (free of units and of where the
-        reference points are), and per dof relative to ``max(|r|, sum |f_i|)`` with moments
-        divided by the layer's radius. Any load along a direction no spring resists counts
-        in full.
+        The largest of three parts. (1) Per free dof: ``max_j |q_j - r_j| / L_j / F``.
+        (2) The fraction of the load that acts along directions no spring resists
+        (:class:`~dea_opt.formulations.energy.Resistance`): ``|P r / L| / |r / L|`` with
+        ``P`` the orthogonal projector onto those directions (in arc lengths), so a load no
+        spring can carry counts in full whatever its size. (3) The spring forces that the
+        answer's motion along those directions produces (motion no spring resists changes no
+        strain except through rounding): ``sum_i |f_i - f'_i| / F`` with ``f'`` the forces
+        with that motion removed.
     tension : float
-        Tensile spring force the formulation reported, as a fraction of the total force.
+        ``sum_i max(f^rep_i, 0) / F``: tensile force the formulation reported.
     complementarity : float
-        ``sum_i |f_i| max(eps_i, 0)`` over the total force: open springs carry nothing.
+        ``sum_i |f^rep_i| max(eps_i, 0) / F``: open springs carry nothing.
     consistency : float
-        The formulation's own spring forces (the duals, for the constrained formulations)
-        against the law's: ``sum_i`` of how far ``f_i^rep`` lies outside the forces the law
-        gives for strains within ``tolerance * max |eps|`` of ``eps_i``, over the total force.
+        ``sum_i`` of how far ``f^rep_i`` lies outside ``S_i [sigma(eps_i - d), sigma(eps_i + d)]``
+        (strains clipped at 0), over ``F``, with ``d = tolerance * max(max_i -min(eps_i, 0),
+        max_i -min(e0_i, 0))``: the formulation's forces are what the law gives at a strain
+        within the certified precision of the compression.
     energy : float
-        Energy a further Newton step could still release, ``g^T K^+ g / 2``, relative to
-        the strain energy plus the work of the load.
+        Energy a further Newton step could still release, ``g^T K^+ g / 2`` with ``g = q - r``
+        and ``K`` the tangent of the compressed springs, over the resisted directions (its
+        pseudo-inverse drops what :func:`~dea_opt.formulations.energy.unresisted` calls no
+        stiffness), relative to ``max(stored energy + |r . x|, H sum_i V_i min(e0_i, 0)^2 / 2)``.
     tolerance : float
         The bound every residual must meet.
     """
@@ -74,21 +102,18 @@ class Certificate:
         }
 
 
-def _stiffness_norm_ratio(system, modulus, g, q) -> float:
-    """``sqrt(g K0^+ g / max(r K0^+ r, q K0^+ q))`` plus the part of ``g`` nothing resists."""
-    T1, null = bonded_basis(system, modulus)
-    r = system.load
-
-    def norm(v):
-        return float(np.linalg.norm(T1.T @ v))
-
-    scale = max(norm(r), norm(q), 1e-300)
-    rnorm = max(np.linalg.norm(r), np.linalg.norm(q), 1e-300)
-    return max(norm(g) / scale, float(np.linalg.norm(null.T @ g) / rnorm))
+def _ratio(numerator: float, scale: float) -> float:
+    """``numerator / scale``, 0 when the numerator is exactly 0 (nothing to measure)."""
+    if numerator == 0.0:
+        return 0.0
+    return numerator / scale if scale > 0 else float("inf")
 
 
 def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate:
     """Check ``u`` against the law: equilibrium, sign, complementarity, optimality.
+
+    Every residual is defined in :class:`Certificate`; they use dea_opt's own arrays and
+    ``u``, nothing the solver computed except ``reported_stress``.
 
     Parameters
     ----------
@@ -105,6 +130,7 @@ def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate
 def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
     layer, law = problem.layer, problem.law
     system = problem.system()
+    res = system.resistance
     free = problem.free_indices
     x = np.asarray(u, dtype=float)[free]
     eps = problem.strain(u)
@@ -115,43 +141,65 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
         reported = layer.areas * np.asarray(reported_stress, dtype=float)
         # A^T (V sigma) = G_free^T (S sigma): the generalized spring force on the free dofs.
         q = system.AT @ (system.volume * sigma)
-    g = q - system.load
-    if not (np.isfinite(sigma).all() and np.isfinite(reported).all()):
+    if not (np.isfinite(sigma).all() and np.isfinite(reported).all() and np.isfinite(q).all()):
         nan = float("nan")
         return Certificate(nan, nan, nan, nan, nan, tolerance)
-    # Forces below a strain of 1e-12 everywhere are rounding noise, not a scale.
-    floor = 1e-12 * float(layer.areas.sum()) * (law.modulus if law.modulus > 0 else 1.0)
-    total = max(np.abs(force).sum(), np.abs(reported).sum(), floor, 1e-300)
-    tension = float(np.maximum(reported, 0.0).sum() / total)
-    complementarity = float(np.abs(reported) @ np.maximum(eps, 0.0) / total)
+    r, L = system.load, system.lengths
+    H = modulus_scale(law.modulus)
+    # The initial overlap (gaps and prescribed motion): usually none, and then no pass over it.
+    overlap = np.maximum(-system.e0, 0.0) if system.e0.min(initial=0.0) < 0 else None
+    preload = 0.0 if overlap is None else H * float(layer.areas @ overlap)
+    F = max(float(np.abs(r / L).max(initial=0.0)), float(np.abs(force).sum()), preload)
+    g = q - r
+    equilibrium = _ratio(float(np.abs(g / L).max(initial=0.0)), F)
+    if res.null.shape[1]:
+        equilibrium = max(equilibrium, res.load_fraction(r))
+        z = res.motion_part(x)
+        if z.any():
+            with np.errstate(invalid="ignore", over="ignore"):
+                held = layer.areas * law.stress(np.minimum(eps - z @ system.AT, 0.0))
+            equilibrium = max(equilibrium, _ratio(float(np.nan_to_num(np.abs(force - held), nan=np.inf).sum()), F))
+    tension = _ratio(float(np.maximum(reported, 0.0).sum()), F)
+    complementarity = _ratio(float(np.abs(reported) @ np.maximum(eps, 0.0)), F)
     # A reported force is consistent when the law gives it at a strain within the certified
-    # precision (tolerance x the largest strain): springs on the edge of the contact, where
-    # interior-point duals are of order sqrt(mu), are judged on what the strain allows.
-    delta = tolerance * max(float(np.abs(eps).max(initial=0.0)), 1e-300)
+    # precision of the compression: springs on the edge of the contact, where interior-point
+    # duals are of order sqrt(mu), are judged on what the strain allows.
+    delta = tolerance * max(float(-compressed.min(initial=0.0)), float(-system.e0.min(initial=0.0)))
     with np.errstate(invalid="ignore", over="ignore"):
         low = layer.areas * law.stress(np.minimum(eps - delta, 0.0))
         high = layer.areas * law.stress(np.minimum(eps + delta, 0.0))
     excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
-    consistency = float(np.nan_to_num(excess, nan=np.inf).sum() / total)
-    equilibrium = energy = 0.0
-    if free.size:
-        length = np.repeat(problem.layer_radius, 6)[free]
-        length[free % 6 < 3] = 1.0
-        per_dof = np.linalg.norm(g / length) / max(np.linalg.norm(system.load / length), np.abs(force).sum(), 1e-300)
-        equilibrium = max(float(per_dof), _stiffness_norm_ratio(system, law.modulus, g, q))
-        rows = np.flatnonzero(eps < 0)
-        if rows.size:
-            with np.errstate(invalid="ignore", over="ignore"):
-                weight = system.volume[rows] * law.tangent(compressed[rows])
-                stored = float(system.volume[rows] @ law.energy(compressed[rows]))
-            AT = system.AT[:, rows]
-            K = (AT * weight) @ AT.T
-            if np.isfinite(K).all():
-                decrement = float(g @ np.linalg.lstsq(K, g, rcond=1e-12)[0])
-                energy = 0.5 * abs(decrement) / max(stored + abs(float(system.load @ x)), 1e-300)
-            else:
-                energy = float("nan")
+    consistency = _ratio(float(np.nan_to_num(excess, nan=np.inf).sum()), F)
+    energy = _energy_residual(system, res, law, eps, g, x, H, overlap) if free.size else 0.0
     return Certificate(equilibrium, tension, complementarity, consistency, energy, tolerance)
+
+
+def _energy_residual(system, res, law, eps, g, x, H, overlap) -> float:
+    """``g^T K^+ g / 2`` over the resisted directions, relative to the energy scale."""
+    rows = np.flatnonzero(eps < 0)
+    if not rows.size or not res.n_resisted:
+        return 0.0
+    compressed = eps[rows]
+    with np.errstate(invalid="ignore", over="ignore"):
+        weight = system.volume[rows] * law.tangent(compressed)
+        stored = float(system.volume[rows] @ law.energy(compressed))
+    AT = system.AT[:, rows]
+    K = (AT * weight) @ AT.T
+    if not (np.isfinite(K).all() and np.isfinite(stored)):
+        return float("nan")
+    # In the resisted basis (T1^T K0 T1 = I at the law's modulus) the bonded layer's
+    # stiffness is the identity: the scale the one test of "unresisted" judges against.
+    T1 = res.basis(H)
+    Kt = T1.T @ K @ T1
+    gt = T1.T @ g
+    require_finite("the certificate's tangent", Kt, gt)
+    vals, vecs = np.linalg.eigh(Kt)
+    keep = ~unresisted(vals, max(float(vals[-1]), 1.0))
+    coeff = vecs[:, keep].T @ gt
+    decrement = float(coeff @ (coeff / vals[keep]))
+    preload = 0.0 if overlap is None else 0.5 * H * float(system.volume @ overlap**2)
+    scale = max(stored + abs(float(system.load @ x)), preload)
+    return _ratio(0.5 * abs(decrement), scale)
 
 
 @dataclass(frozen=True, eq=False)

@@ -11,8 +11,14 @@ import numpy as np
 
 from . import formulations
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
-from .formulations.energy import single_threaded_blas
-from .kinematics import DOF_NAMES
+from .formulations.energy import (
+    check_options,
+    require_finite,
+    single_threaded_blas,
+    start_vector,
+    trivial_result,
+    unresisted,
+)
 from .problem import ContactProblem
 from .solution import Solution, certify
 
@@ -24,75 +30,101 @@ METHODS = ("auto", *formulations.FORMULATIONS)
 _CONE_TOL = 1e-7
 
 
-def _describe_direction(names, vector, load_vector) -> str:
+def _describe_direction(problem: ContactProblem, names, vector) -> str:
+    """The large components of a generalized force in words, each in its own units: a force
+    in N, a moment in N mm about the body's reference point."""
     vector = np.asarray(vector, dtype=float)
-    big = np.abs(vector) >= 1e-3 * np.abs(vector).max()
+    top = float(np.abs(vector).max(initial=0.0))
     parts = []
-    for name, value, r in zip(names, vector, load_vector):
-        if not big[names.index(name)]:
+    for name, value in zip(names, vector):
+        if top == 0.0 or abs(value) < 1e-3 * top:
             continue
         body, dof = name.split(".")
-        kind = "force" if dof[0] == "u" else "moment"
-        axis = dof[1]
-        unit = "N" if kind == "force" else "N mm"
-        parts.append(f"{kind} {value:+.4g} {unit} along {axis} on {body}")
-    return ", ".join(parts)
+        reference = (problem.body1 if body == "body1" else problem.body2).reference
+        if dof[0] == "u":
+            parts.append(f"force {value:+.4g} N along {dof[1]} on {body}")
+        else:
+            point = ", ".join(f"{c:.4g}" for c in reference)
+            parts.append(f"moment {value:+.4g} N mm along {dof[1]} on {body} (about its reference point "
+                         f"({point}) mm)")
+    return ", ".join(parts) or "none"
 
 
 def check_load_supported(problem: ContactProblem) -> None:
     """Raise :class:`LoadNotSupportedError` when compression-only springs cannot carry the load.
 
-    A solution exists iff the load lies in the cone of the spring directions,
-    ``r = -A^T lambda`` with ``lambda >= 0`` (``formulations/energy.md``). Tested with
-    non-negative least squares; the unbalanced remainder names the direction.
+    Two tests (``formulations/energy.md``, "When is there a solution?"): a part of the load
+    along directions no spring resists (:func:`_check_unresisted`, the same test as the
+    formulations' scaling and the certificate), then the cone test: a solution exists iff the
+    load lies in the cone of the spring directions, ``r = -A^T lambda`` with ``lambda >= 0``,
+    tested with non-negative least squares over the resisted directions; the unbalanced
+    remainder names the direction.
     """
     system = problem.system()
+    if not system.n_dofs or not system.load.any():
+        return
+    _check_unresisted(problem, system)
+    _check_cone(problem, system)
+
+
+def _check_unresisted(problem: ContactProblem, system) -> None:
+    """Raise when more than ``_CONE_TOL`` of the load acts along directions no spring resists."""
     r = system.load
+    require_finite("the load", r)
+    res = system.resistance
+    fraction = res.load_fraction(r)
+    if fraction <= _CONE_TOL:
+        return
     names = list(problem.free_names)
-    if not names:
-        return
-    rnorm = np.linalg.norm(r)
-    if rnorm == 0:
-        return
-    if system.n_springs == 0:
-        raise LoadNotSupportedError(
-            f"no spring resists the free dofs {tuple(names)}, so the load cannot be carried: "
-            f"{_describe_direction(names, r, r)}; add springs or fix these dofs",
-            direction=dict(zip(names, r.tolist())),
-        )
+    part = res.load_part(r)
+    if res.n_resisted == 0:
+        reason = f"no spring resists any of the free dofs {tuple(names)}"
+        if not system.n_springs:
+            reason += " (the layer has no springs)"
+        message = (f"{reason}, so the load along them cannot be carried: {_describe_direction(problem, names, part)}. "
+                   f"Fix these dofs, remove this load, or add springs that resist them.")
+    else:
+        message = (f"no spring resists part of this load: {_describe_direction(problem, names, part)} "
+                   f"({fraction:.3g} of the load) acts along a direction the springs cannot push back on "
+                   f"({'; '.join(res.describe(names))}). Fix that dof, remove that part of the load, or add springs.")
+    raise LoadNotSupportedError(message, direction=dict(zip(names, part.tolist())))
+
+
+def _check_cone(problem: ContactProblem, system) -> None:
+    """The cone test over the resisted directions, in arc lengths (moments over the radius)."""
     from scipy.optimize import nnls
 
-    from .formulations.energy import bonded_basis
-
-    # A load along a direction no spring resists at all: named exactly, before the cone test
-    # (which could balance a nearly unresisted direction only with enormous forces).
-    _, null = bonded_basis(system)
-    unresisted = null @ (null.T @ r)
-    if np.linalg.norm(unresisted) > _CONE_TOL * rnorm:
-        raise LoadNotSupportedError(
-            f"no spring resists part of this load: {_describe_direction(names, unresisted, r)} "
-            f"({np.linalg.norm(unresisted) / rnorm:.3g} of the load) acts along a direction the springs "
-            f"cannot push back on. Fix that dof, remove that part of the load, or add springs.",
-            direction=dict(zip(names, unresisted.tolist())),
-        )
-
-    # Columns scaled to unit length so that nnls sees a well-conditioned cone.
-    columns = -system.A.T
-    norms = np.linalg.norm(columns, axis=0)
-    keep = norms > 0
-    columns = columns[:, keep] / norms[keep]
-    try:
-        _, residual_norm = nnls(columns, r, maxiter=50 * max(len(r), 1) + 100)
-    except RuntimeError:
-        return  # undecided: leave it to the solver and its certificate
-    if residual_norm <= _CONE_TOL * rnorm:
+    res = system.resistance
+    D, Q = res.lengths, res.range
+    rhs = Q.T @ (system.load / D)
+    rnorm = float(np.linalg.norm(rhs))
+    if rnorm == 0.0:
         return
-    lam, _ = nnls(columns, r, maxiter=50 * max(len(r), 1) + 100)
-    remainder = r - columns @ lam
+    # Each spring's generalized force direction, restricted to what the springs resist; a
+    # spring whose direction there is no stiffness at all (by the one test) joins no cone.
+    columns = -(Q.T @ (system.AT / D[:, None]))
+    norms = np.linalg.norm(columns, axis=0)
+    keep = ~unresisted(system.volume * norms**2, res.scale) & (norms > 0)
+    columns = columns[:, keep] / norms[keep]
+    names = list(problem.free_names)
+    if columns.shape[1]:
+        # nnls is compiled code: never hand it an empty or non-finite matrix (it aborts the
+        # process on an m x 0 one).
+        require_finite("the spring directions", columns, rhs)
+        try:
+            lam, residual_norm = nnls(columns, rhs, maxiter=50 * max(len(rhs), 1) + 100)
+        except RuntimeError:
+            return  # undecided: leave it to the solver and its certificate
+        if residual_norm <= _CONE_TOL * rnorm:
+            return
+        remainder = rhs - columns @ lam
+    else:
+        remainder, residual_norm = rhs, rnorm
+    remainder = D * (Q @ remainder)
     pulls = "pulls the bodies apart or loads a direction no spring resists"
     raise LoadNotSupportedError(
         f"compression-only springs cannot carry this load: it {pulls}. "
-        f"Unbalanced part: {_describe_direction(names, remainder, r)} "
+        f"Unbalanced part: {_describe_direction(problem, names, remainder)} "
         f"({residual_norm / rnorm:.3g} of the load). Check the load's sign (body 2 is pushed "
         f"toward body 1 by a load along -normal), fix the unresisted dofs, or add springs.",
         direction=dict(zip(names, remainder.tolist())),
@@ -130,39 +162,55 @@ def _run(problem: ContactProblem, method: str, certificate_tol: float, options: 
     start = time.perf_counter()
     system = problem.system()
     build = time.perf_counter() - start
+    _check_common_options(system, options)
+    result = _formulation_result(problem, system, method, module, options)
+    return certified_solution(problem, result, method, certificate_tol, build + result.build_time)
+
+
+def _formulation_result(problem: ContactProblem, system, method: str, module, options: dict):
+    """The raw answer of ``method``, or of no solver where none is needed."""
     if system.n_dofs == 0:
-        result = formulations.FormulationResult(
+        return formulations.FormulationResult(
             x=np.zeros(0), stress=problem.law.stress(np.minimum(system.e0, 0.0)), success=True,
             status="no_free_dofs", message="every dof is fixed or prescribed",
         )
-    elif not system.load.any() and system.e0.min(initial=0.0) >= 0:
-        # Nothing pushes the bodies together: the springs stay as they are.
-        result = formulations.FormulationResult(
-            x=np.zeros(system.n_dofs), stress=np.zeros(system.n_springs), success=True,
-            status="unloaded", message="no load and no overlap: nothing to carry",
-        )
-    elif not system.load.any():
-        # Overlapping springs with no load only push the bodies apart until they no longer
-        # touch; every separated position is an equilibrium, so the constrained formulations
-        # face an unbounded optimal set. One answer is returned for every method: Newton's.
+    # Every method, Newton included: a load along a direction no spring resists is never
+    # "solved" (the same test as the scaling and the certificate).
+    if system.load.any():
+        _check_unresisted(problem, system)
+    trivial = trivial_result(system, problem.law)
+    if trivial is not None:
+        return trivial
+    if not system.load.any():
+        # Overlapping springs with no load: they push the bodies apart until they no longer
+        # touch (every separated position is then an equilibrium, an unbounded set for the
+        # constrained formulations), or, where they surround a body, to the position where
+        # they balance. One answer is returned for every method: Newton's.
         result = formulations.get("newton").solve(system, problem.law)
-        result.status = "unloaded"
-        result.message = ("no load: the overlap only pushes the bodies apart, and every separated "
-                          "position is an equilibrium (Newton's is returned)")
-    else:
-        if method != "newton":
-            check_load_supported(problem)
-        try:
-            result = module.solve(system, problem.law, **options)
-        except SolverError as exc:
-            # A solver that raised still yields a (failed) Solution, so that auto can fall
-            # back and strict=False can report it like any other failure.
-            nan = np.full(system.n_dofs, np.nan)
-            result = formulations.FormulationResult(
-                x=nan, stress=np.full(system.n_springs, np.nan), success=False,
-                status=exc.status or "solver_error", message=str(exc),
-            )
-    return certified_solution(problem, result, method, certificate_tol, build + result.build_time)
+        if result.success:
+            result.status = "preloaded"
+            result.message = ("no load: only the initial overlap compresses springs; the bodies move until "
+                              "the springs balance each other (Newton's answer, for every method)")
+        result.info["solved_by"] = "newton"
+        return result
+    if method != "newton":
+        _check_cone(problem, system)
+    try:
+        return module.solve(system, problem.law, **options)
+    except SolverError as exc:
+        # A solver that raised still yields a (failed) Solution, so that auto can fall
+        # back and strict=False can report it like any other failure.
+        return formulations.FormulationResult(
+            x=np.full(system.n_dofs, np.nan), stress=np.full(system.n_springs, np.nan), success=False,
+            status=exc.status or "solver_error", message=str(exc),
+        )
+
+
+def _check_common_options(system, options: dict) -> None:
+    """The options every formulation shares, validated before anything is solved (also for
+    problems that need no solver, so that a bad option never passes silently)."""
+    check_options(**{k: v for k, v in options.items() if k in ("tol", "xtol", "gtol", "max_iter")})
+    start_vector(system, options.get("x0"))
 
 
 def certified_solution(problem: ContactProblem, result, method: str, certificate_tol: float = 1e-6,
@@ -170,7 +218,9 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     """Turn a formulation's raw :class:`~dea_opt.formulations.FormulationResult` into a
     :class:`Solution` with dea_opt's own certificate (``success`` only if it passes).
 
-    For callers that drive the formulation models themselves (load paths, studies).
+    Where some free directions are unresisted, ``info["held"]`` names them (they take no
+    motion and carry no load) and the message says so. For callers that drive the formulation
+    models themselves (load paths, studies).
     """
     u = problem.full_u(result.x)
     n = len(problem.layer)
@@ -184,11 +234,19 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     else:
         certificate = certify(problem, np.zeros(12), np.full(n, np.nan), certificate_tol)
     success = bool(finite and certificate.passed and np.isfinite(pressure).all())
+    info, message = dict(result.info, solver_success=result.success), result.message
+    held = problem.system().resistance.describe(problem.free_names) if problem.free_indices.size else []
+    if held:
+        # Directions no spring resists carry no load (check_load_supported) and take no
+        # motion: the answer is the minimum-norm one. Said, so that nobody reads u there.
+        info["held"] = held
+        if result.status != "held":
+            message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
     return Solution(
         problem=problem, u=u, strain=strain, pressure=pressure, method=method, success=success,
-        status=result.status, message=result.message, iterations=result.iterations,
+        status=result.status, message=message, iterations=result.iterations,
         build_time=build_time, solve_time=result.solve_time,
-        certificate=certificate, info=dict(result.info, solver_success=result.success),
+        certificate=certificate, info=info,
     )
 
 
@@ -230,6 +288,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
         raise InputError(f"method must be one of {METHODS}, got {method!r}")
     if not isinstance(certificate_tol, (int, float)) or not (0 < certificate_tol < 1) or math.isnan(certificate_tol):
         raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
+    _check_common_options(problem.system(), options)
     if method == "auto":
         newton_options = {k: v for k, v in options.items() if k in ("x0", "max_iter")}
         solution = _run(problem, "newton", certificate_tol, newton_options)

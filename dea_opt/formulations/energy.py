@@ -8,15 +8,23 @@ The reduced problem over the ``m`` free degrees of freedom ``x`` (``formulations
 ``A`` holds the rows ``n_i^T B_i / h_i`` of Eq. (11) restricted to the free dofs and ``e0``
 the strain at ``x = 0`` (gap and prescribed motion). Spring stress is ``sigma_i`` (MPa,
 tension positive); the spring force is ``S_i sigma_i``.
+
+Also here: the one test of "no spring resists this direction" (:func:`unresisted`,
+:func:`resistance`), the guards every formulation runs before compiled code
+(:func:`require_finite`, :func:`check_options`, :func:`start_vector`) and the answers that need
+no solver (:func:`trivial_result`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import math
 from dataclasses import dataclass, field
-from functools import lru_cache
+from functools import cached_property, lru_cache
 
 import numpy as np
+
+from ..errors import InputError, SolverError
 
 
 @dataclass(frozen=True, eq=False)
@@ -38,8 +46,14 @@ class SpringSystem:
         See :attr:`lengths`.
     factor : ndarray, shape (r, m), optional
         ``F`` with ``F^T F = A^T diag(V) A``, computed from the geometry in a well-conditioned
-        basis (rotations about the layer's centroid); lets :func:`bonded_basis` skip a QR
-        factorization of an N x m matrix.
+        basis (rotations about the layer's centroid); lets :func:`resistance` skip a singular
+        value decomposition of an N x m matrix.
+    stiffness : float, optional
+        The layer's own stiffness scale per unit modulus, ``k = sum_i S_i / h_i`` (mm): the sum
+        of every spring's stiffness along its normal, independent of which dofs are free.
+        Directions are judged unresisted against it (:func:`unresisted`). Without it (a system
+        built by hand) the largest stiffness among the free dofs stands in, which cannot tell
+        a layer that resists none of its free dofs from one that resists them all.
     """
 
     AT: np.ndarray
@@ -48,6 +62,7 @@ class SpringSystem:
     load: np.ndarray
     dof_length: np.ndarray | None = None
     factor: np.ndarray | None = None
+    stiffness: float | None = None
 
     @property
     def lengths(self) -> np.ndarray:
@@ -71,9 +86,17 @@ class SpringSystem:
     def strain(self, x) -> np.ndarray:
         return self.e0 + np.asarray(x, dtype=float) @ self.AT
 
-    def with_load(self, load) -> "SpringSystem":
-        return SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
-                            self.factor)
+    def with_load(self, load) -> SpringSystem:
+        new = SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
+                           self.factor, self.stiffness)
+        if "resistance" in self.__dict__:  # the same geometry: the same decision
+            new.__dict__["resistance"] = self.__dict__["resistance"]
+        return new
+
+    @cached_property
+    def resistance(self) -> Resistance:
+        """Which free-dof directions the springs resist (:func:`resistance`), computed once."""
+        return resistance(self)
 
 
 @dataclass
@@ -95,21 +118,16 @@ class FormulationResult:
     info: dict = field(default_factory=dict)
 
 
-#: Ratio of a direction's stiffness "singular value" to the largest below which no spring
-#: resists it (rounding noise in the spring directions is about 1e-15).
-UNRESISTED = 1e-10
-
-
 @dataclass(frozen=True, eq=False)
 class Scaling:
     """A change of variables that makes every formulation see a well-conditioned problem.
 
     ``x = T xi`` with ``T = Q Lambda^(-1/2) s`` from the bonded stiffness
     ``K0 = A^T diag(V H) A = Q Lambda Q^T`` (``formulations/energy.md``, "Scaling"):
-    directions no spring resists are dropped, the remaining ones are made K0-orthonormal
-    (so units, lever arms and far reference points no longer matter), and ``s`` makes
-    ``xi = O(1)`` for the reference load. Energies are divided by ``E0 = s^2`` and strains
-    are of order ``strain``.
+    directions no spring resists (:func:`resistance`) are dropped, the remaining ones are
+    made K0-orthonormal (so units, lever arms and far reference points no longer matter), and
+    ``s`` makes ``xi = O(1)`` for the larger of the reference load and the overlap. Energies
+    are divided by ``E0 = s^2`` and strains are of order ``strain``.
 
     Attributes
     ----------
@@ -150,56 +168,254 @@ class Scaling:
         return SpringSystem(self.AT, e0, self.volume, self.load(load))
 
 
-def bonded_basis(system: SpringSystem, modulus: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
-    """``(T1, null)``: ``T1`` (m, k) with ``T1^T K0 T1 = I`` over the resisted directions of
-    ``K0 = A^T diag(V modulus) A``, and an orthonormal basis ``null`` (m, m - k) of the rest.
+#: A direction of motion is *unresisted* when the springs' stiffness along it is at most this
+#: fraction of the layer's own stiffness scale (formulations/energy.md, "Unresisted
+#: directions"). It is 100 times the rounding of a Gram matrix (about 1e-16 of its largest
+#: eigenvalue), and a singular value of 1e-7 of the scale: far below the stiffness of any real
+#: direction (the tilt of a layer seen from a reference 1e6 layer radii away is about 1e-12).
+UNRESISTED = 1e-14
 
-    From the singular value decomposition of ``W D^-1``, ``W^T W = K0``, rather than an
-    eigendecomposition of ``K0``, which would square the condition number: a reference point
-    far from the layer makes the dofs nearly dependent, and the tilt of the layer must survive
-    that. ``W`` is the system's small ``factor`` when it has one, else the N x m matrix
-    ``diag(sqrt(V modulus)) A``. ``D`` (``lengths``) measures rotations as arc lengths, so that
-    the test for "no spring resists this direction" compares like with like, and ``T1`` has
-    no part along ``null`` (in those units), so that ``x = T1 xi`` is the minimum-norm motion,
-    the same whichever way the problem is turned.
+
+def unresisted(stiffness, scale: float) -> np.ndarray:
+    """The one test of "no spring resists this direction": ``stiffness <= UNRESISTED * scale``.
+
+    Parameters
+    ----------
+    stiffness : array_like
+        Stiffnesses along orthonormal directions: eigenvalues of a stiffness matrix, or
+        squared singular values of its factor.
+    scale : float
+        The stiffness the directions are judged against, in the same units: the layer's own
+        (:attr:`SpringSystem.stiffness` times the modulus), or the largest stiffness of the
+        same matrix where that is larger (rounding in a matrix is relative to its largest
+        entry, so nothing below ``UNRESISTED`` of it can be told from noise).
+
+    Returns
+    -------
+    ndarray of bool
+    """
+    return np.asarray(stiffness, dtype=float) <= UNRESISTED * scale
+
+
+def require_finite(what: str, *arrays) -> None:
+    """Raise :class:`SolverError` (status ``non_finite``) before compiled code (LAPACK,
+    NNLS, Clarabel, IPOPT) meets a NaN or an infinity, which some of them answer by
+    aborting the process rather than by an error."""
+    for arr in arrays:
+        if not np.isfinite(arr).all():
+            raise SolverError(
+                f"{what} holds NaN or infinite values (an input near the limits of float64?); "
+                f"nothing was passed to the solver", status="non_finite")
+
+
+@dataclass(frozen=True, eq=False)
+class Resistance:
+    """Which directions of the free dofs the springs resist, decided once by :func:`unresisted`.
+
+    Directions are measured in arc lengths: ``D x`` with ``D`` (:attr:`SpringSystem.lengths`)
+    1 for a translation and the layer's radius about the reference for a rotation, and loads
+    as ``r / D`` (moments over that radius), so translations and rotations compare like with
+    like.
+
+    Attributes
+    ----------
+    T1 : ndarray, shape (m, k)
+        ``T1^T K0 T1 = I`` for the bonded stiffness ``K0 = A^T diag(V) A`` at unit modulus,
+        over the ``k`` resisted directions; no part of its columns lies along ``null`` (in
+        arc lengths), so ``x = T1 xi`` is the minimum-norm motion.
+    null : ndarray, shape (m, m - k)
+        Orthonormal basis (in arc lengths) of the unresisted directions.
+    lengths : ndarray, shape (m,)
+        ``D``.
+    range : ndarray, shape (m, k)
+        Orthonormal basis (in arc lengths) of the resisted directions.
+    scale : float
+        The stiffness they were judged against (:attr:`SpringSystem.stiffness`, mm).
+    """
+
+    T1: np.ndarray
+    null: np.ndarray
+    lengths: np.ndarray
+    range: np.ndarray
+    scale: float
+
+    @property
+    def n_resisted(self) -> int:
+        return self.T1.shape[1]
+
+    def basis(self, modulus: float = 1.0) -> np.ndarray:
+        """``T1`` for a law of small-strain stiffness ``modulus``: ``T1^T K0 T1 = I`` with
+        ``K0 = A^T diag(V modulus) A``."""
+        return self.T1 / np.sqrt(modulus_scale(modulus))
+
+    def load_part(self, r) -> np.ndarray:
+        """The part of the generalized load ``r`` (N, N mm) along unresisted directions, in
+        the same units: what no spring force can balance."""
+        r = np.asarray(r, dtype=float)
+        if not self.n_resisted:
+            return r.copy()  # all of it, exactly
+        D = self.lengths
+        return D * (self.null @ (self.null.T @ (r / D)))
+
+    def load_fraction(self, r) -> float:
+        """``|P r / D| / |r / D|``: the fraction of the load (moments over the layer radius)
+        that acts along unresisted directions; 0 for no load."""
+        rD = np.asarray(r, dtype=float) / self.lengths
+        top = float(np.abs(rD).max(initial=0.0))
+        if top == 0.0 or not self.null.shape[1]:
+            return 0.0
+        rD = rD / top  # scaled first, so that neither square under- nor overflows
+        return float(np.linalg.norm(self.null.T @ rD) / np.linalg.norm(rD))
+
+    def motion_part(self, x) -> np.ndarray:
+        """The part of the free-dof motion ``x`` (mm, rad) along unresisted directions."""
+        D = self.lengths
+        return (self.null @ (self.null.T @ (np.asarray(x, dtype=float) * D))) / D
+
+    def describe(self, names) -> list[str]:
+        """The unresisted directions in words: each free dof that lies wholly among them by its
+        name (``"body2.rx"``), then any further direction as a combination
+        (``"0.707 body2.ux + 0.707 body2.rz"``, in arc lengths)."""
+        p = self.null.shape[1]
+        if not p:
+            return []
+        whole = [j for j in range(len(names)) if float(self.null[j] @ self.null[j]) > 1.0 - 1e-9]
+        out = [names[j] for j in whole]
+        if len(whole) < p:
+            rest = self.null.copy()
+            rest[whole] = 0.0  # what is left once the whole dofs are named
+            u = np.linalg.svd(rest, full_matrices=False)[0]
+            for v in u[:, : p - len(whole)].T:
+                v = v / v[np.argmax(np.abs(v))]
+                big = np.flatnonzero(np.abs(v) >= 1e-6)
+                out.append(" + ".join(f"{v[i]:.3g} {names[i]}" for i in big).replace("+ -", "- "))
+        return out
+
+
+def modulus_scale(modulus) -> float:
+    """The law's small-strain stiffness, or 1 for a law without one (it only sets a scale)."""
+    modulus = float(modulus)
+    return modulus if modulus > 0 and np.isfinite(modulus) else 1.0
+
+
+def resistance(system: SpringSystem) -> Resistance:
+    """The :class:`Resistance` of ``system``: the one place that decides which directions the
+    springs resist (``formulations/energy.md``, "Unresisted directions").
+
+    From the singular value decomposition of ``W D^-1``, ``W^T W = K0`` (unit modulus), rather
+    than an eigendecomposition of ``K0``, which would square the condition number: a reference
+    point far from the layer makes the dofs nearly dependent, and the tilt of the layer must
+    survive that. ``W`` is the system's small ``factor`` when it has one, else the N x m matrix
+    ``diag(sqrt(V)) A``. A direction is unresisted when its squared singular value passes
+    :func:`unresisted` against the layer's stiffness :attr:`SpringSystem.stiffness`, which does
+    not depend on which dofs are free: when every free dof is unresisted, rounding noise is
+    not mistaken for stiffness.
     """
     m = system.n_dofs
-    if not m:
-        return np.zeros((0, 0)), np.zeros((0, 0))
     D = system.lengths
-    modulus = modulus if modulus > 0 and np.isfinite(modulus) else 1.0
+    k_layer = 0.0 if system.stiffness is None else float(system.stiffness)
+    if not m:
+        return Resistance(np.zeros((0, 0)), np.zeros((0, 0)), D, np.zeros((0, 0)), k_layer)
     if system.factor is not None:
-        W = np.sqrt(modulus) * system.factor / D
+        W = system.factor / D
     else:
-        W = (system.AT * np.sqrt(system.volume * modulus)).T / D
+        W = (system.AT * np.sqrt(system.volume)).T / D
     if not W.size:
-        return np.zeros((m, 0)), np.linalg.qr(np.diag(1.0 / D))[0]
+        return Resistance(np.zeros((m, 0)), np.eye(m), D, np.zeros((m, 0)), k_layer)
+    require_finite("the bonded stiffness of the springs", W)
     _, sigma, vt = np.linalg.svd(W, full_matrices=True)
-    sigma = np.concatenate([sigma, np.zeros(m - sigma.size)])
-    keep = sigma > UNRESISTED * max(sigma[0], 0.0) if sigma[0] > 0 else np.zeros(m, dtype=bool)
-    T1 = vt[keep].T / sigma[keep] / D[:, None]
-    null = vt[~keep].T
-    if null.shape[1]:
-        null = np.linalg.qr(null / D[:, None])[0]
-    return T1, null
+    stiffness = np.concatenate([sigma**2, np.zeros(m - sigma.size)])
+    scale = max(k_layer, float(stiffness.max(initial=0.0)))
+    keep = ~unresisted(stiffness, scale) if scale > 0 else np.zeros(m, dtype=bool)
+    T1 = vt[keep].T / np.sqrt(stiffness[keep]) / D[:, None]
+    return Resistance(T1, vt[~keep].T, D, vt[keep].T, scale)
 
 
 def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scaling:
-    """The :class:`Scaling` of ``system`` for a law of small-strain stiffness ``modulus``."""
+    """The :class:`Scaling` of ``system`` for a law of small-strain stiffness ``modulus``.
+
+    ``s`` is the larger of the load's size ``|T1^T r|`` and the overlap's
+    ``sqrt(sum V H min(e0, 0)^2)`` (both the square root of an energy), so that a tiny load on
+    a press-fitted layer is not solved in units where the press fit is enormous.
+    """
     AT, V = system.AT, system.volume
-    stiffness = V * (modulus if modulus > 0 and np.isfinite(modulus) else 1.0)
-    T1, _ = bonded_basis(system, modulus)
+    stiffness = V * modulus_scale(modulus)
+    T1 = system.resistance.basis(modulus)
     r = system.load if reference_load is None else np.asarray(reference_load, dtype=float)
-    s = float(np.linalg.norm(T1.T @ r)) if r.size else 0.0
-    if s == 0.0:
-        # No load: the overlap the springs must push out sets the scale.
-        s = float(np.sqrt(stiffness @ np.minimum(system.e0, 0.0) ** 2))
-    if s == 0.0:
+    s_load = _norm(T1.T @ r) if r.size else 0.0
+    overlap = system.e0.min(initial=0.0) < 0
+    s_overlap = _norm(np.sqrt(stiffness) * np.minimum(system.e0, 0.0)) if overlap else 0.0
+    s = max(s_load, s_overlap)
+    if not (s > 0.0 and np.isfinite(s)):
         s = 1.0
     T = T1 * s
     total = float(stiffness.sum())
     strain = s / np.sqrt(total) if total > 0 else 1.0
     return Scaling(T=T, AT=np.ascontiguousarray(T.T @ AT), volume=V / s**2, energy=s**2, strain=strain)
+
+
+def _norm(v) -> float:
+    """Euclidean norm scaled by the largest entry first (no overflow or underflow of squares)."""
+    v = np.asarray(v, dtype=float)
+    top = float(np.abs(v).max(initial=0.0))
+    return top * float(np.linalg.norm(v / top)) if top > 0 and np.isfinite(top) else top
+
+
+def trivial_result(system: SpringSystem, law, load=None) -> FormulationResult | None:
+    """The answer without a solver, or ``None`` when a solver is needed.
+
+    * ``held``: no free direction is resisted (:class:`Resistance`), and so none can carry a
+      load (:func:`dea_opt.check_load_supported` rejects one): every free dof is held at zero
+      motion, the minimum-norm answer, and the springs keep the strain of the gap and the
+      prescribed motion;
+    * ``unloaded``: no load and no overlap: nothing moves and no spring carries anything.
+
+    Each formulation asks this first, so that no compiled solver sees an empty problem.
+    """
+    m, n = system.n_dofs, system.n_springs
+    load = system.load if load is None else np.asarray(load, dtype=float)
+    if m and system.resistance.n_resisted == 0:
+        with np.errstate(invalid="ignore", over="ignore"):
+            stress = law.stress(np.minimum(system.e0, 0.0))
+        return FormulationResult(
+            x=np.zeros(m), stress=stress, success=True, status="held",
+            message="no spring resists any free dof: every free dof is held at zero motion "
+                    "(the minimum-norm answer)")
+    if not load.any() and system.e0.min(initial=0.0) >= 0:
+        return FormulationResult(
+            x=np.zeros(m), stress=np.zeros(n), success=True, status="unloaded",
+            message="no load and no overlap: nothing to carry")
+    return None
+
+
+def check_options(**options) -> None:
+    """Validate the numeric options the formulations share, before any solver sees them:
+    tolerances (``tol``, ``xtol``, ``gtol``) are numbers in (0, 1), iteration limits
+    (``max_iter``) integers >= 1. Raises :class:`InputError` naming the option."""
+    for name, value in options.items():
+        if name == "max_iter":
+            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
+                raise InputError(f"max_iter must be an integer >= 1, got {value!r}")
+            continue
+        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
+        if not (number and math.isfinite(value) and 0 < value < 1):
+            raise InputError(f"{name} must be a number in (0, 1), got {value!r}")
+
+
+def start_vector(system: SpringSystem, x0) -> np.ndarray | None:
+    """``x0`` as a finite float vector of shape ``(m,)`` (one value per free dof, mm and rad),
+    or ``None``; an :class:`InputError` otherwise."""
+    if x0 is None:
+        return None
+    try:
+        x = np.array(x0, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"x0 must be numeric with one value per free dof ({system.n_dofs}), got {x0!r}") from None
+    if x.shape != (system.n_dofs,):
+        raise InputError(f"x0 must have shape ({system.n_dofs},), one value per free dof, got shape {x.shape}")
+    if not np.isfinite(x).all():
+        raise InputError(f"x0 must be finite, got {x.tolist()}")
+    return x
 
 
 @lru_cache(maxsize=1)

@@ -18,12 +18,22 @@ import time
 
 import numpy as np
 
-from .energy import FormulationResult, SpringSystem, scaling, single_threaded_blas
+from .energy import (
+    UNRESISTED,
+    FormulationResult,
+    SpringSystem,
+    check_options,
+    require_finite,
+    scaling,
+    single_threaded_blas,
+    start_vector,
+    trivial_result,
+    unresisted,
+)
 
 PAGE = "formulations/newton.md"
 LINEAR_ONLY = False
 
-_SINGULAR = 1e-11  # eigenvalue ratio below which a tangent direction counts as missing
 _WOLFE_DECREASE = 1e-4  # accept phi'(a) <= -this |phi'(0)| ...
 _WOLFE_CURVATURE = 0.9  # ... and >= -this |phi'(0)|
 _WOLFE_CURVATURE_SAFE = 0.01  # ... or this, after a safe step
@@ -46,20 +56,24 @@ def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
     """
     if not g.size:
         return g.copy(), False
+    require_finite("Newton's tangent", K, g)
     vals, vecs = np.linalg.eigh(K)
-    top = max(vals[-1], 0.0)
-    if top > 0 and vals[0] > _SINGULAR * top:
+    # In the scaled variables the bonded layer's stiffness is the identity: a direction the
+    # compressed springs miss is one the one test calls unresisted against that (or against
+    # the largest eigenvalue, below which rounding hides everything).
+    keep = ~unresisted(vals, max(float(vals[-1]), 1.0))
+    if keep.all():
         return -np.linalg.solve(K, g), False
-    keep = vals > _SINGULAR * top
     coeff = vecs[:, keep].T @ g
     outside = g - vecs[:, keep] @ coeff
     if keep.any() and np.linalg.norm(outside) <= 1e-9 * np.linalg.norm(g):
         return -(vecs[:, keep] @ (coeff / vals[keep])), False
     K = K + _SAFE_WEIGHT * K_all_fn()
+    require_finite("Newton's tangent", K)
     try:
         return -np.linalg.solve(K, g), True
     except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(K, g, rcond=_SINGULAR)[0], True
+        return -np.linalg.lstsq(K, g, rcond=UNRESISTED)[0], True
 
 
 class _Line:
@@ -136,13 +150,20 @@ def solve(system: SpringSystem, law, *, x0=None, xtol: float = 1e-12, gtol: floa
         Relative step of Eq. (20) that counts as converged once the contact set is
         unchanged (the paper uses 1e-6; default 1e-12).
     gtol : float
-        Relative equilibrium residual ``|g| / max(|r|, |A^T V sigma|)`` that counts as
-        converged (in the scaled variables; default 1e-12).
+        Equilibrium residual ``|g| / max(|r|, |A^T V sigma|, 1)`` that counts as converged, in
+        the scaled variables, where the larger of the load and the overlap has size 1
+        (:func:`~dea_opt.formulations.energy.scaling`; default 1e-12).
     max_iter : int
         Default 100.
     extended_start : bool
         Treat every spring as active, tension included, in the first iteration (default).
     """
+    check_options(xtol=xtol, gtol=gtol, max_iter=max_iter)
+    x0 = start_vector(system, x0)
+    require_finite("the load", system.load)
+    trivial = trivial_result(system, law)
+    if trivial is not None:
+        return trivial
     with single_threaded_blas():
         return _solve(system, law, x0=x0, xtol=xtol, gtol=gtol, max_iter=max_iter, extended_start=extended_start)
 
@@ -177,13 +198,16 @@ def _solve(
         sigma = law.stress(np.minimum(eps, 0.0))
         internal = AT @ (V * sigma)
         g = internal - r
-        norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
+        # The scaling makes the larger of the load and the overlap of size 1: that floor keeps
+        # a press fit under no load (internal forces cancelling, r = 0) from being judged
+        # against rounding noise.
+        norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1.0)
         gnorm = np.linalg.norm(g) / norm
         if not np.isfinite(gnorm):
             status, message = "nan", "the law returned a non-finite stress"
             break
         history.append(gnorm)
-        if gnorm <= gtol and it > 1:
+        if gnorm <= gtol:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
         compressed = np.minimum(eps, 0.0)
@@ -234,7 +258,7 @@ def _solve(
         if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(np.linalg.norm(xi), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
             internal = AT @ (V * law.stress(np.minimum(eps, 0.0)))
-            norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1e-300)
+            norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1.0)
             if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break

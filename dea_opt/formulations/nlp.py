@@ -18,7 +18,15 @@ import time
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
-from .energy import FormulationResult, SpringSystem, scaling
+from .energy import (
+    FormulationResult,
+    SpringSystem,
+    check_options,
+    require_finite,
+    scaling,
+    start_vector,
+    trivial_result,
+)
 
 PAGE = "formulations/nlp.md"
 LINEAR_ONLY = False
@@ -41,6 +49,10 @@ class NLPModel:
                  max_iter: int = 3000, ipopt_options: dict | None = None):
         if form not in ("constrained", "reduced"):
             raise InputError(f"form must be 'constrained' or 'reduced', got {form!r}")
+        check_options(tol=tol, max_iter=max_iter)
+        if ipopt_options is not None and not (
+                isinstance(ipopt_options, dict) and all(isinstance(key, str) for key in ipopt_options)):
+            raise InputError(f"ipopt_options must be a dict of IPOPT option names to values, got {ipopt_options!r}")
         ca = _casadi()
         start = time.perf_counter()
         self.system, self.law, self.form = system, law, form
@@ -48,6 +60,12 @@ class NLPModel:
         # energy divided by E0: IPOPT's tolerances then mean the same for every unit.
         self.scale = sc = scaling(system, law.modulus)
         k, n, s0 = sc.n_dofs, system.n_springs, sc.strain
+        self._warm = None
+        self.trivial = k == 0  # nothing resisted: no model (IPOPT must not see an empty one)
+        if self.trivial:
+            self.build_time = time.perf_counter() - start
+            return
+        require_finite("the NLP's data", sc.AT, sc.volume, system.e0)
         V = ca.DM(sc.volume)
         e0 = system.e0
         r = ca.MX.sym("r", k)
@@ -97,9 +115,14 @@ class NLPModel:
                 **(ipopt_options or {}),
             },
         }
-        self.solver = ca.nlpsol("dea_nlp", "ipopt", nlp, options)
+        try:
+            self.solver = ca.nlpsol("dea_nlp", "ipopt", nlp, options)
+        except RuntimeError as exc:
+            # IPOPT checks its options when the solver is built: an unknown name or a value
+            # out of range is the caller's input, not a solver failure.
+            reason = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
+            raise InputError(f"ipopt_options {ipopt_options or {}} were rejected by IPOPT: {reason}") from None
         self.build_time = time.perf_counter() - start
-        self._warm = None
 
     def _start(self, x0):
         sc = self.scale
@@ -113,8 +136,14 @@ class NLPModel:
 
     def solve(self, load=None, *, x0=None, warm_start: bool = True) -> FormulationResult:
         system, sc = self.system, self.scale
+        x0 = start_vector(system, x0)
         load = system.load if load is None else np.asarray(load, dtype=float)
-        args = {"p": sc.load(load), "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+        trivial = trivial_result(system, self.law, load)
+        if trivial is not None:
+            return trivial
+        scaled = sc.load(load)
+        require_finite("the load", scaled)
+        args = {"p": scaled, "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
         if x0 is None and warm_start and self._warm is not None:
             args.update(self._warm)
         else:

@@ -15,7 +15,14 @@ from functools import lru_cache
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
-from .energy import FormulationResult, SpringSystem, scaling
+from .energy import (
+    FormulationResult,
+    SpringSystem,
+    check_options,
+    require_finite,
+    scaling,
+    trivial_result,
+)
 
 PAGE = "formulations/qp.md"
 LINEAR_ONLY = True
@@ -67,26 +74,38 @@ class QPModel:
             )
         start = time.perf_counter()
         self.solver = solver
-        self.system = system
+        self.system, self.law = system, law
         # Solved in the scaled variables xi (x = T xi) and c = strain * c_hat, so that the
         # solver's absolute tolerances mean the same for every unit and load size.
         self.scale = sc = scaling(system, law.H)
         k, n = sc.n_dofs, system.n_springs
+        self.trivial = k == 0  # nothing resisted: no model (Clarabel must not see an empty one)
+        self.build_time = time.perf_counter() - start
+        self.compiled = False
+        if self.trivial:
+            return
         self.xi = cp.Variable(k, name="xi")
         self.c = cp.Variable(n, nonneg=True, name="c")
         self.load = cp.Parameter(k, name="r")
         weight = np.sqrt(sc.volume * law.H) * sc.strain
+        require_finite("the QP's data", weight, sc.AT, system.e0)
         objective = 0.5 * cp.sum_squares(cp.multiply(weight, self.c)) - self.load @ self.xi
         self.contact = self.c + (sc.AT.T / sc.strain) @ self.xi >= -system.e0 / sc.strain
         self.problem = cp.Problem(cp.Minimize(objective), [self.contact])
         self.build_time = time.perf_counter() - start
-        self.compiled = False
 
     def solve(self, load=None, *, tol: float = 1e-10, warm_start: bool = True, **solver_options) -> FormulationResult:
         """Solve for ``load`` (default: the system's own load)."""
         import cvxpy as cp
 
-        self.load.value = self.scale.load(self.system.load if load is None else load)
+        check_options(tol=tol)
+        load = self.system.load if load is None else np.asarray(load, dtype=float)
+        trivial = trivial_result(self.system, self.law, load)
+        if trivial is not None:
+            return trivial
+        scaled = self.scale.load(load)
+        require_finite("the load", scaled)
+        self.load.value = scaled
         options = {**TOLERANCE_OPTIONS.get(self.solver, lambda t: {})(tol), **solver_options}
         start = time.perf_counter()
         try:
@@ -94,7 +113,14 @@ class QPModel:
                 # dea_opt certifies every answer itself; cvxpy's own doubt adds nothing.
                 warnings.filterwarnings("ignore", message="Solution may be inaccurate")
                 self.problem.solve(solver=self.solver, warm_start=warm_start, **options)
-        except cp.error.SolverError as exc:
+        except (cp.error.SolverError, TypeError, ValueError, KeyError) as exc:
+            # An option the solver does not know is the caller's input (Clarabel and PIQP raise
+            # TypeError, SCS a TypeError of its own, OSQP a SolverError naming the setting).
+            named = any(str(key) in str(exc) for key in solver_options)
+            if solver_options and (named or not isinstance(exc, cp.error.SolverError)):
+                raise InputError(
+                    f"{self.solver} rejected the options {sorted(solver_options)}: {exc} (dea_opt's own qp "
+                    f"options are solver, tol and warm_start; the rest go to the solver)") from None
             raise SolverError(f"{self.solver} failed: {exc}", status="solver_error") from exc
         elapsed = time.perf_counter() - start
         stats = self.problem.solver_stats
@@ -126,6 +152,7 @@ class QPModel:
 
 def solve(system: SpringSystem, law, *, solver: str = "CLARABEL", tol: float = 1e-10, x0=None, **solver_options):
     """Build and solve the QP once (``x0`` is ignored: interior-point solvers start cold)."""
+    check_options(tol=tol)
     model = QPModel(system, law, solver=solver)
     result = model.solve(tol=tol, **solver_options)
     result.build_time = model.build_time
