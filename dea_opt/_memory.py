@@ -3,12 +3,11 @@
 A request that cannot fit (a load path resampled to 1e9 frames, a table of every spring at
 every frame of a long path) raises :class:`~dea_opt.errors.SizeLimitError` with the estimate
 before anything is allocated, instead of being killed by the operating system without a word.
-Sizes in bytes.
+The free memory is read by :mod:`dea_opt.mesh.budget` (the guards of generated meshes, casts
+and mesh files). Sizes in bytes.
 """
 
 from __future__ import annotations
-
-import os
 
 from .errors import SizeLimitError
 
@@ -19,31 +18,20 @@ __all__ = ["available_memory", "check_memory", "format_bytes"]
 USABLE_SHARE = 0.8
 
 
-def available_memory() -> float | None:
-    """Memory the system can give this process now (bytes), or None when it cannot tell.
+def available_memory() -> float:
+    """Memory the system can give this process now (bytes): ``MemAvailable`` of
+    ``/proc/meminfo`` on Linux, else the physical memory (:func:`dea_opt.mesh.budget.available_memory`,
+    the one reader of it)."""
+    from .mesh.budget import available_memory as available
 
-    ``MemAvailable`` of ``/proc/meminfo`` on Linux (free plus reclaimable cache); elsewhere
-    the physical memory, an upper bound.
-    """
-    try:
-        with open("/proc/meminfo", encoding="ascii") as handle:
-            for line in handle:
-                if line.startswith("MemAvailable:"):
-                    return float(line.split()[1]) * 1024.0
-    except (OSError, ValueError, IndexError):
-        pass
-    try:
-        return float(os.sysconf("SC_PHYS_PAGES")) * float(os.sysconf("SC_PAGE_SIZE"))
-    except (AttributeError, ValueError, OSError):
-        return None
+    return float(available())
 
 
 def format_bytes(n: float) -> str:
-    """``n`` bytes as ``12.3 GB`` (powers of 1000, as a reader compares with a machine's RAM)."""
-    for unit, size in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
-        if n >= size:
-            return f"{n / size:.3g} {unit}"
-    return f"{n:.0f} B"
+    """``n`` bytes as ``12.3 GB`` (powers of 1000; :func:`dea_opt.mesh.budget.format_bytes`)."""
+    from .mesh.budget import format_bytes as formatted
+
+    return formatted(n)
 
 
 def check_memory(needed: float, what: str, advice: str = "") -> None:
@@ -59,7 +47,7 @@ def check_memory(needed: float, what: str, advice: str = "") -> None:
         What to do instead, one sentence.
     """
     available = available_memory()
-    if available is None or needed <= USABLE_SHARE * available:
+    if needed <= USABLE_SHARE * available:
         return
     message = (f"{what} would need about {format_bytes(needed)} of memory, and this machine has "
                f"{format_bytes(available)} free")

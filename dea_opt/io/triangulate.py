@@ -163,8 +163,7 @@ def _delaunay(xy):
 
     from .._memory import available_memory
 
-    available = available_memory()
-    if available is not None and DELAUNAY_BYTES * len(xy) > 0.5 * available:
+    if DELAUNAY_BYTES * len(xy) > 0.5 * available_memory():
         return None
     try:
         # Qbb Qc Qz Q12: scipy's defaults; QJ joggles cocircular points (grids) into general position.
