@@ -62,6 +62,9 @@ def test_a_frame_the_springs_cannot_carry_is_recorded_and_the_path_goes_on(hip, 
         assert np.abs(result.pressures[k] - cold.pressure).max() <= 1e-6 * cold.peak_pressure
     assert result.failures() == [{"frame": 1, "time": 0.5, "status": "load_not_supported",
                                   "message": row["message"]}]
+    line = result.failure_message()
+    assert line.startswith("1 of 3 frames have no certified answer: frame 1 (0.5 s) load_not_supported: ")
+    assert "\n" not in line and len(line) < 300
 
 
 def test_the_frame_after_a_failure_starts_cold(hip, monkeypatch):

@@ -102,6 +102,19 @@ class PathResult:
         return [{"frame": int(r.frame), "time": float(r.time), "status": r.status, "message": r.message}
                 for r in rows.itertuples(index=False)]
 
+    def failure_message(self, shown: int = 3, width: int = 160) -> str:
+        """One line naming the frames without a certified answer and why (empty when none):
+        ``2 of 51 frames have no certified answer: frame 17 (0.34 s) load_not_supported: ...``."""
+        failures = self.failures()
+        if not failures:
+            return ""
+        parts = []
+        for f in failures[:shown]:
+            reason = f["message"] if len(f["message"]) <= width else f["message"][:width - 3] + "..."
+            parts.append(f"frame {f['frame']} ({f['time']:g} s) {f['status']}: {reason}")
+        more = f"; and {len(failures) - shown} more (frames.csv)" if len(failures) > shown else ""
+        return f"{len(failures)} of {len(self)} frames have no certified answer: {'; '.join(parts)}{more}"
+
     def validity_summary(self) -> dict:
         """Which certified frames are outside validity, and why: per failed check its frames
         and its worst value (and at which frame)."""
