@@ -151,7 +151,7 @@ def test_the_readme_examples_of_compartments_and_the_anatomical_frame_run(tmp_pa
     from pathlib import Path
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    blocks = [re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.S).group(1)
+    blocks = [re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
               for title in ("### Compartments", "### The anatomical frame")]
     layer = plate_layer(60.0, 30.0, 30, 15, thickness=3.0)
     namespace = {"layer": layer, "epicondyle_m": np.array([40.0, 0.0, 10.0]),
