@@ -8,6 +8,7 @@ from .errors import (
     MissingDependencyError,
     OutputFolderError,
     ScenarioError,
+    SizeLimitError,
     SolverError,
     ValidityWarning,
 )
@@ -22,7 +23,7 @@ from .solver import METHODS, check_load_supported, compare, solve
 __all__ = [
     "LAWS", "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
-    "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "Solution",
-    "SolverError", "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "register_law",
-    "solve", "solve_path", "__version__",
+    "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "SizeLimitError",
+    "Solution", "SolverError", "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare",
+    "register_law", "solve", "solve_path", "__version__",
 ]
