@@ -9,7 +9,7 @@ against the load mapped the same way; the strains are the gaps at that pose over
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
@@ -84,11 +84,13 @@ class FiniteSolution(Solution):
     ``problem.layer`` holds the springs of the solved pose (after any re-casts); ``strain`` is
     each spring's gap at that pose over its thickness. ``targets`` are the springs' targets
     (:class:`~dea_opt.formulations._finite_geometry.Targets`); ``info`` counts the re-casts and
-    the springs they gained, lost and dropped (``info["recast"]``).
+    the springs they gained, lost and dropped (``info["recast"]``); ``tracker`` is the re-casting
+    state a load path's next frame continues from.
     """
 
     targets: object = None
     dropped: int | None = None
+    tracker: object = field(default=None, repr=False)
 
     @property
     def pose(self) -> np.ndarray:

@@ -28,7 +28,7 @@ from ._finite_geometry import Targets, evaluate
 from ._finite_recast import MeshTracker
 from ._finite_solution import FiniteSolution, certificate
 from ._finite_system import FiniteSystem
-from .energy import SpringSystem, scaling, single_threaded_blas, start_vector
+from .energy import SpringSystem, modulus_scale, single_threaded_blas, start_vector
 
 __all__ = ["FiniteSolution", "Targets", "METHODS", "solve"]
 
@@ -100,20 +100,23 @@ def build_system(problem, targets) -> FiniteSystem:
 
 
 def scaled_directions(problem, system, law) -> tuple[np.ndarray, float, SpringSystem]:
-    """``(T, E0, small)``: the scaled directions of the small system at zero displacement (held
-    directions left out), with the overlap measured by the exact gaps there."""
+    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.energy.scaling`,
+    from the resistance of the problem's small system at zero displacement (held directions left
+    out), sized by the larger of the load and the overlap of the current springs' exact gaps."""
     small = problem.system()
+    T1 = small.resistance.basis(law.modulus)
+    s_load = float(np.linalg.norm(T1.T @ small.load)) if small.load.size else 0.0
     e0 = system.state(system.base, law).eps
-    with np.errstate(invalid="ignore"):
-        e0 = np.where(np.isfinite(e0), e0, 1e300)
-    exact = SpringSystem(small.AT, e0, small.volume, small.load, small.dof_length, small.factor, small.stiffness)
-    exact.__dict__["resistance"] = small.resistance
-    sc = scaling(exact, law.modulus)
-    return sc.T, sc.energy_scale if hasattr(sc, "energy_scale") else sc.energy, exact
+    overlap = np.minimum(np.where(np.isfinite(e0), e0, 0.0), 0.0)
+    volume = system.areas * system.thickness * modulus_scale(law.modulus)
+    s = max(s_load, float(np.linalg.norm(np.sqrt(volume) * overlap)))
+    if not (s > 0.0 and np.isfinite(s)):
+        s = 1.0
+    return T1 * s, s * s, small
 
 
-def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, tracker=None,
-          load_checks=None, **options) -> FiniteSolution:
+def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, frame=None,
+          tracker=None, load_checks=None, **options) -> FiniteSolution:
     """Solve a ``kinematics="finite"`` problem and certify it at the solved pose.
 
     Parameters
@@ -129,8 +132,12 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
     certificate_tol : float
     strict : bool
         Raise :class:`SolverError` when the answer fails its certificate.
+    frame : array_like (4, 4), optional
+        Body 2's pose at zero displacement (mesh 2's pose in body 1's frame), replacing the pose
+        its targets were cast at: a load path's prescribed pose of this frame, the free
+        coordinates acting on top of it.
     tracker : MeshTracker, optional
-        The re-casting state of a load path's previous frame (internal).
+        The re-casting state of a load path's previous frame (``solution.tracker``).
     load_checks : (callable, callable), optional
         ``dea_opt.solve``'s tests of a load the springs cannot carry, ``(unresisted, cone)``, each
         ``f(problem, system)`` raising :class:`~dea_opt.errors.LoadNotSupportedError`: the first
@@ -148,16 +155,16 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
     opts = {**DEFAULTS, **options}
     with single_threaded_blas():
         if name == "auto":
-            solution = _solve(problem, "newton", certificate_tol, opts, tracker, load_checks)
+            solution = _solve(problem, "newton", certificate_tol, opts, frame, tracker, load_checks)
             if not solution.success:
                 reason = (f"newton ended with status {solution.status!r} and certificate residual "
                           f"{solution.certificate.worst()}")
-                solution = _solve(problem, "nlp", certificate_tol, {**opts, "x0": None}, None, load_checks)
+                solution = _solve(problem, "nlp", certificate_tol, {**opts, "x0": None}, frame, None, load_checks)
                 solution.info["fallback"] = reason
             solution.info.setdefault("fallback", None)
             solution.info["requested"] = "auto"
         else:
-            solution = _solve(problem, name, certificate_tol, opts, tracker, load_checks)
+            solution = _solve(problem, name, certificate_tol, opts, frame, tracker, load_checks)
     if not solution.success and strict:
         worst, value = solution.certificate.worst()
         raise SolverError(
@@ -167,6 +174,12 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
     if solution.success and not solution.validity.valid:
         warnings.warn(solution.validity.message(), ValidityWarning, stacklevel=3)
     return solution
+
+
+def _check_frame(frame) -> np.ndarray:
+    from ..mesh.springs import check_pose
+
+    return check_pose(frame, "frame")
 
 
 def _method(method) -> str:
@@ -179,16 +192,19 @@ def _method(method) -> str:
     raise InputError(f"method must be one of {tuple(METHODS)} for kinematics='finite', got {method!r}")
 
 
-def _solve(problem, method, certificate_tol, opts, tracker, load_checks) -> FiniteSolution:
+def _solve(problem, method, certificate_tol, opts, frame, tracker, load_checks) -> FiniteSolution:
     start = time.perf_counter()
     if problem.kinematics != "finite":
         raise InputError("this problem has kinematics='small': solve it with dea_opt.solve")
     check_bodies(problem)
     targets, cast = resolve_targets(problem)
-    if tracker is not None:
-        targets = tracker.targets()
-    elif cast is not None and opts["recast"]:
+    if tracker is None and cast is not None and opts["recast"]:
         tracker = MeshTracker(cast, recast_shift=opts["recast_shift"])
+    if tracker is not None:
+        tracker.begin(frame)
+        targets = tracker.targets()
+    elif frame is not None:
+        targets = targets.with_frame(_check_frame(frame))
     system = build_system(problem, targets)
     if tracker is not None:
         layer = tracker.layer
@@ -205,22 +221,27 @@ def _solve(problem, method, certificate_tol, opts, tracker, load_checks) -> Fini
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
-    inner, rounds, history = None, 0, []
+    inner, rounds, history, stable = None, 0, [], True
     while True:
         inner = _inner(method, system, law, T, E0, x, cold, opts)
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
         if tracker is None or not inner.success:
             break
+        if rounds >= opts["max_recasts"]:
+            stable = False  # an equilibrium of these springs; another update might still change them
+            inner.message += f"; the springs still changed after {rounds} updates (max_recasts)"
+            break
         update = tracker.update(system, inner.state)
         if update is None:
             break
         rounds += 1
-        system = update
-        if rounds > opts["max_recasts"]:
-            inner.success, inner.status = False, "max_iterations"
-            inner.message = f"the springs still changed after {opts['max_recasts']} re-casts"
+        system = update.system
+        if not update.resolve and method == "newton":
+            inner.state = update.state  # only springs that carry nothing changed: the same equilibrium
             break
+    if tracker is not None:
+        tracker.counts["stable"] = stable
     if method == "newton" and not inner.success and loaded and cone is not None:
         cone(problem, small)
     return _solution(problem, system, law, inner, method, tracker, certificate_tol, build,
@@ -254,7 +275,8 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
     with np.errstate(invalid="ignore", over="ignore"):
         pressure = 0.0 - law.stress(np.minimum(state.eps, 0.0))
     reported = -pressure if inner.info.get("stress") is None else inner.info["stress"]
-    lengths = final.system().lengths if len(system.free) else np.zeros(0)
+    radius = final.layer_radius[1]
+    lengths = np.where(system.free < 3, 1.0, radius)
     stiffness = float(np.sum(layer.areas / layer.thickness))
     at_zero = system.state(system.base, law).eps
     cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero, certificate_tol)
@@ -277,4 +299,5 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
         message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
     return FiniteSolution(problem=final, u=u, strain=state.eps, pressure=pressure, method=method, success=success,
                           status=status, message=message, iterations=inner.iterations, build_time=build,
-                          solve_time=solve_time, certificate=cert, info=info, targets=targets, dropped=dropped)
+                          solve_time=solve_time, certificate=cert, info=info, targets=targets, dropped=dropped,
+                          tracker=tracker)
