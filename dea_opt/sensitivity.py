@@ -1,0 +1,531 @@
+"""Exact derivatives of a certified equilibrium with respect to the problem's parameters.
+
+Written math: ``formulations/sensitivity.md``. The equilibrium minimizes the convex
+``Phi(x) = sum_i V_i w(min(eps_i, 0)) - r . x``; on the active set the implicit function
+theorem gives ``K dx/dp = -dR/dp`` with Newton's tangent ``K = A_act^T diag(V sigma') A_act``,
+solved in the resisted basis of :class:`~dea_opt.formulations.energy.Resistance` (the
+formulations' scaling), so unresisted directions and units are handled as the solvers handle
+them. Springs on the edge of contact (strain within the certificate's precision of 0) make the
+derivative one-sided: each direction of change solves its own small piecewise-quadratic
+problem (:func:`_edge_solve`), and both one-sided derivatives are returned.
+
+Parameters (``wrt``): the law's (``"H"``, ``"beta"``, any of ``Law.parameter_names``),
+``"thickness_scale"`` (every thickness times ``c``, at ``c = 1``), ``"thickness"`` and ``"gap"``
+(per spring, mm), the load components ``"Fx" ... "Mz"`` (body 2; ``"body1.Fx"`` for body 1;
+moments about the body's reference point), and prescribed dofs (``"body2.uz"``, or ``"uz"`` for
+body 2).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import InputError
+from .formulations.energy import modulus_scale, single_threaded_blas, unresisted
+from .kinematics import DOFS
+
+__all__ = ["LOADS", "OUTPUTS", "PER_SPRING", "Sensitivities", "sensitivities", "parameter_unit"]
+
+PAGE = "formulations/sensitivity.md"
+
+LOADS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+PER_SPRING = ("thickness", "gap")
+OUTPUTS = ("u", "strain", "pressure", "peak_pressure", "mean_pressure", "contact_force", "contact_moment",
+           "center_of_pressure", "contact_area")
+#: Outputs' units, for ``Sensitivities.unit``.
+OUTPUT_UNITS = {"u": "mm or rad", "strain": "1", "pressure": "MPa", "peak_pressure": "MPa",
+                "mean_pressure": "MPa", "contact_force": "N", "contact_moment": "N mm",
+                "center_of_pressure": "mm", "contact_area": "mm^2"}
+#: Per-spring parameters give dense (N, N) pressure and strain derivatives up to this many
+#: springs, a ``scipy.sparse.linalg.LinearOperator`` beyond.
+DENSE_LIMIT = 4096
+
+
+@dataclass(frozen=True, eq=False)
+class Sensitivities:
+    """Derivatives of a solution's outputs, each a dict from a name in ``wrt`` to an array.
+
+    For a scalar parameter each derivative has the output's shape (``u`` (12,), ``strain`` and
+    ``pressure`` (N,), ``contact_force``, ``contact_moment`` and ``center_of_pressure`` (3,),
+    floats otherwise); for a per-spring parameter (``thickness``, ``gap``) the output's shape
+    times N (``strain`` and ``pressure`` (N, N), dense up to :data:`DENSE_LIMIT` springs, a
+    ``LinearOperator`` beyond). Units: the output's over the parameter's (:meth:`unit`).
+
+    These are the derivatives as the parameter *increases*. When the answer is one-sided
+    (``one_sided``: springs on the edge of contact, or several springs sharing the peak),
+    :attr:`decreasing` holds those as it decreases (``out(p - t) = out(p) - t * D``); else it is
+    this object.
+
+    ``contact_area`` (a step function of the springs) is differentiated through the strain
+    rates of the springs within ``area_band`` of zero strain: the rate at which the contact
+    sweeps area (formulations/sensitivity.md). ``mean_pressure`` uses that rate too.
+
+    Attributes
+    ----------
+    wrt : tuple of str
+    u, strain, pressure, peak_pressure, mean_pressure, contact_force, contact_moment,
+    center_of_pressure, contact_area : dict
+    edge : ndarray of int
+        Springs on the edge of contact.
+    edge_state : dict
+        ``{name: bool array (E,) or (E, N)}``: which edge springs are in contact as the
+        parameter increases (for :attr:`decreasing`: as it decreases).
+    area_band : float
+        The strain band of the contact-area rate.
+    notes : tuple of str
+        Derivatives that do not exist (NaN), and why.
+    """
+
+    wrt: tuple
+    u: dict
+    strain: dict
+    pressure: dict
+    peak_pressure: dict
+    mean_pressure: dict
+    contact_force: dict
+    contact_moment: dict
+    center_of_pressure: dict
+    contact_area: dict
+    units: dict
+    edge: np.ndarray
+    edge_state: dict
+    area_band: float
+    notes: tuple = ()
+    one_sided: bool = False
+    decreasing: Sensitivities | None = field(default=None, repr=False)
+
+    def unit(self, output: str, name: str) -> str:
+        """The unit of ``d output / d name``, e.g. ``"MPa/MPa"``."""
+        return f"{OUTPUT_UNITS[output]}/{self.units[name]}"
+
+    def table(self) -> dict:
+        """``{name: {output: value}}`` of the scalar outputs of the scalar parameters (for JSON)."""
+        scalar = ("peak_pressure", "mean_pressure", "contact_area")
+        vector = ("contact_force", "contact_moment", "center_of_pressure")
+        out = {}
+        for name in self.wrt:
+            if name in PER_SPRING:
+                continue
+            row = {k: float(getattr(self, k)[name]) for k in scalar}
+            row.update({k: np.asarray(getattr(self, k)[name]).tolist() for k in vector})
+            row["u"] = np.asarray(self.u[name]).tolist()
+            out[name] = row
+        return out
+
+
+def parameter_unit(law, name: str) -> str:
+    """The unit of parameter ``name`` (``"MPa"``, ``"N"``, ``"mm"``, ...)."""
+    if name in law.parameter_names:
+        spec = getattr(type(law), "ranges", {}).get(name)
+        unit = getattr(spec, "unit", None)
+        return unit or ("MPa" if name == "H" else "1")
+    if name == "thickness_scale":
+        return "1"
+    if name in PER_SPRING:
+        return "mm"
+    dof = name.split(".")[-1]
+    if dof in LOADS:
+        return "N" if dof[0] == "F" else "N mm"
+    return "mm" if dof[0] == "u" else "rad"
+
+
+@dataclass
+class _Columns:
+    """The explicit dependence of the equilibrium equations on q parameters.
+
+    ``b`` strain rate and ``s`` stress rate (N, q), or, ``diagonal``, (N,) for per-spring
+    parameters (column j moves spring j only); ``dr`` load rate (m, q); ``du`` the prescribed
+    motion (12, q).
+    """
+
+    b: np.ndarray
+    s: np.ndarray | None
+    dr: np.ndarray
+    du: np.ndarray
+    diagonal: bool = False
+
+
+def _columns(problem, names, eps, strict, law) -> list:
+    """``[(name, _Columns)]`` for every parameter, with a named error for unknown names."""
+    layer, n = problem.layer, len(problem.layer)
+    free = problem.free_indices
+    h = layer.thickness
+    scalar, out = [], []
+    law_rates = None
+    for name in names:
+        b, s, dr, du = np.zeros(n), None, np.zeros(len(free)), np.zeros(12)
+        if name in law.parameter_names:
+            if law_rates is None:
+                law_rates = {k: np.where(strict, v, 0.0) for k, v in
+                             law.stress_derivatives(np.where(strict, eps, 0.0)).items()}
+            s = law_rates[name]
+        elif name == "thickness_scale":
+            b = -eps
+        elif name in PER_SPRING:
+            diag = -eps / h if name == "thickness" else 1.0 / h
+            out.append((name, _Columns(diag, None, np.zeros((len(free), n)), np.zeros((12, n)), diagonal=True)))
+            continue
+        else:
+            body, dof = name.split(".") if "." in name else ("body2", name)
+            if body not in ("body1", "body2") or (dof not in LOADS and dof not in DOFS):
+                raise InputError(
+                    f"wrt holds {name!r}, which is no parameter of this problem: give the law's parameters "
+                    f"{law.parameter_names}, 'thickness_scale', 'thickness', 'gap', the load components {LOADS} "
+                    f"(body 2; 'body1.Fx' for body 1) or a prescribed dof ('body2.uz')")
+            k = (0 if body == "body1" else 6)
+            if dof in LOADS:
+                index = k + LOADS.index(dof)
+                dr = (free == index).astype(float)
+            else:
+                index = k + DOFS.index(dof)
+                if dof not in getattr(problem, body).prescribed:
+                    raise InputError(f"wrt holds {name!r}, but {body}.{dof} is not prescribed: only prescribed "
+                                     f"dofs are parameters (free dofs are unknowns, fixed ones are 0)")
+                du[index] = 1.0
+                b = problem.normal_operator[:, index] / h
+        scalar.append(name)
+        out.append((name, _Columns(b[:, None], None if s is None else s[:, None], dr[:, None], du[:, None])))
+    return out
+
+
+def _pinv_solve(K, rhs):
+    """``K^+ rhs`` over the directions :func:`unresisted` keeps, and the columns of ``rhs`` with a
+    part outside them (no derivative exists: the motion would jump)."""
+    vals, vecs = np.linalg.eigh(K)
+    keep = ~unresisted(vals, max(float(vals[-1]) if vals.size else 0.0, 1.0))
+    coeff = vecs.T @ rhs
+    sol = vecs[:, keep] @ (coeff[keep] / vals[keep, None])
+    size = np.maximum(np.linalg.norm(rhs, axis=0), 1e-300)
+    lost = np.linalg.norm(coeff[~keep], axis=0) > 1e-9 * size
+    return sol, lost
+
+
+def _edge_solve(Ks, c, a, w, b, mode="auto", max_rounds=60):
+    """``dxi`` (k, q), the edge springs' states (E, q) and the columns with no derivative.
+
+    Column j solves ``(Ks + sum_{e in S} w_e a_e a_e^T) dxi = -(c_j + sum_{e in S} w_e b_ej a_e)``
+    with ``S`` the edge springs whose strain rate ``a_e . dxi + b_ej`` is negative
+    (formulations/sensitivity.md, "One-sided derivatives"): the minimizer of the convex
+    ``psi(dxi) = dxi^T Ks dxi / 2 + c_j . dxi + sum_e w_e min(a_e . dxi + b_ej, 0)^2 / 2``.
+    Active-set rounds from "every edge spring in" (columns grouped by state) settle almost
+    every column; a column whose rounds cycle or meet a singular tangent is minimized by a damped
+    Newton method. ``mode`` ``"in"``/``"out"`` holds every edge spring in/out instead.
+    """
+    k, q = c.shape
+    E = a.shape[1]
+    state = np.full((E, q), mode != "out")
+
+    def solve(state):
+        dxi, lost = np.zeros((k, q)), np.zeros(q, dtype=bool)
+        patterns, inverse = np.unique(state.T, axis=0, return_inverse=True)
+        for p, pattern in enumerate(patterns):
+            cols = np.flatnonzero(inverse.reshape(-1) == p)
+            aw = a[:, pattern] * w[pattern]
+            sol, bad = _pinv_solve(Ks + aw @ a[:, pattern].T, c[:, cols] + aw @ b[pattern][:, cols])
+            dxi[:, cols], lost[cols] = -sol, bad
+        return dxi, lost
+
+    dxi, lost = solve(state)
+    if mode != "auto":
+        return dxi, state, lost
+    for _ in range(max_rounds):
+        new = (a.T @ dxi + b) < 0
+        settled = np.all(new == state, axis=0) & ~lost
+        if settled.all():
+            return dxi, state, lost
+        state = np.where(settled, state, new)
+        dxi, lost = solve(state)
+    for j in np.flatnonzero(~(np.all(((a.T @ dxi + b) < 0) == state, axis=0) & ~lost)):
+        d = _damped(Ks, c[:, j], a, w, b[:, j])
+        state[:, j] = (a.T @ d + b[:, j]) < 0
+    dxi, lost = solve(state)
+    return dxi, state, lost
+
+
+def _damped(Ks, c, a, w, b):
+    """Minimize the piecewise quadratic ``psi`` of :func:`_edge_solve` for one column from 0:
+    regularized Newton steps, each with an exact line search (``psi``'s slope along a line is
+    increasing and piecewise linear), to the pattern of edge springs in contact."""
+
+    def grad(z):
+        return Ks @ z + c + a @ (w * np.minimum(a.T @ z + b, 0.0))
+
+    d = np.zeros(len(c))
+    scale = max(float(np.trace(Ks)), float(w @ np.sum(a * a, axis=0)), 1e-300)
+    for _ in range(200):
+        g = grad(d)
+        inside = (a.T @ d + b) < 0
+        Hs = Ks + (a[:, inside] * w[inside]) @ a[:, inside].T + 1e-10 * scale * np.eye(len(d))
+        step = -np.linalg.solve(Hs, g)
+        if not g @ step < 0:
+            break
+        lo, hi = 0.0, 1.0
+        while grad(d + hi * step) @ step < 0 and hi < 1e12:
+            lo, hi = hi, 4 * hi
+        for _ in range(80):
+            mid = 0.5 * (lo + hi)
+            lo, hi = (mid, hi) if grad(d + mid * step) @ step < 0 else (lo, mid)
+        d = d + hi * step
+    return d
+
+
+def sensitivities(solution, wrt=("H",), *, area_band: float | None = None, edge: str = "auto") -> Sensitivities:
+    """Derivatives of every output of a certified ``solution`` with respect to ``wrt``.
+
+    Parameters
+    ----------
+    solution : Solution
+        A certified answer (``solution.success``) of any method.
+    wrt : sequence of str
+        Parameter names (module docstring); per-spring ones give one column per spring.
+    area_band : float, optional
+        The strain band of the contact-area rate (default: about four rows of springs at
+        the contact's edge, formulations/sensitivity.md).
+    edge : {"auto", "in", "out"}
+        Springs on the edge of contact: each direction decides (``"auto"``, exact), or all
+        held in contact, or all out of it.
+
+    Returns
+    -------
+    Sensitivities
+    """
+    if not getattr(solution, "success", False):
+        raise InputError(f"sensitivities need a certified solution; this one has status "
+                         f"{getattr(solution, 'status', '?')!r} (certificate not passed)")
+    if isinstance(wrt, str):
+        wrt = (wrt,)
+    wrt = tuple(wrt)
+    if not wrt or len(set(wrt)) != len(wrt):
+        raise InputError(f"wrt must name at least one parameter, each once, got {wrt!r}")
+    if edge not in ("auto", "in", "out"):
+        raise InputError(f"edge must be 'auto', 'in' or 'out', got {edge!r}")
+    if area_band is not None and not (isinstance(area_band, (int, float)) and 0 < area_band < 1):
+        raise InputError(f"area_band must be a strain in (0, 1), got {area_band!r}")
+    with single_threaded_blas():
+        return _sensitivities(solution, wrt, area_band, edge)
+
+
+def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
+    problem, law = solution.problem, solution.problem.law
+    layer = problem.layer
+    system = problem.system()
+    eps = np.asarray(solution.strain, dtype=float)
+    tol = solution.certificate.tolerance
+    delta = tol * max(float(-eps.min(initial=0.0)), float(-system.e0.min(initial=0.0)))
+    on_edge = np.abs(eps) <= delta
+    strict = (eps < 0) & ~on_edge
+    edge = np.flatnonzero(on_edge)
+    columns = _columns(problem, wrt, eps, strict, law)
+    T1 = system.resistance.basis(modulus_scale(law.modulus))  # (m, k)
+    ATk = T1.T @ system.AT  # (k, N): strain per unit xi
+    V = system.volume
+    tangent = np.zeros(len(eps))
+    tangent[strict] = law.tangent(eps[strict])
+    tangent[edge] = float(law.tangent(np.zeros(1))[0])
+    Ks = (ATk[:, strict] * (V * tangent)[strict]) @ ATk[:, strict].T
+    band = _band(layer, eps, strict, area_band)
+    notes = []
+    res = system.resistance
+    results = {+1: {}, -1: {}}
+    states = {+1: {}, -1: {}}
+    peak_set = _peak_set(solution.pressure)
+    one_sided = bool(edge.size) or peak_set.size > 1
+    for name, col in columns:
+        weight = V * tangent * np.where(strict, 1.0, 0.0)
+        if col.diagonal:
+            c = ATk * (weight * col.b)
+        else:
+            rate = weight[:, None] * col.b + (0.0 if col.s is None else V[:, None] * col.s)
+            c = ATk @ rate
+        if col.dr.any():
+            c = c - T1.T @ col.dr
+            along = np.array([res.load_fraction(col.dr[:, j]) for j in range(col.dr.shape[1])])
+            if (along > 1e-7).any():
+                notes.append(f"{name}: the load moves along a direction no spring resists; no derivative (NaN)")
+        for sign in ((+1, -1) if one_sided else (+1,)):
+            if edge.size:
+                if col.diagonal:
+                    be = np.zeros((edge.size, c.shape[1]))
+                    be[np.arange(edge.size), edge] = col.b[edge]
+                else:
+                    be = col.b[edge]
+                dxi, state, lost = _edge_solve(Ks, sign * c, ATk[:, edge], (V * tangent)[edge], sign * be, edge_mode)
+                dxi = sign * dxi
+            else:
+                sol, lost = _pinv_solve(Ks, c)
+                dxi, state = -sol, np.zeros((0, c.shape[1]), dtype=bool)
+            if col.dr.any():
+                lost = lost | (along > 1e-7)
+            if lost.any() and not col.dr.any():
+                notes.append(f"{name}: the contact resists no motion along the direction it pushes; no derivative "
+                             f"(NaN)")
+            dxi[:, lost] = np.nan
+            results[sign][name] = _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state,
+                                          band, sign, peak_set)
+            states[sign][name] = state[:, 0] if not col.diagonal else state
+    units = {name: parameter_unit(law, name) for name in wrt}
+    made = {s: Sensitivities(wrt, **{k: {n: results[s][n][k] for n in wrt} for k in OUTPUTS}, units=units,
+                             edge=edge, edge_state=states[s], area_band=band[1], notes=tuple(dict.fromkeys(notes)),
+                             one_sided=one_sided) for s in results if results[s]}
+    object.__setattr__(made[+1], "decreasing", made.get(-1, made[+1]))
+    if -1 in made:
+        object.__setattr__(made[-1], "decreasing", made[-1])
+    return made[+1]
+
+
+def _peak_set(pressure) -> np.ndarray:
+    """The springs that share the peak pressure (to rounding)."""
+    top = float(pressure.max(initial=0.0))
+    return np.flatnonzero(pressure >= top * (1 - 1e-12)) if top > 0 else np.zeros(0, dtype=int)
+
+
+def _band(layer, eps, strict, area_band) -> tuple:
+    """``(springs in the band, half-width delta)`` of the contact-area rate: by default the
+    ``~ 8 sqrt(pi n)`` springs of strain nearest 0 (``n`` in contact: about four rows on each
+    side of a round contact's edge)."""
+    n_contact = int(np.count_nonzero(eps < 0))
+    if area_band is None:
+        count = int(min(len(eps), max(8, round(8 * np.sqrt(np.pi * max(n_contact, 1))))))
+        if not count:
+            return np.zeros(0, dtype=int), 0.0
+        delta = float(np.partition(np.abs(eps), count - 1)[count - 1])
+        delta = delta if delta > 0 else 1e-12
+    else:
+        delta = float(area_band)
+    return np.flatnonzero(np.abs(eps) <= delta), delta
+
+
+def _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state, band, sign, peak_set) -> dict:
+    """Every output's derivative from the motion rates ``dxi`` (k, q) (formulations/sensitivity.md)."""
+    layer = problem.layer
+    n = len(layer)
+    q = dxi.shape[1]
+    S = layer.areas
+    dx = T1 @ dxi  # (m, q)
+    du = col.du.copy() if not col.diagonal else np.zeros((12, q))
+    du[problem.free_indices] += dx
+    # pressure rate dp = -(sigma' deps + s) over the strict contact, -sigma'(0) deps over the edge springs in
+    sig = np.where(strict, tangent, 0.0)
+
+    def strain_rows(rows):
+        """deps (len(rows), q) of the given springs."""
+        out = ATk[:, rows].T @ dxi
+        if col.diagonal:
+            out[np.arange(len(rows)), rows] += col.b[rows]
+        else:
+            out += col.b[rows]
+        return out
+
+    def functional(Y):
+        """``Y^T dp`` (k_out, q) for Y (N, k_out) without forming dp (N, q)."""
+        Ys = Y * sig[:, None]
+        out = -(ATk @ Ys).T @ dxi
+        if col.diagonal:
+            out -= (Ys * col.b[:, None]).T
+        else:
+            out -= Ys.T @ col.b
+            if col.s is not None:
+                out -= (Y * strict[:, None]).T @ col.s
+        if edge.size:
+            rates = strain_rows(edge)
+            out -= Y[edge].T @ (tangent[edge, None] * rates * state)
+        return out
+
+    arm = layer.points - np.asarray(problem.body2.reference)
+    Sn = S[:, None] * layer.normals
+    Y = np.column_stack([S, Sn, np.cross(arm, Sn), S[:, None] * layer.points])
+    F = functional(Y)  # rows: W, force (3), moment (3), sum S p x (3)
+    dW, dforce, dmoment, dSpx = F[0], F[1:4], F[4:7], F[7:10]
+    W = float(solution.pressure @ S)
+    cop = solution.center_of_pressure
+    dcop = (dSpx - np.outer(cop, dW)) / W if W > 0 else np.full((3, q), np.nan)
+    rows, delta = band
+    if rows.size and delta > 0:
+        # The derivative of sum_i S_i ramp(-eps_i), the step smoothed to a C1 ramp over
+        # |eps| < delta: a triangular kernel of unit integral (formulations/sensitivity.md).
+        kernel = (1.0 - np.abs(solution.strain[rows]) / delta) / delta
+        darea = -((S[rows] * kernel) @ strain_rows(rows))
+    else:
+        darea = np.zeros(q)
+    area = solution.contact_area
+    dmean = (dW - solution.mean_pressure * darea) / area if area > 0 else np.zeros(q)
+    if peak_set.size:
+        peaks = _pressure_rows(peak_set, strain_rows, col, sig, strict, tangent, edge, state)
+        dpeak = peaks.max(axis=0) if sign > 0 else peaks.min(axis=0)
+    else:
+        dpeak = np.zeros(q)
+    if col.diagonal:
+        strain, pressure = _per_spring_fields(n, ATk, dxi, col, sig, tangent, edge, state)
+        squeeze = {"u": du, "peak_pressure": dpeak, "mean_pressure": dmean, "contact_force": dforce,
+                   "contact_moment": dmoment, "center_of_pressure": dcop, "contact_area": darea}
+        return {"strain": strain, "pressure": pressure, **squeeze}
+    all_rows = np.arange(n)
+    deps = strain_rows(all_rows)
+    dp = _pressure_rows(all_rows, lambda r: deps[r], col, sig, strict, tangent, edge, state)
+    return {"u": du[:, 0], "strain": deps[:, 0], "pressure": dp[:, 0], "peak_pressure": float(dpeak[0]),
+            "mean_pressure": float(dmean[0]), "contact_force": dforce[:, 0], "contact_moment": dmoment[:, 0],
+            "center_of_pressure": dcop[:, 0], "contact_area": float(darea[0])}
+
+
+def _pressure_rows(rows, strain_rows, col, sig, strict, tangent, edge, state):
+    """dp (len(rows), q) of the given springs."""
+    deps = strain_rows(rows)
+    dp = -sig[rows, None] * deps
+    if col.s is not None and not col.diagonal:
+        dp -= np.where(strict[rows, None], col.s[rows], 0.0)
+    if edge.size:
+        where = np.searchsorted(edge, rows)
+        hit = (where < edge.size) & (edge[np.minimum(where, edge.size - 1)] == rows)
+        if hit.any():
+            e = where[hit]
+            dp[hit] = -tangent[rows[hit], None] * deps[hit] * state[e]
+    return dp
+
+
+def _per_spring_fields(n, ATk, dxi, col, sig, tangent, edge, state):
+    """``(d strain, d pressure)`` for a per-spring parameter: (N, N) arrays, or LinearOperators."""
+    diag = col.b
+    lin = np.where(sig > 0, sig, 0.0)
+
+    def strain_mv(v):
+        return ATk.T @ (dxi @ v) + diag * v
+
+    def strain_rmv(y):
+        return dxi.T @ (ATk @ y) + diag * y
+
+    def edge_rows():
+        if not edge.size:
+            return None
+        rates = ATk[:, edge].T @ dxi
+        rates[np.arange(edge.size), edge] += diag[edge]
+        return -tangent[edge, None] * rates * state
+
+    E = edge_rows()
+    if n <= DENSE_LIMIT:
+        strain = ATk.T @ dxi + np.diag(diag)
+        pressure = -lin[:, None] * strain
+        if E is not None:
+            pressure[edge] = E
+        return strain, pressure
+    from scipy.sparse.linalg import LinearOperator
+
+    def pressure_mv(v):
+        out = -lin * strain_mv(v)
+        if E is not None:
+            out[edge] = E @ v
+        return out
+
+    def pressure_rmv(y):
+        z = np.asarray(y, dtype=float).copy()
+        extra = 0.0
+        if E is not None:
+            extra = E.T @ z[edge]
+            z[edge] = 0.0
+        return -strain_rmv(lin * z) + extra
+
+    strain = LinearOperator((n, n), matvec=strain_mv, rmatvec=strain_rmv, dtype=float)
+    pressure = LinearOperator((n, n), matvec=pressure_mv, rmatvec=pressure_rmv, dtype=float)
+    return strain, pressure
+
