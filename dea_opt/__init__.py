@@ -15,6 +15,7 @@ from .laws import AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, Polynom
 from .layer import SpringLayer
 from .loadpath import solve_path
 from .problem import Body, ContactProblem, Load
+from .sensitivity import Sensitivities, sensitivities
 from .solution import Certificate, Solution, certify
 from .solver import METHODS, check_load_supported, compare, solve
 
@@ -22,6 +23,7 @@ __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
     "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
-    "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
+    "Sensitivities", "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare",
+    "sensitivities", "solve", "solve_path",
     "__version__",
 ]

@@ -133,7 +133,7 @@ class Law:
             return ()
         return tuple(f.name for f in dataclasses.fields(self) if f.init and f.type in (float, "float"))
 
-    def _twin(self, values: dict) -> "Law":
+    def _twin(self, values: dict) -> Law:
         """A copy whose parameters in ``values`` are replaced, unchecked, by other numbers or
         symbols (complex numbers, CasADi symbols): the same ``*_expr`` code then yields the
         parameter derivatives. Override it when ``__post_init__`` derives more from them."""

@@ -7,7 +7,7 @@ solved in the resisted basis of :class:`~dea_opt.formulations.energy.Resistance`
 formulations' scaling), so unresisted directions and units are handled as the solvers handle
 them. Springs on the edge of contact (strain within the certificate's precision of 0) make the
 derivative one-sided: each direction of change solves its own small piecewise-quadratic
-problem (:func:`_edge_solve`), and both one-sided derivatives are returned.
+problem (:func:`dea_opt.onesided.edge_solve`), and both one-sided derivatives are returned.
 
 Parameters (``wrt``): the law's (``"H"``, ``"beta"``, any of ``Law.parameter_names``),
 ``"thickness_scale"`` (every thickness times ``c``, at ``c = 1``), ``"thickness"`` and ``"gap"``
@@ -23,10 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .errors import InputError
-from .formulations.energy import modulus_scale, single_threaded_blas, unresisted
+from .formulations.energy import modulus_scale, single_threaded_blas
 from .kinematics import DOFS
+from .onesided import edge_solve, pinv_solve
 
-__all__ = ["LOADS", "OUTPUTS", "PER_SPRING", "Sensitivities", "sensitivities", "parameter_unit"]
+__all__ = ["LOADS", "OUTPUTS", "PER_SPRING", "Sensitivities", "parameter_unit", "path_sensitivities", "sensitivities"]
 
 PAGE = "formulations/sensitivity.md"
 
@@ -190,87 +191,6 @@ def _columns(problem, names, eps, strict, law) -> list:
     return out
 
 
-def _pinv_solve(K, rhs):
-    """``K^+ rhs`` over the directions :func:`unresisted` keeps, and the columns of ``rhs`` with a
-    part outside them (no derivative exists: the motion would jump)."""
-    vals, vecs = np.linalg.eigh(K)
-    keep = ~unresisted(vals, max(float(vals[-1]) if vals.size else 0.0, 1.0))
-    coeff = vecs.T @ rhs
-    sol = vecs[:, keep] @ (coeff[keep] / vals[keep, None])
-    size = np.maximum(np.linalg.norm(rhs, axis=0), 1e-300)
-    lost = np.linalg.norm(coeff[~keep], axis=0) > 1e-9 * size
-    return sol, lost
-
-
-def _edge_solve(Ks, c, a, w, b, mode="auto", max_rounds=60):
-    """``dxi`` (k, q), the edge springs' states (E, q) and the columns with no derivative.
-
-    Column j solves ``(Ks + sum_{e in S} w_e a_e a_e^T) dxi = -(c_j + sum_{e in S} w_e b_ej a_e)``
-    with ``S`` the edge springs whose strain rate ``a_e . dxi + b_ej`` is negative
-    (formulations/sensitivity.md, "One-sided derivatives"): the minimizer of the convex
-    ``psi(dxi) = dxi^T Ks dxi / 2 + c_j . dxi + sum_e w_e min(a_e . dxi + b_ej, 0)^2 / 2``.
-    Active-set rounds from "every edge spring in" (columns grouped by state) settle almost
-    every column; a column whose rounds cycle or meet a singular tangent is minimized by a damped
-    Newton method. ``mode`` ``"in"``/``"out"`` holds every edge spring in/out instead.
-    """
-    k, q = c.shape
-    E = a.shape[1]
-    state = np.full((E, q), mode != "out")
-
-    def solve(state):
-        dxi, lost = np.zeros((k, q)), np.zeros(q, dtype=bool)
-        patterns, inverse = np.unique(state.T, axis=0, return_inverse=True)
-        for p, pattern in enumerate(patterns):
-            cols = np.flatnonzero(inverse.reshape(-1) == p)
-            aw = a[:, pattern] * w[pattern]
-            sol, bad = _pinv_solve(Ks + aw @ a[:, pattern].T, c[:, cols] + aw @ b[pattern][:, cols])
-            dxi[:, cols], lost[cols] = -sol, bad
-        return dxi, lost
-
-    dxi, lost = solve(state)
-    if mode != "auto":
-        return dxi, state, lost
-    for _ in range(max_rounds):
-        new = (a.T @ dxi + b) < 0
-        settled = np.all(new == state, axis=0) & ~lost
-        if settled.all():
-            return dxi, state, lost
-        state = np.where(settled, state, new)
-        dxi, lost = solve(state)
-    for j in np.flatnonzero(~(np.all(((a.T @ dxi + b) < 0) == state, axis=0) & ~lost)):
-        d = _damped(Ks, c[:, j], a, w, b[:, j])
-        state[:, j] = (a.T @ d + b[:, j]) < 0
-    dxi, lost = solve(state)
-    return dxi, state, lost
-
-
-def _damped(Ks, c, a, w, b):
-    """Minimize the piecewise quadratic ``psi`` of :func:`_edge_solve` for one column from 0:
-    regularized Newton steps, each with an exact line search (``psi``'s slope along a line is
-    increasing and piecewise linear), to the pattern of edge springs in contact."""
-
-    def grad(z):
-        return Ks @ z + c + a @ (w * np.minimum(a.T @ z + b, 0.0))
-
-    d = np.zeros(len(c))
-    scale = max(float(np.trace(Ks)), float(w @ np.sum(a * a, axis=0)), 1e-300)
-    for _ in range(200):
-        g = grad(d)
-        inside = (a.T @ d + b) < 0
-        Hs = Ks + (a[:, inside] * w[inside]) @ a[:, inside].T + 1e-10 * scale * np.eye(len(d))
-        step = -np.linalg.solve(Hs, g)
-        if not g @ step < 0:
-            break
-        lo, hi = 0.0, 1.0
-        while grad(d + hi * step) @ step < 0 and hi < 1e12:
-            lo, hi = hi, 4 * hi
-        for _ in range(80):
-            mid = 0.5 * (lo + hi)
-            lo, hi = (mid, hi) if grad(d + mid * step) @ step < 0 else (lo, mid)
-        d = d + hi * step
-    return d
-
-
 def sensitivities(solution, wrt=("H",), *, area_band: float | None = None, edge: str = "auto") -> Sensitivities:
     """Derivatives of every output of a certified ``solution`` with respect to ``wrt``.
 
@@ -351,16 +271,17 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
                     be[np.arange(edge.size), edge] = col.b[edge]
                 else:
                     be = col.b[edge]
-                dxi, state, lost = _edge_solve(Ks, sign * c, ATk[:, edge], (V * tangent)[edge], sign * be, edge_mode)
+                dxi, state, lost = edge_solve(Ks, sign * c, ATk[:, edge], (V * tangent)[edge], sign * be, edge_mode)
                 dxi = sign * dxi
             else:
-                sol, lost = _pinv_solve(Ks, c)
+                sol, lost = pinv_solve(Ks, c)
                 dxi, state = -sol, np.zeros((0, c.shape[1]), dtype=bool)
             if col.dr.any():
                 lost = lost | (along > 1e-7)
-            if lost.any() and not col.dr.any():
-                notes.append(f"{name}: the contact resists no motion along the direction it pushes; no derivative "
-                             f"(NaN)")
+            if lost.any() and not (col.dr.any() and (along > 1e-7).any()):
+                way = "" if not one_sided else (" as it increases" if sign > 0 else " as it decreases")
+                notes.append(f"{name}{way}: the contact resists no motion along the direction it pushes (the "
+                             f"springs would separate or jump); no derivative (NaN)")
             dxi[:, lost] = np.nan
             results[sign][name] = _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state,
                                           band, sign, peak_set)
@@ -369,6 +290,11 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
     made = {s: Sensitivities(wrt, **{k: {n: results[s][n][k] for n in wrt} for k in OUTPUTS}, units=units,
                              edge=edge, edge_state=states[s], area_band=band[1], notes=tuple(dict.fromkeys(notes)),
                              one_sided=one_sided) for s in results if results[s]}
+    if -1 in made and not edge.size and all(
+            np.allclose(made[+1].peak_pressure[k], made[-1].peak_pressure[k], rtol=1e-12, atol=0, equal_nan=True)
+            for k in wrt):
+        del made[-1]  # a shared peak whose springs all change alike: two-sided after all
+        object.__setattr__(made[+1], "one_sided", False)
     object.__setattr__(made[+1], "decreasing", made.get(-1, made[+1]))
     if -1 in made:
         object.__setattr__(made[-1], "decreasing", made[-1])
@@ -529,3 +455,11 @@ def _per_spring_fields(n, ATk, dxi, col, sig, tangent, edge, state):
     pressure = LinearOperator((n, n), matvec=pressure_mv, rmatvec=pressure_rmv, dtype=float)
     return strain, pressure
 
+
+
+def path_sensitivities(path, wrt=("H",), **options) -> list:
+    """``[Sensitivities]`` of every frame of a load path (``solve_path(..., keep_solutions=True)``),
+    each from its own certified solution; ``None`` for a frame that failed its certificate."""
+    if not getattr(path, "solutions", None):
+        raise InputError("path_sensitivities needs the frames' solutions: solve_path(..., keep_solutions=True)")
+    return [sensitivities(s, wrt, **options) if s is not None and s.success else None for s in path.solutions]
