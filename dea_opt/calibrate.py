@@ -126,7 +126,7 @@ class Calibration:
             if not isinstance(data, PressureMap):
                 continue
             springs, kept = data.matched(self.solution.problem.layer)
-            r, _ = data.residuals(self.solution, _ZERO, (), {"match": (springs, kept)})
+            r, _ = data.residuals(self.solution, None, (), {"match": (springs, kept)})
             state = np.array(["below", "measured", "saturated"])[data.state[kept] + 1]
             rows.append(pd.DataFrame({"dataset": k, "x": data.points[kept, 0], "y": data.points[kept, 1],
                                       "z": data.points[kept, 2], "measured": data.pressure[kept],
@@ -169,15 +169,6 @@ class Calibration:
             return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
         finally:
             plt.close(fig)
-
-
-class _Zero:
-    """Sensitivities of nothing, for residuals without a Jacobian."""
-
-    pressure: dict = {}
-
-
-_ZERO = _Zero()
 
 
 def calibrate(problem, data, parameters=("H",), *, start=None, max_nfev: int = 60, scale_errors: bool = True,

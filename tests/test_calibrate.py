@@ -93,7 +93,8 @@ def test_synthetic_recovery_on_the_hip():
     check_recovery(problem)
 
 
-def small_problem(law=d.AteshianLaw(0.6, 0.3)):
+def small_problem(law=None):
+    law = law or d.AteshianLaw(0.6, 0.3)
     layer = sphere_on_bed_layer(radius=25.0, thickness=2.0, extent=7.0, n_rings=30, n_sectors=24)
     return d.ContactProblem(layer, law, force=(0, 0, -10.0), moment=(3.0, 0, 0), reference=(0, 0, 25.0),
                             free=("uz", "rx", "ry"))
