@@ -12,18 +12,20 @@ from .errors import (
 )
 from .kinematics import DOFS
 from .laws import AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw
+from .calibrate import calibrate
 from .layer import SpringLayer
 from .loadpath import solve_path
 from .problem import Body, ContactProblem, Load
 from .sensitivity import Sensitivities, sensitivities
 from .solution import Certificate, Solution, certify
 from .solver import METHODS, check_load_supported, compare, solve
+from .uncertainty import propagate
 
 __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
     "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
-    "Sensitivities", "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare",
-    "sensitivities", "solve", "solve_path",
+    "Sensitivities", "SpringLayer", "ValidityWarning", "calibrate", "certify", "check_load_supported", "compare",
+    "propagate", "sensitivities", "solve", "solve_path",
     "__version__",
 ]

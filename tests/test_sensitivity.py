@@ -352,3 +352,16 @@ def test_bad_requests_are_named_errors():
     assert not sen.u["body1.Fz"].any()
     table = sen.table()
     assert set(table) == {"body1.Fz", "H"} and table["H"]["peak_pressure"] == sen.peak_pressure["H"]
+
+
+def test_page_and_modules_name_each_other():
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    page = (root / "formulations" / "sensitivity.md").read_text()
+    for module in ("sensitivity", "onesided", "parametric", "calibrate", "measurements", "uncertainty"):
+        path = root / "dea_opt" / f"{module}.py"
+        assert f"`dea_opt/{module}.py`" in page, f"the page does not name dea_opt/{module}.py"
+        assert "formulations/sensitivity.md" in path.read_text(), f"dea_opt/{module}.py does not name its page"
+    assert d.sensitivities is sensitivities and d.calibrate.__module__ == "dea_opt.calibrate"
+    assert d.propagate.__module__ == "dea_opt.uncertainty"
