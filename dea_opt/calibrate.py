@@ -145,13 +145,22 @@ class Calibration:
         if table.empty:
             raise InputError("plot needs a pressure map among the data")
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10.5, 4.6), constrained_layout=True)
+        films = {data.film for data in self.data if isinstance(data, PressureMap) and data.film is not None}
+        film = films.pop() if len(films) == 1 else None
         for state, marker, label in (("measured", "o", "within the film's range"), ("below", "v", "read 'below'"),
                                      ("saturated", "^", "read 'saturated'")):
             rows = table[table.state == state]
-            if len(rows):
-                ax1.scatter(rows.predicted, rows.measured, s=5, marker=marker, alpha=0.5, label=label)
+            if not len(rows):
+                continue
+            # a censored reading says only "beyond the limit": drawn at the limit
+            shown = rows.measured if film is None or state == "measured" else np.full(
+                len(rows), film.lower if state == "below" else film.upper)
+            ax1.scatter(rows.predicted, shown, s=5, marker=marker, alpha=0.5, label=label)
         top = float(max(table.measured.max(), table.predicted.max()))
         ax1.plot([0, top], [0, top], "k-", lw=0.8)
+        if film is not None:
+            for limit in (film.lower, film.upper):
+                ax1.axhline(limit, color="0.5", ls="--", lw=0.8)
         ax1.set(xlabel="predicted pressure (MPa)", ylabel="measured pressure (MPa)",
                 title="measured vs predicted")
         ax1.legend(loc="upper left", fontsize=8, markerscale=2)
@@ -303,3 +312,36 @@ class _Model:
 
     def jacobian(self, z):
         return self.evaluate(z)[1]
+
+
+def calibrate_scenario(scenario, data_path, output_dir=None, *, parameters=None, film=None, noise: float = 0.05,
+                       max_distance=None) -> tuple:
+    """``dea-opt calibrate``: fit a scenario's parameters to a pressure map CSV and write the results.
+
+    Writes ``calibration.json`` (the summary), ``residuals.csv`` (:meth:`Calibration.residual_map`)
+    and ``calibration.png`` (:meth:`Calibration.plot`) into ``output_dir`` (default
+    ``<[output].directory>/calibration``), atomically. Returns ``(Calibration, {name: path})``.
+    """
+    import json
+
+    from .io.atomic import write_atomic
+    from .scenario import build_problem
+
+    if scenario.load_path is not None:
+        raise InputError("calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
+                         "calibrate against one frame written as a static scenario")
+    problem = build_problem(scenario)
+    names = tuple(parameters) if parameters else problem.law.parameter_names
+    data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
+    fit = calibrate(problem, data, names)
+    out = scenario.output_dir(output_dir) if output_dir is not None else scenario.output_dir(None) / "calibration"
+    files = {"summary": out / "calibration.json", "residuals": out / "residuals.csv", "plot": out / "calibration.png"}
+    film_info = None if data.film is None else {"name": data.film.name, "lower": data.film.lower,
+                                                "upper": data.film.upper}
+    summary = {**fit.summary(), "scenario": scenario.source, "data": str(data_path), "film": film_info,
+               "noise": data.noise, "points": len(data.pressure), "points_matched": int(fit.residuals.size)}
+    write_atomic(files["summary"], lambda tmp: tmp.write_text(json.dumps(summary, indent=2, default=float)))
+    table = fit.residual_map()
+    write_atomic(files["residuals"], lambda tmp: table.to_csv(tmp, index=False))
+    fit.plot(files["plot"])
+    return fit, files
