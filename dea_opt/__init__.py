@@ -6,12 +6,13 @@ from .errors import (
     InputError,
     LoadNotSupportedError,
     MissingDependencyError,
+    OutputFolderError,
     ScenarioError,
     SolverError,
     ValidityWarning,
 )
 from .kinematics import DOFS
-from .laws import AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw
+from .laws import LAWS, AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw, register_law
 from .calibrate import calibrate
 from .layer import SpringLayer
 from .loadpath import solve_path
@@ -22,10 +23,9 @@ from .solver import METHODS, check_load_supported, compare, solve
 from .uncertainty import propagate
 
 __all__ = [
-    "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
+    "LAWS", "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
-    "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
-    "Sensitivities", "SpringLayer", "ValidityWarning", "calibrate", "certify", "check_load_supported", "compare",
-    "propagate", "sensitivities", "solve", "solve_path",
-    "__version__",
+    "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "Sensitivities",
+    "Solution", "SolverError", "SpringLayer", "ValidityWarning", "calibrate", "certify", "check_load_supported",
+    "compare", "propagate", "register_law", "sensitivities", "solve", "solve_path", "__version__",
 ]
