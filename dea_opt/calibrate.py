@@ -314,15 +314,16 @@ class _Model:
         return self.evaluate(z)[1]
 
 
-def calibrate_scenario(scenario, data_path, output_dir=None, *, parameters=None, film=None, noise: float = 0.05,
+def calibrate_scenario(scenario, data_path, folder, *, parameters=None, film=None, noise: float = 0.05,
                        max_distance=None) -> tuple:
     """``dea-opt calibrate``: fit a scenario's parameters to a pressure map CSV and write the results.
 
     Writes ``calibration.json`` (the summary), ``residuals.csv`` (:meth:`Calibration.residual_map`)
-    and ``calibration.png`` (:meth:`Calibration.plot`) into ``output_dir`` (default
-    ``<[output].directory>/calibration``), atomically. Returns ``(Calibration, {name: path})``.
+    and ``calibration.png`` (:meth:`Calibration.plot`) into ``folder`` (the command stages and
+    publishes it like every run's folder). Returns ``(Calibration, {name: path})``.
     """
     import json
+    from pathlib import Path
 
     from .io.atomic import write_atomic
     from .scenario import build_problem
@@ -334,8 +335,9 @@ def calibrate_scenario(scenario, data_path, output_dir=None, *, parameters=None,
     names = tuple(parameters) if parameters else problem.law.parameter_names
     data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
     fit = calibrate(problem, data, names)
-    out = scenario.output_dir(output_dir) if output_dir is not None else scenario.output_dir(None) / "calibration"
-    files = {"summary": out / "calibration.json", "residuals": out / "residuals.csv", "plot": out / "calibration.png"}
+    folder = Path(folder)
+    files = {"summary": folder / "calibration.json", "residuals": folder / "residuals.csv",
+             "plot": folder / "calibration.png"}
     film_info = None if data.film is None else {"name": data.film.name, "lower": data.film.lower,
                                                 "upper": data.film.upper}
     summary = {**fit.summary(), "scenario": scenario.source, "data": str(data_path), "film": film_info,

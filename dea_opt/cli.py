@@ -386,29 +386,39 @@ def calibrate(
     noise: Annotated[float, typer.Option(help="Relative noise of a reading.")] = 0.05,
     max_distance: Annotated[Optional[float], typer.Option(help="Drop points farther than this from every spring "
                                                           "(mm).", show_default=False)] = None,
-    output: OutputOpt = None,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
+                                                   "[output].directory>/calibration).", show_default=False)] = None,
     set_: SetOpt = None,
+    force: ForceOpt = False,
 ):
     """Fit law parameters to a measured pressure map (film or sensor) by least squares.
 
     The scenario's law values are the start. Writes calibration.json (fitted values, standard
-    errors, correlation), residuals.csv (one row per matched point) and calibration.png
-    (measured vs predicted, residual map) to <scenario output>/calibration or --output.
-    Exit code 1 when the fit did not converge.
+    errors, correlation), residuals.csv (one row per matched point), calibration.png (measured
+    vs predicted, residual map) and manifest.json into <output>/calibration. Exit code 1 when the
+    fit did not converge.
     """
     from .calibrate import calibrate_scenario
+    from .errors import InputError
+    from .io.publish import check_output_folder, output_run
+    from .run import run_info
     from .scenario import load_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
-    from .errors import InputError
-
     bounds = _split(film)
     try:
         film_value = (float(bounds[0]), float(bounds[1])) if bounds and len(bounds) == 2 else film
     except ValueError:
         raise InputError(f"--film must be a film's name or LOWER,UPPER in MPa, got {film!r}") from None
-    fit, files = calibrate_scenario(loaded, data, output, parameters=_split(parameters), film=film_value,
-                                    noise=noise, max_distance=max_distance)
+    folder = check_output_folder(output if output is not None else loaded.output_dir() / "calibration", force)
+    info = {**run_info(loaded, "calibrate"), "data": str(data)}
+    with captured() as messages, output_run(folder, force=force, info=info) as publication:
+        fit, files = calibrate_scenario(loaded, data, publication.folder, parameters=_split(parameters),
+                                        film=film_value, noise=noise, max_distance=max_distance)
+        messages.collect()
+        publication.publish(status="ok" if fit.success else "not converged",
+                            exit_code=EXIT_OK if fit.success else EXIT_UNCERTIFIED)
+    _warn(messages.own)
     typer.echo(f"{'parameter':>16s} {'start':>12s} {'fitted':>12s} {'std error':>12s}")
     for name in fit.parameters:
         typer.echo(f"{name:>16s} {fit.start[name]:12.6g} {fit.values[name]:12.6g} {fit.standard_errors[name]:12.3g}")

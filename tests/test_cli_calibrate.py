@@ -78,6 +78,9 @@ def test_calibrate_writes_the_fit(case):
     assert len(table) == len(truth.pressure) and {"below", "measured"} <= set(table.state)
     assert (out / "calibration.png").read_bytes()[:4] == b"\x89PNG"
     assert "correlation: H-beta" in result.stdout
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["command"] == "calibrate" and manifest["status"] == "ok"
+    assert set(manifest["files"]) >= {"calibration.json", "residuals.csv", "calibration.png"}
 
 
 def test_calibrate_one_parameter_into_a_folder(case, tmp_path):
