@@ -17,7 +17,7 @@ import numpy as np
 from .errors import InputError, ValidityWarning
 from .sensitivity import PER_SPRING, sensitivities
 
-__all__ = ["MonteCarlo", "Propagation", "SCALARS", "monte_carlo", "propagate"]
+__all__ = ["SCALARS", "MonteCarlo", "Propagation", "monte_carlo", "propagate"]
 
 #: The scalar outputs both report (the centre of pressure per coordinate, mm).
 SCALARS = ("peak_pressure", "mean_pressure", "contact_area", "cop_x", "cop_y", "cop_z")
