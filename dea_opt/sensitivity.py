@@ -191,6 +191,22 @@ def _columns(problem, names, eps, strict, law) -> list:
     return out
 
 
+def _groups(columns) -> list:
+    """``[(names, _Columns)]``: every scalar parameter in one group of columns (one solve, one pass
+    over the springs for all of them), each per-spring parameter in its own."""
+    scalar = [(n, c) for n, c in columns if not c.diagonal]
+    groups = []
+    if scalar:
+        s_all = None
+        if any(c.s is not None for _, c in scalar):
+            s_all = np.hstack([np.zeros_like(c.b) if c.s is None else c.s for _, c in scalar])
+        merged = _Columns(np.hstack([c.b for _, c in scalar]), s_all, np.hstack([c.dr for _, c in scalar]),
+                          np.hstack([c.du for _, c in scalar]))
+        groups.append(([n for n, _ in scalar], merged))
+    groups += [([n], c) for n, c in columns if c.diagonal]
+    return groups
+
+
 def sensitivities(solution, wrt=("H",), *, area_band: float | None = None, edge: str = "auto") -> Sensitivities:
     """Derivatives of every output of a certified ``solution`` with respect to ``wrt``.
 
@@ -252,18 +268,19 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
     states = {+1: {}, -1: {}}
     peak_set = _peak_set(solution.pressure)
     one_sided = bool(edge.size) or peak_set.size > 1
-    for name, col in columns:
-        weight = V * tangent * np.where(strict, 1.0, 0.0)
+    weight = np.where(strict, V * tangent, 0.0)
+    for names, col in _groups(columns):
         if col.diagonal:
             c = ATk * (weight * col.b)
         else:
             rate = weight[:, None] * col.b + (0.0 if col.s is None else V[:, None] * col.s)
             c = ATk @ rate
+        along = np.zeros(c.shape[1])
         if col.dr.any():
             c = c - T1.T @ col.dr
             along = np.array([res.load_fraction(col.dr[:, j]) for j in range(col.dr.shape[1])])
-            if (along > 1e-7).any():
-                notes.append(f"{name}: the load moves along a direction no spring resists; no derivative (NaN)")
+            for j in np.flatnonzero(along > 1e-7):
+                notes.append(f"{names[j]}: the load moves along a direction no spring resists; no derivative (NaN)")
         for sign in ((+1, -1) if one_sided else (+1,)):
             if edge.size:
                 if col.diagonal:
@@ -276,16 +293,20 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
             else:
                 sol, lost = pinv_solve(Ks, c)
                 dxi, state = -sol, np.zeros((0, c.shape[1]), dtype=bool)
-            if col.dr.any():
-                lost = lost | (along > 1e-7)
-            if lost.any() and not (col.dr.any() and (along > 1e-7).any()):
-                way = "" if not one_sided else (" as it increases" if sign > 0 else " as it decreases")
+            bad = np.flatnonzero(lost & ~(along > 1e-7))
+            way = "" if not one_sided else (" as it increases" if sign > 0 else " as it decreases")
+            for name in ([names[0]] if col.diagonal and bad.size else [names[j] for j in bad]):
                 notes.append(f"{name}{way}: the contact resists no motion along the direction it pushes (the "
                              f"springs would separate or jump); no derivative (NaN)")
-            dxi[:, lost] = np.nan
-            results[sign][name] = _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state,
-                                          band, sign, peak_set)
-            states[sign][name] = state[:, 0] if not col.diagonal else state
+            dxi[:, lost | (along > 1e-7)] = np.nan
+            out = _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state, band, sign, peak_set)
+            if col.diagonal:
+                results[sign][names[0]] = out
+                states[sign][names[0]] = state
+                continue
+            for j, name in enumerate(names):
+                results[sign][name] = {k: (float(v[j]) if np.ndim(v) == 1 else v[:, j]) for k, v in out.items()}
+                states[sign][name] = state[:, j]
     units = {name: parameter_unit(law, name) for name in wrt}
     made = {s: Sensitivities(wrt, **{k: {n: results[s][n][k] for n in wrt} for k in OUTPUTS}, units=units,
                              edge=edge, edge_state=states[s], area_band=band[1], notes=tuple(dict.fromkeys(notes)),
@@ -387,12 +408,14 @@ def _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state,
         squeeze = {"u": du, "peak_pressure": dpeak, "mean_pressure": dmean, "contact_force": dforce,
                    "contact_moment": dmoment, "center_of_pressure": dcop, "contact_area": darea}
         return {"strain": strain, "pressure": pressure, **squeeze}
-    all_rows = np.arange(n)
-    deps = strain_rows(all_rows)
-    dp = _pressure_rows(all_rows, lambda r: deps[r], col, sig, strict, tangent, edge, state)
-    return {"u": du[:, 0], "strain": deps[:, 0], "pressure": dp[:, 0], "peak_pressure": float(dpeak[0]),
-            "mean_pressure": float(dmean[0]), "contact_force": dforce[:, 0], "contact_moment": dmoment[:, 0],
-            "center_of_pressure": dcop[:, 0], "contact_area": float(darea[0])}
+    deps = ATk.T @ dxi + col.b
+    dp = -sig[:, None] * deps
+    if col.s is not None:
+        dp -= col.s  # zero outside the strict contact
+    if edge.size:
+        dp[edge] = -tangent[edge, None] * deps[edge] * state
+    return {"u": du, "strain": deps, "pressure": dp, "peak_pressure": dpeak, "mean_pressure": dmean,
+            "contact_force": dforce, "contact_moment": dmoment, "center_of_pressure": dcop, "contact_area": darea}
 
 
 def _pressure_rows(rows, strain_rows, col, sig, strict, tangent, edge, state):
