@@ -36,8 +36,9 @@ def sensitivity_case(n_springs: float = 1e5, repeats: int = 5) -> dict:
     import sys
 
     sys.path.insert(0, str(HERE))
-    import dea_opt as dea
     from common import box_problem, peak_rss_mb
+
+    import dea_opt as dea
     from dea_opt.sensitivity import sensitivities
 
     base = box_problem(int(n_springs))
@@ -73,8 +74,9 @@ def calibration_case(seed: int = 0) -> dict:
     sys.path.insert(0, str(HERE))
     if not all((KNEE / name).is_file() for name in KNEE_FILES):
         return {"case": "knee calibration", "status": f"skipped: no knee meshes in {KNEE}", "success": False}
-    import dea_opt as dea
     from common import peak_rss_mb
+
+    import dea_opt as dea
     from dea_opt import mesh as M
     from dea_opt.calibrate import PressureMap, calibrate
 
