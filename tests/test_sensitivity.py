@@ -365,3 +365,20 @@ def test_page_and_modules_name_each_other():
         assert "formulations/sensitivity.md" in path.read_text(), f"dea_opt/{module}.py does not name its page"
     assert d.sensitivities is sensitivities and d.calibrate.__module__ == "dea_opt.calibrate"
     assert d.propagate.__module__ == "dea_opt.uncertainty"
+
+
+def test_readme_snippet_runs_on_the_short_example():
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    namespace: dict = {}
+    for title in ("## A short example", "## Sensitivities, calibration and uncertainty"):
+        code = re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.S).group(1)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", d.ValidityWarning)
+            exec(compile(code, "README.md", "exec"), namespace)
+    sens = namespace["sens"]
+    assert set(sens.wrt) == {"H", "beta", "Fz", "thickness_scale", "gap"}
+    assert sens.unit("peak_pressure", "H") == "MPa/MPa"
+    assert sens.pressure["gap"].shape == (len(namespace["layer"]),) * 2
