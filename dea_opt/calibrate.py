@@ -13,6 +13,7 @@ from __future__ import annotations
 import dataclasses
 import warnings
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
@@ -103,7 +104,7 @@ class Calibration:
     success: bool
     message: str
     nfev: int
-    solution: object
+    solution: Any
     data: tuple
     info: dict = field(default_factory=dict)
 

@@ -110,7 +110,8 @@ def nlp_sensitivities(problem, wrt, *, x0=None, tol: float = 1e-14) -> dict:
     u_star, p_star = outputs(xi_star, Pv)
     J = ca.Function("J", [Pv], [ca.jacobian(ca.vertcat(u_star, p_star), Pv), xi_star])
     jac, xi_value = (np.asarray(v, dtype=float) for v in J(np.concatenate(nominal)))
-    out, start = {"x": sc.to_x(xi_value.reshape(-1))}, 0
+    out: dict = {"x": sc.to_x(xi_value.reshape(-1))}
+    start = 0
     for name, value in zip(wrt, nominal):
         block = jac[:, start:start + value.size]
         start += value.size

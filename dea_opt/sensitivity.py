@@ -264,8 +264,8 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
     band = _band(layer, eps, strict, area_band)
     notes = []
     res = system.resistance
-    results = {+1: {}, -1: {}}
-    states = {+1: {}, -1: {}}
+    results: dict[int, dict] = {+1: {}, -1: {}}
+    states: dict[int, dict] = {+1: {}, -1: {}}
     peak_set = _peak_set(solution.pressure)
     one_sided = bool(edge.size) or peak_set.size > 1
     weight = np.where(strict, V * tangent, 0.0)
@@ -304,13 +304,16 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
                 results[sign][names[0]] = out
                 states[sign][names[0]] = state
                 continue
-            for j, name in enumerate(names):
-                results[sign][name] = {k: (float(v[j]) if np.ndim(v) == 1 else v[:, j]) for k, v in out.items()}
-                states[sign][name] = state[:, j]
+            for column, name in enumerate(names):
+                results[sign][name] = {k: (float(v[column]) if np.ndim(v) == 1 else v[:, column])
+                                      for k, v in out.items()}
+                states[sign][name] = state[:, column]
     units = {name: parameter_unit(law, name) for name in wrt}
-    made = {s: Sensitivities(wrt, **{k: {n: results[s][n][k] for n in wrt} for k in OUTPUTS}, units=units,
-                             edge=edge, edge_state=states[s], area_band=band[1], notes=tuple(dict.fromkeys(notes)),
-                             one_sided=one_sided) for s in results if results[s]}
+    made = {}
+    for side in (s for s in results if results[s]):
+        fields: dict = {k: {n: results[side][n][k] for n in wrt} for k in OUTPUTS}
+        made[side] = Sensitivities(wrt=wrt, units=units, edge=edge, edge_state=states[side], area_band=band[1],
+                                   notes=tuple(dict.fromkeys(notes)), one_sided=one_sided, **fields)
     if -1 in made and not edge.size and all(
             np.allclose(made[+1].peak_pressure[k], made[-1].peak_pressure[k], rtol=1e-12, atol=0, equal_nan=True)
             for k in wrt):

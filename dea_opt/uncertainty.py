@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import warnings
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -98,8 +99,8 @@ def propagate(solution, std) -> Propagation:
         values = {}
         variance = 0.0
         for name, sd in std.items():
-            rates = [np.asarray(getattr(s, key)[name], dtype=float) for s in sides]
-            rates = [float(r[index]) if index is not None else float(r) for r in rates]
+            arrays = [np.asarray(getattr(s, key)[name], dtype=float) for s in sides]
+            rates = [float(r[index]) if index is not None else float(r) for r in arrays]
             values[name] = rates[0]
             variance += float(np.mean(np.square(rates))) * sd * sd
         derivatives[output] = values
@@ -119,7 +120,7 @@ class MonteCarlo:
         Over the certified draws, per output.
     """
 
-    samples: object
+    samples: Any
     mean: dict
     std: dict
 
