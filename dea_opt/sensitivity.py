@@ -153,7 +153,7 @@ def _columns(problem, names, eps, strict, law) -> list:
     layer, n = problem.layer, len(problem.layer)
     free = problem.free_indices
     h = layer.thickness
-    scalar, out = [], []
+    out = []
     law_rates = None
     for name in names:
         b, s, dr, du = np.zeros(n), None, np.zeros(len(free)), np.zeros(12)
@@ -186,7 +186,6 @@ def _columns(problem, names, eps, strict, law) -> list:
                                      f"dofs are parameters (free dofs are unknowns, fixed ones are 0)")
                 du[index] = 1.0
                 b = problem.normal_operator[:, index] / h
-        scalar.append(name)
         out.append((name, _Columns(b[:, None], None if s is None else s[:, None], dr[:, None], du[:, None])))
     return out
 
