@@ -1,7 +1,7 @@
 """CasADi's parametric sensitivities of the IPOPT solution: the second solver checking the first.
 
 Written math: ``formulations/sensitivity.md`` ("Cross-checks"). The reduced NLP of
-``formulations/nlp.md`` is built again with the parameters as CasADi symbols (the law's through
+:mod:`dea_opt.formulations.nlp` (``form="reduced"``) is built again with the parameters as CasADi symbols (the law's through
 :meth:`~dea_opt.laws.Law._twin`, so its ``energy_expr`` is the same code), solved by IPOPT, and
 CasADi differentiates the solution through IPOPT's KKT system at the optimum. Nothing is shared
 with :func:`dea_opt.sensitivity.sensitivities` but the problem's arrays: no tangent, no active
