@@ -92,3 +92,14 @@ def test_first_order_and_monte_carlo_agree_on_the_knee():
     print(f"\nknee: first-order sd of peak {first.output_std['peak_pressure']:.4g} MPa, Monte Carlo {mc.std['peak_pressure']:.4g}")
     assert 0.85 < ratio < 1.15, (first.output_std, mc.std)
     assert mc.mean["peak_pressure"] == pytest.approx(first.value["peak_pressure"], rel=0.02)
+
+
+def test_monte_carlo_on_a_local_cluster():
+    from distributed import Client, LocalCluster
+
+    problem = plate_problem()
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
+            Client(cluster) as client:
+        mc = monte_carlo(problem, {"Fz": 5.0}, n=16, seed=3, client=client, chunks=2)
+    here = monte_carlo(problem, {"Fz": 5.0}, n=16, seed=3, chunks=5)
+    assert mc.n_failed == 0 and mc.std["peak_pressure"] == pytest.approx(here.std["peak_pressure"], rel=1e-12)
