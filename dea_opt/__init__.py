@@ -1,6 +1,7 @@
 """dea-opt: discrete element analysis of cartilage contact, solved three ways and certified."""
 
 from ._version import __version__
+from .calibrate import calibrate
 from .errors import (
     DeaError,
     InputError,
@@ -8,12 +9,12 @@ from .errors import (
     MissingDependencyError,
     OutputFolderError,
     ScenarioError,
+    SizeLimitError,
     SolverError,
     ValidityWarning,
 )
 from .kinematics import DOFS
 from .laws import LAWS, AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw, register_law
-from .calibrate import calibrate
 from .layer import SpringLayer
 from .loadpath import solve_path
 from .problem import Body, ContactProblem, Load
@@ -26,6 +27,7 @@ __all__ = [
     "LAWS", "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
     "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "Sensitivities",
-    "Solution", "SolverError", "SpringLayer", "ValidityWarning", "calibrate", "certify", "check_load_supported",
-    "compare", "propagate", "register_law", "sensitivities", "solve", "solve_path", "__version__",
+    "SizeLimitError", "Solution", "SolverError", "SpringLayer", "ValidityWarning", "calibrate", "certify",
+    "check_load_supported", "compare", "propagate", "register_law", "sensitivities", "solve", "solve_path",
+    "__version__",
 ]

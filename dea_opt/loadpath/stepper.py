@@ -40,6 +40,17 @@ class Stepper:
         build = setup + (time.perf_counter() - start if new_geometry else 0.0)
         if new_geometry:
             self.model = None
+        if not system.load.any():
+            # No load: dea_opt.solve's own answer, so that the frame gets the status and the
+            # certificate of that situation that every method shares.
+            newton = ("gtol", "xtol", "max_iter")
+            if self.method == "newton":
+                options = {k: v for k, v in self.options.items() if k in newton}
+            elif self.method == "auto":
+                options = {}
+            else:
+                options = {k: v for k, v in self.options.items() if k not in newton}
+            return solve(problem, self.method, certificate_tol=self.certificate_tol, strict=False, **options)
         if self.method in ("newton", "auto"):
             solution = self._newton(problem, system, build)
         else:
@@ -47,6 +58,11 @@ class Stepper:
         if solution.success:
             self.x = solution.u[problem.free_indices]
         return solution
+
+    def reset(self) -> None:
+        """Forget the warm start and the model: the next frame starts cold (after a failed frame)."""
+        self.x = None
+        self.model = None
 
     def _newton(self, problem, system, build) -> Solution:
         from ..formulations import newton
