@@ -17,11 +17,12 @@ from .loadpath import solve_path
 from .problem import Body, ContactProblem, Load
 from .solution import Certificate, Solution, certify
 from .solver import METHODS, check_load_supported, compare, solve
+from .status import Status
 
 __all__ = [
     "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
     "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
-    "SpringLayer", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
+    "SpringLayer", "Status", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
     "__version__",
 ]

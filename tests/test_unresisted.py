@@ -44,7 +44,7 @@ def noise_equilibrium(problem):
     K = (AT * (V * H)) @ AT.T
     x = np.zeros(system.n_dofs)
     for _ in range(4):
-        q = AT @ (V * H * np.minimum(system.strain(x), 0.0))
+        q = AT @ (V * H * np.minimum(system.strain_at(x), 0.0))
         x = x + np.linalg.lstsq(K, system.load - q, rcond=None)[0]
     return problem.full_u(x)
 

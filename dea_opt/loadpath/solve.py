@@ -172,15 +172,11 @@ def _solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "au
                certificate_tol: float = 1e-6, strict: bool = False, keep_solutions: bool = True,
                layer_for_pose=None, threshold: float = 1.0, progress: bool = False, **options) -> "PathResult":
     """The body of :func:`solve_path`."""
-    from ..solver import METHODS, check_load_supported
+    from ..solver import check_load_supported, check_method
 
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
-    if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    if method == "qp" and not problem.law.is_linear:
-        raise InputError(f"method 'qp' needs a LinearLaw, got {problem.law.describe()}: use method='nlp' or "
-                         f"method='newton' for nonlinear laws")
+    check_method(method, problem.law)  # a registered formulation that takes the law
     if body not in (1, 2):
         raise InputError(f"body must be 1 or 2, got {body!r}")
     loads, times = _frames(loads, times)
