@@ -11,6 +11,8 @@ import numpy as np
 from . import formulations
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
 from .formulations.energy import (
+    CRUSHED_MESSAGE,
+    crushed,
     failed_result,
     require_finite,
     single_threaded_blas,
@@ -20,7 +22,7 @@ from .formulations.energy import (
 )
 from .problem import ContactProblem
 from .solution import Solution, certify
-from .status import Status
+from .status import CERTIFIABLE, Status
 
 __all__ = [
     "METHODS",
@@ -270,8 +272,11 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     """Turn a formulation's raw :class:`~dea_opt.formulations.FormulationResult` into a
     :class:`Solution` with dea_opt's own certificate (``success`` only if it passes).
 
-    A solver that claims convergence at an answer the certificate rejects gets
-    :attr:`Status.INACCURATE`; ``info["native_status"]`` keeps the solver's own status. Where
+    One status per situation, whichever method: a certified answer is
+    :attr:`Status.CONVERGED` (or the status of an answer that needed no solver) even where
+    the solver doubted it; an uncertified one whose springs reach ``eps = -1`` is
+    :attr:`Status.CRUSHED`, and one the solver claimed is :attr:`Status.INACCURATE`.
+    ``info["native_status"]`` and ``info["solver_success"]`` keep the solver's own word. Where
     some free directions are unresisted, ``info["held"]`` names them (they take no motion
     and carry no load) and the message says so. For callers that drive the formulation
     models themselves (load paths, studies).
@@ -290,9 +295,15 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     success = bool(finite and certificate.passed and np.isfinite(pressure).all())
     status, native = _status(result)
     info, message = dict(result.info, solver_success=result.success, native_status=native), result.message
-    if not success and status == Status.CONVERGED:
+    # The same situation, the same status from every method (formulations/energy.md, "Statuses").
+    if success and status not in CERTIFIABLE:
+        status = Status.CONVERGED  # certified although the solver doubted it (native_status says how)
+    elif not success and status != Status.CRUSHED and crushed(problem.law, strain):
+        status = Status.CRUSHED
+        message = f"{message}; {CRUSHED_MESSAGE.format(eps=float(np.nanmin(strain)))}"
+    elif not success and status in CERTIFIABLE:
         status = Status.INACCURATE
-        message = f"{message}; the solver's answer fails dea-opt's certificate"
+        message = f"{message}; the answer fails dea-opt's certificate"
     held = problem.system().resistance.describe(problem.free_names) if problem.free_indices.size else []
     if held:
         # Directions no spring resists carry no load (check_load_supported) and take no

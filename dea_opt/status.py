@@ -6,9 +6,10 @@ the same status from every method. :class:`Status` is a ``str`` enum: ``Status.C
 "converged"``, and JSON, CSV and old string comparisons see the plain value.
 
 A status says how the solve ended; ``Solution.success`` says whether dea-opt's own
-certificate passed. A certified answer has one of the statuses of :data:`CERTIFIABLE`,
-or the solver's failure status when its answer passes the certificate all the same (an
-iteration limit reached at an equilibrium).
+certificate passed. A certified answer (``success``) has one of the statuses of
+:data:`CERTIFIABLE`: :attr:`Status.CONVERGED` also where the solver doubted an answer that
+passes the certificate all the same (its own word stays in ``info["native_status"]`` and
+``info["solver_success"]``). An uncertified one has any other status.
 """
 
 from __future__ import annotations
@@ -59,7 +60,8 @@ class Status(StrEnum):
 
 
 _DESCRIPTIONS = {
-    Status.CONVERGED: "the solver met its own convergence test (the certificate judges the answer)",
+    Status.CONVERGED: "the solver converged; for a Solution, its answer passed dea-opt's certificate (also where "
+                      "the solver doubted it: info['native_status'] keeps its word)",
     Status.NO_FREE_DOFS: "every dof is fixed or prescribed: no solver runs, u is as prescribed",
     Status.HELD: "no spring resists any free dof and no load acts along them: every free dof is held at zero "
                  "motion, no solver runs",
@@ -67,7 +69,7 @@ _DESCRIPTIONS = {
     Status.PRELOADED: "no load, but springs overlap (a press fit): the default formulation's equilibrium of the "
                       "overlap alone, the same answer for every method",
     Status.INACCURATE: "the solver stopped at an answer it doubts (cvxpy's optimal_inaccurate, IPOPT's acceptable "
-                       "level), or claimed convergence at an answer that fails dea-opt's certificate",
+                       "level), or claimed one that fails dea-opt's certificate",
     Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence",
     Status.LINE_SEARCH_FAILED: "no step along the search direction decreased the energy enough (Newton's line "
                                "search, IPOPT's failed restoration)",

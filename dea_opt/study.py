@@ -86,6 +86,8 @@ def _check_names(methods, solvers, accuracy):
     by_solver = [m for m in methods if (option := _variant_option(m)) is not None and option.name == "solver"]
     if by_solver:
         installed = installed_qp_solvers()
+        if tuple(solvers) == DEFAULT_SOLVERS:
+            solvers = [s for s in DEFAULT_SOLVERS if s in installed]
         bad = [s for s in solvers if s not in installed]
         if bad:
             raise InputError(f"solver {', '.join(bad)} is not available to cvxpy here; installed QP solvers: "
@@ -186,7 +188,7 @@ def _run_one(problem, accuracy, method, solver, variant_options, repeat, referen
 
 def _verdict(solution, agrees, accuracy, dp, du) -> str:
     if not solution.info.get("solver_success", True):
-        return f"solver reports {solution.status}"
+        return f"solver reports {solution.info.get('native_status') or solution.status}"
     if not solution.certificate.passed:
         name, value = solution.certificate.worst()
         return f"inaccurate: {name} {value:.1e} > {accuracy.check_tol:g}"
@@ -323,9 +325,6 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
     if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
         raise InputError(f"repeat must be a positive integer, got {repeat!r}")
     methods = formulations.names() if methods is None else methods
-    if tuple(solvers) == DEFAULT_SOLVERS:
-        installed = installed_qp_solvers()
-        solvers = [s for s in DEFAULT_SOLVERS if s in installed]
     methods, solvers, accuracy = _check_names(methods, solvers, accuracy)
     check_load_supported(problem)
     import warnings

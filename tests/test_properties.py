@@ -385,7 +385,8 @@ def cases(draw, *, geometry=None, law=None, linear=None, free="mixed", moving=No
 
 
 def applicable(law, methods=METHODS):
-    return tuple(m for m in methods if m != "qp" or law.is_linear)
+    """The methods that take ``law``, as the registry's capabilities say (``auto`` takes any)."""
+    return tuple(m for m in methods if m == "auto" or d.formulations.takes(m, law))
 
 
 def quiet_solve(problem, method, **options):

@@ -22,10 +22,8 @@ from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
 from ._options import Capabilities, Option, Variant, validate
 from .energy import (
-    CRUSHED_MESSAGE,
     FormulationResult,
     SpringSystem,
-    crushed,
     require_finite,
     scaling,
     start_vector,
@@ -194,21 +192,17 @@ class NLPModel:
         stats = self.solver.stats()
         z = np.asarray(out["x"], dtype=float).reshape(-1)
         u_free = sc.to_u_free(z[: sc.n_dofs])
-        with np.errstate(invalid="ignore", over="ignore"):
-            eps = system.strain_at(u_free)
         if self.form == "constrained":
             # d/dc_hat of V' w(-s0 c_hat) is -V' s0 sigma; CasADi's lam_g balances it.
             lam = np.asarray(out["lam_g"], dtype=float).reshape(-1)[: system.n_springs]
             stress = lam / (sc.volume * sc.strain_scale)
             self._warm = {"x0": z, "lam_x0": out["lam_x"], "lam_g0": out["lam_g"]}
         else:
-            stress = self.law.stress(np.minimum(eps, 0.0))
+            stress = self.law.stress(np.minimum(system.strain_at(u_free), 0.0))
             self._warm = {"x0": z}
         native = str(stats.get("return_status", "unknown"))
         success = bool(stats.get("success", False))
         status, message = NATIVE_STATUS.get(native, Status.SOLVER_ERROR), f"IPOPT ({self.form}): {native}"
-        if not success and crushed(self.law, eps):
-            status, message = Status.CRUSHED, f"{message}; {CRUSHED_MESSAGE.format(eps=np.nanmin(eps))}"
         first, self._solved = not self._solved, True
         return FormulationResult(
             u_free=u_free,
