@@ -210,7 +210,8 @@ class Solution:
     Spring quantities have shape (N,), in the layer's spring order. ``stress`` and
     ``spring_force`` are tension positive (so ``<= 0``); ``pressure = -stress >= 0``.
     ``certificate`` says the answer solves the equations; ``validity`` says whether the
-    equations still describe cartilage there (:mod:`dea_opt.validity`). ``status`` is a
+    equations still describe cartilage there (:mod:`dea_opt.validity`,
+    ``formulations/validity.md``). ``status`` is a
     :class:`~dea_opt.status.Status` (a ``str``: ``"converged"``, ``"unloaded"``, ...), the
     solver's own in ``info["native_status"]``.
 

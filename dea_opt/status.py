@@ -9,7 +9,8 @@ A status says how the solve ended; ``Solution.success`` says whether dea-opt's o
 certificate passed. A certified answer (``success``) has one of the statuses of
 :data:`CERTIFIABLE`: :attr:`Status.CONVERGED` also where the solver doubted an answer that
 passes the certificate all the same (its own word stays in ``info["native_status"]`` and
-``info["solver_success"]``). An uncertified one has any other status.
+``info["solver_success"]``). An uncertified one has any other status. Written math:
+``formulations/energy.md`` ("Statuses").
 """
 
 from __future__ import annotations
@@ -66,8 +67,8 @@ _DESCRIPTIONS = {
     Status.HELD: "no spring resists any free dof and no load acts along them: every free dof is held at zero "
                  "motion, no solver runs",
     Status.UNLOADED: "no load and no overlap: nothing moves and no spring carries anything, no solver runs",
-    Status.PRELOADED: "no load, but springs overlap (a press fit): the default formulation's equilibrium of the "
-                      "overlap alone, the same answer for every method",
+    Status.PRELOADED: "no load, but springs overlap (a press fit): the equilibrium of the overlap alone by the "
+                      "default formulation (Newton), the same answer for every method",
     Status.INACCURATE: "the solver stopped at an answer it doubts (cvxpy's optimal_inaccurate, IPOPT's acceptable "
                        "level), or claimed one that fails dea-opt's certificate",
     Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence",
@@ -80,8 +81,10 @@ _DESCRIPTIONS = {
     Status.UNBOUNDED: "the solver found its problem unbounded (its iterates diverged)",
     Status.NON_FINITE: "a NaN or an infinity: in the data bound for compiled code (never passed on) or from the law",
     Status.SOLVER_ERROR: "the solver failed or raised without an answer",
-    Status.NOT_SUPPORTED: "compression-only springs cannot carry the load (LoadNotSupportedError)",
-    Status.INVALID_INPUT: "an argument or option was rejected before anything was solved (InputError)",
+    Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a study's row (or a load path's frame) "
+                          "whose solve raised LoadNotSupportedError",
+    Status.INVALID_INPUT: "an argument or option was rejected before anything was solved: a study's row whose solve "
+                          "raised InputError",
 }
 
 #: The statuses of an answer a solver (or no solver) produced as intended.

@@ -253,3 +253,38 @@ def test_the_built_in_fallbacks_are_capability_answers():
     assert formulations.fallback_for(d.LinearLaw(1.0)) == "qp"
     for law in (d.AteshianLaw(1.0, 0.1), d.CubicLaw(1.0, 0.1), d.BlankevoortLaw(1.0)):
         assert formulations.fallback_for(law) == "nlp"
+
+
+def test_the_readme_example_of_a_formulation_runs(capsys):
+    import re
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("**Adding a formulation.**", 1)[1]
+    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    namespace: dict = {}
+    try:
+        exec(compile(code, "README.md", "exec"), namespace)  # noqa: S102 - the README's own example
+        solution = namespace["solution"]
+        assert solution.success and solution.method == "bfgs" and solution.status is Status.CONVERGED
+        reference = d.solve(namespace["problem"], "newton")
+        assert abs(solution.u[8] - reference.u[8]) <= 1e-6 * abs(reference.u[8])
+        assert capsys.readouterr().out.startswith("converged ")
+    finally:
+        if "bfgs" in formulations.names():
+            formulations.unregister("bfgs")
+
+
+def test_the_readme_tables_of_options_and_capabilities_are_the_registry_s():
+    from pathlib import Path
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = readme.split("### Formulations and their options", 1)[1].split("**Adding a formulation.**", 1)[0]
+    for name in formulations.names():
+        for o in formulations.options(name):
+            row = f"| `{name}` | `{o.name}` | {o.kind()} | `{o.default!r}` | {'yes' if o.tolerance else ''} | {o.doc} |"
+            assert row in section, row
+        c = formulations.capabilities(name)
+        row = (f"| `{name}` | {c.laws} | {'yes' if c.warm_start else 'no'} | {', '.join(c.kinematics)} | "
+               f"{'yes' if c.duals else 'no'} | {'before' if c.checks_load_first else 'after a failure'} |")
+        assert row in section, row

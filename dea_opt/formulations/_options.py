@@ -89,18 +89,20 @@ class Option:
             raise InputError(f"{name} must be one of {list(accepted)} ({self.doc}), got {value!r}")
         return text
 
-    def describe(self) -> str:
-        """``name`` (type, range or choices; default): for the README and error messages."""
+    def kind(self) -> str:
+        """What the option takes, in words: ``number in (0, 1)``, ``integer >= 1``, ..."""
         if self.type is float:
             low, high = self.range or (-math.inf, math.inf)
-            kind = f"number in ({low:g}, {high:g})"
-        elif self.type is int:
-            kind = f"integer >= {(self.range or (1, None))[0]}"
-        elif self.type is str and not callable(self.choices):
-            kind = " | ".join(map(repr, self.accepted()))
-        else:
-            kind = self.type.__name__
-        return f"{self.name} ({kind}; default {self.default!r}): {self.doc}"
+            return f"number in ({low:g}, {high:g})"
+        if self.type is int:
+            return f"integer >= {(self.range or (1, None))[0]}"
+        if self.type is str and not callable(self.choices):
+            return " or ".join(map(repr, self.accepted()))
+        return {str: "name", dict: "dict", bool: "True or False"}.get(self.type, self.type.__name__)
+
+    def describe(self) -> str:
+        """``name`` (kind; default): doc. For messages and listings."""
+        return f"{self.name} ({self.kind()}; default {self.default!r}): {self.doc}"
 
 
 @dataclass(frozen=True)

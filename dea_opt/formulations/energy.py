@@ -140,10 +140,12 @@ class FormulationResult:
 class Scaling:
     """A change of variables that makes every formulation see a well-conditioned problem.
 
-    ``x = T xi`` with ``T = Q Lambda^(-1/2) s`` from the bonded stiffness
-    ``K0 = A^T diag(V H) A = Q Lambda Q^T`` (``formulations/energy.md``, "Scaling"):
-    directions no spring resists (:func:`resistance`) are dropped, the remaining ones are
-    made K0-orthonormal (so units, lever arms and far reference points no longer matter), and
+    ``u_free = T xi`` with ``T = T1 s`` and ``T1 = D^-1 Vk Sigma_k^-1 / sqrt(H)`` from the
+    singular value decomposition of the factor ``W = U Sigma V^T`` of the bonded stiffness
+    (:func:`resistance`; never an eigendecomposition of ``K0 = A^T diag(V H) A``, which would
+    square its condition number), so that ``T1^T K0 T1 = I`` (``formulations/energy.md``,
+    "Scaling"): directions no spring resists are dropped, the remaining ones are made
+    K0-orthonormal (so units, lever arms and far reference points no longer matter), and
     ``s`` makes ``xi = O(1)`` for the larger of the reference load and the overlap. Energies
     are divided by ``E0 = s^2`` and strain variables by ``s0``.
 

@@ -142,8 +142,8 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
 OPTIONS = (
     Option("xtol", float, 1e-12, "relative step of Eq. (20) that counts as converged once the contact set is "
            "unchanged (the paper uses 1e-6)", range=(0, 1), tolerance=True, build=False),
-    Option("gtol", float, 1e-12, "equilibrium residual |g| / max(|r|, |A^T V sigma|, 1) that counts as converged, "
-           "in the scaled variables", range=(0, 1), tolerance=True, build=False),
+    Option("gtol", float, 1e-12, "equilibrium residual, the gradient over max(load, spring force, 1) in the scaled "
+           "variables, that counts as converged", range=(0, 1), tolerance=True, build=False),
     Option("max_iter", int, 100, "iteration limit", range=(1, None), build=False),
     Option("extended_start", bool, True, "treat every spring as active, tension included, in the first iteration "
            "of a cold start (the paper's extended range)", build=False),
