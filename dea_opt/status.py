@@ -51,7 +51,7 @@ class Status(StrEnum):
         row, a frame of a load path): a :class:`~dea_opt.errors.SolverError` keeps its own."""
         from .errors import InputError, LoadNotSupportedError, SolverError
 
-        if isinstance(exc, SolverError) and exc.status:
+        if isinstance(exc, SolverError) and exc.status in cls._value2member_map_:
             return cls(exc.status)
         if isinstance(exc, LoadNotSupportedError):
             return cls.NOT_SUPPORTED

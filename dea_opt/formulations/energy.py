@@ -289,10 +289,10 @@ class Resistance:
         rD = rD / top  # scaled first, so that neither square under- nor overflows
         return float(np.linalg.norm(self.null.T @ rD) / np.linalg.norm(rD))
 
-    def motion_part(self, x) -> np.ndarray:
-        """The part of the free-dof motion ``x`` (mm, rad) along unresisted directions."""
+    def motion_part(self, u_free) -> np.ndarray:
+        """The part of the free-dof motion ``u_free`` (mm, rad) along unresisted directions."""
         D = self.lengths
-        return (self.null @ (self.null.T @ (np.asarray(x, dtype=float) * D))) / D
+        return (self.null @ (self.null.T @ (np.asarray(u_free, dtype=float) * D))) / D
 
     def describe(self, names) -> list[str]:
         """The unresisted directions in words: each free dof that lies wholly among them by its
