@@ -146,7 +146,7 @@ def test_error_catalogue_lists_every_error():
 def test_the_readme_status_table_lists_every_status_with_its_description():
     readme = (ROOT / "README.md").read_text()
     table = readme.split("### Statuses", 1)[1].split("\n#", 1)[0]
-    rows = {m.group(1): m.group(2).strip() for m in re.finditer(r"^\| `(\w+)` \| (.+?) \|$", table, re.M)}
+    rows = {m.group(1): m.group(2).strip() for m in re.finditer(r"^\| `(\w+)` \| (.+?) \|$", table, re.MULTILINE)}
     assert set(rows) == {status.value for status in Status}
     for status in Status:
         assert rows[status.value] == status.description.replace("|", "\\|"), status

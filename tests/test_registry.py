@@ -261,7 +261,7 @@ def test_the_readme_example_of_a_formulation_runs(capsys):
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
     section = readme.split("**Adding a formulation.**", 1)[1]
-    code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
+    code = re.search(r"```python\n(.*?)```", section, re.DOTALL).group(1)
     namespace: dict = {}
     try:
         exec(compile(code, "README.md", "exec"), namespace)  # noqa: S102 - the README's own example

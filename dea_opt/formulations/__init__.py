@@ -15,7 +15,8 @@ A formulation is a module (or any object with these attributes):
     A tuple of :class:`Option` (names, types, ranges, defaults), checked by
     :func:`check_options`, the one place options are validated.
 ``CAPABILITIES``
-    A :class:`Capabilities`: the laws it takes, warm starts, kinematics, duals.
+    A :class:`Capabilities`: the laws it takes, warm starts, kinematics, duals, and whether the
+    cone test of the load runs before it.
 ``EXTRA_OPTIONS`` (optional)
     Where options it does not declare go (``qp``: to the QP solver); ``None`` rejects them.
 ``VARIANT`` (optional)
@@ -24,7 +25,8 @@ A formulation is a module (or any object with these attributes):
     Its written math, ``formulations/<name>.md`` at the repository's top.
 
 Nothing outside this package names a formulation: ``dea_opt.solve`` (``auto``'s fallback is
-:func:`fallback_for`), load paths, studies and scenarios ask the functions below.
+:func:`fallback_for`), load paths, studies and scenarios ask the functions below. The option
+and capability declarations live in :mod:`dea_opt.formulations._options`.
 """
 
 from __future__ import annotations
@@ -121,10 +123,6 @@ def variant(name: str) -> Variant | None:
     return getattr(get(name), "VARIANT", None)
 
 
-def page(name: str) -> str | None:
-    return getattr(get(name), "PAGE", None)
-
-
 def takes(name: str, law, kinematics: str = "small") -> bool:
     """Whether ``name`` solves problems with ``law`` in ``kinematics``."""
     caps = capabilities(name)
@@ -188,17 +186,6 @@ def solve(name: str, system: SpringSystem, law, *, x0=None, **given) -> Formulat
     return model.solve(x0=x0)
 
 
-def module_solve(name: str):
-    """A module-level ``solve(system, law, *, x0=None, **options)`` for formulation ``name``
-    (each built-in module exposes one, built once and solved once)."""
-
-    def solve_once(system: SpringSystem, law, *, x0=None, **given) -> FormulationResult:
-        return solve(name, system, law, x0=x0, **given)
-
-    solve_once.__doc__ = f"Build the {name} model of ``system`` and ``law`` and solve it once."
-    return solve_once
-
-
 __all__ = [
     "DEFAULT",
     "FORMULATIONS",
@@ -216,7 +203,6 @@ __all__ = [
     "get",
     "names",
     "options",
-    "page",
     "register",
     "solve",
     "takes",
