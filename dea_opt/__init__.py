@@ -6,12 +6,13 @@ from .errors import (
     InputError,
     LoadNotSupportedError,
     MissingDependencyError,
+    OutputFolderError,
     ScenarioError,
     SolverError,
     ValidityWarning,
 )
 from .kinematics import DOFS
-from .laws import AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw
+from .laws import LAWS, AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw, register_law
 from .layer import SpringLayer
 from .loadpath import solve_path
 from .problem import Body, ContactProblem, Load
@@ -20,9 +21,9 @@ from .solver import METHODS, check_load_supported, compare, solve
 from .status import Status
 
 __all__ = [
-    "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
+    "LAWS", "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
-    "METHODS", "MissingDependencyError", "ScenarioError", "PolynomialLaw", "Solution", "SolverError",
-    "SpringLayer", "Status", "ValidityWarning", "certify", "check_load_supported", "compare", "solve", "solve_path",
-    "__version__",
+    "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "Solution",
+    "SolverError", "SpringLayer", "Status", "ValidityWarning", "certify", "check_load_supported", "compare",
+    "register_law", "solve", "solve_path", "__version__",
 ]

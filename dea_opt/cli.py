@@ -1,7 +1,17 @@
-"""The ``dea-opt`` command: run, compare, sweep, demo, schema, version.
+"""The ``dea-opt`` command: run, compare, sweep, demo, schema, version (and ``--version``).
 
-Exit codes: 0 done; 1 outputs written but an answer failed its certificate; 2 bad input or
-an error dea-opt reports (a one-paragraph message on stderr, no traceback).
+Exit codes:
+
+- 0: done; every answer certified and inside its model's validity;
+- 1: outputs written, but an answer failed its certificate (a load path: any frame);
+- 2: bad input or an error dea-opt reports: one paragraph ``dea-opt: error: ...`` on stderr,
+  no traceback (an unexpected failure says so and leaves its traceback in a log file);
+- 3: outputs written, every answer certified, but one lies outside its model's validity
+  (0 with ``[solve] allow_outside_validity = true``); the reason is on stderr;
+- 130: interrupted (Ctrl-C); the message says what the output folder holds.
+
+dea-opt's own warnings print as ``dea-opt: warning: ...`` (one line each); the libraries'
+warnings and log records go to ``dea-opt.log`` in the output folder.
 """
 
 from __future__ import annotations
@@ -9,12 +19,16 @@ from __future__ import annotations
 import functools
 import json
 import sys
+import tempfile
+import time
+import traceback
 from pathlib import Path
 from typing import Annotated, Optional
 
 import typer
 
 from .errors import DeaError
+from .runlog import captured, one_line
 
 app = typer.Typer(
     name="dea-opt",
@@ -26,32 +40,70 @@ app = typer.Typer(
     rich_markup_mode=None,
 )
 
+EXIT_OK = 0
 EXIT_UNCERTIFIED = 1
 EXIT_ERROR = 2
+EXIT_OUTSIDE_VALIDITY = 3
+EXIT_INTERRUPTED = 130
 
 
 def _fail(message: str, code: int = EXIT_ERROR):
     # One paragraph: dea-opt's messages may hold newlines from nested errors.
-    typer.echo(f"dea-opt: error: {' '.join(str(message).split())}", err=True)
+    typer.echo(f"dea-opt: error: {one_line(message)}", err=True)
     raise typer.Exit(code)
 
 
+def _warn(messages) -> None:
+    for message in messages:
+        typer.echo(f"dea-opt: warning: {one_line(message)}", err=True)
+
+
+def _crash_log(exc: BaseException) -> Path | None:
+    """Write the traceback of an unexpected failure to a file of its own; its path, or None."""
+    try:
+        with tempfile.NamedTemporaryFile("w", prefix=f"dea-opt-crash-{time.strftime('%Y%m%d-%H%M%S')}-",
+                                         suffix=".log", delete=False, encoding="utf-8") as handle:
+            handle.write(f"dea-opt {' '.join(sys.argv[1:])}\n")
+            handle.write("".join(traceback.format_exception(exc)))
+            return Path(handle.name)
+    except OSError:
+        return None
+
+
 def _reported(command):
-    """Turn every DeaError into a one-paragraph message on stderr and exit code 2."""
+    """Turn every failure into a one-paragraph message on stderr: a DeaError (or an OSError, the
+    user's to fix) exits 2, Ctrl-C 130 with what the output folder holds; dea-opt's own warnings
+    print one line each, the libraries' never reach the terminal."""
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
         try:
-            return command(*args, **kwargs)
+            with captured() as messages:
+                try:
+                    return command(*args, **kwargs)
+                finally:
+                    # A run logs the libraries' messages into its folder; any left here (before a run
+                    # starts, or in a command without a folder) become one line each.
+                    messages.collect()
+                    _warn(messages.own + [f"from a library: {line}" for line in messages.log])
+        except typer.Exit:
+            raise
         except DeaError as exc:
             _fail(exc)
         except OSError as exc:  # a full disk, a folder we may not write: the user's to fix, not a bug
             where = f" ({exc.filename})" if exc.filename else ""
             _fail(f"{exc.strerror or exc}{where}")
-        except KeyboardInterrupt:
-            typer.echo("dea-opt: interrupted; finished outputs are complete (files are written atomically)",
-                       err=True)
-            raise typer.Exit(130) from None
+        except KeyboardInterrupt as exc:
+            report = getattr(exc, "report", None) or "no output of this command was published"
+            typer.echo(f"dea-opt: interrupted; {report}", err=True)
+            raise typer.Exit(EXIT_INTERRUPTED) from None
+        except RecursionError:
+            _fail("the input nests too deeply to be read (RecursionError); simplify it")
+        except Exception as exc:  # noqa: BLE001 - a bug of dea-opt's: say so, keep the traceback off the terminal
+            log = _crash_log(exc)
+            where = f"; the traceback is in {log}" if log else ""
+            _fail(f"unexpected internal error ({type(exc).__name__}: {exc}): this is a bug in dea-opt, please report "
+                  f"it with the scenario{where}")
 
     return wrapper
 
@@ -76,15 +128,24 @@ def _overrides(sets: list[str] | None) -> dict:
 
 
 def _report_outcome(outcome, quiet: bool = False) -> None:
-    for message in outcome.warnings:
-        typer.echo(f"dea-opt: warning: {' '.join(message.split())}", err=True)
+    """Print a run's outcome and exit with its status (0, 1 or 3)."""
+    _warn(outcome.warnings)
     if not quiet:
         typer.echo(outcome.message)
+        for line in outcome.validity:
+            typer.echo(line)
+        folder = outcome.folder
+        typer.echo(f"outputs in {folder} (run {outcome.manifest['run_id']}, listed in manifest.json):")
         for name, path in outcome.files.items():
-            typer.echo(f"  {name:13s} {path}")
-    if not outcome.success:
-        typer.echo(f"dea-opt: {' '.join(outcome.message.split())}", err=True)
-        raise typer.Exit(EXIT_UNCERTIFIED)
+            shown = Path(path).relative_to(folder) if Path(path).is_relative_to(folder) else path
+            typer.echo(f"  {name:13s} {shown}")
+    if outcome.status == "certificate failed":
+        typer.echo(f"dea-opt: {one_line(outcome.message)}", err=True)
+    elif outcome.status == "outside validity":
+        allowed = " (allowed by [solve] allow_outside_validity)" if outcome.allow_outside_validity else ""
+        typer.echo(f"dea-opt: solved outside validity{allowed}: {one_line('; '.join(outcome.reasons))}", err=True)
+    if outcome.exit_code:
+        raise typer.Exit(outcome.exit_code)
 
 
 ScenarioArg = Annotated[Path, typer.Argument(help="The scenario TOML file (see: dea-opt schema).",
@@ -95,23 +156,51 @@ MethodOpt = Annotated[Optional[str], typer.Option("--method", "-m", help="auto |
                                                   "(default: the scenario's [solve].method).", show_default=False)]
 SetOpt = Annotated[Optional[list[str]], typer.Option("--set", help="Override a scenario value, e.g. "
                                                      "--set law.H=0.45 (repeatable).", show_default=False)]
+ForceOpt = Annotated[bool, typer.Option("--force", help="Write into the output folder even if it holds files dea-opt "
+                                        "did not write (files named like the outputs are replaced).")]
+
+
+def _version_callback(value: bool) -> None:
+    if value:
+        from ._version import __version__
+
+        typer.echo(f"dea-opt {__version__}")
+        raise typer.Exit()
+
+
+@app.callback()
+def _main(version: Annotated[bool, typer.Option("--version", callback=_version_callback, is_eager=True,
+                                                help="Print the version and exit.")] = False) -> None:
+    """Discrete element analysis of cartilage contact: scenario files in, certified results out.
+
+    Exit codes: 0 ok; 1 an answer failed its certificate; 2 bad input (one paragraph on
+    stderr); 3 certified but outside the model's validity (the reason on stderr); 130
+    interrupted.
+    """
 
 
 @app.command()
 @_reported
 def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = None, set_: SetOpt = None,
-        quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors.")] = False):
-    """Solve a scenario (one load or a load path) and write its outputs.
+        quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors and warnings.")] = False,
+        force: ForceOpt = False,
+        stop_on_error: Annotated[bool, typer.Option("--stop-on-error", help="A load path stops at its first frame "
+                                                    "without a certified answer (exit 2, nothing published) instead "
+                                                    "of recording it and going on.")] = False):
+    """Solve a scenario (one load or a load path) and publish its outputs into one folder.
 
     A static load writes contact.vtu, contact.csv, contact.json and contact.png; a load
     path writes frames.csv, series.pvd (+ series_frames/), exposure.vtu, cycle.png,
-    exposure.png and summary.json.
+    exposure.png and summary.json; then manifest.json, last. The folder must be new, empty
+    or hold an earlier dea-opt run (--force: any folder). Exit 0 ok, 1 certificate failed,
+    3 certified but outside validity ([solve] allow_outside_validity = true: 0).
     """
     from .run import run_scenario
     from .scenario import load_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
-    outcome = run_scenario(loaded, output, method=method, progress=not quiet)
+    outcome = run_scenario(loaded, output, method=method, progress=not quiet, force=force,
+                           stop_on_error=stop_on_error)
     _report_outcome(outcome, quiet)
 
 
@@ -132,27 +221,42 @@ def compare(
                                                  "largest force).", show_default=False)] = None,
     nlp_forms: Annotated[str, typer.Option(help="NLP forms for nlp, comma-separated: constrained,reduced.")]
     = "constrained",
-    output: OutputOpt = None,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
+                                                   "[output].directory>/compare).", show_default=False)] = None,
     set_: SetOpt = None,
+    force: ForceOpt = False,
 ):
     """Solve one problem by every method x solver x accuracy and tabulate the results.
 
     A row is a success only if the solver claims success, dea-opt's certificate passes at
     the accuracy's tolerance, and the answer agrees with Newton to that tolerance. Writes
-    compare.csv and compare_summary.csv.
+    compare.csv and compare_summary.csv (and manifest.json) into <output>/compare.
     """
+    from .io.publish import check_output_folder, output_run
+    from .run import run_info
     from .scenario import load_scenario
     from .study import run_study
 
     loaded = load_scenario(scenario, _overrides(set_))
+    folder = check_output_folder(output if output is not None else loaded.output_dir() / "compare", force)
     problem = _compare_problem(loaded, frame)
     section = loaded.solve
-    # The default list is cut to the installed solvers by run_study; a list given is checked.
-    result = run_study(problem, methods=_split(methods) or section.methods,
-                       solvers=_split(solvers) or section.solvers, accuracy=_split(accuracy) or section.accuracy,
-                       repeat=section.repeat if repeat is None else repeat, nlp_forms=_split(nlp_forms),
-                       progress=True)
-    files = result.to_csv(loaded.output_dir(output))
+    with captured() as messages, output_run(folder, force=force, info=run_info(loaded, "compare")) as publication:
+        # The default list is cut to the installed solvers by run_study; a list given is checked.
+        result = run_study(problem, methods=_split(methods) or section.methods,
+                           solvers=_split(solvers) or section.solvers, accuracy=_split(accuracy) or section.accuracy,
+                           repeat=section.repeat if repeat is None else repeat, nlp_forms=_split(nlp_forms),
+                           progress=True)
+        files = result.to_csv(publication.folder)
+        messages.collect()
+        log = messages.log_text(f"dea-opt compare of {loaded.source or loaded.title}")
+        if log:
+            from .io.atomic import write_data
+            from .runlog import LOG_NAME
+
+            files["log"] = write_data(publication.folder / LOG_NAME, log)
+        publication.publish(status="ok")
+    _warn(messages.own)
     typer.echo(result.format_table())
     typer.echo("")
     typer.echo("Summary (success needs the certificate; time: shifted geometric mean, shift 10 ms, failures "
@@ -249,22 +353,23 @@ def demo(
     method: MethodOpt = None,
     compare_: Annotated[bool, typer.Option("--compare/--no-compare", help="Solve and print the gait-peak "
                                            "comparison table first.")] = True,
+    force: ForceOpt = False,
 ):
     """The embedded default: a hip under a synthetic 101-frame walking cycle.
 
     First one gait-peak frame (2.4 kN tilted 20 degrees) by Newton, QP and NLP with the
     linear and Ateshian laws, as a table; then the whole cycle, warm-started frame by
     frame, written to ./dea-opt-demo/: frames.csv, series.pvd, cycle.png, exposure.png,
-    exposure.vtu, summary.json and comparison.csv.
+    exposure.vtu, summary.json, comparison.csv and, last, manifest.json. The folder must be
+    new, empty or hold an earlier dea-opt run (--force: any folder).
     """
-    from .run import run_demo
+    from .demo import run_demo
 
     outcome = run_demo(output, frames=frames, coarse=coarse, method=method, compare=compare_, progress=True,
-                       echo=typer.echo)
-    for message in outcome.warnings:
-        typer.echo(f"dea-opt: warning: {' '.join(message.split())}", err=True)
-    if not outcome.success:
-        raise typer.Exit(EXIT_UNCERTIFIED)
+                       echo=typer.echo, force=force)
+    _warn(outcome.warnings)
+    if outcome.exit_code:
+        raise typer.Exit(outcome.exit_code)
 
 
 @app.command()

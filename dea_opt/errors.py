@@ -26,6 +26,15 @@ class ScenarioError(InputError):
     """
 
 
+class OutputFolderError(InputError):
+    """A run may not write into the output folder it was given.
+
+    The folder holds files dea-opt did not write and no manifest of an earlier dea-opt run
+    (``--force`` writes there anyway), is a file, or another run is writing into it. The
+    message names the folder.
+    """
+
+
 class LoadNotSupportedError(DeaError):
     """Compression-only springs cannot carry the load.
 

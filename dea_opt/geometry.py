@@ -10,13 +10,50 @@ whose springs come from ray casting (:mod:`dea_opt.mesh`).
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import positive_integer
+from ._validate import number_in_range, positive_integer
 from .errors import InputError
 from .layer import SpringLayer
+from .mesh.budget import (
+    BYTES_PER_GENERATED_FACE,
+    BYTES_PER_LAYER_SPRING,
+    check_memory,
+    format_count,
+)
+
+_FEWER = "use fewer cells (a coarser grid) for a joint-sized layer"
+
+
+def _check_springs(what: str, n: int) -> None:
+    """A layer of ``n`` springs must fit in memory (checked before any array is made)."""
+    check_memory(f"{what} ({format_count(n)} springs)", BYTES_PER_LAYER_SPRING * n, _FEWER)
+
+
+def _check_faces(what: str, n_faces: int) -> None:
+    """Generated meshes of ``n_faces`` faces in all must fit in memory (checked before building)."""
+    check_memory(f"{what} ({format_count(n_faces)} faces)", BYTES_PER_GENERATED_FACE * n_faces,
+                 "use a larger step or fewer cells (a joint's cartilage needs 10^4-10^5 faces)")
+
+
+def _step(step) -> float:
+    """A grid step in degrees, in (0, 30]."""
+    return number_in_range("step", step, 0.0, 30.0, low_open=True)
+
+
+def _slab_faces(nx: int, ny: int) -> int:
+    """Faces of a closed slab of ``nx`` x ``ny`` cells: top, bottom and side walls."""
+    return 4 * nx * ny + 4 * (nx + ny)
+
+
+def _shell_grid(coverage: float, fossa: float, notch: float, step: float) -> tuple[int, int, int]:
+    """``(n_polar, n_azimuth, faces)`` of a spherical layer's grid (an upper bound on faces)."""
+    n_polar = max(math.ceil((coverage - fossa) / step), 1)
+    n_azimuth = max(math.ceil(360.0 / step), 8)
+    return n_polar, n_azimuth, 4 * n_polar * n_azimuth + 4 * (n_polar + n_azimuth)
 
 
 def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: int = 10,
@@ -27,6 +64,7 @@ def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: in
     ``length`` (mm) and y along the ``width`` (mm); the plate is centred at the origin.
     """
     nx, ny = positive_integer("nx", nx), positive_integer("ny", ny)
+    _check_springs(f"plate_layer(nx={nx}, ny={ny})", nx * ny)
     dx, dy = length / nx, width / ny
     xs = -length / 2 + dx * (np.arange(nx) + 0.5)
     ys = -width / 2 + dy * (np.arange(ny) + 0.5)
@@ -45,6 +83,7 @@ def sphere_on_bed_layer(radius: float = 25.0, thickness: float = 2.0, extent: fl
     Normals +z: body 1 is the bed, body 2 the sphere (centre at ``(0, 0, radius)``).
     """
     n_rings, n_sectors = positive_integer("n_rings", n_rings), positive_integer("n_sectors", n_sectors)
+    _check_springs(f"sphere_on_bed_layer(n_rings={n_rings}, n_sectors={n_sectors})", n_rings * n_sectors)
     if extent >= radius:
         raise InputError(f"extent must be smaller than radius={radius}, got {extent}")
     edges = np.linspace(0.0, extent, n_rings + 1)
@@ -69,6 +108,7 @@ def socket_layer(radius: float = 25.0, thickness: float = 2.0, coverage: float =
     (body 1) to the ball (body 2), i.e. toward the centre.
     """
     n_rings, n_sectors = positive_integer("n_rings", n_rings), positive_integer("n_sectors", n_sectors)
+    _check_springs(f"socket_layer(n_rings={n_rings}, n_sectors={n_sectors})", n_rings * n_sectors)
     if not 0 < coverage <= 180:
         raise InputError(f"coverage must be in (0, 180] degrees, got {coverage}")
     edges = np.radians(np.linspace(0.0, coverage, n_rings + 1))
@@ -186,8 +226,8 @@ def slab_mesh(length: float = 40.0, width: float = 40.0, thickness: float = 2.0,
     if facing not in ("up", "down"):
         raise InputError(f"facing must be 'up' or 'down', got {facing!r}")
     for name, value in (("length", length), ("width", width), ("thickness", thickness)):
-        if not value > 0:
-            raise InputError(f"{name} must be > 0 (mm), got {value!r}")
+        number_in_range(name, value, 0.0, low_open=True)
+    _check_faces(f"slab_mesh(nx={nx}, ny={ny})", _slab_faces(nx, ny))
     xs = center[0] + np.linspace(-length / 2, length / 2, nx + 1)
     ys = center[1] + np.linspace(-width / 2, width / 2, ny + 1)
     X, Y = np.meshgrid(xs, ys, indexing="ij")
@@ -242,6 +282,9 @@ def spherical_shell_mesh(radius: float = 25.0, thickness: float = 2.0, coverage:
     """
     if articular not in ("outer", "inner"):
         raise InputError(f"articular must be 'outer' or 'inner', got {articular!r}")
+    for name, value in (("radius", radius), ("thickness", thickness), ("coverage", coverage),
+                        ("fossa", fossa), ("notch", notch), ("step", step)):
+        number_in_range(name, value)
     if not 0 < thickness < radius or not radius > 0:
         raise InputError(f"need 0 < thickness < radius, got thickness={thickness}, radius={radius}")
     if not 0 <= fossa < coverage <= 180:
@@ -250,8 +293,8 @@ def spherical_shell_mesh(radius: float = 25.0, thickness: float = 2.0, coverage:
         raise InputError(f"notch must be in [0, 360) degrees, got {notch}")
     if not 0 < step <= 30:
         raise InputError(f"step must be in (0, 30] degrees, got {step}")
-    n_polar = max(int(np.ceil((coverage - fossa) / step)), 1)
-    n_azimuth = max(int(np.ceil(360.0 / step)), 8)
+    n_polar, n_azimuth, n_faces = _shell_grid(coverage, fossa, notch, step)
+    _check_faces(f"spherical_shell_mesh(step={step:g})", n_faces)
     theta = np.radians(np.linspace(fossa, coverage, n_polar + 1))
     if notch > 0:  # the notch is a gap in azimuth: the grid runs from one side to the other
         phi = np.radians(np.linspace(notch / 2, 360.0 - notch / 2, n_azimuth + 1))
@@ -301,9 +344,14 @@ class MeshPair:
 
     def layer(self, **options) -> SpringLayer:
         """Springs from mesh 1 onto mesh 2; ``options`` override :attr:`options`."""
-        from .mesh import springs_from_meshes
+        return self.cast(**options).layer
 
-        return springs_from_meshes(self.mesh1, self.mesh2, **{**self.options, **options})
+    def cast(self, **options):
+        """The :class:`~dea_opt.mesh.SpringCast` of :meth:`layer` (for
+        :func:`~dea_opt.mesh.recast` and :func:`~dea_opt.mesh.recast_at_solution`)."""
+        from .mesh import cast_springs
+
+        return cast_springs(self.mesh1, self.mesh2, **{**self.options, **options})
 
     def problem(self, law, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0), free=("uz",), **options):
         """A :class:`~dea_opt.problem.ContactProblem`: body 1 fixed, body 2 loaded at ``reference2``."""
@@ -326,6 +374,8 @@ def plate_meshes(length: float = 40.0, width: float = 10.0, thickness: float = 2
     ``z = 0``); mesh 2 a rigid plate of the same footprint on top of it (``thickness2=0``).
     A force ``F`` along -z on the plate gives the uniform pressure ``F / (length width)``.
     """
+    nx, ny = positive_integer("nx", nx), positive_integer("ny", ny)
+    _check_faces(f"plate_meshes(nx={nx}, ny={ny})", 2 * _slab_faces(nx, ny))
     slab = slab_mesh(length, width, thickness, nx, ny)
     plate = slab_mesh(length, width, plate_thickness, nx, ny, top=0.0, facing="down")
     return MeshPair("plate", slab, plate, (0.0, 0.0, -thickness), (0.0, 0.0, 0.0),
@@ -346,8 +396,11 @@ def sphere_on_bed_meshes(radius: float = 25.0, thickness: float = 2.0, extent: f
     """
     if not 0 < extent * np.sqrt(2) < radius:
         raise InputError(f"extent * sqrt(2) must be smaller than radius={radius}, got extent={extent}")
-    bed = slab_mesh(2 * extent, 2 * extent, thickness, n_bed, n_bed)
+    n_bed, step = positive_integer("n_bed", n_bed), _step(step)
     reach = np.degrees(np.arcsin(extent * np.sqrt(2) / radius)) + 2 * step
+    _check_faces(f"sphere_on_bed_meshes(n_bed={n_bed}, step={step:g})",
+                 _slab_faces(n_bed, n_bed) + _shell_grid(min(reach, 90.0), 0.0, 0.0, step)[2])
+    bed = slab_mesh(2 * extent, 2 * extent, thickness, n_bed, n_bed)
     cap = spherical_shell_mesh(radius, radius / 4, min(reach, 90.0), center=(0.0, 0.0, radius),
                                axis=(0.0, 0.0, -1.0), step=step)
     return MeshPair("sphere_on_bed", bed, cap, (0.0, 0.0, -thickness), (0.0, 0.0, radius),
@@ -370,6 +423,9 @@ def hip_meshes(head_radius: float = 24.0, socket_radius: float = 24.5, head_thic
     """
     if not 0 < head_radius < socket_radius:
         raise InputError(f"need 0 < head_radius < socket_radius, got {head_radius}, {socket_radius}")
+    step = _step(step)
+    _check_faces(f"hip_meshes(step={step:g})",
+                 _shell_grid(coverage, fossa, notch, step)[2] + _shell_grid(min(coverage + 20.0, 180.0), 0.0, 0.0, step)[2])
     socket = spherical_shell_mesh(socket_radius, socket_thickness, coverage, articular="inner",
                                   fossa=fossa, notch=notch, step=step)
     head_centre = (0.0, 0.0, head_radius - socket_radius)
@@ -400,6 +456,9 @@ def knee_meshes(condyle_radius=(32.0, 28.0), spacing: float = 40.0, femoral_thic
     if plateau >= spacing:
         raise InputError(f"plateau must be narrower than spacing={spacing} so the slabs stay apart, "
                          f"got {plateau}")
+    n_plateau, step = positive_integer("n_plateau", n_plateau), _step(step)
+    _check_faces(f"knee_meshes(n_plateau={n_plateau}, step={step:g})",
+                 2 * _slab_faces(n_plateau, n_plateau) + 2 * _shell_grid(coverage, 0.0, 0.0, step)[2])
     medial = slab_mesh(plateau, plateau, tibial_thickness, n_plateau, n_plateau, center=(half, 0.0))
     lateral = slab_mesh(plateau, plateau, tibial_thickness, n_plateau, n_plateau, center=(-half, 0.0))
     tibia = _concatenate([medial, lateral])

@@ -7,12 +7,19 @@ Every law writes its formulas once, in :meth:`Law.stress_expr`, :meth:`Law.tange
 symbolic expressions of the NLP formulation, so the two can never drift apart.
 The written math is in ``formulations/energy.md``.
 
+:data:`LAWS` is the registry of law kinds (``"linear"`` -> :class:`LinearLaw`, ...): each kind's
+parameters come from the class itself (its dataclass fields and its ``ranges``), and the
+scenario schema, ``build_law``, the command line and ``dea-opt schema`` read it.
+:func:`register_law` adds a law of your own to it.
+
 Units: ``H`` in MPa, stress and energy density in MPa (= N/mm^2 = mJ/mm^3).
 """
 
 from __future__ import annotations
 
+import dataclasses
 import math
+import typing
 from dataclasses import dataclass
 from types import SimpleNamespace
 
@@ -21,8 +28,15 @@ import numpy as np
 from ._tolerances import LINEAR_VALIDITY
 from ._validate import LARGEST, SMALLEST, check_range
 from .errors import InputError
+from .law_registry import HUGE as _HUGE
+from .law_registry import LawKind, LawParameter, LawRegistry, Range, kind_name, label
 
 __all__ = [
+    "LAWS",
+    "LawKind",
+    "LawParameter",
+    "Range",
+    "register_law",
     "Law",
     "LinearLaw",
     "AteshianLaw",
@@ -79,6 +93,10 @@ class Law:
     #: cartilage, or ``None`` if it states no range of its own: :mod:`dea_opt.validity` then
     #: applies only its crushing limit to it. Override it in a law of your own.
     valid_compression = None
+    #: ``{parameter: Range(low, high, unit, meaning)}``: what the registry (:data:`LAWS`), the
+    #: scenario schema and ``dea-opt schema`` say of each parameter; a parameter without one
+    #: takes any number and is checked by the class alone.
+    ranges: typing.ClassVar[dict] = {}
 
     @property
     def modulus(self) -> float:
@@ -124,12 +142,15 @@ class Law:
         return self._evaluate(self.energy_expr, eps, np.inf)
 
     def describe(self) -> str:
-        """A short label for tables, e.g. ``ateshian(H=0.6, beta=0.05)``."""
-        args = ", ".join(f"{k}={v:g}" for k, v in self._parameters().items())
-        return f"{self.name}({args})"
+        """A short label for tables, e.g. ``ateshian(H=0.6, beta=0.05)``; works for any subclass."""
+        args = ", ".join(f"{k}={label(v)}" for k, v in self._parameters().items())
+        return f"{kind_name(type(self))}({args})"
 
     def _parameters(self) -> dict:
-        return {"H": self.H}
+        """The law's parameters by name: its dataclass fields (none for a class that is not one)."""
+        if not dataclasses.is_dataclass(self):
+            return {}
+        return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.init}
 
 
 @dataclass(frozen=True)
@@ -143,6 +164,7 @@ class LinearLaw(Law):
     """
 
     H: float
+    ranges: typing.ClassVar[dict] = {"H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True)}
     name = "linear"
     is_linear = True
     #: The paper's limit of validity: Eq. (2) is almost linear up to 30 % strain.
@@ -180,6 +202,10 @@ class AteshianLaw(Law):
 
     H: float
     beta: float
+    ranges: typing.ClassVar[dict] = {
+        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus H_A0 (0.3-0.6 for human cartilage)", low_open=True),
+        "beta": Range(0.0, _HUGE, "", "stiffening exponent (0.05-0.6 for human cartilage)"),
+    }
     name = "ateshian"
     bounded_strain = True
 
@@ -261,6 +287,10 @@ class CubicLaw(_PolynomialStress):
 
     H: float
     beta: float
+    ranges: typing.ClassVar[dict] = {
+        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True),
+        "beta": Range(0.0, _HUGE, "", "Ateshian's stiffening exponent"),
+    }
     name = "cubic"
 
     def __post_init__(self):
@@ -317,6 +347,11 @@ class PolynomialLaw(_PolynomialStress):
     H: float
     beta: float
     order: int = 5
+    ranges: typing.ClassVar[dict] = {
+        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus", low_open=True),
+        "beta": Range(0.0, _HUGE, "", "Ateshian's stiffening exponent"),
+        "order": Range(1, 40, "", "Taylor order"),
+    }
     name = "polynomial"
 
     def __post_init__(self):
@@ -350,6 +385,7 @@ class BlankevoortLaw(Law):
     """
 
     H: float
+    ranges: typing.ClassVar[dict] = {"H": Range(0.0, _HUGE, "MPa", "modulus", low_open=True)}
     name = "blankevoort"
     bounded_strain = True
 
@@ -370,11 +406,19 @@ def check_law(law) -> Law:
     """Validate that ``law`` is a :class:`Law` (an :class:`InputError` otherwise)."""
     if not isinstance(law, Law):
         raise InputError(
-            f"law must be a dea_opt Law (LinearLaw, AteshianLaw, CubicLaw, PolynomialLaw, "
-            f"BlankevoortLaw or a subclass of Law), got {type(law).__name__}"
+            f"law must be a dea_opt Law (one of the registered kinds {', '.join(LAWS)}, or a subclass of Law), "
+            f"got {type(law).__name__}"
         )
     modulus = law.modulus
     if not (math.isfinite(modulus) and modulus >= 0 and (modulus == 0 or SMALLEST <= modulus <= LARGEST)):
         raise InputError(f"the law's small-strain stiffness (tangent at eps = 0) must be 0 or between {SMALLEST:g} "
                          f"and {LARGEST:g} MPa, got {modulus!r} from {law.describe()}")
     return law
+
+
+#: The registry of law kinds: ``LAWS[name]`` is a :class:`~dea_opt.law_registry.LawKind`.
+LAWS = LawRegistry(Law)
+for _cls in (LinearLaw, AteshianLaw, CubicLaw, PolynomialLaw, BlankevoortLaw):
+    LAWS.register(_cls)
+#: Register a law of your own: ``@register_law`` on a :class:`Law` subclass (see ``LawRegistry.register``).
+register_law = LAWS.register

@@ -11,6 +11,8 @@ from .errors import InputError
 
 __all__ = ["SpringLayer"]
 
+_TARGETS = ("target_points", "target_normals", "target_faces")
+
 
 def _readonly(arr: np.ndarray) -> np.ndarray:
     arr.setflags(write=False)
@@ -56,6 +58,20 @@ class SpringLayer:
         The triangle surface carrying the springs, for output files and pictures.
     labels : array_like of str or int, shape (N,), optional
         A region label per spring (e.g. ``"medial"``) for regional statistics.
+    target_points : array_like, shape (N, 3), optional
+        For springs cast from meshes: where each spring's ray met mesh 2, in mesh 2's own
+        frame (before the cast's ``pose``), in mm.
+    target_normals : array_like, shape (N, 3), optional
+        The unit outward normal of the face of mesh 2 each ray met, in mesh 2's own frame.
+        With ``target_points`` it is the target's tangent plane: the gap at another pose is
+        where the spring's ray meets that plane moved by the pose
+        (:func:`dea_opt.mesh.tangent_plane_gap`).
+    target_faces : array_like of int, shape (N,), optional
+        The face of mesh 2 (as checked, :attr:`dea_opt.mesh.SpringCast.mesh2`) each ray met.
+
+    The three ``target_*`` arrays are given together or not at all (None for layers not
+    made from meshes); they ride along through :meth:`subset`, :meth:`concatenate` and
+    :meth:`with_gap` and nothing else reads them.
     """
 
     points: np.ndarray
@@ -66,6 +82,9 @@ class SpringLayer:
     source_face: np.ndarray | None = None
     surface: tuple | None = None
     labels: np.ndarray | None = None
+    target_points: np.ndarray | None = None
+    target_normals: np.ndarray | None = None
+    target_faces: np.ndarray | None = None
 
     def __post_init__(self):
         points = as_float_array("points", self.points, (None, 3))
@@ -109,6 +128,111 @@ class SpringLayer:
             if labels.shape != (n,):
                 raise InputError(f"labels must have shape ({n},), got {labels.shape}")
             set_(self, "labels", _readonly(labels.copy()))
+        self._set_targets(n)
+
+    def _set_targets(self, n: int) -> None:
+        given = [getattr(self, name) is not None for name in _TARGETS]
+        if not any(given):
+            return
+        if not all(given):
+            missing = [name for name, g in zip(_TARGETS, given) if not g]
+            raise InputError(f"target_points, target_normals and target_faces are given together or not "
+                             f"at all; missing {', '.join(missing)}")
+        points = as_float_array("target_points", self.target_points, (n, 3))
+        check_range("target_points", points, "mm")
+        normals = as_float_array("target_normals", self.target_normals, (n, 3))
+        length = np.linalg.norm(normals, axis=1)
+        if n and np.abs(length - 1.0).max() > 1e-6:
+            i = int(np.argmax(np.abs(length - 1.0)))
+            raise InputError(f"target_normals must be unit vectors, got length {length[i]:.6g} at index {i}")
+        faces = np.asarray(self.target_faces)
+        if faces.shape != (n,) or not np.issubdtype(faces.dtype, np.integer) or (n and faces.min() < 0):
+            raise InputError(f"target_faces must be integers >= 0 of shape ({n},), got shape {faces.shape} "
+                             f"and dtype {faces.dtype}")
+        set_ = object.__setattr__
+        set_(self, "target_points", _readonly(points))
+        # rows already unit to rounding are kept bit for bit, so that subsets are exact
+        off = np.abs(length - 1.0) > 1e-12
+        if off.any():
+            normals[off] /= length[off, None]
+        set_(self, "target_normals", _readonly(normals))
+        set_(self, "target_faces", _readonly(faces.astype(np.int64)))
+
+    @property
+    def has_targets(self) -> bool:
+        """Whether the springs know their targets on mesh 2 (layers cast from meshes)."""
+        return self.target_points is not None
+
+    def subset(self, index) -> SpringLayer:
+        """The springs ``index`` selects (a boolean mask of shape (N,) or integer indices).
+
+        Every per-spring array (labels, source faces, targets) is subset with them; the
+        surface is kept whole, so ``source_face`` still indexes it.
+        """
+        index = np.asarray(index)
+        n = len(self)
+        if index.dtype == bool:
+            if index.shape != (n,):
+                raise InputError(f"a boolean index must have shape ({n},), got {index.shape}")
+        elif not np.issubdtype(index.dtype, np.integer) or index.ndim != 1:
+            raise InputError(f"index must be a boolean mask ({n},) or 1-D integer indices, got "
+                             f"dtype {index.dtype} and shape {index.shape}")
+        elif len(index) and (index.min() < -n or index.max() >= n):
+            raise InputError(f"indices must lie in [{-n}, {n - 1}], got [{index.min()}, {index.max()}]")
+
+        def take(arr):
+            return None if arr is None else np.asarray(arr)[index]
+
+        return SpringLayer(
+            self.points[index], self.normals[index], self.areas[index], self.thickness[index],
+            self.gap[index], source_face=take(self.source_face), surface=self.surface,
+            labels=take(self.labels), target_points=take(self.target_points),
+            target_normals=take(self.target_normals), target_faces=take(self.target_faces),
+        )
+
+    @staticmethod
+    def concatenate(layers, labels=None) -> SpringLayer:
+        """One layer from several, springs in order (e.g. medial and lateral compartments).
+
+        Parameters
+        ----------
+        layers : sequence of SpringLayer
+        labels : sequence of str, optional
+            One label per layer, given to all its springs (overriding their own labels).
+            Without it, springs keep their labels when every layer has them (else None).
+
+        Returns
+        -------
+        SpringLayer
+            Surfaces are stacked (``source_face`` offset to index the stacked faces) when
+            every layer has one, or kept when all share the same surface; targets are kept
+            when every layer has them (their face indices refer to each layer's own mesh 2).
+        """
+        layers = list(layers) if not isinstance(layers, SpringLayer) else [layers]
+        if not layers or not all(isinstance(x, SpringLayer) for x in layers):
+            raise InputError(f"layers must be a non-empty sequence of SpringLayer, got {layers!r}")
+        if labels is not None:
+            labels = list(labels) if not isinstance(labels, str) else [labels]
+            if len(labels) != len(layers):
+                raise InputError(f"labels must give one label per layer ({len(layers)}), got {len(labels)}")
+            spring_labels = np.repeat(np.array([str(x) for x in labels]), [len(x) for x in layers])
+        elif all(x.labels is not None for x in layers):
+            spring_labels = np.concatenate([x.labels for x in layers])
+        else:
+            spring_labels = None
+
+        def stack(name):
+            parts = [getattr(x, name) for x in layers]
+            return None if any(p is None for p in parts) else np.concatenate(parts)
+
+        surface, source_face = _stacked_surfaces(layers)
+        targets = {name: stack(name) for name in _TARGETS}
+        if any(v is None for v in targets.values()):
+            targets = {}
+        return SpringLayer(
+            stack("points"), stack("normals"), stack("areas"), stack("thickness"), stack("gap"),
+            source_face=source_face, surface=surface, labels=spring_labels, **targets,
+        )
 
     def __len__(self) -> int:
         return self.points.shape[0]
@@ -148,3 +272,25 @@ class SpringLayer:
 
     def __repr__(self) -> str:
         return f"SpringLayer(N={len(self)}, total area={self.areas.sum():.4g} mm^2)"
+
+
+def _stacked_surfaces(layers) -> tuple:
+    """``(surface, source_face)`` of concatenated layers: a shared surface kept, distinct
+    ones stacked with the faces and source faces offset; ``(None, None)`` when one lacks it."""
+    if any(x.surface is None or x.source_face is None for x in layers):
+        return None, None
+    first = layers[0].surface
+    if all(_same(x.surface[0], first[0]) and _same(x.surface[1], first[1]) for x in layers):
+        return first, np.concatenate([x.source_face for x in layers])
+    vertices, faces, sources, n_vertices, n_faces = [], [], [], 0, 0
+    for x in layers:
+        vertices.append(x.surface[0])
+        faces.append(x.surface[1] + n_vertices)
+        sources.append(x.source_face + n_faces)
+        n_vertices += len(x.surface[0])
+        n_faces += len(x.surface[1])
+    return (np.vstack(vertices), np.vstack(faces)), np.concatenate(sources)
+
+
+def _same(a: np.ndarray, b: np.ndarray) -> bool:
+    return a is b or (a.shape == b.shape and bool(np.array_equal(a, b)))

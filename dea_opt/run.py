@@ -1,29 +1,40 @@
-"""Running scenarios: one static solve or a load path, with every output written; and the demo.
+"""Running scenarios: one static solve or a load path, with every output published together.
 
 The command line (:mod:`dea_opt.cli`) and the sweep workers (:mod:`dea_opt.sweep`) call
-:func:`run_scenario`; ``dea-opt demo`` calls :func:`run_demo`.
+:func:`run_scenario`; ``dea-opt demo`` calls :func:`dea_opt.demo.run_demo`.
 
 Outputs of a static load (in the output folder): ``contact.vtu`` (the contact surface with
 pressure, strain, gap, thickness, ...), ``contact.csv`` (one row per spring),
-``contact.json`` (summary, regions, certificate) and ``contact.png`` (pressure map).
+``contact.json`` (summary, regions, certificate, validity) and ``contact.png`` (pressure map).
 Outputs of a load path: ``frames.csv`` (one row per frame), ``series.pvd`` with
 ``series_frames/frame_NNNN.vtu`` (ParaView time series), ``exposure.vtu`` (exposure
 fields), ``cycle.png`` (force, pressure and contact area over time), ``exposure.png``
-(exposure maps) and ``summary.json``.
+(exposure maps) and ``summary.json``. Every run also writes ``manifest.json`` (last: the
+run id, dea-opt version, scenario hash and every file with its size and SHA-256) and, when
+a library had something to say, ``dea-opt.log`` (:mod:`dea_opt.io.publish`,
+:mod:`dea_opt.runlog`).
+
+Exit status of a run (:attr:`RunOutcome.exit_code`): 0 every answer certified and inside
+validity; 1 an answer failed its certificate; 3 certified but outside the model's validity
+(0 with ``[solve] allow_outside_validity = true``). Bad input raises a ``DeaError`` (exit 2
+at the command line).
 """
 
 from __future__ import annotations
 
-import time
-import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 
 from .errors import InputError
+from .runlog import LOG_NAME, captured, one_line
 
-__all__ = ["RunOutcome", "run_scenario", "solve_options", "run_demo", "DEMO_SCENARIO", "demo_comparison"]
+__all__ = ["EXIT_CODES", "RunOutcome", "check_method", "frame_validity", "publish_run", "run_info", "run_path_outputs",
+           "run_scenario", "solve_options", "status_of"]
+
+#: Exit status of a run, by its status.
+EXIT_CODES = {"ok": 0, "certificate failed": 1, "bad input": 2, "outside validity": 3}
 
 
 @dataclass(eq=False)
@@ -39,10 +50,22 @@ class RunOutcome:
         One line for the user.
     files : dict {name: Path}
     headline : dict
-        The numbers a sweep puts in its table.
+        The numbers a sweep puts in its table (with ``valid`` and ``validity_failed``).
     result : Solution or PathResult
     warnings : list of str
-        Validity warnings raised while solving.
+        dea-opt's own warnings of the run (validity, dropped springs, ...), one line each.
+    valid : bool or None
+        Every answer lies inside its model's validity (None: not assessed).
+    validity : list of str
+        Lines describing the validity (each check of a static answer; the frames outside
+        validity of a load path).
+    reasons : list of str
+        Why the answer is outside validity (each failed check with its value, limit and
+        advice; for a load path, the frames); empty when valid.
+    allow_outside_validity : bool
+        ``[solve] allow_outside_validity``: an answer outside validity exits 0.
+    folder : Path or None
+        The output folder; ``manifest`` its manifest once published.
     """
 
     kind: str
@@ -52,6 +75,31 @@ class RunOutcome:
     headline: dict
     result: object = None
     warnings: list = field(default_factory=list)
+    valid: bool | None = True
+    validity: list = field(default_factory=list)
+    reasons: list = field(default_factory=list)
+    allow_outside_validity: bool = False
+    folder: Path | None = None
+    manifest: dict | None = None
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, ``"certificate failed"`` or ``"outside validity"``."""
+        return status_of(self.success, self.valid)
+
+    @property
+    def exit_code(self) -> int:
+        """0, 1 or 3 (see the module's docstring)."""
+        if self.status == "outside validity" and self.allow_outside_validity:
+            return 0
+        return EXIT_CODES[self.status]
+
+
+def status_of(success: bool, valid: bool | None) -> str:
+    """The status of a run: a failed certificate outranks an answer outside validity."""
+    if not success:
+        return "certificate failed"
+    return "outside validity" if valid is False else "ok"
 
 
 def solve_options(section, method: str, law) -> dict:
@@ -72,7 +120,8 @@ def solve_options(section, method: str, law) -> dict:
     return options | formulations.tolerance_options(effective, section.tol)
 
 
-def _check_method(method: str | None, default: str) -> str:
+def check_method(method: str | None, default: str) -> str:
+    """``method`` (or the scenario's ``default``), checked against the scenario's method names."""
     from .scenario import METHOD_NAMES
 
     method = default if method is None else method.strip().lower()
@@ -82,39 +131,95 @@ def _check_method(method: str | None, default: str) -> str:
     return method
 
 
-def run_scenario(scenario, output_dir=None, *, method: str | None = None, progress: bool = False) -> RunOutcome:
-    """Solve a scenario and write its outputs.
+def run_info(scenario, command: str, method: str | None = None) -> dict:
+    """What a manifest records about the run of ``scenario``."""
+    return {"command": command, "title": scenario.title, "scenario": scenario.source,
+            "scenario_sha256": scenario.text_sha256, "overrides": scenario.overrides,
+            **({"method": method} if method else {})}
+
+
+def run_scenario(scenario, output_dir=None, *, method: str | None = None, progress: bool = False,
+                 force: bool = False, stop_on_error: bool = False) -> RunOutcome:
+    """Solve a scenario and publish its outputs into one folder.
 
     Parameters
     ----------
     scenario : Scenario
     output_dir : str or Path, optional
-        Default ``[output].directory`` (relative to the scenario file).
+        Default ``[output].directory`` (relative to the scenario file). It must be new,
+        empty or hold an earlier dea-opt run (:func:`dea_opt.io.publish.check_output_folder`).
     method : str, optional
         Overrides ``[solve].method``.
     progress : bool
         Progress bar over the frames of a load path (on a terminal).
+    force : bool
+        Write into a folder that holds other files.
+    stop_on_error : bool
+        A load path stops at its first frame without a certified answer (a DeaError, and
+        nothing published) instead of recording it and going on.
+
+    Returns
+    -------
+    RunOutcome
+        Its ``exit_code`` is the command line's.
 
     Raises
     ------
     DeaError
-        Bad input, a load no spring can carry, a solver that fails outright.
+        Bad input (:class:`~dea_opt.errors.OutputFolderError` for a folder of someone
+        else's), a load no spring can carry, a solver that fails outright. Nothing is
+        published then, and the folder keeps what it held.
+    dea_opt.io.publish.RunInterrupted
+        Ctrl-C; its ``report`` says what the folder holds.
     """
+    from .io.publish import check_output_folder
     from .scenario import build_problem
 
-    method = _check_method(method, scenario.solve.method)
-    out = scenario.output_dir(output_dir)
-    problem = build_problem(scenario)
-    options = solve_options(scenario.solve, method, problem.law)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        if scenario.load_path is None:
-            outcome = _run_static(scenario, problem, method, options, out)
-        else:
-            outcome = _run_path(scenario, problem, method, options, out, progress)
-    outcome.warnings = sorted({str(w.message) for w in caught if issubclass(w.category, UserWarning)})
+    method = check_method(method, scenario.solve.method)
+    out = check_output_folder(scenario.output_dir(output_dir), force)
+    with captured() as messages:
+        problem = build_problem(scenario)
+        options = solve_options(scenario.solve, method, problem.law)
+
+        def solve_and_write(folder):
+            if scenario.load_path is None:
+                return _run_static(scenario, problem, method, options, folder)
+            return run_path_outputs(scenario, problem, method, options, folder, progress, stop=stop_on_error)
+
+        outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
+                              info=run_info(scenario, "run", method))
     return outcome
 
+
+def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, info: dict) -> RunOutcome:
+    """Run ``solve_and_write(folder) -> RunOutcome`` in the staged folder ``out`` and publish it."""
+    from .io.publish import output_run
+
+    with output_run(out, force=force, info=info) as publication:
+        outcome = solve_and_write(publication.folder)
+        outcome.allow_outside_validity = scenario.solve.allow_outside_validity
+        messages.collect()
+        _drop_repeats(outcome, messages, scenario.notes)
+        log = messages.log_text(f"dea-opt {info.get('command', 'run')} of {scenario.source or scenario.title}")
+        if log:
+            from .io.atomic import write_data
+
+            outcome.files["log"] = write_data(publication.folder / LOG_NAME, log)
+        outcome.manifest = publication.publish(
+            status=outcome.status, exit_code=outcome.exit_code, success=outcome.success, valid=outcome.valid)
+        outcome.folder = publication.folder
+    return outcome
+
+
+def _drop_repeats(outcome: RunOutcome, messages, notes=()) -> None:
+    """The scenario's notes and the run's own warnings, but for the validity warnings: the
+    validity lines of the outcome state them, with every check."""
+    assessed = outcome.valid is not None
+    outcome.warnings = [*notes, *(w for w in messages.own
+                                  if not (assessed and messages.categories.get(w) == "ValidityWarning"))]
+
+
+# --- one load ---------------------------------------------------------------------------
 
 def _run_static(scenario, problem, method, options, out) -> RunOutcome:
     from . import io
@@ -132,11 +237,13 @@ def _run_static(scenario, problem, method, options, out) -> RunOutcome:
     if "png" in formats:
         files["png"] = io.plot_pressure(solution, out / "contact.png")
     name, value = solution.certificate.worst()
+    validity = solution.validity
     headline = {
         "method": solution.method, "success": solution.success, "n_springs": len(solution.pressure),
         "peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
-        "contact_area": solution.contact_area, "iterations": solution.iterations,
-        "solve_time": solution.solve_time, "worst_residual": value,
+        "contact_area": solution.contact_area, "max_compressive_strain": solution.max_compressive_strain,
+        "iterations": solution.iterations, "solve_time": solution.solve_time, "worst_residual": value,
+        **validity.columns(),
     }
     if solution.success:
         message = (f"{solution.method}: peak pressure {solution.peak_pressure:.4g} MPa, contact area "
@@ -144,10 +251,50 @@ def _run_static(scenario, problem, method, options, out) -> RunOutcome:
     else:
         message = (f"{solution.method} returned no certified answer (status {solution.status!r}; {name} = "
                    f"{value:.3g} > {scenario.solve.certificate_tol:g}); the outputs hold the uncertified answer")
-    return RunOutcome("static", solution.success, message, files, headline, solution)
+    lines = [f"validity: {validity.summary()}"]
+    lines += [f"  {check.describe()}" for check in validity.checks]
+    return RunOutcome("static", solution.success, message, files, headline, solution, valid=validity.valid,
+                      validity=lines, reasons=[c.describe() for c in validity.failed])
 
 
-def _run_path(scenario, problem, method, options, out, progress, extra_summary=None) -> RunOutcome:
+# --- a load path ------------------------------------------------------------------------
+
+def frame_validity(result) -> np.ndarray | None:
+    """Per frame, whether its answer is inside validity: the table's ``valid`` column, else
+    the kept solutions' :attr:`~dea_opt.solution.Solution.validity`; None when neither exists."""
+    table = result.table
+    if "valid" in table.columns:
+        return table["valid"].to_numpy(dtype=bool)
+    if result.solutions:
+        return np.array([s.validity.valid for s in result.solutions], dtype=bool)
+    return None
+
+
+def _failed_checks(result, valid: np.ndarray) -> list[str]:
+    """The names of the validity checks failed by any frame, in order of first appearance."""
+    table = result.table
+    names: list[str] = []
+    if "validity_failed" in table.columns:
+        texts = table["validity_failed"].fillna("").astype(str)
+    elif result.solutions:
+        texts = [";".join(c.name for c in s.validity.failed) for s in result.solutions]
+    else:
+        texts = []
+    for text in texts:
+        for name in filter(None, text.split(";")):
+            if name not in names:
+                names.append(name)
+    return names
+
+
+def _frames_text(frames) -> str:
+    shown = ", ".join(map(str, frames[:10]))
+    return shown + (", ..." if len(frames) > 10 else "")
+
+
+def run_path_outputs(scenario, problem, method, options, out, progress, extra_summary=None,
+                     stop: bool = False) -> RunOutcome:
+    """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller)."""
     from .loadpath import solve_path
     from .scenario import read_load_path
 
@@ -156,180 +303,58 @@ def _run_path(scenario, problem, method, options, out, progress, extra_summary=N
     if data.poses is not None:
         from .scenario import pose_builder
 
-        layer_for_pose = pose_builder(scenario.geometry)
+        layer_for_pose = pose_builder(scenario)
 
     formats = scenario.output.formats
     result = solve_path(problem, data.load_objects(), data.poses, method=method, times=data.times, body=data.body,
                         certificate_tol=scenario.solve.certificate_tol, keep_solutions="vtk" in formats,
                         layer_for_pose=layer_for_pose, threshold=scenario.output.exposure_threshold,
-                        progress=progress, **options)
-    files = result.write(out, formats, extra_summary={"title": scenario.title, **(extra_summary or {})})
+                        progress=progress, strict=stop, **options)
+    valid = frame_validity(result)
+    # Outside validity: certified frames only (a failed frame has its own status).
+    certified = result.table["success"].to_numpy(dtype=bool)
+    outside = [] if valid is None else result.table.loc[certified & ~valid, "frame"].astype(int).tolist()
+    checks = [] if valid is None else _failed_checks(result, valid)
+    run_valid = None if valid is None else not outside
+    run_validity = {
+        "valid": run_valid,
+        "frames_outside_validity": outside,
+        "failed_checks": checks,
+    }
+    extra = {"title": scenario.title, **(extra_summary or {})}
+    if "validity" not in result.summary():
+        extra["validity"] = run_validity
+    files = result.write(out, formats, extra_summary=extra)
     summary = result.summary()
     headline = {
         "method": method, "success": result.success, "frames": summary["frames"], "n_springs": summary["n_springs"],
         "failed_frames": len(summary["failed_frames"]), "peak_pressure": summary["peak_pressure"],
         "peak_time": summary["peak_time"], "contact_area": summary["max_contact_area"],
+        "max_compressive_strain": summary["max_compressive_strain"],
         "iterations": summary["iterations_total"], "solve_time": summary["solve_time_total"],
         "worst_residual": summary["worst_certificate_residual"],
         "max_pressure_time_integral": summary["exposure"]["max_pressure_time_integral"],
+        "valid": run_valid, "frames_outside_validity": len(outside),
+        "validity_failed": ";".join(checks),
     }
     message = (f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure']:.4g} MPa at "
                f"{summary['peak_time']:.3g} s, largest contact area {summary['max_contact_area']:.4g} mm^2, "
                f"{summary['solve_time_total']:.2f} s solving")
     if not result.success:
         failed = summary["failed_frames"]
-        message += (f"; {len(failed)} frame(s) failed their certificate ({', '.join(map(str, failed[:10]))}"
-                    f"{', ...' if len(failed) > 10 else ''}) and are flagged in frames.csv")
-    return RunOutcome("path", result.success, message, files, headline, result)
-
-
-# --- the demo ---------------------------------------------------------------------------
-
-#: The embedded default of ``dea-opt demo`` (also ``examples/scenarios/hip_gait.toml``).
-DEMO_SCENARIO = '''\
-title = "Hip under a walking cycle (synthetic load), linear DEA"
-
-# A femoral head (R = 25 mm) in a spherical socket covering 80 degrees around its pole, 0.1 mm
-# radial clearance, cartilage 2 x 1.5 mm. Springs sit on the socket; the head is body 2.
-[geometry]
-kind = "socket"
-radius = 25.0
-thickness = 3.0
-coverage = 80.0
-gap = 0.1
-n_rings = 45
-n_sectors = 120
-
-# H = 10 MPa: the stiffness cartilage shows under a walking cycle, when the interstitial fluid
-# carries much of the load. The paper's equilibrium modulus (0.3-0.6 MPa) under these loads would
-# crush a 3 mm layer past 80 % strain; 10 MPa keeps the peak strain near 20 %, inside the 30 %
-# where Volokh, Chao & Armand find the linear law valid.
-[law]
-kind = "linear"
-H = 10.0
-
-[body2]
-free = ["ux", "uy", "uz"]
-
-# The synthetic hip cycle shipped with dea-opt (dea_opt/data/hip_gait.csv): 101 frames, peaks
-# about 2.4 x body weight (750 N).
-[load_path]
-builtin = "hip_gait"
-
-[solve]
-method = "auto"
-
-[output]
-directory = "dea-opt-demo"
-exposure_threshold = 1.0
-'''
-
-_DEMO_PEAK = 2400.0  # N, the gait-peak frame of the comparison
-_DEMO_TILT = 20.0  # degrees from the socket axis
-_DEMO_BETA = 0.3
-
-
-def demo_scenario(frames: int | None = None, coarse: bool = False):
-    """The demo's scenario, optionally with fewer frames and a coarse mesh."""
-    from .scenario import parse_scenario
-
-    overrides = {}
-    if coarse:
-        overrides |= {"geometry.n_rings": 12, "geometry.n_sectors": 36}
-        frames = frames or 11
-    if frames is not None:
-        overrides["load_path.frames"] = frames
-    return parse_scenario(DEMO_SCENARIO, name="demo.toml", overrides=overrides)
-
-
-def demo_comparison(scenario, progress: bool = False) -> list[dict]:
-    """One gait-peak frame (2.4 kN tilted 20 degrees) by every method, linear and Ateshian laws."""
-    from tqdm.auto import tqdm
-
-    from .laws import AteshianLaw, LinearLaw
-    from .scenario import build_problem
-    from .solver import solve
-
-    tilt = np.radians(_DEMO_TILT)
-    force = _DEMO_PEAK * np.array([np.sin(tilt), 0.0, -np.cos(tilt)])
-    base = build_problem(scenario).with_load(force=force)
-    H = scenario.law.H
-    cases = [(LinearLaw(H), m) for m in ("newton", "qp", "nlp")]
-    cases += [(AteshianLaw(H, _DEMO_BETA), m) for m in ("newton", "nlp")]
-    # Tight solver tolerances: interior-point duals at the edge of contact need them to pass
-    # the certificate's consistency check at 1e-6.
-    options = {"qp": {"tol": 1e-12}, "nlp": {"tol": 1e-12}, "newton": {}}
-    rows = []
-    for law, method in tqdm(cases, desc="comparison", unit="solve", disable=None if progress else True, leave=False):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            s = solve(base.with_law(law), method, strict=False, **options[method])
-        name, value = s.certificate.worst()
-        rows.append({
-            "method": method, "law": law.describe(), "success": s.success, "peak_pressure": s.peak_pressure,
-            "contact_area": s.contact_area, "max_strain": s.max_compressive_strain, "iterations": s.iterations,
-            "build_time": s.build_time, "solve_time": s.solve_time, "certificate": value,
-            "certificate_worst": name, "status": s.status,
-        })
-    return rows
-
-
-def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False, method: str | None = None,
-             compare: bool = True, progress: bool = False, echo=print) -> RunOutcome:
-    """``dea-opt demo``: the comparison table at the gait peak, then the whole gait cycle.
-
-    Parameters
-    ----------
-    output_dir : str or Path, optional
-        Default ``./dea-opt-demo``.
-    frames : int, optional
-        Resample the 101-frame cycle to this many frames.
-    coarse : bool
-        A coarse socket (432 springs) and 11 frames unless ``frames`` says otherwise: seconds.
-    method : str, optional
-        Method of the gait path (default ``auto``: warm-started Newton).
-    compare : bool
-        Solve and print the comparison table.
-    echo : callable
-        Where the text goes.
-    """
-    import pandas as pd
-
-    from .io import write_data
-    from .scenario import build_problem
-
-    scenario = demo_scenario(frames, coarse)
-    out = Path(output_dir).resolve() if output_dir is not None else Path.cwd() / "dea-opt-demo"
-    method = _check_method(method, scenario.solve.method)
-    rows = []
-    start = time.perf_counter()
-    if compare:
-        rows = demo_comparison(scenario, progress)
-        table = pd.DataFrame(rows)
-        write_data(out / "comparison.csv", table.to_csv(index=False, lineterminator="\n"))
-        echo(f"Gait-peak frame: {_DEMO_PEAK:g} N tilted {_DEMO_TILT:g} degrees, "
-             f"{len(build_problem(scenario).layer)} springs")
-        echo(_format_comparison(table))
-        echo("")
-    problem = build_problem(scenario)
-    options = solve_options(scenario.solve, method, problem.law)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        outcome = _run_path(scenario, problem, method, options, out, progress,
-                            extra_summary={"comparison": rows, "scenario": DEMO_SCENARIO})
-    outcome.warnings = sorted({str(w.message) for w in caught if issubclass(w.category, UserWarning)})
-    if compare:
-        outcome.files["comparison"] = out / "comparison.csv"
-    echo(f"Gait cycle: {outcome.message}")
-    echo(f"Wrote {len(outcome.files)} outputs to {out} in {time.perf_counter() - start:.1f} s:")
-    for name, path in outcome.files.items():
-        echo(f"  {name:13s} {Path(path).relative_to(out) if Path(path).is_relative_to(out) else path}")
-    return outcome
-
-
-def _format_comparison(table) -> str:
-    shown = table[["method", "law", "success", "peak_pressure", "contact_area", "max_strain", "iterations",
-                   "build_time", "solve_time", "certificate"]].rename(columns={
-                       "peak_pressure": "peak (MPa)", "contact_area": "area (mm^2)", "max_strain": "strain",
-                       "build_time": "build (s)", "solve_time": "solve (s)", "certificate": "residual"})
-    return shown.to_string(index=False, float_format=lambda v: f"{v:.4g}")
+        message += (f"; {len(failed)} frame(s) failed their certificate ({_frames_text(failed)}) and are flagged "
+                    f"in frames.csv")
+    reasons = []
+    if valid is None:
+        lines = [("validity: not assessed (the frames' validity needs their solutions: add \"vtk\" to "
+                  "[output].formats)")]
+    elif outside:
+        reasons = [f"{len(outside)} of {len(valid)} frame(s) outside validity ({_frames_text(outside)}), failed "
+                   f"checks: {', '.join(checks)}"]
+        if result.solutions:
+            reasons.append(f"frame {outside[0]}: {one_line(result.solutions[outside[0]].validity.message())}")
+        lines = [f"validity: NOT VALID: {reasons[0]}", *(f"  {r}" for r in reasons[1:])]
+    else:
+        lines = [f"validity: valid (every one of {len(valid)} frames)"]
+    return RunOutcome("path", result.success, message, files, headline, result, valid=run_valid, validity=lines,
+                      reasons=reasons)

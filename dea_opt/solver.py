@@ -367,7 +367,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
         if not solution.success and len(plan) > 1:
             _raise_if_unsupported(problem)
             fallback, fallback_options, _ = plan[1]
-            reason = (f"{name} ended with status {str(solution.status)!r} and certificate residual "
+            reason = (f"{name} ended with status {solution.status!r} and certificate residual "
                       f"{solution.certificate.worst()}")
             solution = _run(problem, fallback, certificate_tol, fallback_options)
             solution.info["fallback"] = reason
@@ -378,7 +378,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     if not solution.success and strict:
         worst, value = solution.certificate.worst()
         raise SolverError(
-            f"{solution.method} returned no certified answer (status {str(solution.status)!r}: {solution.message}); "
+            f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
             f"certificate residual {worst} = {value:.3g} > {certificate_tol:g}. Try method='auto', a tighter "
             f"solver tolerance, or check the problem for loads no spring resists.",
             status=solution.status, solution=solution, native_status=solution.info.get("native_status"),

@@ -40,6 +40,11 @@ class Status(StrEnum):
     NOT_SUPPORTED = "not_supported"
     INVALID_INPUT = "invalid_input"
 
+    def __repr__(self) -> str:
+        # As the plain string it stands for: messages written as f"status {status!r}" read
+        # the same as before statuses were an enum.
+        return repr(self.value)
+
     @property
     def description(self) -> str:
         """One line: when this status is given."""

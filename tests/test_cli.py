@@ -170,12 +170,16 @@ def test_bad_input_exits_2_with_one_paragraph(tmp_path, name, toml, loads, extra
 def test_unknown_solver_in_compare(tmp_path):
     scenario = tmp_path / "case.toml"
     scenario.write_text(PLATE)
-    text = one_paragraph_error(invoke("compare", scenario, "--solvers", "CLARABEL,NOSUCH", "-o", tmp_path))
+    out = tmp_path / "out"
+    text = one_paragraph_error(invoke("compare", scenario, "--solvers", "CLARABEL,NOSUCH", "-o", out))
     assert "NOSUCH is not available" in text and "installed QP solvers" in text
-    text = one_paragraph_error(invoke("compare", scenario, "--methods", "newton,simplex", "-o", tmp_path))
+    text = one_paragraph_error(invoke("compare", scenario, "--methods", "newton,simplex", "-o", out))
     assert "simplex" in text
-    text = one_paragraph_error(invoke("compare", scenario, "--accuracy", "extreme", "-o", tmp_path))
+    text = one_paragraph_error(invoke("compare", scenario, "--accuracy", "extreme", "-o", out))
     assert "extreme" in text
+    # the scenario's own folder holds case.toml: compare refuses to write there
+    text = one_paragraph_error(invoke("compare", scenario, "-o", tmp_path))
+    assert str(tmp_path) in text and "case.toml" in text and "--force" in text
 
 
 def test_console_script_reports_errors_without_traceback(tmp_path):
@@ -187,3 +191,73 @@ def test_console_script_reports_errors_without_traceback(tmp_path):
     assert done.returncode == 2
     assert done.stderr.startswith("dea-opt: error: ") and "law.H (line 6)" in done.stderr
     assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1
+
+
+# --- issue 10: every raw traceback of the scenario and the CLI is a named error ---------------
+
+def _springs_npz(tmp_path, kind):
+    import numpy as np
+
+    columns = {c: np.ones(4) for c in ("x", "y", "z", "nx", "ny", "area", "thickness")}
+    columns["nz"] = np.ones(4)
+    if kind == "object":
+        columns["x"] = np.array([[0.0, 1.0], [2.0]], dtype=object)  # ragged lists become objects
+    else:
+        columns["y"] = np.ones(3)  # arrays of different lengths
+    np.savez(tmp_path / "springs.npz", **columns)
+    return PLATE.replace('kind = "plate"\nnx = 20\nny = 2', 'kind = "springs"\nfile = "springs.npz"')
+
+
+@pytest.mark.parametrize("name, expected", [
+    ("non-UTF-8 TOML", "is not UTF-8 text (TOML files are UTF-8): byte 0xe9 at line 2"),
+    ("TOML nested past Python's recursion limit", "nests tables or arrays too deeply"),
+    ("TOML nested deeper than a scenario", "nests tables or arrays more than 16 levels deep"),
+    ("law.H = 1e308", "law.H (line 6): must be <= 1e+30, got 1e+308"),
+    ("NPZ springs with object arrays", "array 'x' holds Python objects"),
+    ("NPZ springs with ragged arrays", "array 'y' has 3 values, but 'x' has 4"),
+    ("a generator parameter of the wrong type", "geometry.parameters.step of hip_meshes must be a number"),
+    ("a mesh path with a NUL byte", "geometry.mesh1 (line 3): a path cannot contain a NUL byte"),
+    ("an output folder with a NUL byte", "output.directory (line 12): a path cannot contain a NUL byte"),
+])
+def test_raw_tracebacks_of_issue_10_are_named_errors(tmp_path, name, expected):
+    scenario = tmp_path / "case.toml"
+    if name == "non-UTF-8 TOML":
+        scenario.write_bytes(PLATE.encode().replace(b"kind", b"# caf\xe9 (Latin-1)\nkind", 1))
+    elif name.startswith("TOML nested"):
+        depth = 100_000 if "recursion" in name else 40
+        scenario.write_text(PLATE + "[solve]\nsolvers = " + "[" * depth + "]" * depth + "\n")
+    elif name == "law.H = 1e308":
+        scenario.write_text(PLATE.replace("H = 10.0", "H = 1e308"))
+    elif name.startswith("NPZ"):
+        scenario.write_text(_springs_npz(tmp_path, "object" if "object" in name else "ragged"))
+    elif name.startswith("a generator"):
+        scenario.write_text(PLATE.replace('kind = "plate"\nnx = 20\nny = 2',
+                                          'kind = "generator"\nfunction = "hip_meshes"\nparameters = {step = "3"}'))
+    elif name.startswith("a mesh path"):
+        scenario.write_text(PLATE.replace('kind = "plate"\nnx = 20\nny = 2',
+                                          'kind = "meshes"\nmesh1 = "a\\u0000.stl"\nmesh2 = "b.stl"'))
+    else:
+        scenario.write_text(PLATE + '[output]\ndirectory = "out\\u0000put"\n')
+    text = one_paragraph_error(invoke("run", scenario) if "output folder" in name else
+                               invoke("run", scenario, "-o", tmp_path / "out"))
+    assert expected in text
+
+
+def test_the_api_refuses_a_scenario_path_with_a_nul_byte():
+    from dea_opt.scenario import ScenarioError, load_scenario
+
+    with pytest.raises(ScenarioError, match="NUL byte"):
+        load_scenario("case\0.toml")
+
+
+def test_run_refuses_a_folder_of_someone_elses_and_force_overrides(tmp_path):
+    folder = tmp_path / "home"
+    folder.mkdir()
+    (folder / "contact.csv").write_text("mine")
+    text = one_paragraph_error(invoke("run", EXAMPLES / "plate_springs.toml", "-o", folder))
+    assert f"the output folder {folder} holds files dea-opt did not write (contact.csv)" in text and "--force" in text
+    assert (folder / "contact.csv").read_text() == "mine"
+    result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", folder, "--force", "-q")
+    assert result.exit_code == 0 and (folder / "manifest.json").is_file()
+    # now the folder holds a dea-opt run: a rerun needs no --force
+    assert invoke("run", EXAMPLES / "plate_springs.toml", "-o", folder, "-q").exit_code == 0

@@ -158,3 +158,114 @@ def test_outputs(solutions, tmp_path):
     np.testing.assert_allclose(np.concatenate(data.cell_data["pressure"]), s.pressure, rtol=1e-12)
     png = io.plot_pressure(s, tmp_path / "knee.png")
     assert Path(png).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+# --------------------------------------------------------------------------------------------
+# The proximity window at the solved pose (issue 11 item 9)
+# --------------------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def recast(solutions, knee):
+    return M.recast_at_solution(solutions["newton"], knee["cast"])
+
+
+def _solved_femur(solution, knee):
+    """The femur moved to the solved pose (exact rotation about the reference), by trimesh."""
+    from scipy.spatial.transform import Rotation
+
+    u, c = solution.u, np.asarray(knee["problem"].body2.reference)
+    pose = np.eye(4)
+    pose[:3, :3] = Rotation.from_rotvec(u[9:12]).as_matrix()
+    pose[:3, 3] = c + u[6:9] - pose[:3, :3] @ c
+    femur = knee["femur"].copy()
+    femur.apply_transform(pose)
+    return femur, pose
+
+
+def _still_facing(layer, femur, tibia, margin=1e-3):
+    """The springs whose ray meets a femoral face that faces it, in front of the tibia's own
+    far side and within MAX_GAP, within 60 deg of facing: computed with trimesh's own ray
+    queries, clear of every limit by ``margin``."""
+    p, n = layer.points, layer.normals
+    hits = []
+    for sign in (1.0, -1.0):
+        location, ray, tri = femur.ray.intersects_location(p, sign * n, multiple_hits=True)
+        t = np.einsum("ij,ij->i", location - p[ray], n[ray])
+        hits.append((ray, tri, t))
+    ray, tri, t = (np.concatenate(x) for x in zip(*hits))
+    cos = -np.einsum("ij,ij->i", femur.face_normals[tri], n[ray])
+    location, back_ray, _ = tibia.ray.intersects_location(p - 1e-4 * n, -n, multiple_hits=True)
+    depth = np.full(len(p), np.inf)
+    np.minimum.at(depth, back_ray, np.einsum("ij,ij->i", p[back_ray] - location, n[back_ray]))
+    valid = (cos > 0) & (t > -depth[ray] + margin) & (t <= MAX_GAP - margin)
+    facing = np.zeros(len(p), dtype=bool)
+    best = np.full(len(p), np.inf)
+    np.minimum.at(best, ray[valid], np.abs(t[valid]))
+    nearest = valid & (np.abs(t) == best[ray])
+    facing[ray[nearest & (cos >= np.cos(np.radians(60.0)) + margin)]] = True
+    return facing
+
+
+def test_recast_at_the_solved_pose_keeps_every_spring_still_facing_the_femur(recast, solutions, knee):
+    layer = knee["cast"].layer
+    femur, pose = _solved_femur(solutions["newton"], knee)
+    np.testing.assert_allclose(recast.pose, pose, atol=1e-12)
+    facing = _still_facing(layer, femur, knee["tibia"])
+    assert facing.sum() > 0.98 * len(layer)
+    kept = np.isin(layer.source_face, recast.cast.layer.source_face)
+    assert kept[facing].all(), f"{int((facing & ~kept).sum())} springs still facing the femur were dropped"
+    assert recast.dropped == 0 and recast.rejected == 0
+    assert recast.kept == int(kept.sum())
+
+
+def test_recast_force_agrees_with_the_load_within_the_small_kinematics_error(recast):
+    new = recast.cast.layer
+    strain = np.minimum(new.gap / new.thickness, 0.0)
+    force = (-MODULUS * strain * new.areas) @ new.normals  # the test's own sum
+    np.testing.assert_allclose(recast.force, force, rtol=1e-12)
+    np.testing.assert_allclose(recast.solution_force[2], LOAD, rtol=1e-6)
+    # issue 13 measured +2.2 % on this knee: the error of the linearised kinematics
+    assert 0.0 < force[2] / LOAD - 1.0 < 0.04
+    assert recast.force_error < 0.04
+
+
+def test_a_fixed_window_at_the_solved_pose_drops_springs_and_says_so(recast, knee):
+    tibia, femur, labels = knee["tibia"], knee["femur"], knee["labels"]
+    fixed = M.cast_springs(tibia, femur, labels=labels, max_gap=MAX_GAP, pose=recast.pose)  # max_overlap 1
+    deeper = recast.cast.layer.gap < -1.0
+    assert deeper.sum() > 100
+    assert fixed.dropped["overlap"] == deeper.sum()  # each spring the fixed window dropped is counted
+    np.testing.assert_array_equal(np.sort(fixed.dropped.faces["overlap"]),
+                                  np.sort(recast.cast.layer.source_face[deeper]))
+    strain = np.minimum(fixed.layer.gap / fixed.layer.thickness, 0.0)
+    assert (-MODULUS * strain * fixed.layer.areas) @ fixed.layer.normals[:, 2] < 0.97 * recast.force[2]
+
+
+def test_a_wide_window_rejects_rays_back_through_the_tibia(recast, knee):
+    tibia, femur, labels = knee["tibia"], knee["femur"], knee["labels"]
+    wide = M.cast_springs(tibia, femur, labels=labels, max_gap=MAX_GAP, max_overlap=3.0, pose=recast.pose)
+    assert wide.dropped["through_layer"] > 100
+    assert (-wide.layer.gap < wide.thickness1).all()  # no spring deeper than the tibial layer
+    np.testing.assert_array_equal(np.sort(wide.layer.source_face), np.sort(recast.cast.layer.source_face))
+
+
+def test_validity_counts_the_springs_dropped_at_the_solved_pose(recast, solutions, knee):
+    from dea_opt.validity import assess
+
+    s = solutions["newton"]
+    fixed = M.cast_springs(knee["tibia"], knee["femur"], labels=knee["labels"], max_gap=MAX_GAP, pose=recast.pose)
+    ok = assess(s.problem, s.u, s.strain, s.pressure, dropped=recast.dropped)
+    bad = assess(s.problem, s.u, s.strain, s.pressure, dropped=fixed.dropped["overlap"])
+    assert ok["dropped_springs"].passed and ok.valid
+    assert not bad["dropped_springs"].passed
+
+
+def test_tangent_plane_gaps_at_the_solved_pose_equal_the_recast_where_targets_stay(recast, knee):
+    start, again = knee["cast"].layer, recast.cast.layer
+    predicted = M.tangent_plane_gap(start, recast.pose)
+    _, i, j = np.intersect1d(start.source_face, again.source_face, return_indices=True)
+    same = start.target_faces[i] == again.target_faces[j]
+    assert same.mean() > 0.25  # the femur moved 1.2 mm: many hits stay on their face
+    np.testing.assert_allclose(predicted[i][same], again.gap[j][same], rtol=0, atol=1e-9)
+    # the targets are in the femur's own frame: moved by the pose they are the recast's hits
+    moved = again.target_points @ recast.pose[:3, :3].T + recast.pose[:3, 3]
+    np.testing.assert_allclose(moved, recast.cast.hit_point, atol=1e-9)

@@ -545,7 +545,10 @@ def test_only_degenerate_faces(tmp_path):
 def test_unparsable_file(tmp_path):
     path = tmp_path / "junk.vtk"
     path.write_text("not a vtk file\n" * 5)
-    with pytest.raises(d.InputError, match="could not be read as legacy VTK"):
+    with pytest.raises(d.InputError, match="is not a legacy VTK file .*first line is 'not a vtk file'"):
+        M.load_mesh(path)
+    path.write_text("# vtk DataFile Version 3.0\nsquare\nASCII\nDATASET POLYDATA\nPOINTS 10 float\n0 0 0 1\n")
+    with pytest.raises(d.InputError, match="could not be read as legacy VTK POLYDATA: the file ends inside"):
         M.load_mesh(path)
 
 

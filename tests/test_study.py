@@ -144,9 +144,9 @@ def test_compare_on_a_load_path_uses_the_peak_frame(tmp_path):
     scenario = tmp_path / "hip.toml"
     scenario.write_text(HIP_TOML.replace("[load]\nforce = [820.85, 0.0, -2255.26]\n",
                                          '[load_path]\nbuiltin = "hip_gait"\n'))
-    result = CliRunner().invoke(app, ["compare", str(scenario), "--methods", "newton", "-o", str(tmp_path)])
+    result = CliRunner().invoke(app, ["compare", str(scenario), "--methods", "newton", "-o", str(tmp_path / "out")])
     assert result.exit_code == 0, result.stderr
-    table = pd.read_csv(tmp_path / "compare.csv")
+    table = pd.read_csv(tmp_path / "out" / "compare.csv")
     assert table["success"].all()
     bad = CliRunner().invoke(app, ["compare", str(scenario), "--methods", "newton", "--frame", "500"])
     assert bad.exit_code == 2 and "--frame must be in 0..100" in bad.stderr

@@ -6,19 +6,29 @@ writers that pick the format from it still work), takes the target's permissions
 umask's for a new file) and is removed when writing fails. :func:`atomic_path` is the one
 implementation; :func:`write_atomic`, :func:`write_data` and :func:`atomic_open` are fronts
 to it for a writer function, for ``str``/``bytes`` and for an open file.
+
+Inside :func:`staged` (a run's output folder, :mod:`dea_opt.io.publish`), a finished file is
+not renamed into place: its temporary file waits, complete and fsynced, until the run
+publishes every output at once, so a reader never sees files of two runs as one.
 """
 
 from __future__ import annotations
 
 import contextlib
 import os
+import re
 import secrets
 import stat
+import threading
 from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["atomic_open", "atomic_path", "file_path", "write_atomic", "write_data"]
+__all__ = ["TEMPORARY_NAME", "Staging", "atomic_open", "atomic_path", "file_path", "staged", "write_atomic",
+           "write_data"]
+
+#: The name of a temporary file: ``.<target name>.<8 hex>.tmp<target suffix>``.
+TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{8}\.tmp(\.[^.]*)?$")
 
 
 def file_path(path, argument: str = "path") -> Path:
@@ -97,11 +107,15 @@ def atomic_path(path, *, argument: str = "path"):
         except OSError as exc:
             raise InputError(f"{argument}: cannot write in the directory {str(parent)!r} "
                              f"({exc.strerror or exc})") from None
+    staging = _staging_of(target)
     try:
         with contextlib.suppress(OSError):  # a new file keeps the umask's mode
             os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))
         yield tmp
         _fsync(tmp)
+        if staging is not None:
+            staging.defer(tmp, target)
+            return
         os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -169,3 +183,83 @@ def atomic_open(path, mode: str = "w", *, encoding: str | None = None, newline: 
     text = {} if mode == "wb" else {"encoding": encoding or "utf-8", "newline": newline}
     with atomic_path(path, argument=argument) as tmp, open(tmp, mode, **text) as handle:
         yield handle
+
+
+# --- staging: a run's files wait until they are published together ----------------------
+
+class Staging:
+    """The finished but unpublished files of one output folder: ``{target: temporary file}``.
+
+    Made by :func:`staged`; :mod:`dea_opt.io.publish` renames them into place together.
+    """
+
+    def __init__(self, root: Path):
+        self.root = root
+        self.pending: dict[Path, Path] = {}
+        self._lock = threading.Lock()
+
+    def defer(self, tmp: Path, target: Path) -> None:
+        """Keep ``tmp`` as the next content of ``target`` (a file written twice keeps the last)."""
+        key = target.parent.resolve() / target.name
+        with self._lock:
+            old = self.pending.pop(key, None)
+            self.pending[key] = tmp
+        if old is not None and old != tmp:
+            with contextlib.suppress(OSError):
+                old.unlink()
+
+    def close(self) -> None:
+        """Stop deferring: files written under the root from now on are renamed into place at once."""
+        with _STAGINGS_LOCK:
+            if _STAGINGS.get(self.root) is self:
+                del _STAGINGS[self.root]
+
+    def take(self) -> dict:
+        """The pending files ``{target: temporary file}``; the staging forgets them."""
+        with self._lock:
+            pending, self.pending = self.pending, {}
+        return pending
+
+    def discard(self) -> None:
+        """Remove every pending temporary file (the run ends without publishing)."""
+        with self._lock:
+            pending, self.pending = self.pending, {}
+        for tmp in pending.values():
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+
+
+_STAGINGS: dict[Path, Staging] = {}
+_STAGINGS_LOCK = threading.Lock()
+
+
+def _staging_of(target: Path) -> Staging | None:
+    if not _STAGINGS:
+        return None
+    where = target.parent.resolve() / target.name
+    with _STAGINGS_LOCK:
+        for root, staging in _STAGINGS.items():
+            if where.is_relative_to(root):
+                return staging
+    return None
+
+
+@contextlib.contextmanager
+def staged(root):
+    """While the block runs, files written atomically under ``root`` wait in a :class:`Staging`.
+
+    Every thread's writes count (a registry by folder, not a context variable). The files
+    are not renamed into place here: the caller closes the staging and publishes what it
+    :meth:`~Staging.take` s. On leaving the block, what is still pending is removed.
+    """
+    root = Path(root).resolve()
+    staging = Staging(root)
+    with _STAGINGS_LOCK:
+        if root in _STAGINGS:
+            raise InputError(f"the folder {str(root)!r} is already being written by this process")
+        _STAGINGS[root] = staging
+    try:
+        yield staging
+    finally:
+        staging.close()
+        staging.discard()

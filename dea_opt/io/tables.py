@@ -9,7 +9,7 @@ comments in the numeric tables.
 
 A springs table has columns ``x, y, z`` (mm), ``nx, ny, nz`` (the normal from body 1 to
 body 2), ``area`` (mm^2), ``thickness`` (mm), and optionally ``gap`` (mm, default 0) and
-``label`` (an integer region label, CSV only).
+``label`` (a region label: an integer or a word such as ``medial``; CSV or NPZ).
 """
 
 from __future__ import annotations
@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .atomic import atomic_open, file_path
+from .atomic import atomic_open, file_path, write_atomic
 
 __all__ = ["CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
            "write_springs"]
@@ -141,13 +141,13 @@ def read_csv(path) -> dict:
 
 
 # --- numeric tables: load paths and springs ---------------------------------------------
-def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "table"):
+def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "table", text: tuple = ()):
     """A CSV of numbers as a DataFrame, with errors that name the file, line and column.
 
     Lines starting with ``#`` are comments. Columns outside ``required + optional`` are
     an error (a misspelt column should not be silently ignored). Numbers are parsed by
     Python's correctly rounded ``float``, so a table written by :func:`write_springs` reads
-    back bit for bit.
+    back bit for bit. Columns named in ``text`` are kept as strings (stripped).
     """
     import pandas as pd
 
@@ -177,6 +177,9 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
     for column in table.columns:
         raw = table[column]
         stripped = raw.str.strip()
+        if column in text:
+            numeric[column] = stripped.fillna("").to_numpy(dtype=str)
+            continue
         values = pd.to_numeric(stripped, errors="coerce")
         bad = values.isna() | ~np.isfinite(values.fillna(0.0))
         if bad.any():
@@ -208,52 +211,121 @@ def read_springs(path):
     """A :class:`~dea_opt.layer.SpringLayer` from a springs table (CSV or NPZ).
 
     Columns (CSV) or arrays (NPZ): ``x, y, z`` (mm), ``nx, ny, nz`` (normal from body 1 to
-    body 2), ``area`` (mm^2), ``thickness`` (mm), optional ``gap`` (mm, default 0) and, in
-    CSV, optional ``label`` (an integer region label).
+    body 2), ``area`` (mm^2), ``thickness`` (mm), optional ``gap`` (mm, default 0) and
+    optional ``label`` (a region label: integers, or words such as ``medial``).
     """
     from ..layer import SpringLayer
 
     path = Path(path)
     if path.suffix.lower() == ".npz":
         return _springs_from_npz(path)
-    table = read_numeric_csv(path, SPRING_COLUMNS, ("gap", "label"), "springs table")
-    points = table[["x", "y", "z"]].to_numpy()
-    normals = table[["nx", "ny", "nz"]].to_numpy()
-    gap = table["gap"].to_numpy() if "gap" in table else 0.0
-    labels = table["label"].to_numpy().astype(int) if "label" in table else None
+    table = read_numeric_csv(path, SPRING_COLUMNS, ("gap", "label"), "springs table", text=("label",))
+    points = table[["x", "y", "z"]].to_numpy(dtype=float)
+    normals = table[["nx", "ny", "nz"]].to_numpy(dtype=float)
+    gap = table["gap"].to_numpy(dtype=float) if "gap" in table else 0.0
+    labels = _labels(table["label"].to_numpy(dtype=str), path) if "label" in table else None
     try:
-        return SpringLayer(points, normals, table["area"].to_numpy(), table["thickness"].to_numpy(), gap,
-                           labels=labels)
+        return SpringLayer(points, normals, table["area"].to_numpy(dtype=float),
+                           table["thickness"].to_numpy(dtype=float), gap, labels=labels)
     except InputError as exc:
         raise InputError(f"springs table {path}: {exc}") from None
+
+
+def _npz_array(data, name: str, path: Path, n: int | None, numeric: bool = True) -> np.ndarray:
+    """One array of a springs NPZ, checked: 1-D, of a plain dtype, ``n`` long."""
+    try:
+        array = data[name]
+    except ValueError:  # numpy's refusal to unpickle an array of Python objects
+        raise InputError(f"springs table {path}: array {name!r} holds Python objects (saved from ragged lists or "
+                         f"with dtype=object), which dea-opt does not load (it never unpickles): save it as a "
+                         f"1-D numeric array") from None
+    except Exception as exc:  # noqa: BLE001 - a damaged archive member: zipfile and zlib errors
+        raise InputError(f"springs table {path}: array {name!r} cannot be read ({type(exc).__name__}: "
+                         f"{exc})") from None
+    kinds = "fiu" if numeric else "iuU"
+    if array.ndim != 1 or array.dtype.kind not in kinds:
+        expected = "a 1-D array of numbers" if numeric else "a 1-D array of text or integers"
+        raise InputError(f"springs table {path}: array {name!r} must be {expected}, got shape {array.shape} and "
+                         f"dtype {array.dtype}")
+    if n is not None and len(array) != n:
+        raise InputError(f"springs table {path}: array {name!r} has {len(array)} values, but 'x' has {n}: every "
+                         f"array needs one value per spring")
+    return array
 
 
 def _springs_from_npz(path: Path):
     from ..layer import SpringLayer
 
     try:
-        data = np.load(path)
-    except (OSError, ValueError) as exc:
-        raise InputError(f"springs table {path} is not a readable NPZ file: {exc}") from None
-    missing = [c for c in SPRING_COLUMNS if c not in data.files]
-    if missing:
-        raise InputError(f"springs table {path}: missing array{'s' if len(missing) > 1 else ''} "
-                         f"{', '.join(missing)}; expected {','.join(SPRING_COLUMNS)} and optionally gap")
-    points = np.column_stack([data["x"], data["y"], data["z"]])
-    normals = np.column_stack([data["nx"], data["ny"], data["nz"]])
+        data = np.load(path, allow_pickle=False)
+    except Exception as exc:  # noqa: BLE001 - not a zip, a damaged zip, a folder: all "not an NPZ"
+        raise InputError(f"springs table {path} is not a readable NPZ file: {type(exc).__name__}: {exc}") from None
+    with data:
+        missing = [c for c in SPRING_COLUMNS if c not in data.files]
+        if missing:
+            raise InputError(f"springs table {path}: missing array{'s' if len(missing) > 1 else ''} "
+                             f"{', '.join(missing)}; expected {','.join(SPRING_COLUMNS)} and optionally gap, label")
+        unknown = [c for c in data.files if c not in (*SPRING_COLUMNS, "gap", "label")]
+        if unknown:
+            raise InputError(f"springs table {path}: unknown array{'s' if len(unknown) > 1 else ''} "
+                             f"{', '.join(unknown)}; expected {','.join(SPRING_COLUMNS)} and optionally gap, label")
+        n = len(_npz_array(data, "x", path, None))
+        columns = {name: _npz_array(data, name, path, n) for name in (*SPRING_COLUMNS, "gap") if name in data.files}
+        labels = _npz_array(data, "label", path, n, numeric=False) if "label" in data.files else None
+    points = np.column_stack([columns["x"], columns["y"], columns["z"]])
+    normals = np.column_stack([columns["nx"], columns["ny"], columns["nz"]])
     try:
-        gap = data["gap"] if "gap" in data.files else 0.0
-        return SpringLayer(points, normals, data["area"], data["thickness"], gap)
+        return SpringLayer(points, normals, columns["area"], columns["thickness"], columns.get("gap", 0.0),
+                           labels=labels)
     except InputError as exc:
         raise InputError(f"springs table {path}: {exc}") from None
+
+
+def _labels(text: np.ndarray, path) -> np.ndarray:
+    """Region labels read as text: integers when every one is an integer, else the words."""
+    if (text == "").any():
+        row = int(np.argmax(text == ""))
+        raise InputError(f"springs table {path}, row {row + 1}, column label: expected a region label, "
+                         f"got an empty cell")
+    try:
+        return np.array([int(v) for v in text.tolist()], dtype=np.int64)
+    except ValueError:
+        return text
 
 
 def write_springs(layer, path) -> Path:
     """Write a layer as a springs CSV that :func:`read_springs` reads back bit for bit (atomically).
 
-    Columns ``x, y, z, nx, ny, nz, area, thickness, gap`` (labels are not written).
+    Columns ``x, y, z, nx, ny, nz, area, thickness, gap``, and ``label`` when the layer has
+    labels (integers, or words such as ``medial``, quoted where the csv module must).
+    A path ending in ``.npz`` gets an NPZ file instead, one array per column.
     """
+    if Path(path).suffix.lower() == ".npz":
+        return _write_springs_npz(layer, path)
     columns = [layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
                layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
                layer.areas, layer.thickness, layer.gap]
-    return _write_rows(path, (*SPRING_COLUMNS, "gap"), [np.asarray(c, dtype=float).tolist() for c in columns])
+    header = (*SPRING_COLUMNS, "gap")
+    rows = [np.asarray(c, dtype=float).tolist() for c in columns]
+    if layer.labels is not None:
+        labels = np.asarray(layer.labels)
+        integer = np.issubdtype(labels.dtype, np.integer)
+        rows.append(labels.astype(np.int64).tolist() if integer else labels.astype(str).tolist())
+        header = (*header, "label")
+    return _write_rows(path, header, rows)
+
+
+def _write_springs_npz(layer, path) -> Path:
+    arrays = {name: np.asarray(values, dtype=float) for name, values in (
+        ("x", layer.points[:, 0]), ("y", layer.points[:, 1]), ("z", layer.points[:, 2]),
+        ("nx", layer.normals[:, 0]), ("ny", layer.normals[:, 1]), ("nz", layer.normals[:, 2]),
+        ("area", layer.areas), ("thickness", layer.thickness), ("gap", layer.gap))}
+    if layer.labels is not None:
+        labels = np.asarray(layer.labels)
+        arrays["label"] = labels.astype(np.int64) if np.issubdtype(labels.dtype, np.integer) else labels.astype(str)
+    return write_atomic(path, lambda tmp: _save_npz(tmp, arrays))
+
+
+def _save_npz(tmp: Path, arrays: dict) -> None:
+    with open(tmp, "wb") as handle:  # a handle: numpy would add ".npz" to a name
+        np.savez(handle, **arrays)

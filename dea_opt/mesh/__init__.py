@@ -18,19 +18,39 @@ Two faults of OpenSim-JAM's elastic foundation are avoided on purpose:
 * results need not depend on which mesh casts: :func:`springs_both_ways` casts both ways and
   measures the difference.
 
+The proximity window is a property of a pose: a ray that reaches mesh 2 only behind mesh 1's
+own far side went back through the spring layer and is rejected, overlaps deeper than the
+window are counted as dropped (:class:`SpringCast` ``.dropped``), and :func:`recast` re-casts at
+another pose with the window following mesh 2 (:func:`recast_at_solution`: at a solved pose,
+with the force the springs carry there). Each spring keeps its target on mesh 2 (point, normal,
+face) for :func:`tangent_plane_gap`.
+
 The modules: :mod:`~dea_opt.mesh.readers` (file formats; the legacy-VTK parser in
-:mod:`~dea_opt.mesh.legacy_vtk`), :mod:`~dea_opt.mesh.repair`, :mod:`~dea_opt.mesh.raycast`
-(grid and Embree), :mod:`~dea_opt.mesh.springs` (springs from two meshes, poses) and
+:mod:`~dea_opt.mesh.legacy_vtk`; :mod:`~dea_opt.mesh.sniff`, what a file holds),
+:mod:`~dea_opt.mesh.repair`, :mod:`~dea_opt.mesh.budget` (memory guards),
+:mod:`~dea_opt.mesh.raycast` (grid and Embree), :mod:`~dea_opt.mesh.springs` (springs from two
+meshes, poses, the window's drops), :mod:`~dea_opt.mesh.recast` and
 :mod:`~dea_opt.mesh.both_ways`.
 """
 
 from .both_ways import TwoWaySprings, springs_both_ways
 from .raycast import ENGINES, surface_thickness
 from .readers import LOADERS, as_mesh, concatenate_meshes, load_mesh
+from .recast import (
+    Recast,
+    body_pose,
+    recast,
+    recast_at_solution,
+    relative_pose,
+    tangent_plane_gap,
+)
 from .springs import (
+    DROP_REASONS,
+    LOST_REASONS,
     MAX_ANGLE,
     MAX_GAP,
     MAX_OVERLAP,
+    Dropped,
     SpringCast,
     cast_springs,
     check_pose,
@@ -38,19 +58,28 @@ from .springs import (
 )
 
 __all__ = [
+    "DROP_REASONS",
     "ENGINES",
     "LOADERS",
+    "LOST_REASONS",
     "MAX_ANGLE",
     "MAX_GAP",
     "MAX_OVERLAP",
+    "Dropped",
+    "Recast",
     "SpringCast",
     "TwoWaySprings",
     "as_mesh",
+    "body_pose",
     "cast_springs",
     "check_pose",
     "concatenate_meshes",
     "load_mesh",
+    "recast",
+    "recast_at_solution",
+    "relative_pose",
     "springs_both_ways",
     "springs_from_meshes",
     "surface_thickness",
+    "tangent_plane_gap",
 ]

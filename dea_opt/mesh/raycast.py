@@ -180,6 +180,36 @@ class _EmbreeCaster:
         return ray[keep], face[keep], t[keep]
 
     def nearest(self, origins, directions, t_min, t_max):
+        """The first crossing with ``t_min < t <= t_max`` per ray: ``(face, t)``, -1/NaN if none.
+
+        One first-hit query from ``t_min`` on; the float64 distance to the plane of the face
+        it reports is checked, and the rays where float32 traversal returned a face at or
+        before ``t_min`` (the starting face itself) are cast again for all their crossings.
+        """
+        n = len(origins)
+        face = np.full(n, -1, dtype=np.int64)
+        dist = np.full(n, np.nan)
+        if not n:
+            return face, dist
+        mesh = self.intersector.mesh
+        first = np.asarray(self.intersector.intersects_first(origins + t_min * directions, directions),
+                           dtype=np.int64)
+        found = np.flatnonzero(first >= 0)
+        normal = mesh.face_normals[first[found]]
+        corner = mesh.triangles[first[found], 0]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            t = (np.einsum("ij,ij->i", corner - origins[found], normal)
+                 / np.einsum("ij,ij->i", directions[found], normal))
+        good = t > t_min
+        face[found[good]], dist[found[good]] = first[found[good]], t[good]
+        again = found[~good]
+        if len(again):
+            face[again], dist[again] = self._nearest_of_all(origins[again], directions[again], t_min, np.inf)
+        beyond = dist > t_max
+        face[beyond], dist[beyond] = -1, np.nan
+        return face, dist
+
+    def _nearest_of_all(self, origins, directions, t_min, t_max):
         n = len(origins)
         ray, face, t = _all_hits(self.intersector, origins, directions)
         keep = (t > t_min) & (t <= t_max)
@@ -199,11 +229,16 @@ def _has_embree() -> bool:
     return True
 
 
+def _engine(engine: str) -> str:
+    """The engine that will run for ``engine``: ``"embree"`` or ``"grid"`` (validated)."""
+    if not isinstance(engine, str) or engine not in ENGINES:
+        raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
+    return "grid" if engine == "grid" or (engine == "auto" and not _has_embree()) else "embree"
+
+
 def _caster(mesh, engine: str):
     """The ray caster for ``mesh``: Embree when possible (``"auto"``), else the numpy grid."""
-    if engine not in ENGINES:
-        raise InputError(f"engine must be one of {ENGINES}, got {engine!r}")
-    if engine == "grid" or (engine == "auto" and not _has_embree()):
+    if _engine(engine) == "grid":
         cache = getattr(mesh, "_cache", None)  # trimesh empties it when the mesh changes
         cached = cache["dea_opt_grid"] if cache is not None else None
         if cached is None:

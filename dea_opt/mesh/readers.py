@@ -7,14 +7,17 @@ after ``scale``.
 
 from __future__ import annotations
 
+from os import PathLike
 from pathlib import Path
 
 import numpy as np
 
 from .._validate import number_in_range
 from ..errors import InputError, MissingDependencyError
+from .budget import check_file_size
 from .legacy_vtk import parse_vtk_polydata
-from .repair import clean, repair
+from .repair import check_size, clean, repair
+from .sniff import EXPECTED, check_content, check_path
 
 __all__ = ["LOADERS", "as_mesh", "concatenate_meshes", "load_mesh"]
 
@@ -26,8 +29,15 @@ def _read_with_trimesh(path: Path, kind: str) -> tuple[np.ndarray, np.ndarray]:
 
     try:
         loaded = trimesh.load(str(path), file_type=kind, force="mesh", process=False)
+    except ImportError as exc:
+        if getattr(exc, "name", None) != "charset_normalizer":
+            raise InputError(f"mesh file {path} could not be read as {kind.upper()}: {exc}") from exc
+        # trimesh guesses the encoding of text that is not UTF-8 with an optional package
+        raise InputError(f"mesh file {path} could not be read as {kind.upper()}: its bytes are not text in "
+                         f"UTF-8 or another encoding trimesh reads; expected {EXPECTED[path.suffix.lower()]}") from exc
     except Exception as exc:  # trimesh raises many types for a malformed file
-        raise InputError(f"mesh file {path} could not be read as {kind.upper()}: {exc}") from exc
+        raise InputError(f"mesh file {path} could not be read as {kind.upper()}: {type(exc).__name__}: {exc}; "
+                         f"expected {EXPECTED[path.suffix.lower()]}") from exc
     if not isinstance(loaded, trimesh.Trimesh):  # e.g. an empty scene or a point cloud
         return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
     return np.asarray(loaded.vertices), np.asarray(loaded.faces)
@@ -127,21 +137,23 @@ def load_mesh(path, scale: float = 1.0):
 
 
 def _load(path, scale):
-    try:
-        path = Path(path)
-    except TypeError:
-        raise InputError(f"path must be a file path, got {type(path).__name__}") from None
-    suffix = path.suffix.lower()
+    if isinstance(path, bytes) or not isinstance(path, (str, PathLike)):
+        raise InputError(f"path must be a file path (str or path-like), got {type(path).__name__}")
+    shown = str(path) if "\0" not in str(path) else repr(str(path))
+    suffix = Path(str(path).replace("\0", "")).suffix.lower()
     if suffix not in LOADERS:
         raise InputError(
-            f"mesh file {path} has unknown extension {path.suffix or '(none)'!r}; expected one of "
+            f"mesh file {shown} has unknown extension {suffix or '(none)'!r}; expected one of "
             f"{', '.join(sorted(LOADERS))}"
         )
-    if not path.is_file():
-        raise InputError(f"mesh file {path} does not exist (expected a {suffix} triangle surface)")
-    if path.stat().st_size == 0:
-        raise InputError(f"mesh file {path} is empty (0 bytes); expected a {suffix} triangle surface")
+    path = check_path(path)
     scale = number_in_range("scale", scale, 0, low_open=True)
+    check_file_size(path)
+    try:
+        check_content(path)
+    except OSError as exc:
+        raise InputError(f"mesh file {path} could not be read ({exc.strerror or exc}); expected "
+                         f"{EXPECTED[suffix]}") from None
     vertices, faces = LOADERS[suffix](path, suffix[1:])
     return clean(vertices, faces, f"mesh file {path}", scale)
 
@@ -174,9 +186,14 @@ def _prepare(mesh, name: str, scale: float = 1.0):
     if isinstance(mesh, trimesh.Trimesh):
         if len(mesh.faces) == 0:
             raise InputError(f"{name} is an empty mesh (0 faces); expected a triangle surface")
+        scale = number_in_range("scale", scale, 0, low_open=True)
+        vertices = np.asarray(mesh.vertices)
+        if not np.isfinite(vertices).all():
+            raise InputError(f"{name}: vertices must be finite, found NaN or inf")
+        check_size(vertices * scale if scale != 1.0 else vertices, name)
         if scale != 1.0:
             mesh = mesh.copy()
-            mesh.apply_scale(number_in_range("scale", scale, 0, low_open=True))
+            mesh.apply_scale(scale)
             return repair(mesh, name, copy=False)
         return repair(mesh, name, copy=True)
     if isinstance(mesh, (tuple, list)) and len(mesh) == 2:

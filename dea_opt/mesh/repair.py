@@ -13,7 +13,14 @@ import numpy as np
 from .._tolerances import DEGENERATE_AREA
 from ..errors import InputError
 
-__all__ = ["clean", "repair"]
+__all__ = ["SIZE_RANGE", "check_size", "clean", "repair"]
+
+#: The sizes (mm) of meshes dea-opt computes with: the bounding-box diagonal at least the
+#: first, every coordinate at most the second in magnitude. Below, trimesh's merge tolerance
+#: (1e-8) fuses distinct vertices; above, its merge keys overflow 64-bit integers and
+#: Embree's float32 loses the faces. Cartilage spans 10-100 mm; a mesh in metres (0.01-0.1)
+#: or micrometres (1e4-1e5) is inside, and is then flagged by the validity report.
+SIZE_RANGE = (1e-3, 1e9)
 
 
 def clean(vertices, faces, source: str, scale: float = 1.0):
@@ -40,12 +47,33 @@ def clean(vertices, faces, source: str, scale: float = 1.0):
     if faces.min() < 0 or faces.max() >= len(vertices):
         raise InputError(f"{source}: face indices must lie in [0, {len(vertices) - 1}], "
                          f"got [{faces.min()}, {faces.max()}]")
-    if not np.isfinite(vertices).all():
-        raise InputError(f"{source}: vertices must be finite, found NaN or inf")
+    finite = np.isfinite(vertices).all(axis=1)
+    if finite.all():
+        check_size(vertices * scale if scale != 1.0 else vertices, source)
+    if not finite.all():
+        i = int(np.argmin(finite))
+        raise InputError(f"{source}: vertices must be finite, found NaN or inf in {int((~finite).sum())} of "
+                         f"{len(vertices)} vertices (the first is vertex {i}: {vertices[i].tolist()})")
     if scale != 1.0:
         vertices = vertices * scale
     mesh = trimesh.Trimesh(vertices, faces, process=True)  # merges the per-face vertices of STL
     return repair(mesh, source, copy=False)
+
+
+def check_size(vertices: np.ndarray, source: str) -> None:
+    """An InputError when finite ``vertices`` (V, 3) (mm) lie outside :data:`SIZE_RANGE`."""
+    if not len(vertices):
+        return
+    lo, hi = vertices.min(axis=0), vertices.max(axis=0)
+    top = float(np.abs(np.concatenate([lo, hi])).max())
+    span = float(np.linalg.norm((hi - lo) / max(top, 1e-300))) * top  # no overflow near 1e308
+    small, large = SIZE_RANGE
+    if span < small or top > large:
+        what = (f"spans only {span:.3g} mm (its bounding-box diagonal)" if span < small else
+                f"has coordinates up to {top:.3g} mm")
+        raise InputError(f"{source} {what}, outside the sizes dea-opt computes with (a diagonal of at least "
+                         f"{small:g} mm, coordinates within +-{large:g} mm): its vertices would merge into "
+                         f"points or its products overflow; give the mesh in mm (load_mesh(path, scale=...))")
 
 
 def repair(mesh, source: str, copy: bool):

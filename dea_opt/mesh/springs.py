@@ -20,11 +20,12 @@ from .._tolerances import ANGLE_SLACK, POSE_LAST_ROW, POSE_ROTATION
 from .._validate import number_in_range
 from ..errors import InputError
 from ..layer import SpringLayer
-from .raycast import _caster, _first_per_ray, _self_epsilon, _through, _to_bone
+from .budget import check_cast_size
+from .raycast import _caster, _engine, _first_per_ray, _self_epsilon, _through, _to_bone
 from .readers import _prepare, as_mesh
 
-__all__ = ["MAX_ANGLE", "MAX_GAP", "MAX_OVERLAP", "SpringCast", "cast_springs", "check_pose",
-           "springs_from_meshes"]
+__all__ = ["DROP_REASONS", "LOST_REASONS", "MAX_ANGLE", "MAX_GAP", "MAX_OVERLAP", "Dropped", "SpringCast",
+           "cast_springs", "check_pose", "springs_from_meshes"]
 
 #: Default proximity window of :func:`springs_from_meshes`: gaps up to 2 mm, overlaps up to
 #: 1 mm, normals within 60 degrees of facing each other.
@@ -63,6 +64,65 @@ def check_pose(pose, name: str = "pose") -> np.ndarray | None:
 
 
 
+#: Why a face of mesh 1 whose ray met mesh 2 made no spring (see :class:`Dropped`).
+DROP_REASONS = ("overlap", "through_layer", "angle", "thickness")
+#: Further outcomes of a face in a re-cast: its ray met mesh 2 only beyond ``max_gap``, or
+#: met no face of mesh 2 that faces it.
+LOST_REASONS = DROP_REASONS + ("gap", "no_hit")
+_SPRING = -1  # outcome code of a face that made a spring; others index LOST_REASONS
+
+
+@dataclass(frozen=True, eq=False)
+class Dropped:
+    """The faces of mesh 1 whose ray met mesh 2 but made no spring, by reason.
+
+    Reasons (:data:`DROP_REASONS`):
+
+    ``overlap``
+        The ray met a face of mesh 2 that faces it, in front of mesh 1's own far side, but
+        deeper than the overlap the window allows: a spring that would carry load, dropped by
+        the window. This is the count of ``dropped_springs`` in :mod:`dea_opt.validity`.
+    ``through_layer``
+        Rejected: every face of mesh 2 the ray met inside the window lies behind mesh 1's
+        own far side (the ray went back through the spring layer itself).
+    ``angle``
+        The face met inside the window is more than ``max_angle`` from facing the spring.
+    ``thickness``
+        The thickness could not be measured or is zero (a warning says which side).
+
+    Attributes
+    ----------
+    faces : dict {reason: ndarray of int}
+        The faces of mesh 1 (as checked, :attr:`SpringCast.mesh1`) dropped for each reason.
+    """
+
+    faces: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        faces = {r: np.asarray(self.faces.get(r, ()), dtype=np.int64) for r in DROP_REASONS}
+        object.__setattr__(self, "faces", faces)
+
+    @property
+    def counts(self) -> dict:
+        """``{reason: number of faces}``, every reason present."""
+        return {reason: len(f) for reason, f in self.faces.items()}
+
+    @property
+    def total(self) -> int:
+        return sum(self.counts.values())
+
+    def __getitem__(self, reason: str) -> int:
+        return self.counts[reason]
+
+    def describe(self) -> str:
+        """``"none"`` or e.g. ``"overlap 3, through_layer 12"``."""
+        parts = [f"{r} {c}" for r, c in self.counts.items() if c]
+        return ", ".join(parts) if parts else "none"
+
+    def __repr__(self) -> str:
+        return f"Dropped({self.describe()})"
+
+
 @dataclass(frozen=True, eq=False)
 class SpringCast:
     """The springs cast from mesh 1 onto mesh 2, with what each ray met.
@@ -70,9 +130,9 @@ class SpringCast:
     Attributes
     ----------
     layer : SpringLayer
-        The springs (see :func:`springs_from_meshes`).
+        The springs (see :func:`springs_from_meshes`), with their targets on mesh 2.
     hit_face : ndarray of int, shape (N,)
-        The face of mesh 2 each spring's ray met.
+        The face of mesh 2 each spring's ray met (``layer.target_faces``).
     hit_point : ndarray, shape (N, 3)
         Where it met it, in mesh 1's frame (mm); ``points + gap * normals``.
     thickness1, thickness2 : ndarray, shape (N,)
@@ -81,6 +141,11 @@ class SpringCast:
         The checked meshes (mesh 2 in its own frame, before ``pose``).
     pose : ndarray, shape (4, 4)
         The rigid transform applied to mesh 2.
+    dropped : Dropped
+        The faces of mesh 1 whose ray met mesh 2 but made no spring, by reason.
+    options : dict
+        The options of the cast, resolved to the checked meshes (thickness specifications,
+        window, labels, engine), so that :func:`~dea_opt.mesh.recast` repeats it at another pose.
     """
 
     layer: SpringLayer
@@ -91,6 +156,10 @@ class SpringCast:
     mesh1: object
     mesh2: object
     pose: np.ndarray = field(default_factory=lambda: np.eye(4))
+    dropped: Dropped = field(default_factory=Dropped)
+    options: dict = field(default_factory=dict)
+    outcome: np.ndarray | None = field(default=None, repr=False)
+    """Per face of mesh 1: -1 for a spring, else the index of its reason in :data:`LOST_REASONS`."""
 
 
 def _per_face(values, name, mesh, kept) -> np.ndarray:
@@ -102,19 +171,18 @@ def _per_face(values, name, mesh, kept) -> np.ndarray:
     return values if kept is None else values[kept[0]]
 
 
-def _thickness(spec, name, mesh, kept, faces, origins, directions, engine) -> np.ndarray:
-    """One side's thickness at the springs from a number, per-face array, bone mesh or None."""
+def _resolve_thickness(spec, name, mesh, kept):
+    """A thickness specification on the checked mesh: None, a float, a per-face array or a bone mesh."""
     import trimesh
 
     if spec is None:
-        return _through(mesh, _caster(mesh, engine), origins, directions)
+        return None
     if isinstance(spec, (trimesh.Trimesh, str, Path)):
-        bone = as_mesh(spec, name=f"{name} (bone mesh)")
-        return _to_bone(bone, _caster(bone, engine), origins, directions)
+        return as_mesh(spec, name=f"{name} (bone mesh)")
     if isinstance(spec, Real) and not isinstance(spec, bool):
         if not math.isfinite(spec) or spec < 0:
             raise InputError(f"{name} must be a finite number >= 0 (mm), got {spec!r}")
-        return np.full(len(faces), float(spec))
+        return float(spec)
     try:
         values = np.array(spec, dtype=float)
     except (TypeError, ValueError):
@@ -123,7 +191,21 @@ def _thickness(spec, name, mesh, kept, faces, origins, directions, engine) -> np
     values = _per_face(values, name, mesh, kept)
     if not np.isfinite(values).all() or (values < 0).any():
         raise InputError(f"{name} must be finite and >= 0 (mm) at every face")
-    return values[faces]
+    return values
+
+
+def _thickness(spec, mesh, faces, origins, directions, engine, through=None) -> np.ndarray:
+    """One side's thickness at the springs from a resolved specification.
+
+    ``through`` is the distance through ``mesh`` itself, when already measured.
+    """
+    if spec is None:
+        return _through(mesh, _caster(mesh, engine), origins, directions) if through is None else through
+    if isinstance(spec, float):
+        return np.full(len(faces), spec)
+    if isinstance(spec, np.ndarray):
+        return spec[faces]
+    return _to_bone(spec, _caster(spec, engine), origins, directions)
 
 
 def _per_face_labels(labels, mesh, kept) -> np.ndarray | None:
@@ -138,63 +220,121 @@ def cast_springs(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None,
     m1, kept1 = _prepare(mesh1, "mesh1")
     m2, kept2 = _prepare(mesh2, "mesh2")
     T = check_pose(pose)
-    T = np.eye(4) if T is None else T
-    max_gap = number_in_range("max_gap", max_gap, 0.0)
-    max_overlap = number_in_range("max_overlap", max_overlap, 0.0)
-    max_angle = number_in_range("max_angle", max_angle, 0.0, 90.0)
-    face_labels = _per_face_labels(labels, m1, kept1)
-    R, shift = T[:3, :3], T[:3, 3]
+    check_cast_size(len(m1.faces), len(m2.faces), _engine(engine))
+    options = {
+        "thickness1": _resolve_thickness(thickness1, "thickness1", m1, kept1),
+        "thickness2": _resolve_thickness(thickness2, "thickness2", m2, kept2),
+        "max_gap": number_in_range("max_gap", max_gap, 0.0),
+        "max_overlap": number_in_range("max_overlap", max_overlap, 0.0),
+        "max_angle": number_in_range("max_angle", max_angle, 0.0, 90.0),
+        "flip": bool(flip),
+        "labels": _per_face_labels(labels, m1, kept1),
+        "engine": engine,
+    }
+    return _cast(m1, m2, np.eye(4) if T is None else T, options)
 
+
+def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
+    """Cast from every face of the checked mesh 1 onto mesh 2 posed by ``T``.
+
+    ``allowed`` (F1,) is the overlap each face's ray may take (mm); ``max_overlap`` for all
+    by default. A ray looks behind its face down to mesh 1's own far side, so that an
+    overlap deeper than the window is counted as dropped, not missed, and a hit behind that
+    far side (through the spring layer itself) is rejected.
+    """
+    engine, max_gap = options["engine"], options["max_gap"]
+    n_faces = len(m1.faces)
+    allowed = np.full(n_faces, options["max_overlap"]) if allowed is None else allowed
+    R, shift = T[:3, :3], T[:3, 3]
     centroids = m1.triangles_center
-    normals = -m1.face_normals if flip else m1.face_normals
+    normals = -m1.face_normals if options["flip"] else m1.face_normals
+    # Behind each face, the first crossing of mesh 1 itself: its far (bone) side for a closed
+    # layer, none (inf) for an open sheet.
+    back_face, depth = _caster(m1, engine).nearest(centroids, -normals, _self_epsilon(m1), np.inf)
+    depth = np.where(back_face >= 0, depth, np.inf)
+    look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
     # Rays go to mesh 2's own frame (x2 = R^T (x - shift)) so that its cached ray structures
     # serve every pose of a motion; distances along the rays do not change.
     origins2 = (centroids - shift) @ R
     directions2 = normals @ R
-    # Start behind the centroid so that a centroid already inside mesh 2 still finds the face
-    # it went through: the line is cast both ways.
-    back = max_overlap + _self_epsilon(m2)
-    reach = max(max_gap, back) + _self_epsilon(m2)
-    ray, face, t = _caster(m2, engine).hits(origins2, directions2, -back, reach)
-    # Only faces of mesh 2 that face the ray count (never the back of a curved surface); of
-    # those, the nearest to the spring.
+    eps = _self_epsilon(m2)
+    # The line is cast both ways (a centroid already inside mesh 2 still finds the face it
+    # went through), as far ahead as behind so that the nearest face is the nearest.
+    ray, face, t = _caster(m2, engine).hits(origins2, directions2, -(look + eps), np.maximum(max_gap, look) + eps)
+    # Only faces of mesh 2 that face the ray count (never the back of a curved surface).
     cos = -np.einsum("ij,ij->i", m2.face_normals[face], directions2[ray])
-    facing = cos > 0
-    ray, face, t, cos = ray[facing], face[facing], t[facing], cos[facing]
-    pick = _first_per_ray(ray, np.abs(t), len(centroids))
-    has = pick >= 0
-    hit = pick[has]
-    inside = (t[hit] >= -max_overlap) & (t[hit] <= max_gap)
-    aligned = cos[hit] >= math.cos(math.radians(max_angle)) - ANGLE_SLACK
-    ok = inside & aligned
+    keep = cos > 0
+    ray, face, t, cos = ray[keep], face[keep], t[keep], cos[keep]
+    # A hit behind mesh 1's own far side (or on it) went back through the spring layer: rejected.
+    through = -t >= depth[ray] - _self_epsilon(m1)
+    window = (t >= -allowed[ray]) & (t <= max_gap)
+    rejected = np.zeros(n_faces, dtype=bool)
+    rejected[ray[through & window]] = True
+    # Of the hits inside the window, the nearest to the spring.
+    inside = window & ~through
+    pick = _first_per_ray(ray[inside], np.abs(t[inside]), n_faces)
+    has = np.flatnonzero(pick >= 0)
+    hit = np.flatnonzero(inside)[pick[has]]
+    aligned = cos[hit] >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
+    outcome = _outcomes(n_faces, ray, t, cos, ~through & ~window, rejected, allowed, options)
+    outcome[has] = np.where(aligned, _SPRING, LOST_REASONS.index("angle"))
+    ok = aligned
     if not ok.any():
-        _raise_no_springs(m1, m2, t[hit], cos[hit], inside, origins2, max_gap, max_overlap, max_angle)
-    sel = np.flatnonzero(has)[ok]
-    hit = hit[ok]
+        _raise_no_springs(m2, cos[hit], t[~through & ~window], int(rejected.sum()), origins2, options)
+    sel, hit = has[ok], hit[ok]
     gap, hit_face = t[hit], face[hit]
     hit_point2 = origins2[sel] + gap[:, None] * directions2[sel]
-
-    h1 = _thickness(thickness1, "thickness1", m1, kept1, sel, centroids[sel], -normals[sel], engine)
-    h2 = _thickness(thickness2, "thickness2", m2, kept2, hit_face, hit_point2,
-                    -m2.face_normals[hit_face], engine)
+    through1 = None
+    if options["thickness1"] is None:  # the crossing behind the face, where it leaves the layer
+        leaves = np.einsum("ij,ij->i", m1.face_normals[back_face[sel].clip(0)], -normals[sel]) > 0
+        through1 = np.where((back_face[sel] >= 0) & leaves, depth[sel], np.nan)
+    h1 = _thickness(options["thickness1"], m1, sel, centroids[sel], -normals[sel], engine, through1)
+    h2 = _thickness(options["thickness2"], m2, hit_face, hit_point2, -m2.face_normals[hit_face], engine)
     total = h1 + h2
     good = np.isfinite(total) & (total > 0)
     if not good.all():
-        _warn_dropped(h1, h2, good, thickness1, thickness2)
+        _warn_dropped(h1, h2, good, options["thickness1"], options["thickness2"])
         if not good.any():
             raise InputError("no spring has a positive, measurable thickness: thickness1 + thickness2 "
                              "must be > 0 (mm); check that closed surfaces are closed and oriented "
                              "outward, or give the thickness as a number")
+        outcome[sel[~good]] = LOST_REASONS.index("thickness")
         sel, gap, hit_face, hit_point2 = sel[good], gap[good], hit_face[good], hit_point2[good]
         h1, h2, total = h1[good], h2[good], total[good]
 
+    face_labels = options["labels"]
     layer = SpringLayer(
         centroids[sel], normals[sel], m1.area_faces[sel], total, gap,
         source_face=sel.astype(np.int64), surface=(m1.vertices, m1.faces),
         labels=None if face_labels is None else face_labels[sel],
+        target_points=hit_point2, target_normals=m2.face_normals[hit_face], target_faces=hit_face,
     )
     hit_point = hit_point2 @ R.T + shift
-    return SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T)
+    dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
+    return SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome))
+
+
+def _outcomes(n_faces, ray, t, cos, outside, rejected, allowed, options) -> np.ndarray:
+    """The outcome of each face whose ray has no hit inside the window (see :data:`LOST_REASONS`).
+
+    ``outside`` marks the hits outside the window that are not behind mesh 1's far side;
+    the nearest of them says why the face made no spring.
+    """
+    outcome = np.full(n_faces, LOST_REASONS.index("no_hit"), dtype=np.int8)
+    pick = _first_per_ray(ray[outside], np.abs(t[outside]), n_faces)
+    has = np.flatnonzero(pick >= 0)
+    hit = np.flatnonzero(outside)[pick[has]]
+    aligned = cos[hit] >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
+    deep = t[hit] < -allowed[has]
+    outcome[has[t[hit] > options["max_gap"]]] = LOST_REASONS.index("gap")
+    outcome[has[deep & aligned]] = LOST_REASONS.index("overlap")
+    outcome[rejected] = LOST_REASONS.index("through_layer")
+    return outcome
+
+
+def _readonly(arr: np.ndarray) -> np.ndarray:
+    arr.setflags(write=False)
+    return arr
 
 
 def _warn_dropped(h1, h2, good, spec1, spec2) -> None:
@@ -227,19 +367,24 @@ def _closest_distance(points: np.ndarray, mesh) -> float:
     return float(distance.min())
 
 
-def _raise_no_springs(m1, m2, t, cos, inside, origins2, max_gap, max_overlap, max_angle):
+def _raise_no_springs(m2, cos_inside, t_outside, n_rejected, origins2, options):
+    """The InputError of a cast that made no spring, saying what the rays met instead."""
+    max_gap, max_overlap = options["max_gap"], options["max_overlap"]
     window = (f"the proximity window -max_overlap={max_overlap:g} <= gap <= max_gap={max_gap:g} mm "
-              f"with max_angle={max_angle:g} deg")
-    if len(t):
-        if inside.any():
-            best = float(np.degrees(np.arccos(np.clip(cos[inside].max(), -1, 1))))
-            detail = (f"faces meet within the gap window but their normals are at least {best:.3g} deg "
-                      f"from facing each other (raise max_angle)")
-        else:
-            ahead = t[t > max_gap]
-            detail = (f"the smallest distance found along the normals is {ahead.min():.4g} mm "
-                      f"(raise max_gap)" if len(ahead) else
-                      f"the shallowest overlap found is {-t.max():.4g} mm (raise max_overlap)")
+              f"with max_angle={options['max_angle']:g} deg")
+    ahead, behind = t_outside[t_outside > max_gap], t_outside[t_outside < 0]
+    if len(cos_inside):
+        best = float(np.degrees(np.arccos(np.clip(cos_inside.max(), -1, 1))))
+        detail = (f"faces meet within the gap window but their normals are at least {best:.3g} deg "
+                  f"from facing each other (raise max_angle)")
+    elif n_rejected:
+        detail = (f"the faces of mesh2 that {n_rejected} rays met within the window lie behind mesh1's own far "
+                  f"side (the rays went back through mesh1's layer): check the pose and that mesh1's normals "
+                  f"face mesh2")
+    elif len(ahead):
+        detail = f"the smallest distance found along the normals is {ahead.min():.4g} mm (raise max_gap)"
+    elif len(behind):
+        detail = f"the shallowest overlap found is {-behind.max():.4g} mm (raise max_overlap)"
     else:
         detail = (f"no normal of mesh1 meets a face of mesh2 that faces it; the smallest distance "
                   f"found between the meshes is {_closest_distance(origins2, m2):.4g} mm (check pose, "
@@ -255,7 +400,11 @@ def springs_from_meshes(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=
 
     One spring per articular face of mesh 1: a face whose normal ray meets a face of mesh 2
     that faces it inside the proximity window ``-max_overlap <= gap <= max_gap`` with the two
-    normals within ``max_angle`` of facing each other.
+    normals within ``max_angle`` of facing each other. A face of mesh 2 met behind mesh 1's own
+    far (bone) side is never taken: the ray went back through the spring layer itself. Faces
+    dropped by the window or rejected are counted in :attr:`SpringCast.dropped`
+    (:func:`cast_springs`); :func:`~dea_opt.mesh.recast` re-casts at another pose with the
+    window following it.
 
     Parameters
     ----------
@@ -290,13 +439,16 @@ def springs_from_meshes(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=
         2; ``areas`` (N,): face areas (mm^2); ``gap`` (N,): signed distance along the normal
         to mesh 2 (mm, negative where the meshes overlap); ``thickness`` (N,): ``h1 + h2`` (mm);
         ``source_face`` (N,): the face of ``surface`` = mesh 1 (vertices, faces) under each
-        spring; ``labels`` as given.
+        spring; ``labels`` as given; ``target_points``, ``target_normals`` (N, 3) and
+        ``target_faces`` (N,): where each ray met mesh 2 and that face's unit normal, in mesh
+        2's own frame (before ``pose``).
 
     Raises
     ------
     InputError
-        Bad meshes, a pose that is not rigid, a bad window or thickness, or no face of mesh 1
-        facing mesh 2 within the window (the message gives the smallest distance found).
+        Bad meshes, a pose that is not rigid, a bad window or thickness, meshes whose cast
+        would not fit in memory, or no face of mesh 1 facing mesh 2 within the window (the
+        message gives the smallest distance found).
     """
     return cast_springs(mesh1, mesh2, thickness1=thickness1, thickness2=thickness2, pose=pose,
                         max_gap=max_gap, max_overlap=max_overlap, max_angle=max_angle, flip=flip,

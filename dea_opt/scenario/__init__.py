@@ -7,10 +7,12 @@ errors the line), and turned into a :class:`~dea_opt.problem.ContactProblem` by
 Relative paths resolve against the scenario file's folder. ``dea-opt schema`` prints
 :func:`schema_text`, which is generated from the models, so it cannot drift.
 
-The modules: :mod:`~dea_opt.scenario.schema` (the models and the documented schema),
+The modules: :mod:`~dea_opt.scenario.schema` (the models), :mod:`~dea_opt.scenario.docs`
+(the documented schema),
 :mod:`~dea_opt.scenario.parse` (reading, errors with key paths and TOML lines, ``--set``),
-:mod:`~dea_opt.scenario.build` (law, springs, bodies, problem) and
-:mod:`~dea_opt.scenario.load_path` (the frames of a load path).
+:mod:`~dea_opt.scenario.build` (law, springs, bodies, problem),
+:mod:`~dea_opt.scenario.load_path` (the frames of a load path) and
+:mod:`~dea_opt.scenario.opensim` (OpenSim ``.sto``/``.mot`` load paths).
 
 Units everywhere: mm, N, N mm, MPa, s.
 
@@ -33,6 +35,7 @@ Example::
 from ..errors import ScenarioError
 from ..io.tables import read_springs, write_springs
 from .build import (
+    apply_regions,
     build_geometry,
     build_law,
     build_layer,
@@ -46,6 +49,7 @@ from .parse import apply_overrides, load_scenario, parse_scenario, parse_set
 from .schema import (
     FORMATS,
     GEOMETRY_KINDS,
+    LOAD_PATH_COLUMNS,
     METHOD_NAMES,
     BodySection,
     GeneratorGeometry,
@@ -55,17 +59,19 @@ from .schema import (
     MeshGeometry,
     OutputSection,
     PlateGeometry,
+    RegionsSection,
     Scenario,
     SocketGeometry,
     SolveSection,
     SphereOnBedGeometry,
     SpringsGeometry,
-    schema_text,
 )
+from .docs import schema_text
 
 __all__ = [
     "FORMATS",
     "GEOMETRY_KINDS",
+    "LOAD_PATH_COLUMNS",
     "METHOD_NAMES",
     "BodySection",
     "GeneratorGeometry",
@@ -76,6 +82,7 @@ __all__ = [
     "MeshGeometry",
     "OutputSection",
     "PlateGeometry",
+    "RegionsSection",
     "Scenario",
     "ScenarioError",
     "SocketGeometry",
@@ -87,6 +94,7 @@ __all__ = [
     "build_law",
     "build_layer",
     "build_problem",
+    "apply_regions",
     "load_meshes",
     "load_scenario",
     "parse_scenario",

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..errors import ScenarioError
+from ..errors import DeaError, ScenarioError
 from ..io.tables import read_springs
 from ..kinematics import DOFS
 from .schema import (
@@ -23,23 +23,19 @@ from .schema import (
     SpringsGeometry,
 )
 
-__all__ = ["build_geometry", "build_layer", "build_law", "build_problem", "load_meshes", "pose_builder",
-           "springs_from_mesh_section"]
+__all__ = ["apply_regions", "build_geometry", "build_layer", "build_law", "build_problem", "load_meshes",
+           "pose_builder", "springs_from_mesh_section"]
 
 
 def build_law(section: LawSection):
-    """The :class:`~dea_opt.laws.Law` of ``[law]``."""
-    from .. import laws
+    """The :class:`~dea_opt.laws.Law` of ``[law]``, made by the registry :data:`~dea_opt.laws.LAWS`."""
+    from ..errors import InputError
+    from ..laws import LAWS
 
-    if section.kind == "linear":
-        return laws.LinearLaw(section.H)
-    if section.kind == "ateshian":
-        return laws.AteshianLaw(section.H, section.beta)
-    if section.kind == "cubic":
-        return laws.CubicLaw(section.H, section.beta)
-    if section.kind == "polynomial":
-        return laws.PolynomialLaw(section.H, section.beta, section.order)
-    return laws.BlankevoortLaw(section.H)
+    try:
+        return LAWS.build(section.kind, section.parameters, prefix="law.")
+    except InputError as exc:
+        raise ScenarioError(f"[law]: {exc}") from None
 
 
 def build_layer(section, pose=None):
@@ -73,10 +69,50 @@ def _from_generator(section: GeneratorGeometry):
                         and not isinstance(getattr(geometry, n), type))
         raise ScenarioError(f"geometry.function must name a builder in dea_opt.geometry ({', '.join(public)}), "
                             f"got {section.function!r}")
+    parameters = _checked_parameters(function, section)
     try:
-        return function(**section.parameters)
-    except TypeError as exc:
-        raise ScenarioError(f"geometry.parameters do not fit {section.function}: {exc}") from None
+        return function(**parameters)
+    except DeaError:
+        raise
+    except MemoryError as exc:
+        raise ScenarioError(f"geometry.parameters of {section.function} ask for more memory than there is ({exc}): "
+                            f"use a coarser step or fewer elements") from None
+    except (TypeError, ValueError, ArithmeticError, IndexError) as exc:
+        raise ScenarioError(f"geometry.parameters do not fit {section.function}: {type(exc).__name__}: "
+                            f"{exc}") from None
+
+
+def _checked_parameters(function, section: GeneratorGeometry) -> dict:
+    """The generator's keyword arguments, each checked against its signature and annotation."""
+    import inspect
+    import typing
+
+    from pydantic import TypeAdapter, ValidationError
+
+    signature = inspect.signature(function)
+    try:
+        hints = typing.get_type_hints(function)
+    except Exception:  # noqa: BLE001 - an annotation that does not resolve is not checked
+        hints = {}
+    accepted = [n for n, q in signature.parameters.items() if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)]
+    checked = {}
+    for name, value in section.parameters.items():
+        if name not in accepted:
+            raise ScenarioError(f"geometry.parameters do not fit {section.function}: it takes no parameter "
+                                f"{name!r} (geometry.parameters.{name}); it takes {', '.join(accepted)}")
+        hint = hints.get(name)
+        if hint is None or hint is typing.Any:
+            checked[name] = value
+            continue
+        try:
+            checked[name] = TypeAdapter(hint).validate_python(value, strict=True)
+        except ValidationError as exc:
+            expected = {float: "a number", int: "an integer", bool: "true or false", str: "a string"}.get(
+                hint, getattr(hint, "__name__", str(hint)))
+            detail = exc.errors()[0]["msg"] if exc.errors() else str(exc)
+            raise ScenarioError(f"geometry.parameters.{name} of {section.function} must be {expected} "
+                                f"({detail.lower()}), got {value!r}") from None
+    return checked
 
 
 def _layer_of(built, name: str, pose=None):
@@ -107,37 +143,61 @@ def build_geometry(section) -> tuple:
     return build_layer(section), (None, None)
 
 
-def pose_builder(section):
+def pose_builder(scenario):
     """``pose -> SpringLayer`` for geometries made of meshes (None for spring geometries).
 
-    The meshes are read (or made) once; each call casts the springs again with mesh 2
-    moved by the 4x4 ``pose``.
+    ``scenario`` is a :class:`Scenario` (its ``[regions]`` label every layer alike) or just its
+    ``[geometry]``. The meshes are read (or made) once; each call casts the springs again with
+    mesh 2 moved by the 4x4 ``pose``.
     """
+    section = getattr(scenario, "geometry", scenario)
+    regions = getattr(scenario, "regions", None)
     if isinstance(section, MeshGeometry):
         meshes = load_meshes(section)
-        return lambda pose: springs_from_mesh_section(section, meshes, pose)
-    if isinstance(section, GeneratorGeometry):
-        built = _from_generator(section)
-        if hasattr(built, "mesh1"):
-            return lambda pose: _layer_of(built, section.function, pose)
-    return None
+        cast = lambda pose: springs_from_mesh_section(section, meshes, pose)  # noqa: E731
+    elif isinstance(section, GeneratorGeometry) and hasattr(built := _from_generator(section), "mesh1"):
+        cast = lambda pose: _layer_of(built, section.function, pose)  # noqa: E731
+    else:
+        return None
+    if regions is None:
+        return cast
+    # One cut for every frame: the springs of the start pose decide where it lies.
+    cut = _cut(cast(None), regions)
+    return lambda pose: apply_regions(cast(pose), regions, cut)
+
+
+def _load_part(files, scale: float):
+    """``(mesh, labels)``: one mesh (labels None), or a table of labelled meshes joined into one."""
+    from ..mesh import concatenate_meshes, load_mesh
+
+    if isinstance(files, dict):
+        return concatenate_meshes({label: load_mesh(path, scale=scale) for label, path in files.items()})
+    return load_mesh(files, scale=scale), None
 
 
 def load_meshes(section: MeshGeometry) -> dict:
-    """Read the meshes of a ``kind = "meshes"`` geometry (mesh1, mesh2 and any bone meshes)."""
+    """Read the meshes of a ``kind = "meshes"`` geometry: ``mesh1``, ``mesh2`` (a table of labelled
+    meshes joined into one), their face labels ``labels1``, ``labels2`` (None for one mesh) and any
+    bone meshes ``bone1``, ``bone2``."""
     from ..mesh import load_mesh
 
-    meshes = {"mesh1": load_mesh(section.mesh1, scale=section.scale),
-              "mesh2": load_mesh(section.mesh2, scale=section.scale)}
+    meshes = {}
     for k in (1, 2):
+        meshes[f"mesh{k}"], meshes[f"labels{k}"] = _load_part(getattr(section, f"mesh{k}"), section.scale)
         bone = getattr(section, f"bone{k}")
         meshes[f"bone{k}"] = None if bone is None else load_mesh(bone, scale=section.scale)
     return meshes
 
 
 def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
-    """Springs from the loaded ``meshes`` with the section's options; ``pose`` overrides its pose."""
-    from ..mesh import springs_from_meshes
+    """Springs from the loaded ``meshes`` with the section's options; ``pose`` overrides its pose.
+
+    Each spring is labelled with its face's part of mesh 1 and, when mesh 2 is a table too,
+    with the part of mesh 2 its ray meets (``"medial/femur"``).
+    """
+    import dataclasses
+
+    from ..mesh import cast_springs
 
     options = {}
     for k in (1, 2):
@@ -151,7 +211,53 @@ def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
         pose = np.array(section.pose, dtype=float)
     if pose is not None:
         options["pose"] = np.asarray(pose, dtype=float)
-    return springs_from_meshes(meshes["mesh1"], meshes["mesh2"], **options)
+    cast = cast_springs(meshes["mesh1"], meshes["mesh2"], labels=meshes.get("labels1"), **options)
+    labels2 = meshes.get("labels2")
+    if labels2 is None:
+        return cast.layer
+    met = _labels_met(meshes["mesh2"], labels2, cast)
+    labels = met if cast.layer.labels is None else np.char.add(np.char.add(cast.layer.labels.astype(str), "/"), met)
+    return dataclasses.replace(cast.layer, labels=labels)
+
+
+def _labels_met(mesh2, labels2, cast) -> np.ndarray:
+    """The label of the face of mesh 2 each spring's ray met.
+
+    The caster may have cleaned mesh 2 (dropped degenerate faces), so its face numbers are
+    matched to the labelled mesh by face centroid, not by index.
+    """
+    from scipy.spatial import cKDTree
+
+    _, index = cKDTree(mesh2.triangles_center).query(cast.mesh2.triangles_center[cast.hit_face])
+    return np.asarray(labels2)[index].astype(str)
+
+
+def axis_vector(axis: str) -> np.ndarray:
+    """The unit vector of ``"x"``, ``"-y"``, ... (the axes ``[regions] split`` accepts)."""
+    vector = np.zeros(3)
+    vector["xyz".index(axis[-1])] = -1.0 if axis.startswith("-") else 1.0
+    return vector
+
+
+def _cut(layer, regions) -> float:
+    """Where ``[regions]`` cuts ``layer`` along its axis (mm)."""
+    if regions.at != "centroid":
+        return float(regions.at)
+    coordinate = layer.points @ axis_vector(regions.split)
+    return float(layer.areas @ coordinate / layer.areas.sum())
+
+
+def apply_regions(layer, regions, cut: float | None = None):
+    """``layer`` with labels from ``[regions]``: ``names[0]`` below the cut along the axis, ``names[1]``
+    above (at ``cut`` when given: a load path's frames share the cut of its first layer)."""
+    import dataclasses
+
+    if layer.labels is not None:
+        raise ScenarioError("[regions] splits springs that have no labels, but these springs have labels already "
+                            "(a table of meshes, or a label column): remove [regions] or the labels")
+    cut = _cut(layer, regions) if cut is None else cut
+    below = layer.points @ axis_vector(regions.split) < cut
+    return dataclasses.replace(layer, labels=np.where(below, regions.names[0], regions.names[1]))
 
 
 def _body(section: BodySection, default_free, default_reference):
@@ -174,6 +280,8 @@ def build_problem(scenario: Scenario, layer=None):
         layer, (reference1, reference2) = build_geometry(scenario.geometry)
     else:
         reference1 = reference2 = None
+    if scenario.regions is not None:
+        layer = apply_regions(layer, scenario.regions)
     problem = ContactProblem(
         layer, build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),

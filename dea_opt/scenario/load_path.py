@@ -2,7 +2,9 @@
 
 The table is a CSV with columns ``time, Fx, Fy, Fz`` and optionally ``Mx, My, Mz`` and the six
 pose columns (``pose_tx, pose_ty, pose_tz`` in mm, ``pose_rx, pose_ry, pose_rz`` in degrees
-about the fixed x, y, z axes), or the shipped synthetic hip cycle. Units: s, N, N mm, mm.
+about the fixed x, y, z axes), an OpenSim Storage file (``.sto``/``.mot``, columns named in
+the scenario: :mod:`~dea_opt.scenario.opensim`), or the shipped synthetic hip cycle.
+Units: s, N, N mm, mm.
 """
 
 from __future__ import annotations
@@ -64,9 +66,15 @@ def read_load_path(section: LoadPathSection) -> LoadPathData:
         source = HIP_GAIT_CSV
     else:
         source = section.file
-    table = read_numeric_csv(source, ("time", *_FORCE_COLUMNS), _MOMENT_COLUMNS + _POSE_COLUMNS, "load path")
+    if section.columns is not None:
+        from .opensim import load_path_columns
+
+        table = load_path_columns(section)
+    else:
+        frame = read_numeric_csv(source, ("time", *_FORCE_COLUMNS), _MOMENT_COLUMNS + _POSE_COLUMNS, "load path")
+        table = {c: frame[c].to_numpy(dtype=float) for c in frame.columns}
     name = section.file or "the hip_gait load path"
-    times = table["time"].to_numpy(dtype=float)
+    times = table["time"]
     if len(times) > 1 and not (np.diff(times) > 0).all():
         i = int(np.argmax(np.diff(times) <= 0)) + 1
         raise ScenarioError(f"{name}: column time must increase, but row {i + 1} has time {times[i]:g} after "
@@ -76,7 +84,7 @@ def read_load_path(section: LoadPathSection) -> LoadPathData:
     if present and len(present) != len(_POSE_COLUMNS):
         missing = [c for c in _POSE_COLUMNS if c not in table]
         raise ScenarioError(f"{name}: pose columns must come all six together; missing {', '.join(missing)}")
-    poses = pose_matrices(table[list(_POSE_COLUMNS)].to_numpy(dtype=float)) if present else None
+    poses = pose_matrices(np.column_stack([table[c] for c in _POSE_COLUMNS])) if present else None
     if section.frames is not None and section.frames != len(times):
         times, loads, poses = _resample(times, loads, poses, section.frames)
     point = None if section.point is None else tuple(section.point)

@@ -8,6 +8,8 @@ validation and named as such in the errors.
 from __future__ import annotations
 
 import copy
+import hashlib
+import os
 import re
 import tomllib
 from pathlib import Path
@@ -15,9 +17,13 @@ from pathlib import Path
 from pydantic import BaseModel, ValidationError
 
 from ..errors import ScenarioError
+from ..laws import LAWS
 from .schema import GEOMETRY_KINDS, Scenario
 
-__all__ = ["apply_overrides", "load_scenario", "parse_scenario", "parse_set"]
+__all__ = ["MAX_DEPTH", "apply_overrides", "load_scenario", "parse_scenario", "parse_set"]
+
+#: Deepest nesting of tables and arrays a scenario may have (a real one needs 3).
+MAX_DEPTH = 16
 
 
 def load_scenario(path, overrides: dict | None = None) -> Scenario:
@@ -36,29 +42,96 @@ def load_scenario(path, overrides: dict | None = None) -> Scenario:
     ScenarioError
         Naming the file, the key path and (when known) the line.
     """
+    if not isinstance(path, (str, os.PathLike)):
+        raise ScenarioError(f"the scenario must be a file path, got {type(path).__name__}")
+    if "\0" in os.fspath(path):
+        raise ScenarioError(f"the scenario path contains a NUL byte, which no file system allows: {os.fspath(path)!r}")
     path = Path(path).expanduser()
     if not path.is_file():
         raise ScenarioError(f"scenario file not found: {path}")
-    text = path.read_text(encoding="utf-8")
-    return parse_scenario(text, name=str(path), base_dir=path.resolve().parent, overrides=overrides)
+    return parse_scenario(decode(path.read_bytes(), path), name=str(path), base_dir=path.resolve().parent,
+                          overrides=overrides)
+
+
+def decode(data: bytes, name) -> str:
+    """The UTF-8 text of a scenario file's bytes (TOML is UTF-8), or a ScenarioError naming the place."""
+    try:
+        return data.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = data.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise ScenarioError(f"{name} is not UTF-8 text (TOML files are UTF-8): byte {data[exc.start]:#04x} at line "
+                            f"{line}, column {column}; save the file as UTF-8") from None
 
 
 def parse_scenario(text: str, *, name: str = "<scenario>", base_dir=None, overrides: dict | None = None) -> Scenario:
     """Validate scenario TOML ``text``; relative paths resolve against ``base_dir``."""
+    if not isinstance(text, str):
+        raise ScenarioError(f"scenario text must be a str, got {type(text).__name__}")
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{name} is not valid TOML: {exc}") from None
+    except RecursionError:
+        raise ScenarioError(f"{name} nests tables or arrays too deeply to read (a scenario needs 3 levels, at "
+                            f"most {MAX_DEPTH} are read)") from None
+    _check_depth(data, name)
+    overrides = dict(overrides or {})
     if overrides:
         data = apply_overrides(data, overrides)
+        _check_depth(data, f"{name} with the --set values")
+    notes = _fit_law_to_kind(data, overrides)
     base_dir = Path.cwd() if base_dir is None else Path(base_dir)
     try:
         scenario = Scenario.model_validate(data, context={"base_dir": base_dir})
     except ValidationError as exc:
-        raise ScenarioError(_describe_errors(exc, name, text, data, overrides or {})) from None
+        raise ScenarioError(_describe_errors(exc, name, text, data, overrides)) from None
     if name != "<scenario>":
         scenario._source = str(Path(base_dir) / Path(name).name)
+    scenario._text_sha256 = hashlib.sha256(text.encode("utf-8", "surrogatepass")).hexdigest()
+    scenario._overrides = overrides
+    scenario._notes = notes
     return scenario
+
+
+def _check_depth(data, name: str) -> None:
+    """A ScenarioError when ``data`` nests deeper than :data:`MAX_DEPTH` (checked without recursion)."""
+    stack = [(data, 1, "")]
+    while stack:
+        node, depth, where = stack.pop()
+        if depth > MAX_DEPTH:
+            raise ScenarioError(f"{name} nests tables or arrays more than {MAX_DEPTH} levels deep (at "
+                                f"{where or 'the top level'}); a scenario needs 3")
+        items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
+        for key, value in items:
+            if isinstance(value, (dict, list)):
+                step = f"{where}[{key}]" if isinstance(key, int) else (f"{where}.{key}" if where else str(key))
+                stack.append((value, depth + 1, step))
+
+
+def _fit_law_to_kind(data: dict, overrides: dict) -> list[str]:
+    """Drop the ``[law]`` parameters its kind does not take when the kind or the parameter came
+    from ``--set`` (a sweep over law kinds shares one table of parameters); returns the notes.
+
+    A parameter the file itself gives to a kind that does not take it stays an error.
+    """
+    law = data.get("law")
+    if not isinstance(law, dict) or not any(k == "law" or k.startswith("law.") for k in overrides):
+        return []
+    kind = law.get("kind", "linear")
+    if not isinstance(kind, str) or kind not in LAWS:
+        return []
+    taken = {p.name for p in LAWS[kind].parameters} | {"kind"}
+    # Only what another kind takes is dropped: a key no law takes is a misspelling, an error.
+    known = {p.name for k in LAWS.values() for p in k.parameters}
+    kind_overridden = "law.kind" in overrides or "law" in overrides
+    dropped = [k for k in law if k not in taken and k in known and (kind_overridden or f"law.{k}" in overrides)]
+    for key in dropped:
+        del law[key]
+    if not dropped:
+        return []
+    return [f"law kind {kind!r} takes no {', '.join(dropped)}: dropped {', '.join(f'law.{k}' for k in dropped)} "
+            f"for this case"]
 
 
 def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, overrides: dict) -> str:
@@ -95,10 +168,20 @@ def _key_path(loc: tuple) -> str:
 def _message(error: dict, loc: tuple, data: dict) -> str:
     kind = error["type"]
     given = error.get("input")
+    law = _law_kind(loc, data)
+    if kind == "extra_forbidden" and law is not None:
+        if any(p.name == loc[-1] for k in LAWS.values() for p in k.parameters):
+            return f"law kind {law.name!r} takes no {loc[-1]} (it takes {_names(law)})"
+        others = sorted({p.name for k in LAWS.values() for p in k.parameters} - {p.name for p in law.parameters})
+        also = f" (other kinds take {', '.join(others)})" if others else ""
+        return f"unknown key {loc[-1]!r}; law kind {law.name!r} takes kind, {_names(law)}{also}"
     if kind == "extra_forbidden":
         allowed = _allowed_keys(loc[:-1], data)
         hint = f"; allowed here: {', '.join(allowed)}" if allowed else ""
         return f"unknown key {loc[-1]!r}{hint}"
+    if kind == "missing" and law is not None:
+        parameter = law.parameter(loc[-1])
+        return f"law kind {law.name!r} needs {loc[-1]}" + (f" ({parameter.describe()})" if parameter else "")
     if kind == "missing":
         return "required table is missing" if len(loc) == 1 and loc[0] in Scenario.model_fields else \
             "required key is missing"
@@ -106,6 +189,11 @@ def _message(error: dict, loc: tuple, data: dict) -> str:
         return f"unknown kind {error['ctx']['tag']!r}; expected one of {error['ctx']['expected_tags']}"
     if kind == "union_tag_not_found":
         return f"required key is missing; expected one of {', '.join(repr(k) for k in GEOMETRY_KINDS)}"
+    bounds = {"greater_than": ">", "greater_than_equal": ">=", "less_than": "<", "less_than_equal": "<="}
+    if kind in bounds:
+        limit = next(iter(error.get("ctx", {}).values()), None)
+        shown = f"{limit:g}" if isinstance(limit, (int, float)) else repr(limit)
+        return f"must be {bounds[kind]} {shown}, got {_short(given)}"
     message = error["msg"]
     if message.startswith("Value error, "):
         message = message[len("Value error, "):]
@@ -113,6 +201,19 @@ def _message(error: dict, loc: tuple, data: dict) -> str:
                 "literal_error", "int_from_float", "float_parsing"):
         message += f", got {_short(given)}" + (" (a string)" if isinstance(given, str) else "")
     return message
+
+
+def _law_kind(loc: tuple, data: dict):
+    """The registered kind of ``[law]`` when the error ``loc`` is inside it, else None."""
+    law = data.get("law") if isinstance(data, dict) else None
+    if len(loc) != 2 or loc[0] != "law" or not isinstance(law, dict):
+        return None
+    kind = law.get("kind", "linear")
+    return LAWS[kind] if isinstance(kind, str) and kind in LAWS else None
+
+
+def _names(kind) -> str:
+    return ", ".join(p.name for p in kind.parameters) or "no parameters"
 
 
 def _short(value) -> str:
@@ -238,9 +339,14 @@ def _parse_value(text: str):
 
 
 def apply_overrides(data: dict, overrides: dict) -> dict:
-    """A deep copy of the TOML ``data`` with ``{"table.key": value}`` set (tables created)."""
+    """A deep copy of the TOML ``data`` with ``{"table.key": value}`` set (tables created).
+
+    ``law = "ateshian"`` (a string for the table ``law``) sets ``law.kind``.
+    """
     data = copy.deepcopy(data)
     for key, value in overrides.items():
+        if key == "law" and isinstance(value, str):
+            key = "law.kind"
         node = data
         parts = key.split(".")
         for depth, part in enumerate(parts[:-1]):

@@ -2,13 +2,12 @@
 
 Unknown keys and wrong types are errors (``extra="forbid"``, strict types); files are
 resolved against the scenario's folder (``base_dir`` in the validation context) and must
-exist. ``dea-opt schema`` prints :func:`schema_text`, which is generated from the models
-below, so it cannot drift. Units: mm, N, N mm, MPa, s.
+exist. ``dea-opt schema`` prints :func:`dea_opt.scenario.docs.schema_text`, which is
+generated from the models below, so it cannot drift. Units: mm, N, N mm, MPa, s.
 """
 
 from __future__ import annotations
 
-import textwrap
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -24,21 +23,33 @@ from pydantic import (
 )
 
 from ..kinematics import DOFS
+from ..laws import LAWS
 
 __all__ = [
-    "FORMATS", "GEOMETRY_KINDS", "METHOD_NAMES", "BodySection", "GeneratorGeometry", "LawSection",
-    "LoadPathSection", "LoadSection", "MeshGeometry", "OutputSection", "PlateGeometry", "Scenario",
-    "SocketGeometry", "SolveSection", "SphereOnBedGeometry", "SpringsGeometry", "schema_text",
+    "FORMATS", "GEOMETRY_KINDS", "LOAD_PATH_COLUMNS", "METHOD_NAMES", "BodySection", "GeneratorGeometry",
+    "LawSection", "LoadPathSection", "LoadSection", "MeshGeometry", "OutputSection", "PlateGeometry",
+    "RegionsSection", "Scenario", "SocketGeometry", "SolveSection", "SphereOnBedGeometry", "SpringsGeometry",
+    "law_model",
 ]
 
 METHOD_NAMES = ("auto", "newton", "qp", "nlp")
 FORMATS = ("csv", "json", "vtk", "png")
+#: The quantities of a load path a column can be: time, force, moment and the pose of mesh 2.
+LOAD_PATH_COLUMNS = ("time", "Fx", "Fy", "Fz", "Mx", "My", "Mz",
+                     "pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz")
 
 
 # --- field types ------------------------------------------------------------------------
 
+def _no_nul(value: str) -> str:
+    if "\0" in value:
+        raise ValueError(f"a path cannot contain a NUL byte, got {value!r}")
+    return value
+
+
 def _existing_file(value: str, info: ValidationInfo) -> str:
     """Resolve ``value`` against the scenario's folder and insist that the file exists."""
+    _no_nul(value)
     base = (info.context or {}).get("base_dir")
     path = Path(value).expanduser()
     if not path.is_absolute() and base is not None:
@@ -57,7 +68,28 @@ def _dof_list(value):
     return value
 
 
+def _mesh_files(value, info: ValidationInfo):
+    """One mesh file, or a non-empty table ``{label = file}`` of labelled meshes, each existing."""
+    if isinstance(value, str):
+        return _existing_file(value, info)
+    if not isinstance(value, dict) or not value:
+        raise ValueError(f'expected a path or a table of labelled paths {{medial = "medial.stl", ...}}, got '
+                         f"{value!r}" + (" (a number)" if isinstance(value, (int, float)) else ""))
+    files = {}
+    for label, path in value.items():
+        if not isinstance(path, str):
+            raise ValueError(f"the mesh labelled {label!r} must be a path (a string), got {path!r}")
+        try:
+            files[label] = _existing_file(path, info)
+        except ValueError as exc:
+            raise ValueError(f"the mesh labelled {label!r}: {exc}") from None
+    return files
+
+
 File = Annotated[str, AfterValidator(_existing_file)]
+#: One mesh, or a table of labelled meshes ``{medial = "medial.stl", lateral = "lateral.stl"}``.
+_MESH_FILES_SCHEMA = {"anyOf": [{"type": "string"}, {"type": "object", "additionalProperties": {"type": "string"}}]}
+MeshFiles = Annotated[Any, AfterValidator(_mesh_files), Field(json_schema_extra=_MESH_FILES_SCHEMA)]
 Vector3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 Positive = Annotated[float, Field(gt=0)]
 NonNegative = Annotated[float, Field(ge=0)]
@@ -123,11 +155,15 @@ class GeneratorGeometry(_Section):
 
 
 class MeshGeometry(_Section):
-    """Two triangle meshes (STL, OBJ, PLY, VTK), springs on mesh 1 by ray casting to mesh 2."""
+    """Two triangle meshes (STL, OBJ, PLY, VTK), springs on mesh 1 by ray casting to mesh 2. Either
+    may be a table of labelled meshes, e.g. mesh1 = {medial = "medial.stl", lateral = "lateral.stl"}:
+    the parts are joined and each spring carries the label of its part (of mesh 1, or of the face
+    of mesh 2 its ray meets; "medial/femur" when both are tables), so every output reports the
+    compartments."""
 
     kind: Literal["meshes"]
-    mesh1: File = Field(description="articular surface of body 1 (path)")
-    mesh2: File = Field(description="articular surface of body 2 (path)")
+    mesh1: MeshFiles = Field(description="articular surface of body 1 (path), or a table {label = path}")
+    mesh2: MeshFiles = Field(description="articular surface of body 2 (path), or a table {label = path}")
     scale: Positive = Field(1.0, description="factor to millimetres (1000 for files in metres)")
     thickness1: Positive | None = Field(
         None, description="cartilage thickness on body 1 (mm); omit for a closed cartilage surface")
@@ -165,27 +201,58 @@ GEOMETRY_KINDS = ("plate", "sphere_on_bed", "socket", "generator", "meshes", "sp
 
 # --- [law], [body1], [body2] ------------------------------------------------------------
 
-_NEEDS_BETA = ("ateshian", "cubic", "polynomial")
+def _law_json_schema(schema: dict) -> None:
+    # The JSON Schema of [law]: one alternative per registered kind, made when asked.
+    schema["oneOf"] = [law_model(kind).model_json_schema() for kind in LAWS]
 
 
 class LawSection(_Section):
-    """The spring law (stress positive in tension, H in MPa)."""
+    """The spring law (stress positive in tension, moduli in MPa): a kind registered in
+    dea_opt.laws.LAWS and that kind's parameters, listed below for each kind."""
 
-    kind: Literal["linear", "ateshian", "cubic", "polynomial", "blankevoort"] = Field(
-        "linear", description="linear | ateshian | cubic | polynomial | blankevoort")
-    H: Positive = Field(description="small-strain modulus (MPa)")
-    beta: NonNegative | None = Field(None, description="Ateshian's beta (ateshian, cubic, polynomial)")
-    order: Count | None = Field(None, description="Taylor order (polynomial only)")
+    model_config = ConfigDict(extra="allow", strict=True, json_schema_extra=_law_json_schema)
 
-    @model_validator(mode="after")
-    def _parameters_fit_kind(self):
-        if self.kind in _NEEDS_BETA and self.beta is None:
-            raise ValueError(f"law kind {self.kind!r} needs beta")
-        if self.kind not in _NEEDS_BETA and self.beta is not None:
-            raise ValueError(f"law kind {self.kind!r} takes no beta")
-        if (self.kind == "polynomial") != (self.order is not None):
-            raise ValueError("order is required for kind 'polynomial' and only there")
-        return self
+    kind: str = Field("linear", description=" | ".join(LAWS))
+
+    @model_validator(mode="before")
+    @classmethod
+    def _parameters_of_kind(cls, data):
+        if not isinstance(data, dict):
+            return data
+        return law_model(data.get("kind", "linear")).model_validate(data).model_dump()
+
+    @property
+    def parameters(self) -> dict:
+        """The law's parameters (everything but ``kind``)."""
+        return dict(self.model_extra or {})
+
+
+_LAW_MODELS: dict = {}
+
+
+def law_model(kind) -> type[BaseModel]:
+    """The pydantic model of ``[law]`` for ``kind``, made from the registry (:data:`~dea_opt.laws.LAWS`)."""
+    from pydantic import create_model
+
+    key = (kind if isinstance(kind, str) else None, LAWS.version)
+    if key in _LAW_MODELS:
+        return _LAW_MODELS[key]
+    config = ConfigDict(extra="forbid", strict=True)
+    if not isinstance(kind, str) or kind not in LAWS:
+        model = create_model("UnknownLaw", __config__=config, kind=(Literal[tuple(LAWS)], "linear"))
+    else:
+        fields = {"kind": (Literal[kind], kind)}
+        for p in LAWS[kind].parameters:
+            bounds = {}
+            if p.range is not None and p.range.low is not None:
+                bounds["gt" if p.range.low_open else "ge"] = p.range.low
+            if p.range is not None and p.range.high is not None:
+                bounds["le"] = p.range.high
+            default = ... if p.required else p.default
+            fields[p.name] = (p.type, Field(default, description=p.describe(), **bounds))
+        model = create_model(f"{kind}Law", __config__=config, __doc__=f"{kind}: {LAWS[kind].doc}", **fields)
+    _LAW_MODELS[key] = model
+    return model
 
 
 class BodySection(_Section):
@@ -213,12 +280,21 @@ class LoadSection(_Section):
 class LoadPathSection(_Section):
     """A sequence of quasi-static loads: a CSV with columns time,Fx,Fy,Fz[,Mx,My,Mz] and
     optional pose columns pose_tx,pose_ty,pose_tz (mm), pose_rx,pose_ry,pose_rz (degrees,
-    about the fixed x, y, z axes in that order) that move mesh 2 per frame. Lines starting
-    with # are comments."""
+    about the fixed x, y, z axes in that order) that move mesh 2 per frame; lines starting
+    with # are comments. Or an OpenSim Storage file (.sto, .mot: what JointReaction and
+    Inverse Kinematics write) whose columns are named in `columns`; its rotations are read
+    in degrees or radians as its header's inDegrees says."""
 
-    file: File | None = Field(None, description="load CSV (path)")
+    file: File | None = Field(None, description="load CSV, or OpenSim .sto/.mot (path)")
     builtin: Literal["hip_gait"] | None = Field(
         None, description='a shipped load path instead of a file: "hip_gait" (synthetic, 101 frames)')
+    columns: dict[Literal[LOAD_PATH_COLUMNS], str] | None = Field(
+        None, description='for .sto/.mot: the file\'s column of each quantity, e.g. {Fx = "knee_r_on_femur_r_in_'
+                          'femur_r_fx", ...} (Fx, Fy, Fz required; a leading "-" negates a column; time defaults '
+                          'to "time"; quantities not named are 0)')
+    units: Literal["SI", "mm"] | None = Field(
+        None, description='units of a .sto/.mot file: "SI" (OpenSim\'s N, N m, m: moments and pose '
+                          'translations are converted to N mm and mm; the default) or "mm" (N, N mm, mm)')
     body: Literal[1, 2] = Field(2, description="the body carrying the loads")
     point: Vector3 | None = Field(None, description="where the forces act (mm)")
     scale: float = Field(1.0, description="factor on every force and moment (for sweeps)")
@@ -228,6 +304,33 @@ class LoadPathSection(_Section):
     def _one_source(self):
         if (self.file is None) == (self.builtin is None):
             raise ValueError("give exactly one of file or builtin")
+        opensim = self.file is not None and Path(self.file).suffix.lower() in (".sto", ".mot")
+        if opensim and self.columns is None:
+            raise ValueError('an OpenSim .sto/.mot load path needs columns = {Fx = "...", Fy = "...", '
+                             'Fz = "...", ...}: which column of the file is which')
+        if not opensim and (self.columns is not None or self.units is not None):
+            raise ValueError("columns and units apply to OpenSim .sto/.mot load paths only")
+        if opensim and not {"Fx", "Fy", "Fz"} <= set(self.columns):
+            missing = sorted({"Fx", "Fy", "Fz"} - set(self.columns))
+            raise ValueError(f"columns must name the force columns Fx, Fy and Fz; missing {', '.join(missing)}")
+        return self
+
+
+class RegionsSection(_Section):
+    """Labels for springs that have none (a single mesh, a generator, a springs table without a
+    label column): split them in two by a plane across an axis, e.g. the knee's medial and
+    lateral compartments. Which side is medial depends on the frame and the body's side: check it."""
+
+    split: Literal["x", "y", "z", "-x", "-y", "-z"] = Field(description="the axis to split across")
+    at: Union[float, Literal["centroid"]] = Field(
+        "centroid", description='where to cut along the axis (mm), or "centroid": the springs\' area centroid')
+    names: Annotated[list[str], Field(min_length=2, max_length=2)] = Field(
+        ["medial", "lateral"], description="the labels below and above the cut")
+
+    @model_validator(mode="after")
+    def _two_names(self):
+        if self.names[0] == self.names[1] or not all(n.strip() for n in self.names):
+            raise ValueError(f"names must be two different, non-empty labels, got {self.names}")
         return self
 
 
@@ -248,12 +351,17 @@ class SolveSection(_Section):
     accuracy: list[Literal["low", "default", "high"]] = Field(
         ["default"], min_length=1, description="accuracy settings for compare")
     repeat: Count = Field(1, description="repeats per compare case")
+    allow_outside_validity: bool = Field(
+        False, description="exit 0 instead of 3 when an answer is certified but outside its model's validity (for "
+                           "exploring on purpose; the outputs still say so)")
 
 
 class OutputSection(_Section):
     """Where results go and in which formats."""
 
-    directory: str = Field("results", description="output folder (relative to the scenario file)")
+    directory: Annotated[str, AfterValidator(_no_nul)] = Field(
+        "results", description="output folder (relative to the scenario file): new, empty, or holding an earlier "
+                               "dea-opt run")
     formats: list[Literal["csv", "json", "vtk", "png"]] = Field(
         list(FORMATS), description="any of csv, json, vtk, png")
     exposure_threshold: NonNegative = Field(
@@ -270,10 +378,15 @@ class Scenario(_Section):
     body2: BodySection = Field(default_factory=BodySection)
     load: LoadSection | None = None
     load_path: LoadPathSection | None = None
+    regions: RegionsSection | None = None
     solve: SolveSection = Field(default_factory=SolveSection)
     output: OutputSection = Field(default_factory=OutputSection)
-    # Not a TOML key: the file the scenario came from (relative paths resolve against it).
+    # Not TOML keys: the file the scenario came from (relative paths resolve against it), the
+    # SHA-256 of its text, the --set overrides applied to it and notes for the user.
     _source: str | None = PrivateAttr(None)
+    _text_sha256: str | None = PrivateAttr(None)
+    _overrides: dict = PrivateAttr(default_factory=dict)
+    _notes: list = PrivateAttr(default_factory=list)
 
     @model_validator(mode="after")
     def _one_load(self):
@@ -287,6 +400,21 @@ class Scenario(_Section):
         return self._source
 
     @property
+    def text_sha256(self) -> str | None:
+        """SHA-256 of the scenario's TOML text (before overrides)."""
+        return self._text_sha256
+
+    @property
+    def overrides(self) -> dict:
+        """The ``--set`` overrides applied to it."""
+        return dict(self._overrides)
+
+    @property
+    def notes(self) -> list:
+        """What reading it changed on purpose, e.g. a law parameter dropped for a kind that takes none."""
+        return list(self._notes)
+
+    @property
     def base_dir(self) -> Path:
         return Path(self._source).parent if self._source else Path.cwd()
 
@@ -296,73 +424,3 @@ class Scenario(_Section):
             return Path(override).expanduser().resolve()
         path = Path(self.output.directory).expanduser()
         return path if path.is_absolute() else (self.base_dir / path).resolve()
-
-
-# --- the documented schema --------------------------------------------------------------
-
-_SECTIONS = (
-    ("geometry", (PlateGeometry, SphereOnBedGeometry, SocketGeometry, MeshGeometry, SpringsGeometry,
-                  GeneratorGeometry)),
-    ("law", (LawSection,)),
-    ("body1", (BodySection,)),
-    ("body2", (BodySection,)),
-    ("load", (LoadSection,)),
-    ("load_path", (LoadPathSection,)),
-    ("solve", (SolveSection,)),
-    ("output", (OutputSection,)),
-)
-
-
-def schema_text() -> str:
-    """The scenario schema as commented TOML: every table, key, type, default and meaning."""
-    lines = [
-        "# dea-opt scenario file (TOML). Units: mm, N, N mm, MPa, s.",
-        "# Relative paths resolve against the scenario file's folder. Unknown keys are errors.",
-        "# Give exactly one of [load] and [load_path].",
-        "",
-        'title = ""  # string, optional: a name for reports',
-    ]
-    for table, models in _SECTIONS:
-        lines.append("")
-        lines.append(f"[{table}]")
-        if len(models) > 1:
-            kinds = " | ".join(m.model_fields["kind"].annotation.__args__[0] for m in models)
-            lines.append(f"# Choose one kind ({kinds}); each kind takes the keys listed under it.")
-        for model in models:
-            doc = " ".join((model.__doc__ or "").replace("``", "").split())
-            if len(models) > 1:
-                kind = model.model_fields["kind"].annotation.__args__[0]
-                lines.append("")
-                lines.extend(textwrap.wrap(f"--- {doc}", 96, initial_indent="# ", subsequent_indent="#     "))
-                lines.append(f'kind = "{kind}"')
-            else:
-                lines.extend(textwrap.wrap(doc, 96, initial_indent="# ", subsequent_indent="# "))
-            for name, field in model.model_fields.items():
-                if name == "kind" and len(models) > 1:
-                    continue
-                lines.append(_field_line(name, field))
-    return "\n".join(lines) + "\n"
-
-
-def _field_line(name: str, field) -> str:
-    from pydantic_core import PydanticUndefined
-
-    description = field.description or ""
-    if field.default is PydanticUndefined and field.default_factory is None:
-        return f"{name} = ...  # required; {description}"
-    default = field.default_factory() if field.default_factory is not None else field.default
-    if default is None:
-        return f"# {name} = ...  # optional; {description}"
-    return f"{name} = {_toml_value(default)}  # {description}"
-
-
-def _toml_value(value) -> str:
-    if isinstance(value, bool):
-        return "true" if value else "false"
-    if isinstance(value, str):
-        return f'"{value}"'
-    if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
-    if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
-    return repr(value)

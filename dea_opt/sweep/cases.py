@@ -120,7 +120,8 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
             sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
         scenario = parse_case(path, text, overrides)
         columns = (key or content_key(scenario, sha, overrides, method)).columns()
-        outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False)
+        # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
+        outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False, force=True)
         row |= {"status": "ok" if outcome.success else "failed", "message": outcome.message, **outcome.headline,
                 "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings)}
     except DeaError as exc:

@@ -2,14 +2,41 @@
 
 * ``plate_springs.csv``: the core's plate case as a springs table.
 * ``meshes/hip_socket.stl``, ``meshes/hip_head.stl``: the lunate hip of ``dea_opt.geometry``.
+* ``hip_joint_reaction.sto``: the synthetic hip cycle (``dea_opt.gait``) at 21 frames, written as
+  OpenSim's JointReaction would: the force of the acetabulum on the femur (minus the load that
+  presses the head into the socket), in N, and its moment in N m, in the frame of the meshes.
 """
 
 from pathlib import Path
 
+from dea_opt.gait import hip_gait_load
 from dea_opt.geometry import hip_meshes, plate_layer
 from dea_opt.scenario import write_springs
 
 HERE = Path(__file__).resolve().parent
+STO_HEADER = """hip_r_JointReaction
+version=1
+nRows={rows}
+nColumns=7
+inDegrees=yes
+
+Units are S.I. units (second, meters, Newtons, ...)
+If the header above contains a line with 'inDegrees', this indicates whether rotational values are in degrees (yes) or radians (no).
+
+endheader
+"""
+STO_COLUMNS = ["time"] + [f"hip_r_on_femur_r_in_acetabulum_{c}" for c in ("fx", "fy", "fz", "mx", "my", "mz")]
+
+
+def write_joint_reaction(path, frames: int = 21) -> None:
+    """The synthetic hip cycle as an OpenSim Storage file (tab-separated, S.I. units)."""
+    table = hip_gait_load(frames)
+    rows = ["\t".join(STO_COLUMNS)]
+    for _, row in table.iterrows():
+        values = [row["time"], -row["Fx"], -row["Fy"], -row["Fz"], -row["Mx"] / 1000, -row["My"] / 1000,
+                  -row["Mz"] / 1000]
+        rows.append("\t".join(f"{v + 0.0:.6f}" for v in values))  # + 0.0: no "-0.000000"
+    Path(path).write_text(STO_HEADER.format(rows=len(table)) + "\n".join(rows) + "\n")
 
 
 def main():
@@ -18,6 +45,7 @@ def main():
     (HERE / "meshes").mkdir(exist_ok=True)
     pair.mesh1.export(HERE / "meshes" / "hip_socket.stl")
     pair.mesh2.export(HERE / "meshes" / "hip_head.stl")
+    write_joint_reaction(HERE / "hip_joint_reaction.sto")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,95 @@
+"""The documented scenario schema: :func:`schema_text`, commented TOML made from the models of
+:mod:`~dea_opt.scenario.schema` and the law registry, so it cannot drift (``dea-opt schema``)."""
+
+from __future__ import annotations
+
+import textwrap
+
+from ..laws import LAWS
+from .schema import (
+    BodySection,
+    GeneratorGeometry,
+    LoadPathSection,
+    LoadSection,
+    MeshGeometry,
+    OutputSection,
+    PlateGeometry,
+    RegionsSection,
+    SocketGeometry,
+    SolveSection,
+    SphereOnBedGeometry,
+    SpringsGeometry,
+    law_model,
+)
+
+__all__ = ["schema_text"]
+
+_SECTIONS = (
+    ("geometry", (PlateGeometry, SphereOnBedGeometry, SocketGeometry, MeshGeometry, SpringsGeometry,
+                  GeneratorGeometry)),
+    ("law", None),  # one model per registered kind, made when the schema is printed
+    ("body1", (BodySection,)),
+    ("body2", (BodySection,)),
+    ("load", (LoadSection,)),
+    ("load_path", (LoadPathSection,)),
+    ("regions", (RegionsSection,)),
+    ("solve", (SolveSection,)),
+    ("output", (OutputSection,)),
+)
+
+
+def schema_text() -> str:
+    """The scenario schema as commented TOML: every table, key, type, default and meaning."""
+    lines = [
+        "# dea-opt scenario file (TOML). Units: mm, N, N mm, MPa, s.",
+        "# Relative paths resolve against the scenario file's folder. Unknown keys are errors.",
+        "# Give exactly one of [load] and [load_path].",
+        "",
+        'title = ""  # string, optional: a name for reports',
+    ]
+    for table, models in _SECTIONS:
+        if models is None:
+            models = tuple(law_model(kind) for kind in LAWS)
+        lines.append("")
+        lines.append(f"[{table}]")
+        if len(models) > 1:
+            kinds = " | ".join(m.model_fields["kind"].annotation.__args__[0] for m in models)
+            lines.append(f"# Choose one kind ({kinds}); each kind takes the keys listed under it.")
+        for model in models:
+            doc = " ".join((model.__doc__ or "").replace("``", "").split())
+            if len(models) > 1:
+                kind = model.model_fields["kind"].annotation.__args__[0]
+                lines.append("")
+                lines.extend(textwrap.wrap(f"--- {doc}", 96, initial_indent="# ", subsequent_indent="#     "))
+                lines.append(f'kind = "{kind}"')
+            else:
+                lines.extend(textwrap.wrap(doc, 96, initial_indent="# ", subsequent_indent="# "))
+            for name, field in model.model_fields.items():
+                if name == "kind" and len(models) > 1:
+                    continue
+                lines.append(_field_line(name, field))
+    return "\n".join(lines) + "\n"
+
+
+def _field_line(name: str, field) -> str:
+    from pydantic_core import PydanticUndefined
+
+    description = field.description or ""
+    if field.default is PydanticUndefined and field.default_factory is None:
+        return f"{name} = ...  # required; {description}"
+    default = field.default_factory() if field.default_factory is not None else field.default
+    if default is None:
+        return f"# {name} = ...  # optional; {description}"
+    return f"{name} = {_toml_value(default)}  # {description}"
+
+
+def _toml_value(value) -> str:
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+    if isinstance(value, dict):
+        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
+    return repr(value)
