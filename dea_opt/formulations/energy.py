@@ -140,8 +140,8 @@ class FormulationResult:
 class Scaling:
     """A change of variables that makes every formulation see a well-conditioned problem.
 
-    ``u_free = T xi`` with ``T = T1 s`` and ``T1 = D^-1 Vk Sigma_k^-1 / sqrt(H)`` from the
-    singular value decomposition of the factor ``W = U Sigma V^T`` of the bonded stiffness
+    ``u_free = T xi`` with ``T = T1 s`` and ``T1 = D^-1 Rk Sigma_k^-1 / sqrt(H)`` from the
+    singular value decomposition of the factor ``W = U Sigma R^T`` of the bonded stiffness
     (:func:`resistance`; never an eigendecomposition of ``K0 = A^T diag(V H) A``, which would
     square its condition number), so that ``T1^T K0 T1 = I`` (``formulations/energy.md``,
     "Scaling"): directions no spring resists are dropped, the remaining ones are made
