@@ -35,7 +35,7 @@ from . import formulations
 from .errors import DeaError, InputError
 from .status import Status
 
-__all__ = ["ACCURACY", "Accuracy", "StudyResult", "run_study", "shifted_geometric_mean", "installed_qp_solvers"]
+__all__ = ["ACCURACY", "Accuracy", "StudyResult", "installed_qp_solvers", "run_study", "shifted_geometric_mean"]
 
 
 @dataclass(frozen=True)
