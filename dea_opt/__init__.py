@@ -8,6 +8,7 @@ from .errors import (
     MissingDependencyError,
     OutputFolderError,
     ScenarioError,
+    SizeLimitError,
     SolverError,
     ValidityWarning,
 )
@@ -23,7 +24,8 @@ from .status import Status
 __all__ = [
     "LAWS", "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
-    "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "Solution",
-    "SolverError", "SpringLayer", "Status", "ValidityWarning", "certify", "check_load_supported", "compare",
+    "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "SizeLimitError",
+    "Solution", "SolverError", "SpringLayer", "Status", "ValidityWarning", "certify", "check_load_supported",
+    "compare",
     "register_law", "solve", "solve_path", "__version__",
 ]

@@ -81,3 +81,18 @@ class ValidityWarning(UserWarning):
     above what cartilage survives (35 MPa). One warning names every failed check with its
     value, limit and advice.
     """
+
+
+class SizeLimitError(InputError):
+    """A request would need more memory than the machine has free, so nothing was allocated.
+
+    Raised before the allocation (a load path of 1e9 frames, a table of every spring at every
+    frame), with the estimate: ``needed`` and ``available`` are in bytes, ``what`` names the
+    argument or scenario key that asked for it.
+    """
+
+    def __init__(self, message: str, needed: float = 0.0, available: float = 0.0, what: str = ""):
+        super().__init__(message)
+        self.needed = needed
+        self.available = available
+        self.what = what

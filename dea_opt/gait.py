@@ -78,7 +78,14 @@ def hip_gait_load(n_frames: int = 101, body_weight: float = BODY_WEIGHT, cycle_t
     """
     import pandas as pd
 
-    percent = np.linspace(0.0, 100.0, int(n_frames))
+    from ._memory import check_memory
+    from ._validate import positive_integer
+
+    n_frames = positive_integer("n_frames", n_frames)
+    # Seven columns and about as many temporaries of one float each per frame.
+    check_memory(16 * 8.0 * n_frames, f"a hip gait load of n_frames = {n_frames}",
+                 "ask for fewer frames (101 resolve the cycle; 1000 are plenty)")
+    percent = np.linspace(0.0, 100.0, n_frames)
     magnitude = body_weight * _curve(_MAGNITUDE, percent)
     frontal = np.radians(_curve(_FRONTAL, percent))
     sagittal = np.radians(_curve(_SAGITTAL, percent))

@@ -5,6 +5,13 @@ own), by half-spaces ``{name: (point, normal)}``, or by a cut across one axis
 (:func:`split_by_axis`, OpenSim-JAM's medial/lateral, anterior/posterior and
 superior/inferior split). Each region reports a :class:`RegionStats`.
 
+A layer made from one mesh has no labels; :func:`label_by_axis` cuts it in two once, at a
+fixed place, and gives the labels a layer (``dataclasses.replace(layer, labels=...)``) or a
+load path (``solve_path(..., regions=...)``) carries to every output: the frames table, the
+plots, the VTK files and the JSON summaries. With an
+:class:`~dea_opt.anatomy.AnatomicalFrame` the axis is named (``"medial"``) and the halves
+are named by it.
+
 Units: mm, mm^2, N, MPa.
 """
 
@@ -18,7 +25,7 @@ from ._tolerances import ZERO_LENGTH
 from ._validate import as_float_array, finite_number
 from .errors import InputError
 
-__all__ = ["RegionStats", "regional_statistics", "split_by_axis", "region_statistics"]
+__all__ = ["RegionStats", "label_by_axis", "region_statistics", "regional_statistics", "split_by_axis"]
 
 _AXES = {"x": 0, "y": 1, "z": 2}
 
@@ -255,3 +262,55 @@ def split_by_axis(solution, axis="x", at=None, names=("medial", "lateral")) -> d
         low: region_statistics(solution, below, low),
         high: region_statistics(solution, ~below, high),
     }
+
+
+def label_by_axis(layer, axis="x", at="centroid", names=None, *, anatomy=None) -> np.ndarray:
+    """Labels that cut ``layer`` in two across ``axis``, at a fixed coordinate: an auto-split
+    of a single mesh (JAM's medial/lateral split) that every frame of a path shares.
+
+    Parameters
+    ----------
+    layer : SpringLayer
+    axis : str or array_like, shape (3,)
+        ``"x"``, ``"-y"``, ... or a vector; with ``anatomy``, also an anatomical direction
+        (``"medial"``, ``"anterior"``, ``"proximal"`` or their opposites).
+    at : float or "centroid"
+        Where to cut, as a coordinate along ``axis`` (mm, from the origin of the meshes); by
+        default at the springs' area centroid.
+    names : pair of str, optional
+        ``names[0]`` for the springs with coordinate ``< at``, ``names[1]`` for ``>= at``.
+        Default: for an anatomical direction, its opposite then itself (``("lateral",
+        "medial")`` for ``axis="medial"``); otherwise ``("medial", "lateral")``, which side is
+        which depending on your meshes: check it, or give ``anatomy``.
+    anatomy : AnatomicalFrame or dict, optional
+
+    Returns
+    -------
+    ndarray of str, shape (N,)
+    """
+    direction, default = _named_axis(axis, anatomy)
+    names = default if names is None else names
+    try:
+        low, high = (str(v) for v in names)
+    except (TypeError, ValueError):
+        raise InputError(f"names must be a pair of strings, got {names!r}") from None
+    if low == high:
+        raise InputError(f"names must be two different strings, got {names!r}")
+    coordinate = layer.points @ direction
+    if isinstance(at, str):
+        if at != "centroid":
+            raise InputError(f"at must be a number (mm) or 'centroid', got {at!r}")
+        cut = float(layer.areas @ coordinate / layer.areas.sum()) if len(layer) else 0.0
+    else:
+        cut = finite_number("at", at)
+    return np.where(coordinate < cut, low, high)
+
+
+def _named_axis(axis, anatomy) -> tuple:
+    if anatomy is not None and isinstance(axis, str) and axis.strip().lower().lstrip("+-") not in _AXES:
+        from .anatomy import _OPPOSITE, AnatomicalFrame
+
+        frame = AnatomicalFrame.from_dict(anatomy)
+        key = axis.strip().lower()
+        return frame.direction(key), (_OPPOSITE.get(key, "low"), key)
+    return _axis(axis), ("medial", "lateral")

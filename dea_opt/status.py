@@ -37,7 +37,8 @@ class Status(StrEnum):
     UNBOUNDED = "unbounded"
     NON_FINITE = "non_finite"
     SOLVER_ERROR = "solver_error"
-    NOT_SUPPORTED = "not_supported"
+    NOT_SUPPORTED = "load_not_supported"
+    POSE_ERROR = "pose_error"
     INVALID_INPUT = "invalid_input"
 
     def __repr__(self) -> str:
@@ -86,8 +87,10 @@ _DESCRIPTIONS = {
     Status.UNBOUNDED: "the solver found its problem unbounded (its iterates diverged)",
     Status.NON_FINITE: "a NaN or an infinity: in the data bound for compiled code (never passed on) or from the law",
     Status.SOLVER_ERROR: "the solver failed or raised without an answer",
-    Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a study's row (or a load path's frame) "
+    Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a load path's frame or a study's row "
                           "whose solve raised LoadNotSupportedError",
+    Status.POSE_ERROR: "the springs could not be cast at a load path frame's pose (none there, or a pose the mesh "
+                       "check refuses)",
     Status.INVALID_INPUT: "an argument or option was rejected before anything was solved: a study's row whose solve "
                           "raised InputError",
 }

@@ -162,21 +162,22 @@ def test_vtu_round_trip_with_meshio(solution, tmp_path):
     layer = solution.problem.layer
     assert len(mesh.cells) == 1
     block = mesh.cells[0]
-    assert len(block.data) == len(layer)
-    for name, want in expected_fields(solution).items():
-        got = mesh.cell_data[name][0]
-        assert got.shape == np.shape(want), name
-        np.testing.assert_array_equal(got, np.asarray(want, dtype=got.dtype), err_msg=name)
+    assert block.type == "triangle"  # a surface, never a cloud of points
     if layer.surface is None:
-        assert block.type == "vertex"
-        np.testing.assert_array_equal(mesh.points[block.data[:, 0]], layer.points)
+        # The points are the springs, the data point data on a triangulation through them.
+        data = mesh.point_data
+        np.testing.assert_array_equal(mesh.points, layer.points)
     else:
-        assert block.type == "triangle"
+        assert len(block.data) == len(layer)
+        data = {name: values[0] for name, values in mesh.cell_data.items()}
         vertices, faces = layer.surface
         np.testing.assert_array_equal(mesh.points[block.data], vertices[faces[layer.source_face]])
-        labels = mesh.cell_data["label"][0]
         codes = io.label_codes(layer.labels)
-        np.testing.assert_array_equal(labels, [codes[v] for v in layer.labels])
+        np.testing.assert_array_equal(data["label"], [codes[v] for v in layer.labels])
+    for name, want in expected_fields(solution).items():
+        got = data[name]
+        assert got.shape == np.shape(want), name
+        np.testing.assert_array_equal(got, np.asarray(want, dtype=got.dtype), err_msg=name)
 
 
 @pytest.mark.parametrize("ext", [".vtu", ".vtp"])

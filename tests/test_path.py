@@ -57,7 +57,11 @@ def test_gait_is_a_double_hump_peaking_near_2_4_bw():
 
 def test_newton_path_table(newton_path, gait):
     table = newton_path.table
-    assert list(table.columns) == list(TABLE_COLUMNS)
+    # the fixed columns first, then one per validity check (no labels: no region columns)
+    assert list(table.columns)[:len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
+    extra = list(table.columns)[len(TABLE_COLUMNS):]
+    assert extra and all(c.startswith("validity_") for c in extra)
+    assert table["valid"].all() and (table["message"] == "").all()
     assert len(table) == len(gait) and newton_path.success
     assert np.allclose(table["time"], gait["time"])
     assert np.allclose(table["resultant"], np.linalg.norm(gait[["Fx", "Fy", "Fz"]].to_numpy(), axis=1), rtol=1e-8)
@@ -129,10 +133,11 @@ def test_qp_with_nonlinear_law_is_refused(hip):
         solve_path(hip.with_law(d.AteshianLaw(10.0, 0.3)), np.zeros((2, 3)) - 1, method="qp")
 
 
-def test_unsupported_frame_is_named(hip):
+def test_unsupported_frame_is_named_with_stop_on_error(hip):
     loads = np.array([[0.0, 0.0, -500.0], [0.0, 0.0, 400.0]])
-    with pytest.raises(LoadNotSupportedError, match="frame 1"):
-        solve_path(hip, loads, method="newton")
+    with pytest.raises(LoadNotSupportedError, match="frame 1") as caught:
+        solve_path(hip, loads, method="newton", stop_on_error=True)
+    assert caught.value.direction  # the unbalanced part is kept
 
 
 def test_uncertified_frames_are_flagged_or_raised(hip, gait):
@@ -185,10 +190,13 @@ def test_writes_table_series_plots_and_exposure(newton_path, tmp_path):
     datasets = ET.parse(files["series"]).getroot().find("Collection").findall("DataSet")
     assert len(datasets) == len(newton_path)
     assert np.allclose([float(x.get("timestep")) for x in datasets], newton_path.times)
+    # The socket is a generated layer: a surface through its springs, the data on its points.
     frame = meshio.read(tmp_path / datasets[-1].get("file"))
-    assert np.allclose(frame.cell_data["pressure"][0], newton_path.pressures[-1])
+    assert frame.cells[0].type == "triangle"
+    assert np.array_equal(frame.point_data["pressure"], newton_path.pressures[-1])
     surface = meshio.read(files["exposure_vtk"])
-    assert np.allclose(surface.cell_data["pressure_time_integral"][0], newton_path.exposure.pressure_time_integral)
+    assert surface.cells[0].type == "triangle"
+    assert np.array_equal(surface.point_data["pressure_time_integral"], newton_path.exposure.pressure_time_integral)
     for key in ("cycle_plot", "exposure_map"):
         assert files[key].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     import json

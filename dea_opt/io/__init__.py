@@ -19,31 +19,42 @@ and removed when the writer fails.
 The modules: :mod:`~dea_opt.io.atomic` (the atomic writer), :mod:`~dea_opt.io.surface`
 (the contact surface as a mesh with cell data), :mod:`~dea_opt.io.vtk` (VTK files),
 :mod:`~dea_opt.io.tables` (CSV: results, springs and numeric tables),
-:mod:`~dea_opt.io.summary` (JSON), :mod:`~dea_opt.io.plots` (pressure maps, cycle and
-exposure plots), :mod:`~dea_opt.io.results` (everything at once).
+:mod:`~dea_opt.io.summary` (JSON), :mod:`~dea_opt.io.plots` (pressure maps),
+:mod:`~dea_opt.io.cycle` (cycle and exposure plots), :mod:`~dea_opt.io.mapframe` (the frame a
+map is drawn in: anatomical or best-fit), :mod:`~dea_opt.io.draw` (vector or raster drawing),
+:mod:`~dea_opt.io.triangulate` (a surface through the springs of a layer without a mesh),
+:mod:`~dea_opt.io.vtkxml` (the streamed VTK XML writer), :mod:`~dea_opt.io.results`
+(everything at once).
 
 Units: mm, mm^2, N, N mm, MPa; strain is dimensionless.
 """
 
 from .atomic import atomic_open, atomic_path, write_atomic, write_data
-from .plots import best_fit_frame, plot_cycle, plot_exposure, plot_pressure
+from .cycle import plot_cycle, plot_exposure
+from .mapframe import MapFrame, best_fit_frame, map_frame
+from .plots import plot_pressure
 from .results import write_results
 from .summary import read_json, summary_dict, to_json
-from .surface import SurfaceData, contact_surface, label_codes
+from .surface import SurfaceData, contact_surface, label_codes, layer_surface
 from .tables import CSV_COLUMNS, read_csv, to_csv
-from .vtk import read_vtk, to_vtk, vtk_differences
+from .triangulate import point_triangulation
+from .vtk import read_vtk, to_vtk, vtk_differences, write_surface
 
 __all__ = [
     "CSV_COLUMNS",
+    "MapFrame",
     "SurfaceData",
     "atomic_open",
     "atomic_path",
     "best_fit_frame",
     "contact_surface",
     "label_codes",
+    "layer_surface",
+    "map_frame",
     "plot_cycle",
     "plot_exposure",
     "plot_pressure",
+    "point_triangulation",
     "read_csv",
     "read_json",
     "read_vtk",
@@ -55,4 +66,5 @@ __all__ = [
     "write_atomic",
     "write_data",
     "write_results",
+    "write_surface",
 ]

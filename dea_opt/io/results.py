@@ -16,7 +16,7 @@ __all__ = ["write_results"]
 
 
 def write_results(solution, directory, *, stem: str = "contact", vtk: str = ".vtu", cells: str = "springs",
-                  labels=None, planes=None, regions=None, view: str = "plane") -> dict:
+                  labels=None, planes=None, regions=None, view: str = "plane", anatomy=None) -> dict:
     """Write ``<stem>.vtu`` (or ``.vtp``), ``.csv``, ``.json`` and ``.png`` into ``directory``.
 
     Parameters
@@ -33,6 +33,9 @@ def write_results(solution, directory, *, stem: str = "contact", vtk: str = ".vt
         Regions for the JSON summary; see :func:`summary_dict`.
     view : {"plane", "3d"}
         See :func:`plot_pressure`.
+    anatomy : AnatomicalFrame or dict, optional
+        The joint's anatomical frame: the map is drawn in it and the JSON gives the centres
+        of pressure in it.
 
     Returns
     -------
@@ -56,11 +59,11 @@ def write_results(solution, directory, *, stem: str = "contact", vtk: str = ".vt
     if view not in ("plane", "3d"):
         raise InputError(f"view must be 'plane' or '3d', got {view!r}")
     # check everything before the first file is written
-    summary = summary_dict(solution, labels=labels, planes=planes, regions=regions)
+    summary = summary_dict(solution, labels=labels, planes=planes, regions=regions, anatomy=anatomy)
     contact_surface(solution, cells=cells)
     base = Path(directory)
     out = {"vtk": to_vtk(solution, base / f"{stem}{vtk}", cells=cells)}
     out["csv"] = to_csv(solution, base / f"{stem}.csv")
     out["json"] = write_json(summary, base / f"{stem}.json")
-    out["png"] = plot_pressure(solution, base / f"{stem}.png", view=view)
+    out["png"] = plot_pressure(solution, base / f"{stem}.png", view=view, anatomy=anatomy)
     return out

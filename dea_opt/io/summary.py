@@ -62,7 +62,7 @@ _UNITS = {
 }
 
 
-def summary_dict(solution, *, labels=None, planes=None, regions=None) -> dict:
+def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=None) -> dict:
     """Everything :func:`to_json` writes, as JSON-safe Python values (NaN -> ``None``).
 
     Builds on :meth:`Solution.summary` (method, status, law, ``n_springs``, peak and mean
@@ -80,6 +80,10 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None) -> dict:
         labels make the regions when it has any.
     regions : mapping {name: RegionStats}, optional
         Further regions, e.g. from :func:`dea_opt.regions.split_by_axis`.
+    anatomy : AnatomicalFrame or dict, optional
+        Adds ``anatomy`` (the frame) and, for the contact and every region,
+        ``center_of_pressure_anatomical``: ``{medial, anterior, proximal}`` in mm from the
+        frame's origin (the layer's centroid unless it names one).
 
     Returns
     -------
@@ -113,10 +117,30 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None) -> dict:
     )
     if layer.labels is not None and not np.issubdtype(layer.labels.dtype, np.integer):
         out["label_codes"] = label_codes(layer.labels)
+    if anatomy is not None:
+        _add_anatomy(out, solution, found, anatomy)
     return jsonable(out)
 
 
-def to_json(solution, path, *, labels=None, planes=None, regions=None, indent: int = 2) -> Path:
+def _add_anatomy(out: dict, solution, regions: dict, anatomy) -> None:
+    """The anatomical frame and the centres of pressure in it (mm from its origin)."""
+    from ..anatomy import AnatomicalFrame
+
+    frame = AnatomicalFrame.from_dict(anatomy)
+    layer = solution.problem.layer
+    origin = frame.origin_for(layer.points, layer.areas)
+
+    def where(point):
+        values = frame.coordinates(point, origin)
+        return dict(zip(("medial", "anterior", "proximal"), values.tolist()))
+
+    out["anatomy"] = {**frame.as_dict(), "origin_used": origin.tolist()}
+    out["center_of_pressure_anatomical"] = where(solution.center_of_pressure)
+    for name, stats in regions.items():
+        out["regions"][name]["center_of_pressure_anatomical"] = where(stats.center_of_pressure)
+
+
+def to_json(solution, path, *, labels=None, planes=None, regions=None, anatomy=None, indent: int = 2) -> Path:
     """Write the summary of ``solution`` as JSON (see :func:`summary_dict` for the keys).
 
     The file is strict JSON: NaN (e.g. the centre of pressure without contact) is
@@ -128,13 +152,16 @@ def to_json(solution, path, *, labels=None, planes=None, regions=None, indent: i
     path : str or os.PathLike
     labels, planes, regions :
         Regions to report; see :func:`summary_dict`.
+    anatomy : AnatomicalFrame or dict, optional
+        Centres of pressure in the anatomical frame too; see :func:`summary_dict`.
     indent : int
 
     Returns
     -------
     pathlib.Path
     """
-    return write_json(summary_dict(solution, labels=labels, planes=planes, regions=regions), path, indent)
+    return write_json(summary_dict(solution, labels=labels, planes=planes, regions=regions, anatomy=anatomy),
+                      path, indent)
 
 
 def read_json(path) -> dict:

@@ -1,4 +1,4 @@
-"""The contact surface of a solution as a mesh with cell data: what the VTK files and maps show.
+"""The contact surface of a solution as a mesh with its data: what the VTK files and maps show.
 
 Units: mm, mm^2, N, MPa; strain is dimensionless.
 """
@@ -11,7 +11,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["SurfaceData", "contact_surface", "label_codes"]
+__all__ = ["SurfaceData", "contact_surface", "label_codes", "layer_surface", "spring_fields"]
 
 
 @dataclass
@@ -22,17 +22,28 @@ class SurfaceData:
     ----------
     points : ndarray, shape (P, 3)
         Vertex coordinates (mm).
-    cells : ndarray of int64, shape (C, 3) or (C, 1)
-        Triangles, or one vertex per spring.
+    cells : ndarray of int32 or int64, shape (C, 3) or (C, 1)
+        Triangles, or one vertex per spring (int32 for a layer triangulated through its
+        springs, to halve the memory of the largest).
     cell_type : {"triangle", "vertex"}
     cell_data : dict {name: ndarray, shape (C,) or (C, 3)}
         See :func:`contact_surface` for the names and units.
+    point_data : dict {name: ndarray, shape (P,) or (P, 3)}
+        The same per-spring arrays when the points are the springs (a layer without a mesh,
+        triangulated through its springs); empty otherwise.
     """
 
     points: np.ndarray
     cells: np.ndarray
     cell_type: str
     cell_data: dict = field(default_factory=dict)
+    point_data: dict = field(default_factory=dict)
+
+    @property
+    def spring_data(self) -> dict:
+        """The per-spring arrays, wherever they sit: point data of a triangulated point
+        layer, else cell data."""
+        return self.point_data if self.point_data else self.cell_data
 
 
 def _label_data(labels: np.ndarray) -> np.ndarray:
@@ -49,15 +60,26 @@ def label_codes(labels) -> dict:
     return {name: i for i, name in enumerate(np.unique(text).tolist())}
 
 
-def _spring_fields(solution) -> dict:
-    layer = solution.problem.layer
+def spring_fields(layer, solution=None) -> dict:
+    """The per-spring arrays of :func:`contact_surface`; NaN results without a ``solution``
+    (a frame that failed)."""
+    n = len(layer)
+    if solution is None:
+        nan = np.full(n, np.nan)
+        pressure = strain = force = nan
+        contact = np.zeros(n, dtype=np.uint8)
+    else:
+        pressure = np.asarray(solution.pressure, dtype=float)
+        strain = np.asarray(solution.strain, dtype=float)
+        force = np.asarray(solution.spring_force, dtype=float)
+        contact = solution.in_contact.astype(np.uint8)
     data = {
-        "pressure": np.asarray(solution.pressure, dtype=float),
-        "strain": np.asarray(solution.strain, dtype=float),
+        "pressure": pressure,
+        "strain": strain,
         "gap": layer.gap,
         "thickness": layer.thickness,
-        "in_contact": solution.in_contact.astype(np.uint8),
-        "spring_force": np.asarray(solution.spring_force, dtype=float),
+        "in_contact": contact,
+        "spring_force": force,
         "normal": layer.normals,
         "area": layer.areas,
     }
@@ -86,16 +108,20 @@ def _checked_faces(layer) -> tuple:
 
 
 def contact_surface(solution, *, cells: str = "springs") -> SurfaceData:
-    """The contact surface of ``solution`` as a mesh with cell data, ready to write.
+    """The contact surface of ``solution`` as a mesh with its data, ready to write.
 
     Parameters
     ----------
     solution : Solution
     cells : {"springs", "surface"}
-        ``"springs"`` (default): one cell per spring, in spring order, so cell ``i`` is
-        spring ``i``. When the layer has ``surface`` and ``source_face``, the cells are
-        the springs' source faces (triangles; vertices not used by them are dropped);
-        otherwise each spring is a VTK_VERTEX cell at its point.
+        ``"springs"`` (default): when the layer has ``surface`` and ``source_face`` (it came
+        from a mesh), one triangle per spring, its source face, in spring order, so cell
+        ``i`` is spring ``i`` (vertices not used by them are dropped). Otherwise (a
+        generated layer, a springs table) the points are the springs, in spring order, the
+        cells the triangles of :func:`~dea_opt.io.triangulate.point_triangulation` through
+        them, and the arrays are point data: point ``i`` is spring ``i``. Only a layer that
+        cannot be triangulated (fewer than three springs, all on a line) is written as one
+        VTK_VERTEX cell per spring.
         ``"surface"``: every face of ``layer.surface``, unused vertices included; faces
         without a spring have ``spring`` -1, ``label`` -1 and 0 in every other field
         (threshold ``spring >= 0`` in ParaView to hide them). Needs ``surface`` and
@@ -104,7 +130,7 @@ def contact_surface(solution, *, cells: str = "springs") -> SurfaceData:
     Returns
     -------
     SurfaceData
-        Cell data (shape (C,) unless noted):
+        Per-spring arrays (shape (N,) unless noted), in ``cell_data`` or ``point_data``:
 
         ==============  ========  =========================================================
         name            unit      meaning
@@ -115,7 +141,7 @@ def contact_surface(solution, *, cells: str = "springs") -> SurfaceData:
         thickness       mm        unloaded spring length
         in_contact      1         1 where ``strain < 0``, else 0 (uint8)
         spring_force    N         ``-pressure * area``, tension positive (<= 0)
-        normal          1         spring direction, body 1 to body 2, shape (C, 3)
+        normal          1         spring direction, body 1 to body 2, shape (N, 3)
         area            mm^2      the area the spring stands for
         source_face     -         index of the face in ``layer.surface`` (when known)
         label           -         integer labels as given; text labels as codes into
@@ -123,8 +149,12 @@ def contact_surface(solution, *, cells: str = "springs") -> SurfaceData:
         spring          -         spring index, -1 for none (``cells="surface"`` only)
         ==============  ========  =========================================================
     """
-    layer = solution.problem.layer
-    data = _spring_fields(solution)
+    return layer_surface(solution.problem.layer, spring_fields(solution.problem.layer, solution), cells=cells)
+
+
+def layer_surface(layer, data: dict, *, cells: str = "springs") -> SurfaceData:
+    """The surface of ``layer`` carrying ``data`` (per-spring arrays, shape (N, ...)) as
+    :func:`contact_surface` places them (on the springs' faces or points)."""
     has_faces = layer.surface is not None and layer.source_face is not None
     if cells not in ("springs", "surface"):
         raise InputError(f"cells must be 'springs' or 'surface', got {cells!r}")
@@ -135,8 +165,13 @@ def contact_surface(solution, *, cells: str = "springs") -> SurfaceData:
             )
         return _whole_surface(layer, data)
     if not has_faces:
-        n = len(layer)
-        return SurfaceData(layer.points.copy(), np.arange(n, dtype=np.int64)[:, None], "vertex", data)
+        from .triangulate import point_triangulation
+
+        triangles = point_triangulation(layer)
+        if triangles is None:
+            n = len(layer)
+            return SurfaceData(layer.points.copy(), np.arange(n, dtype=np.int64)[:, None], "vertex", data)
+        return SurfaceData(layer.points, triangles, "triangle", point_data=data)
     vertices, faces, source = _checked_faces(layer)
     triangles = faces[source]
     used, inverse = np.unique(triangles, return_inverse=True)

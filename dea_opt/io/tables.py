@@ -15,6 +15,8 @@ body 2), ``area`` (mm^2), ``thickness`` (mm), and optionally ``gap`` (mm, defaul
 from __future__ import annotations
 
 import csv
+import io
+import itertools
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +24,7 @@ import numpy as np
 from ..errors import InputError
 from .atomic import atomic_open, file_path, write_atomic
 
-__all__ = ["CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
+__all__ = ["CHUNK_ROWS", "CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
            "write_springs"]
 
 #: Columns of :func:`to_csv`, in order.
@@ -45,6 +47,36 @@ def _write_rows(path, header, columns) -> Path:
 
 
 # --- the results of a solution, one row per spring --------------------------------------
+#: Rows per chunk of :func:`to_csv`: the text of one chunk is all that is built in memory.
+CHUNK_ROWS = 1 << 16
+
+
+def _texts(values: np.ndarray):
+    """The CSV text of each value: ``repr`` of a float (its shortest round-trip form), ``str`` of
+    an int. A column of one repeated value is formatted once; a chunk of few distinct values
+    (a grid's coordinates, flags) formats each distinct value once and indexes them."""
+    if not len(values):
+        return []
+    if values[0] == values[-1] and (values == values[0]).all():
+        one = values[0].item()
+        return itertools.repeat(repr(one) if isinstance(one, float) else str(one), len(values))
+    form = repr if values.dtype.kind == "f" else str
+    # Formatting a float costs about seven times sorting it: worth a sort to format fewer.
+    distinct, index = np.unique(values, return_inverse=True)
+    if len(distinct) <= len(values) // 4:
+        return np.array(list(map(form, distinct.tolist())), dtype=object)[index].tolist()
+    return list(map(form, values.tolist()))
+
+
+def _quoted(text: str) -> str:
+    """``text`` as the csv module writes it in a row of several fields (quoted when needed)."""
+    if text == "":
+        return ""
+    buffer = io.StringIO()
+    csv.writer(buffer, lineterminator="\n").writerow([text])  # as in the file: a newline is quoted
+    return buffer.getvalue()[:-1]
+
+
 def to_csv(solution, path) -> Path:
     """Write one row per spring, in spring order, with a header row.
 
@@ -67,7 +99,9 @@ def to_csv(solution, path) -> Path:
     ============  =====  ===============================================================
 
     Floats are written with Python's shortest round-trip representation, so
-    :func:`read_csv` gives back the same numbers bit for bit.
+    :func:`read_csv` gives back the same numbers bit for bit. The file is written in chunks
+    of :data:`CHUNK_ROWS` rows (atomically): memory stays near one chunk's text whatever
+    the number of springs, and the bytes are those the :mod:`csv` module writes.
 
     Parameters
     ----------
@@ -86,11 +120,23 @@ def to_csv(solution, path) -> Path:
         layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
         layer.areas, layer.thickness, layer.gap, solution.strain, solution.pressure, solution.spring_force,
     ]
-    columns = [np.asarray(c, dtype=float).tolist() for c in floats]
-    columns.append(solution.in_contact.astype(int).tolist())
-    columns.append(layer.source_face.tolist() if layer.source_face is not None else [-1] * n)
-    columns.append(layer.labels.astype(str).tolist() if layer.labels is not None else [""] * n)
-    return _write_rows(path, CSV_COLUMNS, columns)
+    columns = [*floats, solution.in_contact.astype(np.int64),
+               layer.source_face if layer.source_face is not None else np.full(n, -1, dtype=np.int64)]
+    if layer.labels is not None:
+        names, codes = np.unique(np.asarray(layer.labels).astype(str), return_inverse=True)
+        quoted = [_quoted(name) for name in names.tolist()]
+    with atomic_open(path, "w", newline="") as handle:
+        handle.write(",".join(CSV_COLUMNS) + "\n")
+        for start in range(0, n, CHUNK_ROWS):
+            stop = min(start + CHUNK_ROWS, n)
+            texts = [_texts(c[start:stop]) for c in columns]
+            if layer.labels is not None:
+                texts.append([quoted[c] for c in codes[start:stop].tolist()])
+            else:
+                texts.append(itertools.repeat("", stop - start))
+            handle.write("\n".join(map(",".join, zip(*texts))))
+            handle.write("\n")
+    return Path(path)
 
 
 def read_csv(path) -> dict:

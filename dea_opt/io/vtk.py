@@ -1,6 +1,6 @@
-"""ParaView files of the contact surface: ``.vtu`` (through meshio) and ``.vtp`` (written here).
+"""ParaView files of the contact surface: ``.vtu`` and ``.vtp``, written array by array.
 
-Both are VTK XML with the cell data of :func:`~dea_opt.io.surface.contact_surface`;
+Both are VTK XML with the data of :func:`~dea_opt.io.surface.contact_surface`;
 :func:`read_vtk` reads both back and :func:`vtk_differences` compares a file with a
 solution field by field. Units: mm, mm^2, N, MPa.
 """
@@ -10,7 +10,6 @@ from __future__ import annotations
 import base64
 import math
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
@@ -18,16 +17,11 @@ from .._optional import require
 from ..errors import InputError
 from .atomic import file_path, write_atomic
 from .surface import SurfaceData, contact_surface
+from .vtkxml import VTK_TYPES, write_vtk_xml
 
-__all__ = ["VTK_EXTENSIONS", "read_vtk", "to_vtk", "vtk_differences"]
+__all__ = ["VTK_EXTENSIONS", "read_vtk", "to_vtk", "vtk_differences", "write_surface"]
 
-_VTK_TYPES = {
-    np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32",
-    np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32", np.dtype(np.int16): "Int16",
-    np.dtype(np.int8): "Int8", np.dtype(np.uint64): "UInt64", np.dtype(np.uint32): "UInt32",
-    np.dtype(np.uint16): "UInt16", np.dtype(np.uint8): "UInt8",
-}
-_NUMPY_TYPES = {v: k for k, v in _VTK_TYPES.items()}
+_NUMPY_TYPES = {v: k for k, v in VTK_TYPES.items()}
 #: The extensions :func:`to_vtk` writes: VTK XML UnstructuredGrid and PolyData.
 VTK_EXTENSIONS = (".vtu", ".vtp")
 
@@ -43,21 +37,21 @@ def _vtk_path(path) -> tuple:
 
 
 def to_vtk(solution, path, *, cells: str = "springs", binary: bool = True) -> Path:
-    """Write the contact surface with its cell data for ParaView.
+    """Write the contact surface with its data for ParaView.
 
     Parameters
     ----------
     solution : Solution
     path : str or os.PathLike
-        ``.vtu`` (VTK XML UnstructuredGrid, written by meshio) or ``.vtp`` (VTK XML
-        PolyData, written here). Both open in ParaView; :func:`read_vtk` reads both back,
-        and ``meshio.read`` reads the ``.vtu``.
+        ``.vtu`` (VTK XML UnstructuredGrid) or ``.vtp`` (VTK XML PolyData). Both open in
+        ParaView; :func:`read_vtk` reads both back, and ``meshio.read`` reads the ``.vtu``.
+        Written array by array (:mod:`~dea_opt.io.vtkxml`): memory stays near one array.
     cells : {"springs", "surface"}
-        Which cells to write; see :func:`contact_surface` (fields, units, and what faces
-        without a spring carry).
+        Which cells to write; see :func:`contact_surface` (fields, units, where they sit,
+        and what faces without a spring carry).
     binary : bool
-        Base64 binary (default; exact, zlib-compressed in ``.vtu``) or ASCII (``.vtu``
-        ASCII keeps 12 significant digits, ``.vtp`` ASCII all 17).
+        Base64 binary (default; exact, zlib-compressed in ``.vtu``) or ASCII (exact too:
+        every float as its shortest round-trip text).
 
     Returns
     -------
@@ -69,66 +63,14 @@ def to_vtk(solution, path, *, cells: str = "springs", binary: bool = True) -> Pa
     InputError
         ``path`` has another extension or cannot be written; ``cells`` is unknown.
     """
+    target, _ = _vtk_path(path)
+    return write_surface(contact_surface(solution, cells=cells), target, binary=binary)
+
+
+def write_surface(surface: SurfaceData, path, *, binary: bool = True) -> Path:
+    """Write any :class:`SurfaceData` as ``.vtu`` or ``.vtp`` (atomically, array by array)."""
     target, ext = _vtk_path(path)
-    surface = contact_surface(solution, cells=cells)
-    if ext == ".vtu":
-        meshio = require("meshio", "writing .vtu")
-        mesh = meshio.Mesh(
-            surface.points,
-            [(surface.cell_type, surface.cells)],
-            cell_data={name: [value] for name, value in surface.cell_data.items()},
-        )
-        return write_atomic(target, lambda tmp: meshio.write(tmp, mesh, file_format="vtu", binary=binary))
-    return write_atomic(target, lambda tmp: _write_vtp(tmp, surface, binary=binary))
-
-
-def _data_array(name: str, values: np.ndarray, binary: bool, indent: str) -> str:
-    values = np.ascontiguousarray(values)
-    vtk_type = _VTK_TYPES.get(values.dtype)
-    if vtk_type is None:
-        raise InputError(f"cell data {name!r} has dtype {values.dtype}, which VTK cannot store")
-    components = f' NumberOfComponents="{values.shape[1]}"' if values.ndim == 2 else ""
-    head = f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components}'
-    if binary:
-        raw = values.astype(values.dtype.newbyteorder("<"), copy=False).tobytes()
-        text = base64.b64encode(np.uint64(len(raw)).astype("<u8").tobytes() + raw).decode("ascii")
-        return f'{head} format="binary">{text}</DataArray>\n'
-    flat = values.ravel().tolist()
-    text = " ".join(repr(float(v)) if vtk_type.startswith("Float") else str(int(v)) for v in flat)
-    return f'{head} format="ascii">{text}</DataArray>\n'
-
-
-def _write_vtp(path, surface: SurfaceData, *, binary: bool = True) -> None:
-    """Write ``surface`` as VTK XML PolyData (inline data, no compression)."""
-    n_cells, per_cell = surface.cells.shape
-    kind = "Verts" if surface.cell_type == "vertex" else "Polys"
-    counts = {"Verts": 0, "Lines": 0, "Strips": 0, "Polys": 0}
-    counts[kind] = n_cells
-    offsets = per_cell * np.arange(1, n_cells + 1, dtype=np.int64)
-    scalars = ' Scalars="pressure"' if "pressure" in surface.cell_data else ""
-    parts = [
-        '<?xml version="1.0"?>\n',
-        '<VTKFile type="PolyData" version="1.0" byte_order="LittleEndian" header_type="UInt64">\n',
-        "  <PolyData>\n",
-        f'    <Piece NumberOfPoints="{len(surface.points)}" '
-        + " ".join(f'NumberOf{k}="{v}"' for k, v in counts.items())
-        + ">\n",
-        "      <Points>\n",
-        _data_array("Points", surface.points.astype(np.float64), binary, "        "),
-        "      </Points>\n",
-        f"      <{kind}>\n",
-        _data_array("connectivity", surface.cells.astype(np.int64).ravel(), binary, "        "),
-        _data_array("offsets", offsets, binary, "        "),
-        f"      </{kind}>\n",
-        f"      <CellData{scalars}>\n",
-        *(_data_array(name, value, binary, "        ") for name, value in surface.cell_data.items()),
-        "      </CellData>\n",
-        "    </Piece>\n",
-        "  </PolyData>\n",
-        "</VTKFile>\n",
-    ]
-    with open(path, "w", encoding="ascii", newline="\n") as handle:
-        handle.writelines(parts)
+    return write_atomic(target, lambda tmp: write_vtk_xml(tmp, surface, binary=binary, polydata=ext == ".vtp"))
 
 
 def _read_data_array(element, header_dtype, byte_order) -> np.ndarray:
@@ -182,7 +124,8 @@ def _read_vtp(path: Path) -> SurfaceData:
         cells = arrays["connectivity"].astype(np.int64).reshape(len(offsets), -1)
         cell_type = name if name == "vertex" or cells.shape[1] == 3 else f"polygon{cells.shape[1]}"
     cell_data = {a.get("Name"): _read_data_array(a, header, order) for a in piece.findall("CellData/DataArray")}
-    return SurfaceData(points, cells, cell_type, cell_data)
+    point_data = {a.get("Name"): _read_data_array(a, header, order) for a in piece.findall("PointData/DataArray")}
+    return SurfaceData(points, cells, cell_type, cell_data, point_data)
 
 
 def read_vtk(path) -> SurfaceData:
@@ -195,7 +138,7 @@ def read_vtk(path) -> SurfaceData:
     Returns
     -------
     SurfaceData
-        Points (mm), cells, cell type and every cell data array.
+        Points (mm), cells, cell type and every cell and point data array.
     """
     target, ext = _vtk_path(path)
     if not target.is_file():
@@ -208,7 +151,9 @@ def read_vtk(path) -> SurfaceData:
         raise InputError(f"read_vtk reads one cell block, {str(target)!r} has {len(mesh.cells)}")
     block = mesh.cells[0]
     data = {name: np.asarray(values[0]) for name, values in mesh.cell_data.items()}
-    return SurfaceData(np.asarray(mesh.points), np.asarray(block.data, dtype=np.int64), block.type, data)
+    point_data = {name: np.asarray(values) for name, values in mesh.point_data.items()}
+    return SurfaceData(np.asarray(mesh.points), np.asarray(block.data, dtype=np.int64), block.type, data,
+                       point_data)
 
 
 def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
@@ -236,8 +181,8 @@ def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
     expected = contact_surface(solution, cells=cells)
     found = read_vtk(path)
     pairs = {"points": (expected.points, found.points), "cells": (expected.cells, found.cells)}
-    for name, value in expected.cell_data.items():
-        pairs[name] = (value, found.cell_data.get(name))
+    for name, value in expected.spring_data.items():
+        pairs[name] = (value, found.spring_data.get(name))
     out = {}
     for name, (want, got) in pairs.items():
         if got is None or np.shape(got) != np.shape(want):

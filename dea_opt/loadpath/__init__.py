@@ -1,14 +1,19 @@
 """Load paths: one quasi-static solve per frame, warm-started, and the exposure over the cycle.
 
 :func:`solve_path` (:mod:`~dea_opt.loadpath.solve`) walks a sequence of loads with one
-:class:`~dea_opt.loadpath.stepper.Stepper` carrying the warm start; it returns a
-:class:`PathResult` (:mod:`~dea_opt.loadpath.result`: the per-frame table, the solutions,
-the writers) with the contact-stress :class:`Exposure` of every site
-(:mod:`~dea_opt.loadpath.exposure`). Units: mm, N, N mm, MPa, s.
+:class:`~dea_opt.loadpath.stepper.Stepper` carrying the warm start; a frame that fails is
+recorded and the path goes on. It returns a :class:`PathResult`
+(:mod:`~dea_opt.loadpath.result`: the per-frame table of :mod:`~dea_opt.loadpath.table`, the
+writers) with the contact-stress :class:`Exposure` of every site, accumulated frame by frame
+(:mod:`~dea_opt.loadpath.exposure`); :mod:`~dea_opt.loadpath.series` writes the frames'
+ParaView files as they are solved. Units: mm, N, N mm, MPa, s.
 """
 
-from .exposure import Exposure, exposure
-from .result import PathResult, write_pvd
-from .solve import TABLE_COLUMNS, solve_path
+from .exposure import Exposure, ExposureAccumulator, exposure
+from .result import PathResult
+from .series import FrameSeries, write_pvd
+from .solve import check_frames, path_memory, solve_path
+from .table import REGION_COLUMNS, TABLE_COLUMNS
 
-__all__ = ["TABLE_COLUMNS", "Exposure", "PathResult", "exposure", "solve_path", "write_pvd"]
+__all__ = ["REGION_COLUMNS", "TABLE_COLUMNS", "Exposure", "ExposureAccumulator", "FrameSeries", "PathResult",
+           "check_frames", "exposure", "path_memory", "solve_path", "write_pvd"]

@@ -5,19 +5,28 @@ Units: mm, N, N mm, MPa, s.
 
 from __future__ import annotations
 
+import math
+import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 import numpy as np
 
-from ..errors import InputError
-from ..io.atomic import write_atomic, write_data
+from ..errors import InputError, ValidityWarning
+from ..io.atomic import write_data
 from ..io.summary import write_json
 from ..problem import ContactProblem
 from .exposure import Exposure
+from .series import FrameSeries, write_pvd
 
-__all__ = ["PathResult", "write_pvd"]
+__all__ = ["FORMATS", "PathResult", "write_pvd"]
+
+#: What :meth:`PathResult.write` can write.
+FORMATS = ("csv", "json", "vtk", "png")
+
+
+def _nan_or(value):
+    return float(value) if value is not None and math.isfinite(value) else math.nan
 
 
 @dataclass(eq=False)
@@ -27,157 +36,266 @@ class PathResult:
     Attributes
     ----------
     table : pandas.DataFrame
-        One row per frame, columns :data:`TABLE_COLUMNS`.
+        One row per frame: :data:`~dea_opt.loadpath.table.TABLE_COLUMNS`, the validity
+        checks, and :data:`~dea_opt.loadpath.table.REGION_COLUMNS` per region. A frame
+        without a certified answer has ``success`` False, its ``status`` and ``message``,
+        and NaN results.
     times : ndarray (T,)
         s.
-    pressures : list of ndarray
-        Pressure per spring per frame (MPa).
+    pressures : list of ndarray or None
+        Pressure per spring per frame (MPa; NaN for a failed frame), when kept.
     solutions : list of Solution or None
-        Every frame's solution (``keep_solutions=True``).
+        Every frame's solution when kept (the uncertified one, or None, for a failed frame).
     exposure : Exposure
+        Over the certified frames (failed frames are bridged linearly).
     method : str
     problem : ContactProblem
         The problem the path started from.
     moving : bool
         True when body 2's mesh moved (springs cast again each frame).
+    regions : dict {name: column prefix}
+        The regions with columns in the table (empty without labels).
+    frame_files : FrameSeries or None
+        The frames' ``.vtu`` files written while solving (``series=``).
     """
 
     table: object
     times: np.ndarray
-    pressures: list
+    pressures: list | None
     solutions: list | None
     exposure: Exposure
     method: str
     problem: ContactProblem
     moving: bool = False
     files: dict = field(default_factory=dict)
+    regions: dict = field(default_factory=dict)
+    frame_files: FrameSeries | None = None
 
     def __len__(self) -> int:
         return len(self.times)
 
+    # --- which frames ---------------------------------------------------------------------
     @property
     def success(self) -> bool:
-        """True when every frame passed its certificate."""
+        """True when every frame has a certified answer."""
         return bool(self.table["success"].all())
 
     @property
     def failed_frames(self) -> list[int]:
+        """Frames without a certified answer."""
         return self.table.loc[~self.table["success"], "frame"].astype(int).tolist()
 
-    def summary(self) -> dict:
-        """Headline numbers of the path (plain Python values, for JSON)."""
+    @property
+    def valid(self) -> bool:
+        """True when every frame is certified and inside the model's validity."""
+        return bool(self.table["valid"].all())
+
+    @property
+    def frames_outside_validity(self) -> list[int]:
+        """Certified frames whose answer lies outside the model's validity."""
         table = self.table
-        k = int(table["peak_pressure"].idxmax())
+        return table.loc[table["success"] & ~table["valid"], "frame"].astype(int).tolist()
+
+    def failures(self) -> list[dict]:
+        """``[{frame, time, status, message}]`` of every failed frame."""
+        rows = self.table.loc[~self.table["success"], ["frame", "time", "status", "message"]]
+        return [{"frame": int(r.frame), "time": float(r.time), "status": r.status, "message": r.message}
+                for r in rows.itertuples(index=False)]
+
+    def failure_message(self, shown: int = 3, width: int = 160) -> str:
+        """One line naming the frames without a certified answer and why (empty when none):
+        ``2 of 51 frames have no certified answer: frame 17 (0.34 s) load_not_supported: ...``."""
+        failures = self.failures()
+        if not failures:
+            return ""
+        parts = []
+        for f in failures[:shown]:
+            reason = f["message"] if len(f["message"]) <= width else f["message"][:width - 3] + "..."
+            parts.append(f"frame {f['frame']} ({f['time']:g} s) {f['status']}: {reason}")
+        more = f"; and {len(failures) - shown} more (frames.csv)" if len(failures) > shown else ""
+        return f"{len(failures)} of {len(self)} frames have no certified answer: {'; '.join(parts)}{more}"
+
+    def validity_summary(self) -> dict:
+        """Which certified frames are outside validity, and why: per failed check its frames
+        and its worst value (and at which frame)."""
+        table = self.table
+        outside = self.frames_outside_validity
+        checks: dict = {}
+        for row in table.loc[table["success"] & ~table["valid"]].itertuples(index=False):
+            for name in filter(None, str(row.validity_failed).split(";")):
+                entry = checks.setdefault(name, {"frames": [], "worst": -math.inf, "worst_frame": None})
+                entry["frames"].append(int(row.frame))
+                value = getattr(row, f"validity_{name}", math.nan)
+                if math.isfinite(value) and value > entry["worst"]:
+                    entry["worst"], entry["worst_frame"] = float(value), int(row.frame)
+        return {
+            "valid": self.valid,
+            "frames_outside_validity": outside,
+            "failed_checks": list(checks),
+            "checks": checks,
+            "failed_frames": self.failed_frames,
+        }
+
+    def region_summary(self) -> dict:
+        """Per region over the certified frames: mean, smallest and largest force share, the
+        peak pressure and its frame, the largest contact area."""
+        table = self.table.loc[self.table["success"]]
+        out = {}
+        for name, prefix in self.regions.items():
+            share = table[f"{prefix}_force_share"]
+            peak = table[f"{prefix}_peak_pressure"]
+            k = peak.idxmax() if peak.notna().any() else None
+            out[name] = {
+                "columns": prefix,
+                "mean_force_share": _nan_or(share.mean()),
+                "min_force_share": _nan_or(share.min()),
+                "max_force_share": _nan_or(share.max()),
+                "peak_pressure": _nan_or(peak.max()),
+                "peak_frame": None if k is None else int(table.loc[k, "frame"]),
+                "peak_time": math.nan if k is None else float(table.loc[k, "time"]),
+                "max_contact_area": _nan_or(table[f"{prefix}_contact_area"].max()),
+            }
+        return out
+
+    def warn_validity(self) -> None:
+        """One :class:`ValidityWarning` for the frames outside validity (none when there are none)."""
+        summary = self.validity_summary()
+        if not summary["frames_outside_validity"]:
+            return
+        parts = [f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
+                 for name, c in summary["checks"].items()]
+        warnings.warn(f"{len(summary['frames_outside_validity'])} of {len(self)} frames are outside the model's "
+                      f"validity: {'; '.join(parts)}; see the validity columns of the table",
+                      ValidityWarning, stacklevel=4)
+
+    def summary(self) -> dict:
+        """Headline numbers of the path (plain Python values; NaN where no frame has an answer)."""
+        table = self.table
+        ok = table.loc[table["success"]]
+        k = ok["peak_pressure"].idxmax() if len(ok) else None
         return {
             "method": self.method,
             "law": self.problem.law.describe(),
             "frames": len(table),
             "success": self.success,
             "failed_frames": self.failed_frames,
+            "failures": self.failures()[:50],
+            "valid": self.valid,
+            "validity": self.validity_summary(),
             "n_springs": int(table["n_springs"].max()),
-            "peak_pressure": float(table.loc[k, "peak_pressure"]),
-            "peak_frame": int(table.loc[k, "frame"]),
-            "peak_time": float(table.loc[k, "time"]),
-            "max_contact_area": float(table["contact_area"].max()),
-            "max_compressive_strain": float(table["max_compressive_strain"].max()),
+            "peak_pressure": math.nan if k is None else float(table.loc[k, "peak_pressure"]),
+            "peak_frame": None if k is None else int(table.loc[k, "frame"]),
+            "peak_time": math.nan if k is None else float(table.loc[k, "time"]),
+            "max_contact_area": _nan_or(ok["contact_area"].max()),
+            "max_compressive_strain": _nan_or(ok["max_compressive_strain"].max()),
             "iterations_total": int(table["iterations"].sum()),
             "iterations_mean": float(table["iterations"].mean()),
             "build_time_total": float(table["build_time"].sum()),
             "solve_time_total": float(table["solve_time"].sum()),
             "solve_time_after_first_mean": float(table["solve_time"].iloc[1:].mean()) if len(table) > 1 else None,
-            "worst_certificate_residual": float(table["certificate_residual"].max()),
+            "worst_certificate_residual": _nan_or(table["certificate_residual"].max()),
+            "regions": self.region_summary(),
             "exposure": self.exposure.summary(),
         }
 
-    # writers -----------------------------------------------------------------------------
+    # --- writers ------------------------------------------------------------------------
     def to_csv(self, path) -> Path:
-        """The per-frame table as CSV (columns :data:`TABLE_COLUMNS`)."""
-        return write_data(path, self.table.to_csv(index=False, lineterminator="\n"))
+        """The per-frame table as CSV (floats in their shortest round-trip text)."""
+        return write_data(path, self.table.to_csv(index=False, lineterminator="\n", float_format=None))
 
     def to_json(self, path, extra: dict | None = None) -> Path:
         """:meth:`summary` (plus ``extra``) as JSON."""
         return write_json({**self.summary(), **(extra or {})}, path)
 
     def to_pvd(self, path) -> Path:
-        """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame beside it.
+        """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame.
 
-        The frames go into the folder ``<stem>_frames`` next to ``path``.
+        The frames written while solving (``series=``) when there are any, else written now
+        from the kept solutions into the folder ``<stem>_frames`` next to ``path``.
         """
-        from ..io import to_vtk
-
-        if self.solutions is None:
-            raise InputError("the .pvd series needs the frames' solutions: solve with keep_solutions=True")
         path = Path(path)
         if path.suffix.lower() != ".pvd":
             raise InputError(f"path must end in .pvd, got {str(path)!r}")
-        folder = path.with_name(f"{path.stem}_frames")
-        files = []
-        for k, solution in enumerate(self.solutions):
-            files.append(to_vtk(solution, folder / f"frame_{k:04d}.vtu"))
-        return write_pvd(path, self.times, files)
+        if self.frame_files is not None and self.frame_files.files:
+            return self.frame_files.write_pvd(path)
+        if self.solutions is None:
+            raise InputError("the .pvd series needs the frames' solutions (keep_solutions=True) or frames written "
+                             "while solving (series=<folder>)")
+        series = FrameSeries(path.with_name(f"{path.stem}_frames"), len(self))
+        for k, (t, solution) in enumerate(zip(self.times, self.solutions)):
+            layer = self._frame_layer(k, solution)
+            series.write(k, t, layer, solution if self.table["success"].iloc[k] else None)
+        return series.write_pvd(path)
+
+    def _frame_layer(self, k, solution):
+        if solution is not None:
+            return solution.problem.layer
+        if self.moving:
+            raise InputError(f"frame {k} failed before its springs were cast; write the series while solving "
+                             f"(series=<folder>)")
+        return self.problem.layer
 
     def exposure_to_vtk(self, path) -> Path:
-        """The exposure fields on the contact surface (``.vtu``; cell data per site)."""
-        import meshio
+        """The exposure fields on the contact surface (``.vtu``): per spring, or per face of
+        mesh 1 when body 2's mesh moved."""
+        from ..io.surface import SurfaceData, _label_data, layer_surface
+        from ..io.vtk import write_surface
 
-        from ..io import contact_surface
-
-        if not self.solutions:
-            raise InputError("the exposure surface needs a frame's solution: solve with keep_solutions=True")
-        surface = contact_surface(self.solutions[0], cells="surface" if self.moving else "springs")
+        layer = self.problem.layer
         data = {name: np.ascontiguousarray(value, dtype=float) for name, value in self.exposure.fields().items()}
-        mesh = meshio.Mesh(surface.points, [(surface.cell_type, surface.cells)],
-                           cell_data={name: [value] for name, value in data.items()})
-        return write_atomic(path, lambda tmp: meshio.write(tmp, mesh, file_format="vtu"))
+        if self.moving:
+            vertices, faces = layer.surface
+            surface = SurfaceData(np.asarray(vertices), np.asarray(faces, dtype=np.int64), "triangle", data)
+        else:
+            if layer.labels is not None:
+                data["label"] = _label_data(layer.labels)
+            surface = layer_surface(layer, data)
+        return write_surface(surface, path)
 
-    def plot_cycle(self, path, title: str | None = None) -> Path:
-        """Peak pressure and contact area over the path (PNG); failed frames marked."""
-        from ..io.plots import plot_cycle
+    def plot_cycle(self, path, title: str | None = None, anatomy=None) -> Path:
+        """Applied force and moment, pressure, contact area and the regions' force shares over
+        the path (PNG); failed frames and frames outside validity marked."""
+        from ..io.cycle import plot_cycle
 
-        return plot_cycle(self.table, path, title=title)
+        return plot_cycle(self.table, path, title=title, regions=self.regions or None, anatomy=anatomy)
 
-    def plot_exposure(self, path, title: str | None = None) -> Path:
+    def plot_exposure(self, path, title: str | None = None, anatomy=None) -> Path:
         """The exposure map: pressure-time integral and time above the threshold (PNG)."""
-        from ..io.plots import plot_exposure
+        from ..io.cycle import plot_exposure
 
         # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
-        return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title)
+        return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title,
+                             anatomy=anatomy)
 
-    def write(self, directory, formats=("csv", "json", "vtk", "png"), extra_summary: dict | None = None) -> dict:
+    def write(self, directory, formats=FORMATS, extra_summary: dict | None = None, anatomy=None) -> dict:
         """Write the outputs into ``directory``; returns ``{name: path}``.
 
-        ``csv``: ``frames.csv``; ``json``: ``summary.json``; ``vtk``: ``series.pvd`` with
-        ``series_frames/`` and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``.
+        ``csv``: ``frames.csv``; ``json``: ``summary.json``; ``vtk``: ``series.pvd`` (the
+        frames written while solving, or ``series_frames/`` written now from the kept
+        solutions) and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``, in the
+        anatomical frame ``anatomy`` when given.
         """
         directory = Path(directory)
-        unknown = set(formats) - {"csv", "json", "vtk", "png"}
+        unknown = set(formats) - set(FORMATS)
         if unknown:
-            raise InputError(f"formats must be among csv, json, vtk, png, got {sorted(unknown)}")
+            raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
         files = {}
         if "csv" in formats:
             files["table"] = self.to_csv(directory / "frames.csv")
-        if "vtk" in formats and self.solutions:
+        if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):
             files["series"] = self.to_pvd(directory / "series.pvd")
+        if "vtk" in formats:
             files["exposure_vtk"] = self.exposure_to_vtk(directory / "exposure.vtu")
         if "png" in formats:
-            files["cycle_plot"] = self.plot_cycle(directory / "cycle.png")
-            files["exposure_map"] = self.plot_exposure(directory / "exposure.png")
+            files["cycle_plot"] = self.plot_cycle(directory / "cycle.png", anatomy=anatomy)
+            files["exposure_map"] = self.plot_exposure(directory / "exposure.png", anatomy=anatomy)
         if "json" in formats:
             files["summary"] = directory / "summary.json"
             extra = {**(extra_summary or {}), "files": {k: str(v) for k, v in files.items()}}
+            if anatomy is not None:
+                from ..anatomy import AnatomicalFrame
+
+                extra.setdefault("anatomy", AnatomicalFrame.from_dict(anatomy).as_dict())
             self.to_json(files["summary"], extra)
         self.files.update(files)
         return files
-
-
-def write_pvd(path, times, files) -> Path:
-    """A ParaView collection (``.pvd``) of ``files`` at ``times`` (s); paths stored relative to it."""
-    path = Path(path)
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
-    for t, file in zip(times, files):
-        relative = Path(file).resolve().relative_to(path.parent.resolve()).as_posix()
-        lines.append(f'    <DataSet timestep="{float(t):.9g}" group="" part="0" file={quoteattr(relative)}/>')
-    lines += ["  </Collection>", "</VTKFile>", ""]
-    return write_data(path, "\n".join(lines))

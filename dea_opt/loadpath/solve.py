@@ -13,14 +13,19 @@ With ``poses`` (a rigid transform of body 2's mesh per frame) the springs are ca
 frame, so the gaps change; QP and NLP models are then rebuilt each frame, Newton still starts
 from the previous displacement.
 
-The :class:`PathResult` holds a per-frame table (pandas), the per-frame solutions, and the
-contact-stress exposure of every spring over the cycle (:class:`Exposure`): the time integral
-of pressure, the time above a threshold and the integral of the excess over it, the measures
-of Kern & Anderson (J Biomech 2015) and of Anderson's group before them. It writes a CSV, a
-ParaView time series (``.pvd`` of per-frame ``.vtu`` files), a plot of peak pressure and
-contact area over the cycle, and the exposure map (``.vtu`` and ``.png``).
+A frame that fails (a load the springs cannot carry, an answer that fails its certificate, a
+solver error) does not stop the path: it is recorded with its status and message, NaN results
+and no exposure, the next frame starts cold, and the path goes on (``stop_on_error=True``
+raises at the first failed frame instead). Memory does not grow with the frames beyond the
+per-frame table: the exposure is accumulated frame by frame, the frames' ``.vtu`` files can be
+written as they are solved (``series``), and the solutions and pressures are kept only when
+asked; the estimate is checked before the first frame (:class:`~dea_opt.errors.SizeLimitError`).
 
-Units: mm, N, N mm, MPa, s.
+The :class:`PathResult` holds the per-frame table (:mod:`~dea_opt.loadpath.table`: numbers,
+validity and regions of every frame), the contact-stress exposure of every site over the
+cycle (:class:`Exposure`: the time integral of pressure, the time above a threshold and the
+integral of the excess over it, the measures of Kern & Anderson, J Biomech 2015), and the
+writers. Units: mm, N, N mm, MPa, s.
 """
 
 from __future__ import annotations
@@ -30,42 +35,46 @@ import warnings
 
 import numpy as np
 
-from .._tolerances import LINEAR_VALIDITY
-from ..errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
+from .._memory import check_memory
+from ..errors import (
+    DeaError,
+    InputError,
+    LoadNotSupportedError,
+    SolverError,
+    ValidityWarning,
+)
 from ..formulations.energy import single_threaded_blas
 from ..problem import ContactProblem, Load
-from ..solution import Solution
-from .exposure import exposure
+from ..status import Status
+from .exposure import ExposureAccumulator
 from .result import PathResult
+from .series import FrameSeries
 from .stepper import Stepper
+from .table import TABLE_COLUMNS, FrameRegions, failed_row, make_table, solved_row
 
-__all__ = ["TABLE_COLUMNS", "solve_path"]
-
-#: Columns of :attr:`PathResult.table`, with units.
-TABLE_COLUMNS = {
-    "frame": "frame index",
-    "time": "s",
-    "Fx": "N", "Fy": "N", "Fz": "N", "Mx": "N mm", "My": "N mm", "Mz": "N mm",
-    "peak_pressure": "MPa",
-    "mean_pressure": "MPa, over the contact",
-    "contact_area": "mm^2",
-    "cop_x": "mm", "cop_y": "mm", "cop_z": "mm",
-    "resultant": "N, magnitude of the springs' force on body 2",
-    "max_compressive_strain": "1",
-    "n_springs": "springs this frame",
-    "iterations": "solver iterations",
-    "build_time": "s (model building and compiling; first frame, or every frame with poses)",
-    "solve_time": "s",
-    "certificate_residual": "largest certificate residual (relative)",
-    "certificate_worst": "which residual it is",
-    "success": "certificate passed",
-    "status": "solver status",
-}
+__all__ = ["TABLE_COLUMNS", "check_frames", "path_memory", "solve_path"]
 
 
 # --- frames -----------------------------------------------------------------------------
 
-def _frames(loads, times) -> tuple[list[Load], np.ndarray]:
+class _ArrayLoads:
+    """The loads of a (T, 3) or (T, 6) array, a :class:`Load` made per frame when asked."""
+
+    def __init__(self, array: np.ndarray):
+        self.array = array
+
+    def __len__(self) -> int:
+        return len(self.array)
+
+    def __getitem__(self, k: int) -> Load:
+        row = self.array[k]
+        return Load(force=row[:3], moment=row[3:] if len(row) == 6 else 0.0)
+
+    def __iter__(self):
+        return (self[k] for k in range(len(self)))
+
+
+def _frames(loads, times) -> tuple:
     """Loads as a list of :class:`Load` and the frame times (s)."""
     import pandas as pd
 
@@ -83,13 +92,15 @@ def _frames(loads, times) -> tuple[list[Load], np.ndarray]:
         if array.ndim != 2 or array.shape[1] not in (3, 6):
             raise InputError(f"loads must be a sequence of Load, or an array of shape (T, 3) or (T, 6) "
                              f"(Fx, Fy, Fz[, Mx, My, Mz]), got shape {array.shape}")
-        loads = [Load(force=row[:3], moment=row[3:] if len(row) == 6 else 0.0) for row in array]
-    loads = list(loads)
+        loads = _ArrayLoads(array)
+    else:
+        loads = list(loads)
     if not loads:
         raise InputError("loads is empty: a load path needs at least one frame")
-    for i, load in enumerate(loads):
-        if not isinstance(load, Load):
-            raise InputError(f"loads[{i}] must be a dea_opt.Load, got {type(load).__name__}")
+    if not isinstance(loads, _ArrayLoads):
+        for i, load in enumerate(loads):
+            if not isinstance(load, Load):
+                raise InputError(f"loads[{i}] must be a dea_opt.Load, got {type(load).__name__}")
     times = np.arange(len(loads), dtype=float) if times is None else np.asarray(times, dtype=float)
     if times.shape != (len(loads),) or not np.isfinite(times).all():
         raise InputError(f"times must be {len(loads)} finite numbers (one per frame), got shape {times.shape}")
@@ -98,20 +109,96 @@ def _frames(loads, times) -> tuple[list[Load], np.ndarray]:
     return loads, times
 
 
-def _frame_error(exc: Exception, k: int, t: float) -> Exception:
-    message = f"frame {k} (time {t:g} s): {exc}"
-    if isinstance(exc, LoadNotSupportedError):
-        return LoadNotSupportedError(message, direction=exc.direction)
-    if isinstance(exc, SolverError):
-        return SolverError(message, status=exc.status, solution=exc.solution)
-    return type(exc)(message)
+
+# --- memory -----------------------------------------------------------------------------
+
+#: Bytes per frame and table column (a row's dict entry, its value and the DataFrame cell).
+_CELL_BYTES = 160.0
+#: Bytes per frame of a Load and the frame's bookkeeping.
+_FRAME_BYTES = 2000.0
+
+
+def path_memory(n_frames: int, n_springs: int, *, n_sites: int | None = None, keep_solutions: bool = True,
+                keep_pressures: bool = True, moving: bool = False, n_regions: int = 0) -> float:
+    """Bytes a load path of ``n_frames`` x ``n_springs`` keeps until it returns (an estimate).
+
+    The table (about 40 columns and 8 per region, per frame), the pressures (8 bytes per
+    spring and frame) and the solutions (strain and pressure; with ``moving`` meshes each
+    frame's layer and its operator too, about 250 bytes per spring). The exposure and one
+    frame's work are O(springs) and not counted.
+    """
+    n_frames, n_springs = int(n_frames), int(n_springs)
+    columns = len(TABLE_COLUMNS) + 12 + 8 * int(n_regions)
+    need = n_frames * (_FRAME_BYTES + _CELL_BYTES * columns)
+    if keep_pressures:
+        need += 8.0 * n_frames * n_springs
+    if keep_solutions:
+        need += n_frames * n_springs * (250.0 if moving else 24.0)
+    return float(need)
+
+
+def check_frames(n_frames: int, n_springs: int = 0, *, what: str | None = None, **options) -> None:
+    """Raise :class:`~dea_opt.errors.SizeLimitError` before a path too large for this machine.
+
+    Parameters
+    ----------
+    n_frames, n_springs : int
+    what : str, optional
+        How the user asked for it, for the message (e.g. ``"load_path.frames = 1000000000"``);
+        default ``"a load path of <n> frames"``.
+    **options
+        ``keep_solutions``, ``keep_pressures``, ``moving``, ``n_regions`` of :func:`path_memory`.
+    """
+    need = path_memory(n_frames, n_springs, **options)
+    what = what or f"a load path of {int(n_frames)} frames x {int(n_springs)} springs"
+    keeps = [name for name in ("keep_solutions", "keep_pressures") if options.get(name, True) and n_springs]
+    advice = "use fewer frames"
+    if keeps:
+        advice += f", or {' and '.join(f'{k}=False' for k in keeps)} (the outputs are written frame by frame " \
+                  f"with series=<folder>)"
+    check_memory(need, what, advice)
+
+
+# --- one frame --------------------------------------------------------------------------
+
+def _solve_frame(stepper, frame, new_geometry, setup):
+    """``(solution, status, message, error)``: status and message are empty for a certified
+    answer; ``solution`` is None when there is no answer at all, ``error`` what was raised."""
+    from ..solver import check_load_supported
+
+    try:
+        with warnings.catch_warnings():
+            # One warning for the whole path at the end, not one per frame.
+            warnings.simplefilter("ignore", ValidityWarning)
+            solution = stepper.solve(frame, new_geometry, setup)
+        if solution.success:
+            return solution, "", "", None
+        check_load_supported(frame)
+    except LoadNotSupportedError as exc:
+        return None, Status.NOT_SUPPORTED, str(exc), exc
+    except SolverError as exc:
+        return exc.solution, Status.of_error(exc), str(exc), exc
+    name, value = solution.certificate.worst()
+    message = (f"{solution.method} returned no certified answer (status {solution.status!r}): certificate "
+               f"residual {name} = {value:.3g} > {solution.certificate.tolerance:g}; {solution.message}")
+    return solution, solution.status, message, None
+
+
+def _stop(k, t, status, message, solution, error):
+    text = f"frame {k} (time {t:g} s): {message}"
+    if isinstance(error, LoadNotSupportedError):
+        return LoadNotSupportedError(text, direction=error.direction)
+    if status == Status.POSE_ERROR:
+        return InputError(text)
+    return SolverError(text, status=status, solution=solution)
 
 
 # --- the public entry point -------------------------------------------------------------
 
 def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "auto", times=None, body: int = 2,
-               certificate_tol: float = 1e-6, strict: bool = False, keep_solutions: bool = True,
-               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, **options) -> "PathResult":
+               certificate_tol: float = 1e-6, stop_on_error: bool = False, strict: bool = False,
+               keep_solutions: bool = True, keep_pressures: bool = True, series=None, regions=None,
+               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, **options) -> PathResult:
     """Solve ``problem`` under each load of a path, warm-starting every frame from the last.
 
     Parameters
@@ -133,18 +220,35 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
         The body the loads act on.
     certificate_tol : float
         Bound on every certificate residual.
+    stop_on_error : bool
+        Raise at the first frame without a certified answer: :class:`LoadNotSupportedError`
+        for a load the springs cannot carry, :class:`SolverError` otherwise, naming the
+        frame. Default: record the frame (``success`` False, its ``status`` and
+        ``message`` in the table, NaN results), start the next frame cold and go on.
     strict : bool
-        Raise :class:`SolverError` at the first frame that fails its certificate. Default:
-        record it (``success`` False in the table) and go on.
+        The former name of ``stop_on_error``.
     keep_solutions : bool
-        Keep every frame's :class:`Solution` (needed for the ``.pvd`` series).
+        Keep every frame's :class:`Solution` (the uncertified one, or None, for a failed
+        frame): what :meth:`PathResult.to_pvd` writes the series from without ``series``.
+    keep_pressures : bool
+        Keep every frame's pressure per spring (:attr:`PathResult.pressures`; NaN for a
+        failed frame). With both False, memory does not grow with the springs x frames.
+    series : str or Path, optional
+        A folder to write each frame's ``.vtu`` into as it is solved
+        (``frame_NNNN.vtu``; :class:`~dea_opt.loadpath.series.FrameSeries`), so that the
+        ParaView series needs no kept solutions; :meth:`PathResult.write` then writes the
+        ``.pvd`` naming them. Use ``<output>/series_frames``.
+    regions : array_like (N,) or callable, optional
+        A region label per spring, or ``regions(layer) -> labels`` (e.g. a closure over
+        :func:`dea_opt.regions.label_by_axis`); default the layer's ``labels``. Each region
+        gets per-frame columns (:data:`~dea_opt.loadpath.table.REGION_COLUMNS`).
     layer_for_pose : callable, optional
         ``layer_for_pose(pose) -> SpringLayer``: the springs of body 2's mesh moved by
         ``pose`` (e.g. a closure over :func:`dea_opt.mesh.springs_from_meshes`).
     threshold : float
         Pressure threshold (MPa) of the exposure measures.
     progress : bool
-        Show a progress bar (on a terminal).
+        Show a progress bar on a terminal (tqdm; nothing when stderr is not a terminal).
     **options
         For the formulation: ``tol``, ``solver`` (qp), ``form``, ``max_iter`` (nlp),
         ``gtol``, ``xtol`` (newton).
@@ -156,73 +260,113 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
     Raises
     ------
     InputError
-        Bad loads, times or poses; ``qp`` with a nonlinear law.
-    LoadNotSupportedError
-        A frame's load cannot be carried (the message names the frame).
-    SolverError
-        With ``strict``, the first frame whose answer fails its certificate.
+        Bad loads, times, poses, regions or options; ``qp`` with a nonlinear law.
+    SizeLimitError
+        What the path would keep does not fit in the free memory (checked before the first
+        frame, with the estimate).
+    LoadNotSupportedError, SolverError
+        With ``stop_on_error``, the first frame without a certified answer (named).
     """
     # BLAS on one thread throughout: the frames are many small memory-bound products,
     # which a second thread only slows down.
     with single_threaded_blas():
-        return _solve_path(problem, loads, poses, method=method, times=times, body=body, certificate_tol=certificate_tol, strict=strict, keep_solutions=keep_solutions, layer_for_pose=layer_for_pose, threshold=threshold, progress=progress, **options)
+        return _solve_path(problem, loads, poses, method=method, times=times, body=body,
+                           certificate_tol=certificate_tol, stop=bool(stop_on_error or strict),
+                           keep_solutions=keep_solutions, keep_pressures=keep_pressures, series=series,
+                           regions=regions, layer_for_pose=layer_for_pose, threshold=threshold,
+                           progress=progress, options=options)
 
 
-def _solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "auto", times=None, body: int = 2,
-               certificate_tol: float = 1e-6, strict: bool = False, keep_solutions: bool = True,
-               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, **options) -> "PathResult":
-    """The body of :func:`solve_path`."""
-    from ..solver import check_load_supported, check_method
+def _check_inputs(problem, method, body):
+    from ..solver import check_method
 
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
     check_method(method, problem.law)  # a registered formulation that takes the law
     if body not in (1, 2):
         raise InputError(f"body must be 1 or 2, got {body!r}")
+
+
+def _labels(regions, layer):
+    labels = regions(layer) if callable(regions) else (layer.labels if regions is None else regions)
+    if labels is None:
+        return None
+    labels = np.asarray(labels)
+    if labels.shape != (len(layer),):
+        raise InputError(f"regions must give one label per spring, shape ({len(layer)},), got {labels.shape}")
+    return labels
+
+
+def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, stop, keep_solutions,
+                keep_pressures, series, regions, layer_for_pose, threshold, progress, options) -> PathResult:
+    """The body of :func:`solve_path`."""
+    _check_inputs(problem, method, body)
     loads, times = _frames(loads, times)
     poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
+    moving = poses is not None
+    labels = _labels(regions, problem.layer)
+    n_regions = 0 if labels is None else len(np.unique(labels))
+    n_sites = _site_count(problem.layer, moving)
+    check_frames(len(loads), len(problem.layer), keep_solutions=keep_solutions, keep_pressures=keep_pressures,
+                 moving=moving, n_regions=n_regions)
     stepper = Stepper(method, options, certificate_tol)
-    base = problem
+    accumulator = ExposureAccumulator(n_sites, threshold)
+    frames = FrameSeries(series, len(loads)) if series is not None else None
     start = time.perf_counter()
-    base.system()  # computes the geometry once, to be shared by every frame
+    problem.system()  # computes the geometry once, to be shared by every frame
     setup = time.perf_counter() - start
-    rows, pressures, sites, solutions = [], [], [], []
+    base_regions = FrameRegions(labels) if labels is not None else None
+    rows, pressures, solutions = [], [], []
     bar = _progress(len(loads), progress)
+    failed = 0
     try:
-        for k, (load, t) in enumerate(zip(loads, times)):
-            new_geometry = k == 0
-            if poses is not None:
-                base = problem.with_layer(layer_for_pose(poses[k]))
+        for k in range(len(loads)):
+            load, t = loads[k], float(times[k])
+            base, frame_regions, new_geometry, status = problem, base_regions, k == 0, ""
+            if moving:
                 new_geometry = True
+                try:
+                    base = problem.with_layer(layer_for_pose(poses[k]))
+                except DeaError as exc:  # no springs at this pose, a pose the mesh check refuses
+                    status, message, solution, error = (Status.POSE_ERROR, f"casting the springs at this pose: {exc}",
+                                                        None, exc)
+                if base_regions is not None and not status:
+                    frame_regions = FrameRegions(_labels(regions, base.layer), base_regions.prefixes)
             frame = base.with_load(load, body=body)  # shares the spring arrays
-            try:
-                solution = stepper.solve(frame, new_geometry, setup if k == 0 else 0.0)
-                if not solution.success:
-                    check_load_supported(frame)
-            except (LoadNotSupportedError, SolverError) as exc:
-                raise _frame_error(exc, k, t) from None
-            if strict and not solution.success:
-                name, value = solution.certificate.worst()
-                raise SolverError(f"frame {k} (time {t:g} s): {solution.method} returned no certified answer; "
-                                  f"certificate residual {name} = {value:.3g} > {certificate_tol:g}",
-                                  status=solution.status, solution=solution)
-            rows.append(_row(k, t, frame, solution, body))
-            pressures.append(np.array(solution.pressure))
-            sites.append(_sites(frame.layer, poses is not None))
+            vector = getattr(frame, f"body{body}").load_vector
+            if not status:
+                solution, status, message, error = _solve_frame(stepper, frame, new_geometry,
+                                                                setup if k == 0 else 0.0)
+            if status:
+                if stop:
+                    raise _stop(k, t, status, message, solution, error) from None
+                failed += 1
+                stepper.reset()  # the next frame starts cold, not from a failed state
+                rows.append(failed_row(k, t, vector, len(frame.layer), status, message, solution, frame_regions))
+                accumulator.skip(t)
+                bar.set_postfix(failed=failed, refresh=False)
+            else:
+                rows.append(solved_row(k, t, vector, solution, frame_regions))
+                accumulator.add(t, solution.pressure, _sites(frame.layer, moving))
+            certified = None if status else solution
+            if keep_pressures:
+                pressures.append(np.array(certified.pressure) if certified is not None
+                                 else np.full(len(frame.layer), np.nan))
             if keep_solutions:
                 solutions.append(solution)
+            if frames is not None:
+                frames.write(k, t, frame.layer, certified)
             bar.update()
     finally:
         bar.close()
-    import pandas as pd
-
-    table = pd.DataFrame(rows, columns=list(TABLE_COLUMNS))
-    _warn_path_validity(table, problem.law)
+    table = make_table(rows, base_regions.prefixes if base_regions is not None else None)
     result = PathResult(
-        table=table, times=times, pressures=pressures, solutions=solutions if keep_solutions else None,
-        exposure=exposure(times, pressures, sites, threshold, _site_count(problem.layer, poses is not None)),
-        method=method, problem=problem, moving=poses is not None,
+        table=table, times=times, pressures=pressures if keep_pressures else None,
+        solutions=solutions if keep_solutions else None, exposure=accumulator.result(), method=method,
+        problem=problem, moving=moving, regions=dict(base_regions.prefixes) if base_regions is not None else {},
+        frame_files=frames,
     )
+    result.warn_validity()
     return result
 
 
@@ -246,46 +390,15 @@ def _check_poses(problem, poses, layer_for_pose, n):
 def _progress(total: int, enabled: bool):
     from tqdm.auto import tqdm
 
-    # disable=None turns the bar off when stderr is not a terminal (logs, tests).
+    # disable=None turns the bar off when stderr is not a terminal (logs, pipes, tests).
     return tqdm(total=total, desc="frames", unit="frame", disable=None if enabled else True, leave=False)
 
 
-def _row(k, t, frame: ContactProblem, solution: Solution, body: int) -> dict:
-    load = getattr(frame, f"body{body}").load_vector
-    cop = solution.center_of_pressure
-    name, value = solution.certificate.worst()
-    return {
-        "frame": k, "time": float(t),
-        "Fx": load[0], "Fy": load[1], "Fz": load[2], "Mx": load[3], "My": load[4], "Mz": load[5],
-        "peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
-        "contact_area": solution.contact_area,
-        "cop_x": cop[0], "cop_y": cop[1], "cop_z": cop[2],
-        "resultant": float(np.linalg.norm(solution.contact_force)),
-        "max_compressive_strain": solution.max_compressive_strain,
-        "n_springs": len(solution.pressure), "iterations": solution.iterations,
-        "build_time": solution.build_time, "solve_time": solution.solve_time,
-        "certificate_residual": value, "certificate_worst": name,
-        "success": solution.success, "status": solution.status,
-    }
-
-
-def _warn_path_validity(table, law) -> None:
-    crushed = table["max_compressive_strain"] >= 1.0
-    beyond = table["max_compressive_strain"] > LINEAR_VALIDITY
-    if crushed.any():
-        warnings.warn(f"{int(crushed.sum())} frame(s) crush a spring through its whole thickness (strain <= -1); "
-                      f"those results are not physical", ValidityWarning, stacklevel=3)
-    elif law.is_linear and beyond.any():
-        warnings.warn(f"{int(beyond.sum())} frame(s) exceed {LINEAR_VALIDITY:.0%} compressive strain, beyond the "
-                      f"range where the linear law is valid (Volokh, Chao & Armand); consider AteshianLaw",
-                      ValidityWarning, stacklevel=3)
-
-
-def _sites(layer, moving: bool) -> np.ndarray:
+def _sites(layer, moving: bool) -> np.ndarray | None:
     """Where each spring's pressure accumulates: its face of mesh 1 when the springs move."""
     if moving and layer.source_face is not None:
         return np.asarray(layer.source_face)
-    return np.arange(len(layer))
+    return None
 
 
 def _site_count(layer, moving: bool) -> int:

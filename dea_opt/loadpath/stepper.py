@@ -5,7 +5,9 @@ frame's load; it is rebuilt when the geometry changes, as it does with poses. A 
 warm-starts (``Capabilities.warm_start``) starts each re-solve from its own last answer, and a
 new model from the last certified frame. ``auto`` runs the default formulation so and solves
 a frame whose answer fails its certificate again cold, as :func:`dea_opt.solve` does (with its
-fallback).
+fallback). A frame under no load gets the answer and the status every method gives it
+(:func:`dea_opt.solver.formulation_result`). After a failed frame, :meth:`Stepper.reset` makes
+the next one start cold.
 """
 
 from __future__ import annotations
@@ -71,3 +73,8 @@ class Stepper:
         if solution.success:
             self.u_free = solution.u[problem.free_indices]
         return solution
+
+    def reset(self) -> None:
+        """Forget the warm start and the model: the next frame starts cold (after a failed frame)."""
+        self.u_free = None
+        self.model = None

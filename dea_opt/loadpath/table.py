@@ -1,0 +1,205 @@
+"""The per-frame table of a load path: one row per frame, certified or not, with validity and regions.
+
+A frame whose answer is certified gets its numbers; a frame that failed (a load the springs
+cannot carry, a certificate that failed, a solver error) gets its load, its status and its
+message, and NaN wherever a number would come from the answer: a number in the table is
+always a certified one. Units: mm, mm^2, N, N mm, MPa, s.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["REGION_COLUMNS", "TABLE_COLUMNS", "FrameRegions", "failed_row", "make_table", "region_prefixes",
+           "solved_row"]
+
+#: Columns of every table, in order, with units. The validity columns of each check
+#: (``validity_<check>``, from :meth:`dea_opt.validity.Validity.columns`) follow them, then
+#: :data:`REGION_COLUMNS` for each region when the layer has labels.
+TABLE_COLUMNS = {
+    "frame": "frame index",
+    "time": "s",
+    "Fx": "N", "Fy": "N", "Fz": "N", "Mx": "N mm", "My": "N mm", "Mz": "N mm",
+    "peak_pressure": "MPa",
+    "mean_pressure": "MPa, over the contact",
+    "contact_area": "mm^2",
+    "cop_x": "mm", "cop_y": "mm", "cop_z": "mm",
+    "resultant": "N, of the spring forces",
+    "max_compressive_strain": "1",
+    "n_springs": "count",
+    "iterations": "count",
+    "build_time": "s",
+    "solve_time": "s",
+    "certificate_residual": "1, the largest",
+    "certificate_worst": "its name",
+    "success": "certified",
+    "status": "the solver's status, or why the frame failed",
+    "message": "why the frame failed (empty when certified)",
+    "valid": "certified and inside the model's validity",
+    "validity_failed": "the failed validity checks, joined by ;",
+}
+
+#: Columns of each region, after the region's prefix (``medial_force_share``), with units.
+REGION_COLUMNS = {
+    "force": "N, sum of the spring force magnitudes",
+    "force_share": "1, of the total over all springs",
+    "peak_pressure": "MPa",
+    "mean_pressure": "MPa, over the region's contact",
+    "contact_area": "mm^2",
+    "cop_x": "mm", "cop_y": "mm", "cop_z": "mm",
+}
+
+_RESULT_COLUMNS = ("peak_pressure", "mean_pressure", "contact_area", "cop_x", "cop_y", "cop_z", "resultant",
+                   "max_compressive_strain")
+
+
+def region_prefixes(names) -> dict:
+    """``{name: column prefix}``: letters, digits and ``_`` only, never starting with a digit, unique."""
+    out, used = {}, set()
+    for name in names:
+        prefix = re.sub(r"[^0-9A-Za-z_]+", "_", str(name)).strip("_") or "region"
+        if prefix[0].isdigit():
+            prefix = f"region_{prefix}"
+        candidate, k = prefix, 2
+        while candidate in used or candidate in TABLE_COLUMNS:
+            candidate, k = f"{prefix}_{k}", k + 1
+        used.add(candidate)
+        out[str(name)] = candidate
+    return out
+
+
+class FrameRegions:
+    """The regions of one layer (a mask per label) and their columns for a frame.
+
+    Parameters
+    ----------
+    labels : array_like, shape (N,)
+        A region label per spring.
+    prefixes : dict {name: prefix}, optional
+        Column prefixes of the names (from the first frame, so that a path keeps its columns).
+    """
+
+    def __init__(self, labels, prefixes: dict | None = None):
+        labels = np.asarray(labels)
+        if labels.ndim != 1:
+            raise InputError(f"region labels must be one label per spring, got shape {labels.shape}")
+        names = np.unique(labels)
+        self.masks = {str(name): labels == name for name in names}
+        known = dict(prefixes or {})
+        fresh = region_prefixes([n for n in self.masks if n not in known] + list(known))
+        self.prefixes = {n: known.get(n, fresh[n]) for n in self.masks}
+
+    def columns(self, solution=None) -> dict:
+        """The region columns of a certified ``solution``, or NaN for every one (``None``)."""
+        from ..regions import region_statistics
+
+        row = {}
+        for name, mask in self.masks.items():
+            prefix = self.prefixes[name]
+            if solution is None:
+                row.update({f"{prefix}_{c}": math.nan for c in REGION_COLUMNS})
+                continue
+            stats = region_statistics(solution, mask, name)
+            cop = stats.center_of_pressure
+            row.update({
+                f"{prefix}_force": stats.force, f"{prefix}_force_share": stats.share,
+                f"{prefix}_peak_pressure": stats.peak_pressure, f"{prefix}_mean_pressure": stats.mean_pressure,
+                f"{prefix}_contact_area": stats.contact_area,
+                f"{prefix}_cop_x": cop[0], f"{prefix}_cop_y": cop[1], f"{prefix}_cop_z": cop[2],
+            })
+        return row
+
+
+def _load_columns(k: int, t: float, load) -> dict:
+    return {"frame": k, "time": float(t), "Fx": load[0], "Fy": load[1], "Fz": load[2],
+            "Mx": load[3], "My": load[4], "Mz": load[5]}
+
+
+def solved_row(k: int, t: float, load, solution, regions: FrameRegions | None = None) -> dict:
+    """The row of frame ``k`` at time ``t`` (s) under ``load`` (the 6-vector on the loaded body)
+    whose ``solution`` passed its certificate."""
+    cop = solution.center_of_pressure
+    name, value = solution.certificate.worst()
+    validity = solution.validity.columns()
+    row = {
+        **_load_columns(k, t, load),
+        "peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
+        "contact_area": solution.contact_area,
+        "cop_x": cop[0], "cop_y": cop[1], "cop_z": cop[2],
+        "resultant": float(np.linalg.norm(solution.contact_force)),
+        "max_compressive_strain": solution.max_compressive_strain,
+        "n_springs": len(solution.pressure), "iterations": solution.iterations,
+        "build_time": solution.build_time, "solve_time": solution.solve_time,
+        "certificate_residual": value, "certificate_worst": name,
+        "success": True, "status": solution.status, "message": "",
+        **validity,
+    }
+    row["valid"] = bool(validity["valid"])
+    if regions is not None:
+        row.update(regions.columns(solution))
+    return row
+
+
+def failed_row(k: int, t: float, load, n_springs: int, status: str, message: str, solution=None,
+               regions: FrameRegions | None = None) -> dict:
+    """The row of a frame without a certified answer: its load, status and message, NaN results.
+
+    ``solution`` is the uncertified answer when there is one (its iterations, times and
+    certificate residual are kept: they say how it failed).
+    """
+    row = {**_load_columns(k, t, load), **{c: math.nan for c in _RESULT_COLUMNS}}
+    if solution is not None:
+        name, value = solution.certificate.worst()
+        row.update(iterations=solution.iterations, build_time=solution.build_time,
+                   solve_time=solution.solve_time, certificate_residual=value, certificate_worst=name)
+    else:
+        row.update(iterations=0, build_time=0.0, solve_time=0.0, certificate_residual=math.nan,
+                   certificate_worst="")
+    row.update(n_springs=int(n_springs), success=False, status=str(status), message=" ".join(str(message).split()),
+               valid=False, validity_failed="")
+    if regions is not None:
+        row.update(regions.columns(None))
+    return row
+
+
+def make_table(rows: list, region_prefixes: dict | None = None):
+    """The rows as a DataFrame: :data:`TABLE_COLUMNS`, the validity checks, then the regions'."""
+    import pandas as pd
+
+    validity, regions = [], []
+    region_names = {f"{p}_{c}" for p in (region_prefixes or {}).values() for c in REGION_COLUMNS}
+    for row in rows:
+        for key in row:
+            if key in TABLE_COLUMNS:
+                continue
+            target = regions if key in region_names else validity
+            if key not in target:
+                target.append(key)
+    columns = [*TABLE_COLUMNS, *validity, *sorted(regions, key=_region_order(region_prefixes or {}))]
+    table = pd.DataFrame(rows, columns=columns)
+    for key in validity:  # a failed frame has no validity numbers
+        table[key] = pd.to_numeric(table[key], errors="coerce")
+    table["success"] = table["success"].astype(bool)
+    table["valid"] = table["valid"].astype(bool)
+    for key in ("status", "message", "validity_failed", "certificate_worst"):
+        table[key] = table[key].fillna("").astype(str)
+    return table
+
+
+def _region_order(prefixes: dict):
+    rank = {p: i for i, p in enumerate(prefixes.values())}
+    suffixes = {c: i for i, c in enumerate(REGION_COLUMNS)}
+
+    def key(column):
+        for prefix, i in rank.items():
+            suffix = column[len(prefix) + 1:]
+            if column.startswith(f"{prefix}_") and suffix in suffixes:
+                return (i, suffixes[suffix])
+        return (len(rank), 0)
+
+    return key
