@@ -21,13 +21,14 @@ from .problem import Body, ContactProblem, Load
 from .sensitivity import Sensitivities, sensitivities
 from .solution import Certificate, Solution, certify
 from .solver import METHODS, check_load_supported, compare, solve
+from .status import Status
 from .uncertainty import propagate
 
 __all__ = [
     "LAWS", "AteshianLaw", "BlankevoortLaw", "Body", "Certificate", "ContactProblem", "CubicLaw",
     "DOFS", "DeaError", "InputError", "Law", "LinearLaw", "Load", "LoadNotSupportedError",
     "METHODS", "MissingDependencyError", "OutputFolderError", "ScenarioError", "PolynomialLaw", "Sensitivities",
-    "SizeLimitError", "Solution", "SolverError", "SpringLayer", "ValidityWarning", "calibrate", "certify",
+    "SizeLimitError", "Solution", "SolverError", "SpringLayer", "Status", "ValidityWarning", "calibrate", "certify",
     "check_load_supported", "compare", "propagate", "register_law", "sensitivities", "solve", "solve_path",
     "__version__",
 ]
