@@ -49,7 +49,7 @@ import bench_qp  # noqa: E402
 import bench_study  # noqa: E402
 from common import header, loglog_slope, print_table, write_csv  # noqa: E402
 
-SECTIONS = ("core", "cubic", "qp", "mesh", "gait", "study", "threads")
+SECTIONS = ("core", "cubic", "qp", "mesh", "gait", "study", "threads", "sensitivity")
 
 FULL = {
     "core": {"problems": ["plate", "sphere", "box"], "sizes": [1e3, 1e4, 1e5, 1e6],
@@ -64,6 +64,7 @@ FULL = {
     "gait": {"springs": 2e4, "frames": None, "methods": ["newton", "nlp-r", "qp"], "full_methods": ["nlp-c"]},
     "study": {"problem": "sphere", "sizes": [1e4, 1e5]},
     "threads": {"core": [("box", "newton", 1e4), ("box", "newton", 1e5), ("box", "newton", 1e6)], "gait": ["newton"]},
+    "sensitivity": {"springs": 1e5, "calibration": True},
 }
 
 QUICK = {
@@ -75,6 +76,7 @@ QUICK = {
     "gait": {"springs": 2e3, "frames": 21, "methods": ["newton"], "full_methods": []},
     "study": {"problem": "sphere", "sizes": [1e3]},
     "threads": {"core": [], "gait": []},
+    "sensitivity": {"springs": 1e3, "calibration": False},
 }
 
 CORE_COLUMNS = ["problem", "law", "method", "n_springs", "n_dofs", "build_s", "solve_s", "solve_first_s", "total_s",
@@ -259,6 +261,27 @@ def _gait_one_thread(rows) -> str:
     return f"; BLAS at 1 thread: {t['wall_s']:.3g} s (first {t['wall_first_s']:.3g} s)"
 
 
+def section_sensitivity(cfg, args, say):
+    """Sensitivities to 10 parameters against Newton solves, and the knee's calibration
+    (benchmarks/bench_sensitivity.py), each in a fresh process."""
+    import bench_sensitivity
+    from common import run_isolated
+
+    cases = [("sensitivity_case", {"n_springs": cfg["sensitivity"]["springs"]})]
+    if cfg["sensitivity"]["calibration"]:
+        cases.append(("calibration_case", {}))
+    rows = []
+    for func, kwargs in cases:
+        if args.quick:
+            row = getattr(bench_sensitivity, func)(**kwargs)
+        else:
+            row = run_isolated("bench_sensitivity", func, kwargs, args.timeout)
+        rows.append(row)
+        say.progress(f"sensitivity {row.get('case', func)}", row, "sensitivities_s" if "sensitivities_s" in row
+                     else "calibration_s")
+    return rows
+
+
 def targets(results) -> list[dict]:
     core, cubic = results.get("core"), results.get("cubic")
     out = []
@@ -378,6 +401,21 @@ def targets(results) -> list[dict]:
                                f"N = {', '.join(f'{p[0]:.0e}' for p in pts)}: solve "
                                + ", ".join(f"{p[1]:.3g}" for p in pts) + f" s; whole dea.solve slope {total:.2f}",
                                fmt=lambda v: f"{v:.2f}"))
+    # 9. Sensitivities and calibration.
+    sens = results.get("sensitivity")
+    if sens is not None:
+        r = _near(sens, 1e5, case="box, Ateshian")
+        out.append(_target("sensitivities of all outputs to 10 parameters, 1e5 springs (box): time / Newton solve",
+                           "< 3", r["ratio"] if r and "ratio" in r else None, lambda v: v < 3,
+                           (f"sensitivities {r['sensitivities_s']:.3g} s; whole dea.solve {r['newton_s']:.3g} s "
+                            f"(Newton's own {r['newton_formulation_s']:.3g} s)") if r and "ratio" in r
+                           else "sizes below 1e5 (quick)", fmt=lambda v: f"{v:.2f}x"))
+        r = _find(sens, case="knee calibration")
+        ok = r is not None and "calibration_s" in r
+        out.append(_target("calibration of H and beta on the real knee (film, start 2x off)", "< 2 s",
+                           r["calibration_s"] if ok else None, lambda v: v < 2.0,
+                           (f"{r['solves']} solves; H {r['H']:.4g} MPa (true 5), beta {r['beta']:.4g} (true 0.6)")
+                           if ok else (r or {}).get("status", "not run (quick)")))
     # The same growth with Newton's BLAS at one thread (information: no target of its own).
     pts = sorted((r["n_springs"], r["solve_s"]) for r in threads or [] if r.get("method") == "newton"
                  and r.get("problem") == "box" and "solve_s" in r and 0.9e4 <= r["n_springs"] <= 1.1e6)
@@ -471,6 +509,15 @@ def main(argv=None) -> int:
         say.table(rows, CORE_COLUMNS + ["blas_threads"])
         say.table(gait, GAIT_COLUMNS)
         save("threads", rows + gait, list(dict.fromkeys(CORE_COLUMNS + ["blas_threads"] + GAIT_COLUMNS)))
+
+    if "sensitivity" in sections:
+        say("\n## sensitivity: derivatives of every output to 10 parameters, and a calibration on the knee")
+        import bench_sensitivity
+
+        rows = section_sensitivity(cfg, args, say)
+        results["sensitivity"] = rows
+        say.table(rows, bench_sensitivity.COLUMNS)
+        save("sensitivity", rows, bench_sensitivity.COLUMNS)
 
     rows = targets(results)
     say("\n## TARGETS" + (" (--quick: sizes below the targets' are 'not run')" if args.quick else ""))

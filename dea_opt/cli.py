@@ -1,4 +1,4 @@
-"""The ``dea-opt`` command: run, compare, sweep, demo, schema, version (and ``--version``).
+"""The ``dea-opt`` command: run, compare, sweep, demo, calibrate, schema, version (and ``--version``).
 
 Exit codes:
 
@@ -370,6 +370,67 @@ def demo(
     _warn(outcome.warnings)
     if outcome.exit_code:
         raise typer.Exit(outcome.exit_code)
+
+
+@app.command()
+@_reported
+def calibrate(
+    scenario: ScenarioArg,
+    data: Annotated[Path, typer.Option("--data", help="Pressure map CSV with columns x, y, z, p (mm, MPa), in "
+                                       "the springs' frame.", show_default=False)],
+    parameters: Annotated[Optional[str], typer.Option(help="Parameters to fit, e.g. H,beta (default: the law's; "
+                                                      "also thickness_scale, Fx..Mz).", show_default=False)] = None,
+    film: Annotated[Optional[str], typer.Option(help="The film's range: LLLW, LLW, LW, MS, HS or LOWER,UPPER in "
+                                                "MPa (readings at its limits are censored).",
+                                                show_default=False)] = None,
+    noise: Annotated[float, typer.Option(help="Relative noise of a reading.")] = 0.05,
+    max_distance: Annotated[Optional[float], typer.Option(help="Drop points farther than this from every spring "
+                                                          "(mm).", show_default=False)] = None,
+    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
+                                                   "[output].directory>/calibration).", show_default=False)] = None,
+    set_: SetOpt = None,
+    force: ForceOpt = False,
+):
+    """Fit law parameters to a measured pressure map (film or sensor) by least squares.
+
+    The scenario's law values are the start. Writes calibration.json (fitted values, standard
+    errors, correlation), residuals.csv (one row per matched point), calibration.png (measured
+    vs predicted, residual map) and manifest.json into <output>/calibration. Exit code 1 when the
+    fit did not converge.
+    """
+    from .calibrate import calibrate_scenario
+    from .errors import InputError
+    from .io.publish import check_output_folder, output_run
+    from .run import run_info
+    from .scenario import load_scenario
+
+    loaded = load_scenario(scenario, _overrides(set_))
+    bounds = _split(film)
+    try:
+        film_value = (float(bounds[0]), float(bounds[1])) if bounds and len(bounds) == 2 else film
+    except ValueError:
+        raise InputError(f"--film must be a film's name or LOWER,UPPER in MPa, got {film!r}") from None
+    folder = check_output_folder(output if output is not None else loaded.output_dir() / "calibration", force)
+    info = {**run_info(loaded, "calibrate"), "data": str(data)}
+    with captured() as messages, output_run(folder, force=force, info=info) as publication:
+        fit, files = calibrate_scenario(loaded, data, publication.folder, parameters=_split(parameters),
+                                        film=film_value, noise=noise, max_distance=max_distance)
+        messages.collect()
+        publication.publish(status="ok" if fit.success else "not converged",
+                            exit_code=EXIT_OK if fit.success else EXIT_UNCERTIFIED)
+    _warn(messages.own)
+    typer.echo(f"{'parameter':>16s} {'start':>12s} {'fitted':>12s} {'std error':>12s}")
+    for name in fit.parameters:
+        typer.echo(f"{name:>16s} {fit.start[name]:12.6g} {fit.values[name]:12.6g} {fit.standard_errors[name]:12.3g}")
+    if len(fit.parameters) > 1:
+        typer.echo("correlation: " + "; ".join(f"{a}-{b} {fit.correlation[i, j]:+.3f}"
+                                               for i, a in enumerate(fit.parameters)
+                                               for j, b in enumerate(fit.parameters) if j > i))
+    typer.echo(f"{int(fit.residuals.size)} points, cost {fit.cost:.6g}, {fit.nfev} solves: {fit.message}")
+    for name, path in files.items():
+        typer.echo(f"  {name:9s} {path}")
+    if not fit.success:
+        raise typer.Exit(EXIT_UNCERTIFIED)
 
 
 @app.command()

@@ -79,6 +79,7 @@ def demo_comparison(scenario, progress: bool = False) -> list[dict]:
     """One gait-peak frame (2.4 kN tilted 20 degrees) by every method, linear and Ateshian laws."""
     from tqdm.auto import tqdm
 
+    from . import formulations
     from .laws import AteshianLaw, LinearLaw
     from .scenario import build_problem
     from .solver import solve
@@ -87,11 +88,11 @@ def demo_comparison(scenario, progress: bool = False) -> list[dict]:
     force = _DEMO_PEAK * np.array([np.sin(tilt), 0.0, -np.cos(tilt)])
     base = build_problem(scenario).with_load(force=force)
     H = scenario.law.H
-    cases = [(LinearLaw(H), m) for m in ("newton", "qp", "nlp")]
-    cases += [(AteshianLaw(H, _DEMO_BETA), m) for m in ("newton", "nlp")]
+    laws = (LinearLaw(H), AteshianLaw(H, _DEMO_BETA))
+    cases = [(law, m) for law in laws for m in formulations.names() if formulations.takes(m, law)]
     # Tight solver tolerances: interior-point duals at the edge of contact need them to pass
     # the certificate's consistency check at 1e-6.
-    options = {"qp": {"tol": 1e-12}, "nlp": {"tol": 1e-12}, "newton": {}}
+    options = {m: formulations.tolerance_options(m, 1e-12) for m in formulations.names()}
     rows = []
     for law, method in tqdm(cases, desc="comparison", unit="solve", disable=None if progress else True, leave=False):
         with warnings.catch_warnings():

@@ -2,7 +2,7 @@
 
 ``DeaError`` is the base; catch it to catch everything dea-opt raises on purpose.
 The README's *Error catalogue* lists every subclass, when it is raised and what to do;
-``tests/test_errors.py`` checks that the catalogue and this module agree.
+``tests/test_docs.py`` checks that the catalogue and this module agree.
 """
 
 from __future__ import annotations
@@ -51,14 +51,16 @@ class LoadNotSupportedError(DeaError):
 class SolverError(DeaError):
     """A solver did not return an answer dea-opt can certify.
 
-    ``status`` is the solver's own status string; ``solution`` (when there is one) is the
-    uncertified :class:`~dea_opt.solution.Solution`, for inspection only.
+    ``status`` is a :class:`~dea_opt.status.Status` (a ``str``), ``native_status`` the
+    solver's own where it had one; ``solution`` (when there is one) is the uncertified
+    :class:`~dea_opt.solution.Solution`, for inspection only.
     """
 
-    def __init__(self, message: str, status: str = "", solution=None):
+    def __init__(self, message: str, status: str = "", solution=None, native_status: str | None = None):
         super().__init__(message)
         self.status = status
         self.solution = solution
+        self.native_status = native_status
 
 
 class MissingDependencyError(DeaError, ImportError):

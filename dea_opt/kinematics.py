@@ -8,6 +8,7 @@ so that ``n_i . delta_i = G_i u`` with the row
     G_i = [-n_i, -(r1_i x n_i), n_i, r2_i x n_i],   rk_i = x_i - c_k
 
 and the strain of Eq. (11), extended by the initial gap, is ``eps_i = (gap_i + G_i u) / h_i``.
+Written math: ``formulations/energy.md`` ("Kinematics").
 """
 
 from __future__ import annotations

@@ -141,6 +141,53 @@ class Law:
         """Strain energy density ``w(eps)`` in MPa with ``w(0) = 0``; ``+inf`` where crushed."""
         return self._evaluate(self.energy_expr, eps, np.inf)
 
+    # --- derivatives with respect to the law's parameters (formulations/sensitivity.md) ---
+    @property
+    def parameter_names(self) -> tuple:
+        """The law's real-valued parameters (its ``float`` dataclass fields, e.g. ``("H", "beta")``):
+        those :meth:`stress_derivatives` differentiates. Integer fields (``order``) are left out."""
+        if not dataclasses.is_dataclass(self):
+            return ()
+        return tuple(f.name for f in dataclasses.fields(self) if f.init and f.type in (float, "float"))
+
+    def _twin(self, values: dict) -> Law:
+        """A copy whose parameters in ``values`` are replaced, unchecked, by other numbers or
+        symbols (complex numbers, CasADi symbols): the same ``*_expr`` code then yields the
+        parameter derivatives. Override it when ``__post_init__`` derives more from them."""
+        twin = object.__new__(type(self))
+        for f in dataclasses.fields(self):
+            object.__setattr__(twin, f.name, values.get(f.name, getattr(self, f.name)))
+        return twin
+
+    def stress_derivatives(self, eps, method: str = "complex") -> dict:
+        """``d sigma / d theta`` at the strains ``eps`` for each of :attr:`parameter_names` (MPa
+        per unit of the parameter, e.g. 1/1 for ``H`` of a law linear in it).
+
+        ``method="complex"`` (default) evaluates :meth:`stress_expr` once per parameter with that
+        parameter moved by ``i t``: the imaginary part over ``t`` is the derivative to rounding,
+        with no difference taken. ``method="casadi"`` differentiates the same expression
+        symbolically with CasADi (slower; the cross-check). Crushed strains (``eps <= -1`` of a
+        bounded law) give NaN.
+        """
+        eps = np.asarray(eps, dtype=float)
+        bad = eps <= -1.0 if self.bounded_strain else np.zeros(eps.shape, dtype=bool)
+        safe = np.where(bad, 0.0, eps)
+        out = {}
+        if method == "casadi":
+            for name, value in zip(self.parameter_names, _casadi_stress_jacobian(self, safe)):
+                out[name] = np.where(bad, np.nan, value)
+            return out
+        if method != "complex":
+            raise InputError(f"method must be 'complex' or 'casadi', got {method!r}")
+        for name in self.parameter_names:
+            value = float(getattr(self, name))
+            step = 1e-30 * max(abs(value), 1.0)
+            twin = self._twin({name: complex(value, step)})
+            with np.errstate(over="ignore", invalid="ignore"):
+                stress = np.asarray(twin.stress_expr(safe.astype(complex), np), dtype=complex)
+            out[name] = np.where(bad, np.nan, np.broadcast_to(stress.imag / step, eps.shape))
+        return out
+
     def describe(self) -> str:
         """A short label for tables, e.g. ``ateshian(H=0.6, beta=0.05)``; works for any subclass."""
         args = ", ".join(f"{k}={label(v)}" for k, v in self._parameters().items())
@@ -231,7 +278,7 @@ class AteshianLaw(Law):
     def energy_expr(self, eps, xp):
         # q = ln(lam^-2 exp(lam^2 - 1)); w = H/(4 beta) expm1(beta q) -> H q / 4 as beta -> 0
         q = eps * (2.0 + eps) - 2.0 * xp.log1p(eps)
-        if self.beta < 1e-12:
+        if isinstance(self.beta, (int, float)) and self.beta < 1e-12:
             # The beta -> 0 limit; it differs from the exact form by O(beta q), and it does
             # not divide by a beta that may underflow.
             return 0.25 * self.H * q
@@ -315,19 +362,24 @@ def ateshian_taylor_coefficients(H: float, beta: float, order: int) -> np.ndarra
     (Remark 2 of the paper), not typed in.
     """
     n = order + 1
-    g = np.zeros(n)  # beta (2 eps + eps^2)
+    # Complex numbers or CasADi symbols (parameter derivatives, formulations/sensitivity.md)
+    # go through the same arithmetic in an array of their own kind.
+    real = all(isinstance(v, (int, float, np.integer, np.floating)) for v in (H, beta))
+    kind = float if real else (complex if all(isinstance(v, (int, float, complex, np.number)) for v in (H, beta))
+                               else object)
+    g = np.zeros(n, dtype=kind)  # beta (2 eps + eps^2)
     g[1] = 2.0 * beta
     if n > 2:
         g[2] = beta
-    exp_g = np.zeros(n)  # exp(g) by f' = g' f
+    exp_g = np.zeros(n, dtype=kind)  # exp(g) by f' = g' f
     exp_g[0] = 1.0
     for k in range(1, n):
         exp_g[k] = sum(j * g[j] * exp_g[k - j] for j in range(1, k + 1)) / k
     a = -(2.0 * beta + 1.0)
-    binomial = np.ones(n)  # (1 + eps)^a
+    binomial = np.ones(n, dtype=kind)  # (1 + eps)^a
     for k in range(1, n):
         binomial[k] = binomial[k - 1] * (a - k + 1) / k
-    front = np.zeros(n)  # H/2 (2 eps + eps^2)
+    front = np.zeros(n, dtype=kind)  # H/2 (2 eps + eps^2)
     front[1] = H
     if n > 2:
         front[2] = H / 2.0
@@ -370,6 +422,11 @@ class PolynomialLaw(_PolynomialStress):
 
     def _parameters(self):
         return {"H": self.H, "beta": self.beta, "order": self.order}
+
+    def _twin(self, values):
+        twin = super()._twin(values)
+        object.__setattr__(twin, "_coefficients", ateshian_taylor_coefficients(twin.H, twin.beta, int(self.order)))
+        return twin
 
     @property
     def coefficients(self) -> np.ndarray:
@@ -422,3 +479,22 @@ for _cls in (LinearLaw, AteshianLaw, CubicLaw, PolynomialLaw, BlankevoortLaw):
     LAWS.register(_cls)
 #: Register a law of your own: ``@register_law`` on a :class:`Law` subclass (see ``LawRegistry.register``).
 register_law = LAWS.register
+
+
+def _casadi_stress_jacobian(law: Law, eps: np.ndarray) -> list:
+    """``[d sigma / d theta_k (eps)]`` by CasADi's symbolic derivative of :meth:`Law.stress_expr`."""
+    import casadi
+
+    names = law.parameter_names
+    if not names:
+        return []
+    symbols = {name: casadi.SX.sym(name) for name in names}
+    e = casadi.SX.sym("eps")
+    stress = law._twin(symbols).stress_expr(e, _namespace(e))
+    theta = casadi.vertcat(*symbols.values())
+    f = casadi.Function("dsigma", [e, theta], [casadi.jacobian(stress, theta).T])
+    values = np.array([float(getattr(law, n)) for n in names])
+    flat = eps.reshape(-1)
+    out = np.asarray(f.map(max(flat.size, 1))(flat.reshape(1, -1), values), dtype=float) if flat.size else \
+        np.zeros((len(names), 0))
+    return [row.reshape(eps.shape) for row in out]

@@ -103,14 +103,21 @@ def status_of(success: bool, valid: bool | None) -> str:
 
 
 def solve_options(section, method: str, law) -> dict:
-    """Formulation options from ``[solve]`` for ``method`` (only those it accepts)."""
-    tol = section.tol
-    effective = method if method != "auto" else ("qp" if law.is_linear else "nlp")
-    if effective == "qp":
-        return {"solver": section.solver, **({"tol": tol} if tol is not None else {})}
-    if effective == "nlp":
-        return {"form": section.form, **({"tol": tol} if tol is not None else {})}
-    return {"gtol": tol} if tol is not None else {}
+    """Formulation options from ``[solve]`` for ``method`` (only those it accepts).
+
+    The formulation is ``method``, or under ``auto`` the one the registry falls back to for
+    ``law`` (:func:`dea_opt.formulations.fallback_for`). ``[solve].tol`` sets the options one
+    accuracy setting sets (:func:`~dea_opt.formulations.tolerance_options`), and each other
+    key of ``[solve]`` that names one of its options (``solver``, ``form``) is passed as is.
+    """
+    from . import formulations
+
+    effective = method if method != "auto" else formulations.fallback_for(law)
+    if effective is None:
+        return {}
+    options = {option.name: getattr(section, option.name) for option in formulations.options(effective)
+               if not option.tolerance and getattr(section, option.name, None) is not None}
+    return options | formulations.tolerance_options(effective, section.tol)
 
 
 def check_method(method: str | None, default: str) -> str:

@@ -30,6 +30,7 @@ from .formulations.energy import (
     unresisted,
 )
 from .kinematics import DOF_NAMES
+from .status import Status
 from .validity import Validity, assess
 
 __all__ = ["Certificate", "Solution", "certify"]
@@ -132,7 +133,7 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
     system = problem.system()
     res = system.resistance
     free = problem.free_indices
-    x = np.asarray(u, dtype=float)[free]
+    u_free = np.asarray(u, dtype=float)[free]
     eps = problem.strain(u)
     compressed = np.minimum(eps, 0.0)
     with np.errstate(invalid="ignore", over="ignore"):
@@ -154,7 +155,7 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
     equilibrium = _ratio(float(np.abs(g / L).max(initial=0.0)), F)
     if res.null.shape[1]:
         equilibrium = max(equilibrium, res.load_fraction(r))
-        z = res.motion_part(x)
+        z = res.motion_part(u_free)
         if z.any():
             with np.errstate(invalid="ignore", over="ignore"):
                 held = layer.areas * law.stress(np.minimum(eps - z @ system.AT, 0.0))
@@ -170,11 +171,11 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
         high = layer.areas * law.stress(np.minimum(eps + delta, 0.0))
     excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
     consistency = _ratio(float(np.nan_to_num(excess, nan=np.inf).sum()), F)
-    energy = _energy_residual(system, res, law, eps, g, x, H, overlap) if free.size else 0.0
-    return Certificate(equilibrium, tension, complementarity, consistency, energy, tolerance)
+    decrement = _energy_residual(system, res, law, eps, g, u_free, H, overlap) if free.size else 0.0
+    return Certificate(equilibrium, tension, complementarity, consistency, decrement, tolerance)
 
 
-def _energy_residual(system, res, law, eps, g, x, H, overlap) -> float:
+def _energy_residual(system, res, law, eps, g, u_free, H, overlap) -> float:
     """``g^T K^+ g / 2`` over the resisted directions, relative to the energy scale."""
     rows = np.flatnonzero(eps < 0)
     if not rows.size or not res.n_resisted:
@@ -198,7 +199,7 @@ def _energy_residual(system, res, law, eps, g, x, H, overlap) -> float:
     coeff = vecs[:, keep].T @ gt
     decrement = float(coeff @ (coeff / vals[keep]))
     preload = 0.0 if overlap is None else 0.5 * H * float(system.volume @ overlap**2)
-    scale = max(stored + abs(float(system.load @ x)), preload)
+    scale = max(stored + abs(float(system.load @ u_free)), preload)
     return _ratio(0.5 * abs(decrement), scale)
 
 
@@ -209,7 +210,13 @@ class Solution:
     Spring quantities have shape (N,), in the layer's spring order. ``stress`` and
     ``spring_force`` are tension positive (so ``<= 0``); ``pressure = -stress >= 0``.
     ``certificate`` says the answer solves the equations; ``validity`` says whether the
-    equations still describe cartilage there (:mod:`dea_opt.validity`).
+    equations still describe cartilage there (:mod:`dea_opt.validity`,
+    ``formulations/validity.md``). ``status`` is a
+    :class:`~dea_opt.status.Status` (a ``str``: ``"converged"``, ``"unloaded"``, ...), the
+    solver's own in ``info["native_status"]``.
+
+    ``u`` is the 12-vector of Eq. (7) (mm, rad); ``x`` is its scipy-like alias (not the
+    free-dof vector ``x`` of ``formulations/energy.md``, which is ``u[problem.free_indices]``).
     """
 
     problem: object
@@ -218,7 +225,7 @@ class Solution:
     pressure: np.ndarray
     method: str
     success: bool
-    status: str
+    status: Status
     message: str
     iterations: int
     build_time: float
@@ -229,7 +236,7 @@ class Solution:
     # scipy.optimize names
     @property
     def x(self) -> np.ndarray:
-        """Alias of ``u`` (the 12-vector of Eq. 7)."""
+        """Alias of ``u`` (the 12-vector of Eq. 7), as in ``scipy.optimize.OptimizeResult``."""
         return self.u
 
     @property

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import inspect
 import math
 import time
 import warnings
@@ -12,7 +11,9 @@ import numpy as np
 from . import formulations
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
 from .formulations.energy import (
-    check_options,
+    CRUSHED_MESSAGE,
+    crushed,
+    failed_result,
     require_finite,
     single_threaded_blas,
     start_vector,
@@ -21,10 +22,22 @@ from .formulations.energy import (
 )
 from .problem import ContactProblem
 from .solution import Solution, certify
+from .status import CERTIFIABLE, Status
 
-__all__ = ["solve", "compare", "check_load_supported", "certified_solution", "METHODS"]
+__all__ = [
+    "METHODS",
+    "certified_solution",
+    "check_load_supported",
+    "check_method",
+    "compare",
+    "formulation_plan",
+    "formulation_result",
+    "solve",
+]
 
-METHODS = ("auto", *formulations.FORMULATIONS)
+#: The methods built in: ``"auto"`` and the formulations registered when dea_opt was imported
+#: (:func:`dea_opt.formulations.names` is the live list, with any registered since).
+METHODS = ("auto", *formulations.names())
 
 #: Relative residual of the cone test above which a load counts as not carried.
 _CONE_TOL = 1e-7
@@ -139,78 +152,119 @@ def _warn_validity(solution: Solution) -> None:
         warnings.warn(validity.message(), ValidityWarning, stacklevel=4)
 
 
-def _check_options(module, method: str, options: dict) -> None:
-    """Unknown options are an InputError naming the accepted ones (solver-specific
-    pass-through options are accepted where the formulation takes ``**kwargs``)."""
-    params = inspect.signature(module.solve).parameters
-    if any(p.kind is inspect.Parameter.VAR_KEYWORD for p in params.values()):
-        return
-    accepted = [n for n, p in params.items() if p.kind is inspect.Parameter.KEYWORD_ONLY]
-    for key in options:
-        if key not in accepted:
-            raise InputError(f"method {method!r} takes the options {accepted}, got unknown option {key!r}")
+def check_method(method: str, law=None) -> None:
+    """An :class:`InputError` unless ``method`` is ``"auto"`` or a registered formulation
+    (:func:`dea_opt.formulations.names`) that takes ``law``."""
+    if not isinstance(method, str) or (method != "auto" and method not in formulations.names()):
+        raise InputError(f"method must be one of {('auto', *formulations.names())}, got {method!r}")
+    if law is not None and method != "auto":
+        formulations.check_takes(method, law)
 
 
-def _run(problem: ContactProblem, method: str, certificate_tol: float, options: dict) -> Solution:
-    module = formulations.get(method)
-    _check_options(module, method, options)
-    if module.LINEAR_ONLY and not problem.law.is_linear:
-        raise InputError(
-            f"method {method!r} needs a LinearLaw, got {problem.law.describe()}: "
-            f"use method='nlp' or method='newton' for nonlinear laws"
-        )
+def formulation_plan(method: str, law, options: dict) -> list[tuple[str, dict, object]]:
+    """``[(formulation, its options, x0), ...]`` in the order ``method`` tries them, options checked.
+
+    One formulation, or for ``"auto"`` :data:`~dea_opt.formulations.DEFAULT` and then
+    :func:`~dea_opt.formulations.fallback_for` the law. Under ``auto`` each option goes to the
+    first of them that declares it (else to one that passes undeclared options on to its
+    solver), and ``x0`` to the first. An unknown or bad option is an :class:`InputError`
+    naming the accepted ones.
+    """
+    check_method(method, law)
+    options = dict(options)
+    x0 = options.pop("x0", None)
+    if method != "auto":
+        return [(method, formulations.check_options(method, options), x0)]
+    chain = [formulations.DEFAULT]
+    fallback = formulations.fallback_for(law)
+    if fallback is not None and fallback != chain[0]:
+        chain.append(fallback)
+    parts: dict = {name: {} for name in chain}
+    declared = {name: {option.name for option in formulations.options(name)} for name in chain}
+    for key, value in options.items():
+        home = next((n for n in chain if key in declared[n]), None)
+        home = home or next((n for n in chain if formulations.extra_options(n)), None)
+        if home is None:
+            accepted = sorted(set().union(*declared.values()) | {"x0"})
+            raise InputError(f"method 'auto' takes the options {accepted}, got unknown option {key!r}")
+        parts[home][key] = value
+    return [(name, formulations.check_options(name, parts[name]), x0 if i == 0 else None)
+            for i, name in enumerate(chain)]
+
+
+def _run(problem: ContactProblem, name: str, certificate_tol: float, options: dict, x0=None) -> Solution:
     start = time.perf_counter()
     system = problem.system()
     build = time.perf_counter() - start
-    _check_common_options(system, options)
-    result = _formulation_result(problem, system, method, module, options)
-    return certified_solution(problem, result, method, certificate_tol, build + result.build_time)
+    result = formulation_result(problem, system, name, lambda: formulations.build(name, system, problem.law,
+                                                                                    **options), x0=x0)
+    return certified_solution(problem, result, name, certificate_tol, build + result.build_time)
 
 
-def _formulation_result(problem: ContactProblem, system, method: str, module, options: dict):
-    """The raw answer of ``method``, or of no solver where none is needed."""
+def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=None, check_cone=None):
+    """The raw answer of formulation ``name``, or of no solver where none is needed.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+    system : SpringSystem
+        ``problem.system()``.
+    name : str
+        A registered formulation.
+    model : callable
+        Returns the formulation's model for ``system`` (called only when a solver runs, so a
+        load path can build it once and re-solve it).
+    x0 : ndarray, shape (m,), optional
+        The start (mm, rad).
+    check_cone : bool, optional
+        Run the cone test before the solver (default: the formulation's
+        ``Capabilities.checks_load_first``).
+    """
+    law = problem.law
     if system.n_dofs == 0:
         return formulations.FormulationResult(
-            x=np.zeros(0), stress=problem.law.stress(np.minimum(system.e0, 0.0)), success=True,
-            status="no_free_dofs", message="every dof is fixed or prescribed",
-        )
-    # Every method, Newton included: a load along a direction no spring resists is never
-    # "solved" (the same test as the scaling and the certificate).
+            u_free=np.zeros(0), stress=law.stress(np.minimum(system.e0, 0.0)), success=True,
+            status=Status.NO_FREE_DOFS, message="every dof is fixed or prescribed", info={"native_status": None})
+    # Every method: a load along a direction no spring resists is never "solved" (the same
+    # test as the scaling and the certificate).
     if system.load.any():
         _check_unresisted(problem, system)
-    trivial = trivial_result(system, problem.law)
+    trivial = trivial_result(system, law)
     if trivial is not None:
         return trivial
     if not system.load.any():
         # Overlapping springs with no load: they push the bodies apart until they no longer
         # touch (every separated position is then an equilibrium, an unbounded set for the
         # constrained formulations), or, where they surround a body, to the position where
-        # they balance. One answer is returned for every method: Newton's.
-        result = formulations.get("newton").solve(system, problem.law)
+        # they balance. One answer is returned for every method: the default formulation's.
+        default = formulations.DEFAULT
+        result = formulations.solve(default, system, law)
         if result.success:
-            result.status = "preloaded"
-            result.message = ("no load: only the initial overlap compresses springs; the bodies move until "
-                              "the springs balance each other (Newton's answer, for every method)")
-        result.info["solved_by"] = "newton"
+            result.status = Status.PRELOADED
+            result.message = (f"no load: only the initial overlap compresses springs; the bodies move until the "
+                              f"springs balance each other ({default}'s answer, for every method)")
+        result.info["solved_by"] = default
         return result
-    if method != "newton":
+    if check_cone is None:
+        check_cone = formulations.capabilities(name).checks_load_first
+    if check_cone:
         _check_cone(problem, system)
     try:
-        return module.solve(system, problem.law, **options)
+        return model().solve(system.load, x0=x0)
     except SolverError as exc:
-        # A solver that raised still yields a (failed) Solution, so that auto can fall
-        # back and strict=False can report it like any other failure.
-        return formulations.FormulationResult(
-            x=np.full(system.n_dofs, np.nan), stress=np.full(system.n_springs, np.nan), success=False,
-            status=exc.status or "solver_error", message=str(exc),
-        )
+        # A solver that raised still yields a (failed) answer, so that auto can fall back and
+        # strict=False and load paths can report it like any other failure.
+        return failed_result(system, exc)
 
 
-def _check_common_options(system, options: dict) -> None:
-    """The options every formulation shares, validated before anything is solved (also for
-    problems that need no solver, so that a bad option never passes silently)."""
-    check_options(**{k: v for k, v in options.items() if k in ("tol", "xtol", "gtol", "max_iter")})
-    start_vector(system, options.get("x0"))
+def _status(result) -> tuple[Status, object]:
+    """The result's :class:`Status` and the solver's own; a status outside the vocabulary (a
+    formulation of one's own) is a solver error that keeps its word as the native one."""
+    native = result.info.get("native_status", result.status)
+    try:
+        return Status(result.status), native
+    except ValueError:
+        return Status.SOLVER_ERROR, result.status
 
 
 def certified_solution(problem: ContactProblem, result, method: str, certificate_tol: float = 1e-6,
@@ -218,11 +272,16 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     """Turn a formulation's raw :class:`~dea_opt.formulations.FormulationResult` into a
     :class:`Solution` with dea_opt's own certificate (``success`` only if it passes).
 
-    Where some free directions are unresisted, ``info["held"]`` names them (they take no
-    motion and carry no load) and the message says so. For callers that drive the formulation
+    One status per situation, whichever method: a certified answer is
+    :attr:`Status.CONVERGED` (or the status of an answer that needed no solver) even where
+    the solver doubted it; an uncertified one whose springs reach ``eps = -1`` is
+    :attr:`Status.CRUSHED`, and one the solver claimed is :attr:`Status.INACCURATE`.
+    ``info["native_status"]`` and ``info["solver_success"]`` keep the solver's own word. Where
+    some free directions are unresisted, ``info["held"]`` names them (they take no motion
+    and carry no load) and the message says so. For callers that drive the formulation
     models themselves (load paths, studies).
     """
-    u = problem.full_u(result.x)
+    u = problem.full_u(result.u_free)
     n = len(problem.layer)
     finite = bool(np.isfinite(u).all())
     strain = problem.strain(u) if finite else np.full(n, np.nan)
@@ -234,17 +293,27 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
     else:
         certificate = certify(problem, np.zeros(12), np.full(n, np.nan), certificate_tol)
     success = bool(finite and certificate.passed and np.isfinite(pressure).all())
-    info, message = dict(result.info, solver_success=result.success), result.message
+    status, native = _status(result)
+    info, message = dict(result.info, solver_success=result.success, native_status=native), result.message
+    # The same situation, the same status from every method (formulations/energy.md, "Statuses").
+    if success and status not in CERTIFIABLE:
+        status = Status.CONVERGED  # certified although the solver doubted it (native_status says how)
+    elif not success and status != Status.CRUSHED and crushed(problem.law, strain):
+        status = Status.CRUSHED
+        message = f"{message}; {CRUSHED_MESSAGE.format(eps=float(np.nanmin(strain)))}"
+    elif not success and status in CERTIFIABLE:
+        status = Status.INACCURATE
+        message = f"{message}; the answer fails dea-opt's certificate"
     held = problem.system().resistance.describe(problem.free_names) if problem.free_indices.size else []
     if held:
         # Directions no spring resists carry no load (check_load_supported) and take no
         # motion: the answer is the minimum-norm one. Said, so that nobody reads u there.
         info["held"] = held
-        if result.status != "held":
+        if status != Status.HELD:
             message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
     return Solution(
         problem=problem, u=u, strain=strain, pressure=pressure, method=method, success=success,
-        status=result.status, message=message, iterations=result.iterations,
+        status=status, message=message, iterations=result.iterations,
         build_time=build_time, solve_time=result.solve_time,
         certificate=certificate, info=info,
     )
@@ -257,9 +326,11 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
     Parameters
     ----------
     problem : ContactProblem
-    method : {"auto", "newton", "qp", "nlp"}
-        ``"auto"`` runs Newton and, if its answer does not pass the certificate, the
-        constrained formulation that fits the law (``qp`` for a linear law, ``nlp``
+    method : str
+        ``"auto"`` or a registered formulation (:func:`dea_opt.formulations.names`: ``"newton"``,
+        ``"qp"``, ``"nlp"``). ``"auto"`` runs the default formulation (Newton) and, if its
+        answer does not pass the certificate, the formulation the registry picks for the
+        law (:func:`~dea_opt.formulations.fallback_for`: ``qp`` for a linear law, ``nlp``
         otherwise); ``solution.info["fallback"]`` says why.
     certificate_tol : float
         Bound on every residual of the :class:`~dea_opt.solution.Certificate`.
@@ -267,7 +338,8 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
         Raise :class:`SolverError` when the answer fails its certificate (default). With
         ``strict=False`` the uncertified solution is returned with ``success=False``.
     **options
-        Passed to the formulation (e.g. ``tol``, ``solver``, ``form``, ``x0``, ``max_iter``).
+        The formulation's options (:func:`dea_opt.formulations.options`, e.g. ``tol``,
+        ``solver``, ``form``, ``max_iter``) and ``x0``, the start on the free dofs.
 
     Returns
     -------
@@ -289,36 +361,32 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
 
 
 def _solve(problem, method, certificate_tol, strict, options) -> Solution:
-    if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}")
+    check_method(method)
     if not isinstance(certificate_tol, (int, float)) or not (0 < certificate_tol < 1) or math.isnan(certificate_tol):
         raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
-    _check_common_options(problem.system(), options)
+    plan = formulation_plan(method, problem.law, options)
+    start_vector(problem.system(), plan[0][2])
+    name, first_options, x0 = plan[0]
+    solution = _run(problem, name, certificate_tol, first_options, x0)
     if method == "auto":
-        newton_options = {k: v for k, v in options.items() if k in ("x0", "max_iter")}
-        solution = _run(problem, "newton", certificate_tol, newton_options)
-        if not solution.success:
+        if not solution.success and len(plan) > 1:
             _raise_if_unsupported(problem)
-            fallback = "qp" if problem.law.is_linear else "nlp"
-            reason = (f"newton ended with status {solution.status!r} and certificate residual "
+            fallback, fallback_options, _ = plan[1]
+            reason = (f"{name} ended with status {solution.status!r} and certificate residual "
                       f"{solution.certificate.worst()}")
-            fallback_options = {k: v for k, v in options.items() if k not in ("x0", "max_iter")}
             solution = _run(problem, fallback, certificate_tol, fallback_options)
             solution.info["fallback"] = reason
         solution.info.setdefault("fallback", None)
         solution.info["requested"] = "auto"
-    else:
-        solution = _run(problem, method, certificate_tol, options)
-        if not solution.success and method == "newton":
-            _raise_if_unsupported(problem)
+    elif not solution.success and not formulations.capabilities(name).checks_load_first:
+        _raise_if_unsupported(problem)
     if not solution.success and strict:
-        name, value = solution.certificate.worst()
+        worst, value = solution.certificate.worst()
         raise SolverError(
             f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
-            f"certificate residual {name} = {value:.3g} > {certificate_tol:g}. Try method='auto', a tighter "
+            f"certificate residual {worst} = {value:.3g} > {certificate_tol:g}. Try method='auto', a tighter "
             f"solver tolerance, or check the problem for loads no spring resists.",
-            status=solution.status,
-            solution=solution,
+            status=solution.status, solution=solution, native_status=solution.info.get("native_status"),
         )
     if solution.success:
         _warn_validity(solution)
@@ -330,12 +398,12 @@ def _raise_if_unsupported(problem: ContactProblem) -> None:
         check_load_supported(problem)
 
 
-def compare(problem: ContactProblem, methods=("qp", "nlp", "newton"), *, certificate_tol: float = 1e-6,
-            **options) -> dict:
+def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1e-6, **options) -> dict:
     """Solve with several methods and measure their largest disagreement.
 
-    Methods that do not apply (``qp`` for a nonlinear law) are skipped. ``options`` may
-    map a method name to its own options, e.g. ``compare(p, qp={"tol": 1e-10})``.
+    ``methods`` defaults to every registered formulation; those that do not take the law
+    (``qp`` for a nonlinear law) are skipped. ``options`` may map a method name to its own
+    options, e.g. ``compare(p, qp={"tol": 1e-10})``.
 
     Returns
     -------
@@ -345,12 +413,12 @@ def compare(problem: ContactProblem, methods=("qp", "nlp", "newton"), *, certifi
         to ``max |u|`` and of pressure relative to the peak pressure.
     """
     solutions, skipped = {}, {}
-    for method in methods:
-        if method not in METHODS or method == "auto":
-            raise InputError(f"methods must be taken from {METHODS[1:]}, got {method!r}")
-        module = formulations.get(method)
-        if module.LINEAR_ONLY and not problem.law.is_linear:
-            skipped[method] = f"{method} needs a linear law"
+    for method in formulations.names() if methods is None else methods:
+        if method == "auto" or method not in formulations.names():
+            raise InputError(f"methods must be taken from {formulations.names()}, got {method!r}")
+        reason = formulations.why_not(method, problem.law)
+        if reason is not None:
+            skipped[method] = reason
             continue
         solutions[method] = solve(problem, method, certificate_tol=certificate_tol, **options.get(method, {}))
     du = dp = 0.0

@@ -31,9 +31,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import formulations
 from .errors import DeaError, InputError
+from .status import Status
 
-__all__ = ["ACCURACY", "Accuracy", "StudyResult", "run_study", "shifted_geometric_mean", "installed_qp_solvers"]
+__all__ = ["ACCURACY", "Accuracy", "StudyResult", "installed_qp_solvers", "run_study", "shifted_geometric_mean"]
 
 
 @dataclass(frozen=True)
@@ -50,7 +52,6 @@ ACCURACY = {
     "default": Accuracy("default", None, 1e-6),
     "high": Accuracy("high", 1e-10, 1e-9),
 }
-METHOD_SOLVER = {"newton": "-", "nlp": "IPOPT"}
 #: The QP solvers compared by default (those cvxpy has installed are used).
 DEFAULT_SOLVERS = ("CLARABEL", "OSQP", "SCS", "PIQP")
 SHIFT = 0.010  # s, qpbenchmark's shift of the geometric mean
@@ -64,56 +65,78 @@ def installed_qp_solvers() -> list[str]:
     return sorted(cp.installed_solvers())
 
 
-def _check_names(methods, solvers, accuracy):
-    from .formulations import FORMULATIONS
+def _variant_option(method):
+    """The :class:`~dea_opt.formulations.Option` a study varies for ``method``, or None."""
+    variant = formulations.variant(method)
+    if variant is None:
+        return None
+    return next(option for option in formulations.options(method) if option.name == variant.option)
 
+
+def _check_names(methods, solvers, accuracy):
+    names = formulations.names()
     methods = [m.strip().lower() for m in methods]
-    bad = [m for m in methods if m not in FORMULATIONS]
+    bad = [m for m in methods if m not in names]
     if bad or not methods:
-        raise InputError(f"methods must be taken from {', '.join(FORMULATIONS)}, got {', '.join(bad) or 'none'}")
+        raise InputError(f"methods must be taken from {', '.join(names)}, got {', '.join(bad) or 'none'}")
     bad = [a for a in accuracy if a not in ACCURACY]
     if bad or not accuracy:
         raise InputError(f"accuracy must be taken from {', '.join(ACCURACY)}, got {', '.join(bad) or 'none'}")
     solvers = [s.strip().upper() for s in solvers]
-    if "qp" in methods:
+    by_solver = [m for m in methods if (option := _variant_option(m)) is not None and option.name == "solver"]
+    if by_solver:
         installed = installed_qp_solvers()
+        if tuple(solvers) == DEFAULT_SOLVERS:
+            solvers = [s for s in DEFAULT_SOLVERS if s in installed]
         bad = [s for s in solvers if s not in installed]
         if bad:
             raise InputError(f"solver {', '.join(bad)} is not available to cvxpy here; installed QP solvers: "
                              f"{', '.join(installed)} (pip install dea-opt[solvers] adds OSQP, SCS and PIQP)")
         if not solvers:
-            raise InputError("solvers is empty: name at least one QP solver for method qp")
+            raise InputError(f"solvers is empty: name at least one QP solver for method {by_solver[0]}")
     return methods, solvers, list(accuracy)
 
 
-#: The ``solver`` label of each NLP form in a study's table.
-NLP_FORMS = {"constrained": "IPOPT", "reduced": "IPOPT-reduced"}
+def _check_forms(methods, nlp_forms) -> list:
+    """``nlp_forms`` checked against the ``form`` option of the methods a study varies by it."""
+    for method in methods:
+        option = _variant_option(method)
+        if option is not None and option.name == "form":
+            bad = [f for f in nlp_forms if f not in option.accepted()]
+            if bad or not nlp_forms:
+                raise InputError(f"nlp_forms must be taken from {', '.join(option.accepted())}, got "
+                                 f"{', '.join(map(str, bad)) or 'none'}")
+    return list(nlp_forms)
 
 
-def _cases(methods, solvers, accuracy, repeat, law, nlp_forms=("IPOPT",)):
+def _variants(method, solvers, forms) -> list[tuple[str, dict]]:
+    """``(label, options)`` for each row of ``method``: one per value of the option a study
+    varies for it (``solvers`` for a ``solver`` option, ``forms`` for a ``form`` option)."""
+    option, variant = _variant_option(method), formulations.variant(method)
+    if option is None or variant is None:
+        return [("-", {})]
+    values = {"solver": solvers, "form": forms}.get(option.name, [option.default])
+    return [(variant.label(value), {option.name: value}) for value in values]
+
+
+def _cases(methods, solvers, accuracy, repeat, law, forms=("constrained",)):
     skipped = []
     cases = []
     for acc in accuracy:
         for method in methods:
-            if method == "qp" and not law.is_linear:
-                if "qp needs a linear law" not in skipped:
-                    skipped.append("qp needs a linear law")
+            reason = formulations.why_not(method, law)
+            if reason is not None:
+                if reason not in skipped:
+                    skipped.append(reason)
                 continue
-            choices = solvers if method == "qp" else nlp_forms if method == "nlp" else [METHOD_SOLVER[method]]
-            for solver in choices:
+            for label, options in _variants(method, solvers, forms):
                 for r in range(repeat):
-                    cases.append((ACCURACY[acc], method, solver, r))
+                    cases.append((ACCURACY[acc], method, label, options, r))
     return cases, skipped
 
 
-def _options(method, solver, accuracy: Accuracy) -> dict:
-    tol = accuracy.solver_tol
-    if method == "qp":
-        return {"solver": solver} | ({"tol": tol} if tol is not None else {})
-    if method == "nlp":
-        form = {label: name for name, label in NLP_FORMS.items()}[solver]
-        return {"form": form} | ({"tol": tol} if tol is not None else {})
-    return {"gtol": tol, "xtol": tol} if tol is not None else {}
+def _options(method, variant_options: dict, accuracy: Accuracy) -> dict:
+    return {**variant_options, **formulations.tolerance_options(method, accuracy.solver_tol)}
 
 
 def _difference(solution, reference) -> tuple[float, float]:
@@ -124,7 +147,7 @@ def _difference(solution, reference) -> tuple[float, float]:
     return dp, du
 
 
-def _run_one(problem, accuracy, method, solver, repeat, reference) -> dict:
+def _run_one(problem, accuracy, method, solver, variant_options, repeat, reference) -> dict:
     from .solver import solve
 
     row = {"accuracy": accuracy.name, "method": method, "solver": solver, "repeat": repeat,
@@ -136,11 +159,12 @@ def _run_one(problem, accuracy, method, solver, repeat, reference) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # validity warnings belong to the problem, not to the solver
             solution = solve(problem, method, certificate_tol=accuracy.check_tol, strict=False,
-                             **_options(method, solver, accuracy))
+                             **_options(method, variant_options, accuracy))
     except DeaError as exc:
         elapsed = time.perf_counter() - start
         return row | {"success": False, "solver_success": False, "certified": False, "agrees": False,
-                      "status": "error", "message": str(exc).splitlines()[0][:200], "total_time": elapsed}
+                      "status": Status.of_error(exc), "message": str(exc).splitlines()[0][:200],
+                      "total_time": elapsed}
     certificate = solution.certificate
     dp, du = _difference(solution, reference)
     agrees = bool(max(dp, du) <= accuracy.check_tol) if reference is not None else float("nan")
@@ -164,12 +188,12 @@ def _run_one(problem, accuracy, method, solver, repeat, reference) -> dict:
 
 def _verdict(solution, agrees, accuracy, dp, du) -> str:
     if not solution.info.get("solver_success", True):
-        return f"solver reports {solution.status}"
+        return f"solver reports {solution.info.get('native_status') or solution.status}"
     if not solution.certificate.passed:
         name, value = solution.certificate.worst()
         return f"inaccurate: {name} {value:.1e} > {accuracy.check_tol:g}"
     if agrees is False:
-        return f"disagrees with Newton: {max(dp, du):.1e} > {accuracy.check_tol:g}"
+        return f"disagrees with the reference ({formulations.DEFAULT}): {max(dp, du):.1e} > {accuracy.check_tol:g}"
     return "ok"
 
 
@@ -194,7 +218,7 @@ class StudyResult:
         ``shifted_gm_time`` (s), ``relative_time`` (1 = fastest at that accuracy),
         ``worst_residual``, ``max_d_pressure``.
     reference : Solution or None
-        The Newton solution differences are measured against.
+        The default formulation's (Newton's) solution differences are measured against.
     skipped : list of str
         Combinations that do not apply (qp with a nonlinear law).
     """
@@ -250,7 +274,7 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
     return summary
 
 
-def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS, accuracy=("default",),
+def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default",),
               repeat: int = 1, *, nlp_forms=("constrained",), time_limit: float = TIME_LIMIT,
               progress: bool = False) -> StudyResult:
     """Solve ``problem`` with every method x solver x accuracy setting, ``repeat`` times each.
@@ -258,16 +282,19 @@ def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS,
     Parameters
     ----------
     problem : ContactProblem
-    methods : sequence of {"newton", "qp", "nlp"}
+    methods : sequence of str, optional
+        Registered formulations (default all: :func:`dea_opt.formulations.names`).
     solvers : sequence of str
-        QP solvers for ``qp`` (cvxpy names). The default list is cut to the installed ones;
-        a solver named explicitly that is not installed is an :class:`InputError`.
+        QP solvers for the formulations a study varies by their ``solver`` option (``qp``;
+        cvxpy names). The default list is cut to the installed ones; a solver named
+        explicitly that is not installed is an :class:`InputError`.
     accuracy : sequence of {"low", "default", "high"}
         See :data:`ACCURACY`.
     repeat : int
         Runs per combination (for timing).
     nlp_forms : sequence of {"constrained", "reduced"}
-        The NLP forms to run; each is a row labelled ``IPOPT`` or ``IPOPT-reduced``.
+        The forms to run of the formulations a study varies by their ``form`` option (``nlp``);
+        each is a row labelled by the formulation's variant (``IPOPT`` or ``IPOPT-reduced``).
     time_limit : float
         Time (s) a failed run counts as in the summary.
     progress : bool
@@ -297,25 +324,20 @@ def run_study(problem, methods=("newton", "qp", "nlp"), solvers=DEFAULT_SOLVERS,
 
     if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
         raise InputError(f"repeat must be a positive integer, got {repeat!r}")
-    if tuple(solvers) == DEFAULT_SOLVERS:
-        installed = installed_qp_solvers()
-        solvers = [s for s in DEFAULT_SOLVERS if s in installed]
+    methods = formulations.names() if methods is None else methods
     methods, solvers, accuracy = _check_names(methods, solvers, accuracy)
     check_load_supported(problem)
     import warnings
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        reference = solve(problem, "newton", strict=False)
+        reference = solve(problem, formulations.DEFAULT, strict=False)
     reference = reference if reference.success else None
-    bad = [f for f in nlp_forms if f not in NLP_FORMS]
-    if bad or not nlp_forms:
-        raise InputError(f"nlp_forms must be taken from {', '.join(NLP_FORMS)}, got {', '.join(map(str, bad)) or 'none'}")
-    forms = [NLP_FORMS[f] for f in nlp_forms]
+    forms = _check_forms(methods, nlp_forms)
     cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms)
     rows = []
-    for acc, method, solver, r in tqdm(cases, desc="compare", unit="run", disable=None if progress else True,
-                                       leave=False):
-        rows.append(_run_one(problem, acc, method, solver, r, reference))
+    for acc, method, label, options, r in tqdm(cases, desc="compare", unit="run", leave=False,
+                                                 disable=None if progress else True):
+        rows.append(_run_one(problem, acc, method, label, options, r, reference))
     table = pd.DataFrame(rows)
     return StudyResult(table=table, summary=summarize(table, time_limit), reference=reference, skipped=skipped)

@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 import dea_opt as d
+from dea_opt import formulations
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 
 #: The methods every test is parametrized over.
@@ -21,7 +22,15 @@ KNEE = SHARED / "data" / "knee"
 
 
 def applies(method, law) -> bool:
-    return method != "qp" or law.is_linear
+    """Whether ``method`` takes ``law``, as the registry's capabilities say (``auto`` takes any)."""
+    return method == "auto" or formulations.takes(method, law)
+
+
+def method_law_pairs(methods, laws) -> list:
+    """``pytest.param(method, law)`` for the pairs the capabilities allow, and only those (no
+    run-time skips for pairs that do not apply)."""
+    return [pytest.param(method, law, id=f"{getattr(law, 'name', type(law).__name__)}-{method}")
+            for law in laws for method in methods if applies(method, law)]
 
 
 def solve_quietly(problem, method, **options):

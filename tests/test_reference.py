@@ -110,12 +110,10 @@ def _quadrature(force, law):
     return approach, -law.stress(np.array([-approach / H_BED]))[0]
 
 
-@pytest.mark.parametrize("method", METHODS)
-@pytest.mark.parametrize("name", list(BED_LAWS))
+@pytest.mark.parametrize("name, method", [(name, m) for name, law in BED_LAWS.items() for m in METHODS
+                                          if applies(m, law)])
 def test_sphere_on_bed(name, method):
     law = BED_LAWS[name]
-    if not applies(method, law):
-        pytest.skip("qp needs a linear law")
     s = solution(f"bed-{name}", method)
     approach = -s.u[8]
     if law.is_linear:

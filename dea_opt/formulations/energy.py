@@ -9,22 +9,27 @@ The reduced problem over the ``m`` free degrees of freedom ``x`` (``formulations
 the strain at ``x = 0`` (gap and prescribed motion). Spring stress is ``sigma_i`` (MPa,
 tension positive); the spring force is ``S_i sigma_i``.
 
+Names in the code: the page's ``x`` is ``u_free`` (the free entries of the 12-vector ``u``,
+mm and rad; ``Solution.x`` is scipy's alias of ``u``), its scaled form ``xi``; ``eps`` is a
+strain array, ``strain_scale`` and ``energy_scale`` the sizes of :class:`Scaling`; ``energy``
+alone is a law's energy density ``w``.
+
 Also here: the one test of "no spring resists this direction" (:func:`unresisted`,
 :func:`resistance`), the guards every formulation runs before compiled code
-(:func:`require_finite`, :func:`check_options`, :func:`start_vector`) and the answers that need
-no solver (:func:`trivial_result`).
+(:func:`require_finite`, :func:`start_vector`), the answers that need no solver
+(:func:`trivial_result`) and the one test of a crushed layer (:func:`crushed`).
 """
 
 from __future__ import annotations
 
 import contextlib
-import math
 from dataclasses import dataclass, field
 from functools import cached_property, lru_cache
 
 import numpy as np
 
 from ..errors import InputError, SolverError
+from ..status import Status
 
 
 @dataclass(frozen=True, eq=False)
@@ -83,8 +88,9 @@ class SpringSystem:
     def n_dofs(self) -> int:
         return self.AT.shape[0]
 
-    def strain(self, x) -> np.ndarray:
-        return self.e0 + np.asarray(x, dtype=float) @ self.AT
+    def strain_at(self, u_free) -> np.ndarray:
+        """``eps = e0 + A u_free``, shape (N,), for a free-dof motion ``u_free`` (mm, rad)."""
+        return self.e0 + np.asarray(u_free, dtype=float) @ self.AT
 
     def with_load(self, load) -> SpringSystem:
         new = SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
@@ -103,14 +109,26 @@ class SpringSystem:
 class FormulationResult:
     """A formulation's raw answer, before dea_opt certifies it.
 
-    ``stress`` is the spring stress as the formulation itself sees it (from the duals for
-    the constrained formulations), so that the certificate can compare it with the law.
+    Attributes
+    ----------
+    u_free : ndarray, shape (m,)
+        The motion of the free dofs (mm, rad): ``x`` of ``formulations/energy.md``.
+    stress : ndarray, shape (N,)
+        The spring stress as the formulation itself sees it (MPa, from the duals for the
+        constrained formulations), so that the certificate can compare it with the law.
+    success : bool
+        The solver's own claim (the certificate decides ``Solution.success``).
+    status : Status
+        The solver's status in dea-opt's vocabulary; ``info["native_status"]`` keeps the
+        solver's own.
+    build_time : float
+        Seconds spent building the model, on its first solve only (0 on re-solves).
     """
 
-    x: np.ndarray
+    u_free: np.ndarray
     stress: np.ndarray
     success: bool
-    status: str
+    status: Status
     message: str = ""
     iterations: int = 0
     build_time: float = 0.0
@@ -122,12 +140,14 @@ class FormulationResult:
 class Scaling:
     """A change of variables that makes every formulation see a well-conditioned problem.
 
-    ``x = T xi`` with ``T = Q Lambda^(-1/2) s`` from the bonded stiffness
-    ``K0 = A^T diag(V H) A = Q Lambda Q^T`` (``formulations/energy.md``, "Scaling"):
-    directions no spring resists (:func:`resistance`) are dropped, the remaining ones are
-    made K0-orthonormal (so units, lever arms and far reference points no longer matter), and
+    ``u_free = T xi`` with ``T = T1 s`` and ``T1 = D^-1 Rk Sigma_k^-1 / sqrt(H)`` from the
+    singular value decomposition of the factor ``W = U Sigma R^T`` of the bonded stiffness
+    (:func:`resistance`; never an eigendecomposition of ``K0 = A^T diag(V H) A``, which would
+    square its condition number), so that ``T1^T K0 T1 = I`` (``formulations/energy.md``,
+    "Scaling"): directions no spring resists are dropped, the remaining ones are made
+    K0-orthonormal (so units, lever arms and far reference points no longer matter), and
     ``s`` makes ``xi = O(1)`` for the larger of the reference load and the overlap. Energies
-    are divided by ``E0 = s^2`` and strains are of order ``strain``.
+    are divided by ``E0 = s^2`` and strain variables by ``s0``.
 
     Attributes
     ----------
@@ -135,18 +155,19 @@ class Scaling:
     AT : ndarray, shape (k, N)
         ``T^T A^T``: the strain per unit ``xi``.
     volume : ndarray, shape (N,)
-        ``V / E0``.
-    energy : float
-        ``E0``.
-    strain : float
-        A typical strain magnitude of the reference load (for scaling strain variables).
+        ``V / E0`` (mm^3 per energy unit).
+    energy_scale : float
+        ``E0 = s^2`` (N mm).
+    strain_scale : float
+        ``s0 = s / sqrt(sum_i V_i H)``: a typical strain of the reference load (for scaling
+        strain variables).
     """
 
     T: np.ndarray
     AT: np.ndarray
     volume: np.ndarray
-    energy: float
-    strain: float
+    energy_scale: float
+    strain_scale: float
 
     @property
     def n_dofs(self) -> int:
@@ -154,14 +175,15 @@ class Scaling:
 
     def load(self, r) -> np.ndarray:
         """The scaled load ``T^T r / E0`` for a load ``r`` on the free dofs."""
-        return self.T.T @ np.asarray(r, dtype=float) / self.energy
+        return self.T.T @ np.asarray(r, dtype=float) / self.energy_scale
 
-    def to_x(self, xi) -> np.ndarray:
+    def to_u_free(self, xi) -> np.ndarray:
+        """The free-dof motion ``T xi`` (mm, rad)."""
         return self.T @ np.asarray(xi, dtype=float)
 
-    def to_xi(self, x) -> np.ndarray:
-        """Least-squares ``xi`` for a free-dof vector ``x`` (its resisted part)."""
-        return np.linalg.lstsq(self.T, np.asarray(x, dtype=float), rcond=None)[0]
+    def to_xi(self, u_free) -> np.ndarray:
+        """Least-squares ``xi`` for a free-dof motion ``u_free`` (its resisted part)."""
+        return np.linalg.lstsq(self.T, np.asarray(u_free, dtype=float), rcond=None)[0]
 
     def system(self, e0, load) -> SpringSystem:
         """The scaled system, for a formulation that knows nothing of the scaling."""
@@ -198,14 +220,14 @@ def unresisted(stiffness, scale: float) -> np.ndarray:
 
 
 def require_finite(what: str, *arrays) -> None:
-    """Raise :class:`SolverError` (status ``non_finite``) before compiled code (LAPACK,
-    NNLS, Clarabel, IPOPT) meets a NaN or an infinity, which some of them answer by
+    """Raise :class:`SolverError` (status :attr:`Status.NON_FINITE`) before compiled code
+    (LAPACK, NNLS, Clarabel, IPOPT) meets a NaN or an infinity, which some of them answer by
     aborting the process rather than by an error."""
     for arr in arrays:
         if not np.isfinite(arr).all():
             raise SolverError(
                 f"{what} holds NaN or infinite values (an input near the limits of float64?); "
-                f"nothing was passed to the solver", status="non_finite")
+                f"nothing was passed to the solver", status=Status.NON_FINITE)
 
 
 @dataclass(frozen=True, eq=False)
@@ -267,10 +289,10 @@ class Resistance:
         rD = rD / top  # scaled first, so that neither square under- nor overflows
         return float(np.linalg.norm(self.null.T @ rD) / np.linalg.norm(rD))
 
-    def motion_part(self, x) -> np.ndarray:
-        """The part of the free-dof motion ``x`` (mm, rad) along unresisted directions."""
+    def motion_part(self, u_free) -> np.ndarray:
+        """The part of the free-dof motion ``u_free`` (mm, rad) along unresisted directions."""
         D = self.lengths
-        return (self.null @ (self.null.T @ (np.asarray(x, dtype=float) * D))) / D
+        return (self.null @ (self.null.T @ (np.asarray(u_free, dtype=float) * D))) / D
 
     def describe(self, names) -> list[str]:
         """The unresisted directions in words: each free dof that lies wholly among them by its
@@ -350,8 +372,8 @@ def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scalin
         s = 1.0
     T = T1 * s
     total = float(stiffness.sum())
-    strain = s / np.sqrt(total) if total > 0 else 1.0
-    return Scaling(T=T, AT=np.ascontiguousarray(T.T @ AT), volume=V / s**2, energy=s**2, strain=strain)
+    s0 = s / np.sqrt(total) if total > 0 else 1.0
+    return Scaling(T=T, AT=np.ascontiguousarray(T.T @ AT), volume=V / s**2, energy_scale=s**2, strain_scale=s0)
 
 
 def _norm(v) -> float:
@@ -364,11 +386,12 @@ def _norm(v) -> float:
 def trivial_result(system: SpringSystem, law, load=None) -> FormulationResult | None:
     """The answer without a solver, or ``None`` when a solver is needed.
 
-    * ``held``: no free direction is resisted (:class:`Resistance`), and so none can carry a
-      load (:func:`dea_opt.check_load_supported` rejects one): every free dof is held at zero
-      motion, the minimum-norm answer, and the springs keep the strain of the gap and the
+    * :attr:`Status.HELD`: no free direction is resisted (:class:`Resistance`), and so none can
+      carry a load (:func:`dea_opt.check_load_supported` rejects one): every free dof is held at
+      zero motion, the minimum-norm answer, and the springs keep the strain of the gap and the
       prescribed motion;
-    * ``unloaded``: no load and no overlap: nothing moves and no spring carries anything.
+    * :attr:`Status.UNLOADED`: no load and no overlap: nothing moves and no spring carries
+      anything.
 
     Each formulation asks this first, so that no compiled solver sees an empty problem.
     """
@@ -378,28 +401,42 @@ def trivial_result(system: SpringSystem, law, load=None) -> FormulationResult | 
         with np.errstate(invalid="ignore", over="ignore"):
             stress = law.stress(np.minimum(system.e0, 0.0))
         return FormulationResult(
-            x=np.zeros(m), stress=stress, success=True, status="held",
+            u_free=np.zeros(m), stress=stress, success=True, status=Status.HELD,
             message="no spring resists any free dof: every free dof is held at zero motion "
-                    "(the minimum-norm answer)")
+                    "(the minimum-norm answer)", info={"native_status": None})
     if not load.any() and system.e0.min(initial=0.0) >= 0:
         return FormulationResult(
-            x=np.zeros(m), stress=np.zeros(n), success=True, status="unloaded",
-            message="no load and no overlap: nothing to carry")
+            u_free=np.zeros(m), stress=np.zeros(n), success=True, status=Status.UNLOADED,
+            message="no load and no overlap: nothing to carry", info={"native_status": None})
     return None
 
 
-def check_options(**options) -> None:
-    """Validate the numeric options the formulations share, before any solver sees them:
-    tolerances (``tol``, ``xtol``, ``gtol``) are numbers in (0, 1), iteration limits
-    (``max_iter``) integers >= 1. Raises :class:`InputError` naming the option."""
-    for name, value in options.items():
-        if name == "max_iter":
-            if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < 1:
-                raise InputError(f"max_iter must be an integer >= 1, got {value!r}")
-            continue
-        number = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
-        if not (number and math.isfinite(value) and 0 < value < 1):
-            raise InputError(f"{name} must be a number in (0, 1), got {value!r}")
+def failed_result(system: SpringSystem, exc: SolverError) -> FormulationResult:
+    """A failed answer (NaN motion and stress) for a solver that raised ``exc``, so that
+    ``auto`` can fall back and ``strict=False`` and load paths can report it like any other."""
+    status = Status(exc.status) if exc.status else Status.SOLVER_ERROR
+    return FormulationResult(
+        u_free=np.full(system.n_dofs, np.nan), stress=np.full(system.n_springs, np.nan), success=False,
+        status=status, message=str(exc), info={"native_status": exc.native_status or exc.status})
+
+
+#: A failed solve whose most compressed spring is within this of ``eps = -1`` ran into a
+#: bounded law's crushing (formulations/energy.md, "Statuses").
+CRUSH_WINDOW = 1e-4
+
+
+def crushed(law, eps) -> bool:
+    """Whether a failed solve ended with springs crushed through their thickness: a law
+    defined only for ``eps > -1`` whose most compressed spring is within
+    :data:`CRUSH_WINDOW` of -1. The one test every formulation uses for
+    :attr:`Status.CRUSHED`."""
+    eps = np.asarray(eps, dtype=float)
+    eps = eps[np.isfinite(eps)]
+    return bool(law.bounded_strain and eps.size and eps.min() < -1 + CRUSH_WINDOW)
+
+
+CRUSHED_MESSAGE = ("springs reach eps = {eps:.6f}, crushed through their thickness before the load is carried: "
+                   "the load is beyond what this layer can bear")
 
 
 def start_vector(system: SpringSystem, x0) -> np.ndarray | None:
@@ -408,14 +445,14 @@ def start_vector(system: SpringSystem, x0) -> np.ndarray | None:
     if x0 is None:
         return None
     try:
-        x = np.array(x0, dtype=float)
+        start = np.array(x0, dtype=float)
     except (TypeError, ValueError):
         raise InputError(f"x0 must be numeric with one value per free dof ({system.n_dofs}), got {x0!r}") from None
-    if x.shape != (system.n_dofs,):
-        raise InputError(f"x0 must have shape ({system.n_dofs},), one value per free dof, got shape {x.shape}")
-    if not np.isfinite(x).all():
-        raise InputError(f"x0 must be finite, got {x.tolist()}")
-    return x
+    if start.shape != (system.n_dofs,):
+        raise InputError(f"x0 must have shape ({system.n_dofs},), one value per free dof, got shape {start.shape}")
+    if not np.isfinite(start).all():
+        raise InputError(f"x0 must be finite, got {start.tolist()}")
+    return start
 
 
 @lru_cache(maxsize=1)

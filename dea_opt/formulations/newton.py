@@ -18,11 +18,14 @@ import time
 
 import numpy as np
 
+from ..status import Status
+from ._options import Capabilities, Option, validate
 from .energy import (
+    CRUSHED_MESSAGE,
     UNRESISTED,
     FormulationResult,
     SpringSystem,
-    check_options,
+    crushed,
     require_finite,
     scaling,
     single_threaded_blas,
@@ -32,7 +35,6 @@ from .energy import (
 )
 
 PAGE = "formulations/newton.md"
-LINEAR_ONLY = False
 
 _WOLFE_DECREASE = 1e-4  # accept phi'(a) <= -this |phi'(0)| ...
 _WOLFE_CURVATURE = 0.9  # ... and >= -this |phi'(0)|
@@ -83,8 +85,8 @@ class _Line:
         self.law, self.V, self.eps, self.Ad = law, V, eps, Ad
         self.rd = float(r @ d)
 
-    def energy(self, alpha) -> float:
-        """``Phi(x + a d) - Phi(x)`` up to the constant ``-r . x`` (one pass)."""
+    def phi(self, alpha) -> float:
+        """``phi(a) = Phi(x + a d)`` up to a constant (one pass)."""
         with np.errstate(over="ignore", invalid="ignore"):
             w = self.law.energy(np.minimum(self.eps + alpha * self.Ad, 0.0))
         value = float(self.V @ w) - alpha * self.rd
@@ -113,7 +115,7 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     if value > upper_ok and np.isfinite(value) and value <= abs(slope0):
         # A slight overshoot of the full Newton step: accept it on Armijo's condition,
         # checked with energies while they still resolve the decrease.
-        if line.energy(1.0) - line.energy(0.0) <= _WOLFE_DECREASE * slope0:
+        if line.phi(1.0) - line.phi(0.0) <= _WOLFE_DECREASE * slope0:
             return 1.0, trial, 3
     lo, hi = 0.0, None
     alpha = 1.0
@@ -136,36 +138,85 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     return None, None, max_evaluations
 
 
-def solve(system: SpringSystem, law, *, x0=None, xtol: float = 1e-12, gtol: float = 1e-12, max_iter: int = 100,
-          extended_start: bool = True) -> FormulationResult:
-    """Minimize ``Phi`` by a damped semismooth Newton method with an active set.
+#: The options of :class:`NewtonModel` (checked by :func:`~dea_opt.formulations._options.validate`).
+OPTIONS = (
+    Option("xtol", float, 1e-12, "relative step of Eq. (20) that counts as converged once the contact set is "
+           "unchanged (the paper uses 1e-6)", range=(0, 1), tolerance=True, build=False),
+    Option("gtol", float, 1e-12, "equilibrium residual, the gradient over max(load, spring force, 1) in the scaled "
+           "variables, that counts as converged", range=(0, 1), tolerance=True, build=False),
+    Option("max_iter", int, 100, "iteration limit", range=(1, None), build=False),
+    Option("extended_start", bool, True, "treat every spring as active, tension included, in the first iteration "
+           "of a cold start (the paper's extended range)", build=False),
+)
+CAPABILITIES = Capabilities(laws="any", warm_start=True, duals=False, checks_load_first=False)
+EXTRA_OPTIONS = None
+VARIANT = None
+
+#: Newton's own statuses, as dea-opt's vocabulary (formulations/newton.md, "Statuses").
+NATIVE_STATUS = {
+    "converged": Status.CONVERGED,
+    "max_iter": Status.MAX_ITERATIONS,
+    "nan": Status.NON_FINITE,
+    "stalled": Status.STALLED,
+    "line_search": Status.LINE_SEARCH_FAILED,
+    "crushed": Status.CRUSHED,
+}
+
+
+class NewtonModel:
+    """Newton's method for one spring system: nothing to build, re-solvable for new loads.
+
+    Parameters
+    ----------
+    system : SpringSystem
+    law : Law
+    **options
+        :data:`OPTIONS`: ``xtol``, ``gtol``, ``max_iter``, ``extended_start``.
+
+    ``solve(load, x0=None)`` starts from ``x0`` or, without one, from the last answer this model
+    converged to (a warm start: a load path's previous frame), else cold (Eq. 19).
+    """
+
+    def __init__(self, system: SpringSystem, law, **options):
+        self.system, self.law = system, law
+        self.options = validate("newton", OPTIONS, options)
+        self.build_time = 0.0
+        self._last: np.ndarray | None = None
+
+    def solve(self, load=None, *, x0=None) -> FormulationResult:
+        system = self.system if load is None else self.system.with_load(load)
+        start = start_vector(system, x0)
+        if start is None:
+            start = self._last
+        require_finite("the load", system.load)
+        trivial = trivial_result(system, self.law)
+        if trivial is not None:
+            return trivial
+        with single_threaded_blas():
+            result = _solve(system, self.law, x0=start, **self.options)
+        if result.success:
+            self._last = result.u_free
+        return result
+
+
+Model = NewtonModel
+
+
+def solve(system: SpringSystem, law, *, x0=None, **options) -> FormulationResult:
+    """Minimize ``Phi`` by a damped semismooth Newton method with an active set, once.
 
     Parameters
     ----------
     system : SpringSystem
     law : Law
     x0 : ndarray, shape (m,), optional
-        Warm start (e.g. the previous frame of a load path); default zeros (Eq. 19).
-    xtol : float
-        Relative step of Eq. (20) that counts as converged once the contact set is
-        unchanged (the paper uses 1e-6; default 1e-12).
-    gtol : float
-        Equilibrium residual ``|g| / max(|r|, |A^T V sigma|, 1)`` that counts as converged, in
-        the scaled variables, where the larger of the load and the overlap has size 1
-        (:func:`~dea_opt.formulations.energy.scaling`; default 1e-12).
-    max_iter : int
-        Default 100.
-    extended_start : bool
-        Treat every spring as active, tension included, in the first iteration (default).
+        Start (e.g. the previous frame of a load path; mm, rad); default cold (Eq. 19).
+    **options
+        :data:`OPTIONS`: ``xtol`` (default 1e-12), ``gtol`` (1e-12, in the scaled variables,
+        where the larger of the load and the overlap has size 1:
+        :func:`~dea_opt.formulations.energy.scaling`), ``max_iter`` (100), ``extended_start``.
     """
-    check_options(xtol=xtol, gtol=gtol, max_iter=max_iter)
-    x0 = start_vector(system, x0)
-    require_finite("the load", system.load)
-    trivial = trivial_result(system, law)
-    if trivial is not None:
-        return trivial
-    with single_threaded_blas():
-        return _solve(system, law, x0=x0, xtol=xtol, gtol=gtol, max_iter=max_iter, extended_start=extended_start)
+    return NewtonModel(system, law, **options).solve(x0=x0)
 
 
 def _solve(
@@ -242,12 +293,8 @@ def _solve(
         alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d), slope, curvature)
         evaluations += used
         if alpha is None:
-            if law.bounded_strain and eps.min(initial=0.0) < -1 + 1e-6:
-                status, message = "crushed", (
-                    "the springs reach eps = -1 (crushed through their thickness) before the load "
-                    "is carried: the load is beyond what this layer can bear")
-            else:
-                status, message = "line_search", "the line search found no acceptable step"
+            # (springs at eps = -1 make it "crushed" below)
+            status, message = "line_search", "the line search found no acceptable step"
             break
         step = alpha * d
         xi = xi + step
@@ -262,17 +309,15 @@ def _solve(
             if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
-    if not success and law.bounded_strain and eps.min(initial=0.0) < -1 + 1e-4:
-        status, message = "crushed", (
-            f"{message}; springs reach eps = {eps.min():.6f}, crushed through their thickness before "
-            f"the load is carried: the load is beyond what this layer can bear")
+    if not success and crushed(law, eps):
+        status, message = "crushed", f"{message}; {CRUSHED_MESSAGE.format(eps=np.nanmin(eps))}"
     return FormulationResult(
-        x=scale.to_x(xi),
+        u_free=scale.to_u_free(xi),
         stress=law.stress(np.minimum(eps, 0.0)),
         success=success,
-        status=status,
+        status=NATIVE_STATUS[status],
         message=message,
         iterations=it,
         solve_time=time.perf_counter() - start,
-        info={"residual_history": history, "line_evaluations": evaluations},
+        info={"native_status": status, "residual_history": history, "line_evaluations": evaluations},
     )

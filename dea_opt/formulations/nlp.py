@@ -2,7 +2,8 @@
 
 Written math: ``formulations/nlp.md``.
 
-* ``form="constrained"`` (default): variables ``x`` and compressive strain ``c``;
+* ``form="constrained"`` (default): variables ``x`` (``u_free`` in the code) and compressive
+  strain ``c``;
   ``min sum V_i w(-c_i) - r . x`` s.t. ``c >= 0``, ``c + e0 + A x >= 0`` and, for laws
   defined only for ``eps > -1``, ``c <= 1 - margin``. Spring stress from the duals.
 * ``form="reduced"``: ``min_x sum V_i w(min(e0 + A x, 0)) - r . x`` with no constraints
@@ -18,10 +19,11 @@ import time
 import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
+from ..status import Status
+from ._options import Capabilities, Option, Variant, validate
 from .energy import (
     FormulationResult,
     SpringSystem,
-    check_options,
     require_finite,
     scaling,
     start_vector,
@@ -29,9 +31,35 @@ from .energy import (
 )
 
 PAGE = "formulations/nlp.md"
-LINEAR_ONLY = False
 
 _CRUSH_MARGIN = 1e-9
+
+OPTIONS = (
+    Option("form", str, "constrained", "'constrained': contact constraints and duals; 'reduced': the free dofs only",
+           choices=("constrained", "reduced")),
+    Option("tol", float, 1e-14, "IPOPT's tol", range=(0, 1), tolerance=True),
+    Option("max_iter", int, 3000, "IPOPT's iteration limit", range=(1, None)),
+    Option("ipopt_options", dict, None, "IPOPT option names to values"),
+)
+CAPABILITIES = Capabilities(laws="any", warm_start=True, duals=True, checks_load_first=True)
+EXTRA_OPTIONS = None
+VARIANT = Variant("form", {"constrained": "IPOPT", "reduced": "IPOPT-reduced"})
+
+#: IPOPT's return statuses, as dea-opt's vocabulary (formulations/nlp.md, "Statuses"); any
+#: other is a solver error.
+NATIVE_STATUS = {
+    "Solve_Succeeded": Status.CONVERGED,
+    "Solved_To_Acceptable_Level": Status.INACCURATE,
+    "Feasible_Point_Found": Status.INACCURATE,
+    "Maximum_Iterations_Exceeded": Status.MAX_ITERATIONS,
+    "Maximum_CpuTime_Exceeded": Status.MAX_ITERATIONS,
+    "Maximum_WallTime_Exceeded": Status.MAX_ITERATIONS,
+    "Restoration_Failed": Status.LINE_SEARCH_FAILED,
+    "Search_Direction_Becomes_Too_Small": Status.STALLED,
+    "Infeasible_Problem_Detected": Status.INFEASIBLE,
+    "Diverging_Iterates": Status.UNBOUNDED,
+    "Invalid_Number_Detected": Status.NON_FINITE,
+}
 
 
 def _casadi():
@@ -43,24 +71,29 @@ def _casadi():
 
 
 class NLPModel:
-    """A compiled IPOPT problem of one spring system, re-solvable for new loads."""
+    """A compiled IPOPT problem of one spring system, re-solvable for new loads.
 
-    def __init__(self, system: SpringSystem, law, *, form: str = "constrained", tol: float = 1e-14,
-                 max_iter: int = 3000, ipopt_options: dict | None = None):
-        if form not in ("constrained", "reduced"):
-            raise InputError(f"form must be 'constrained' or 'reduced', got {form!r}")
-        check_options(tol=tol, max_iter=max_iter)
-        if ipopt_options is not None and not (
-                isinstance(ipopt_options, dict) and all(isinstance(key, str) for key in ipopt_options)):
-            raise InputError(f"ipopt_options must be a dict of IPOPT option names to values, got {ipopt_options!r}")
+    Parameters
+    ----------
+    system : SpringSystem
+    law : Law
+    **options
+        :data:`OPTIONS`: ``form`` (``"constrained"`` or ``"reduced"``), ``tol`` (1e-14),
+        ``max_iter`` (3000), ``ipopt_options`` (IPOPT checks them when the model is built).
+    """
+
+    def __init__(self, system: SpringSystem, law, **options):
+        checked = validate("nlp", OPTIONS, options)
+        form, tol, max_iter, ipopt_options = (checked[k] for k in ("form", "tol", "max_iter", "ipopt_options"))
         ca = _casadi()
         start = time.perf_counter()
         self.system, self.law, self.form = system, law, form
-        # Solved in the scaled variables xi (x = T xi) and c = strain * c_hat, with the
+        # Solved in the scaled variables xi (u_free = T xi) and c = s0 c_hat, with the
         # energy divided by E0: IPOPT's tolerances then mean the same for every unit.
         self.scale = sc = scaling(system, law.modulus)
-        k, n, s0 = sc.n_dofs, system.n_springs, sc.strain
+        k, n, s0 = sc.n_dofs, system.n_springs, sc.strain_scale
         self._warm = None
+        self._solved = False
         self.trivial = k == 0  # nothing resisted: no model (IPOPT must not see an empty one)
         if self.trivial:
             self.build_time = time.perf_counter() - start
@@ -81,7 +114,7 @@ class NLPModel:
             copies = ca.MX.sym("xi_blocks", k, nb)
             c = ca.MX.sym("c_hat", n)
             z = ca.vertcat(xi, ca.vec(copies), c)
-            energy = ca.dot(V, law.energy(-s0 * c))
+            stored = ca.dot(V, law.energy(-s0 * c))
             contact = c + ca.sum1(ca.DM(sc.AT / s0) * ca.mtimes(copies, select)).T
             tie = ca.vec(copies - ca.repmat(xi, 1, nb))
             g = ca.vertcat(contact, tie)
@@ -90,13 +123,13 @@ class NLPModel:
             upper = (1.0 - _CRUSH_MARGIN) / s0 if law.bounded_strain else np.inf
             self.lbx = np.concatenate([np.full(k * (nb + 1), -np.inf), np.zeros(n)])
             self.ubx = np.concatenate([np.full(k * (nb + 1), np.inf), np.full(n, upper)])
-            nlp = {"x": z, "p": r, "f": energy - ca.dot(r, xi), "g": g}
+            nlp = {"x": z, "p": r, "f": stored - ca.dot(r, xi), "g": g}
         else:
             eps = ca.DM(e0) + ca.mtimes(ca.DM(sc.AT.T), xi)
-            energy = ca.dot(V, law.energy(ca.fmin(eps, 0)))
+            stored = ca.dot(V, law.energy(ca.fmin(eps, 0)))
             self.lbg = self.ubg = np.zeros(0)
             self.lbx, self.ubx = np.full(k, -np.inf), np.full(k, np.inf)
-            nlp = {"x": xi, "p": r, "f": energy - ca.dot(r, xi)}
+            nlp = {"x": xi, "p": r, "f": stored - ca.dot(r, xi)}
         options = {
             "print_time": False,
             "error_on_fail": False,
@@ -132,9 +165,11 @@ class NLPModel:
         c0 = np.maximum(-(self.system.e0 + xi0 @ sc.AT), 0.0)
         if self.law.bounded_strain:
             c0 = np.minimum(c0, 0.5)
-        return np.concatenate([xi0, np.tile(xi0, self.n_blocks), c0 / sc.strain])
+        return np.concatenate([xi0, np.tile(xi0, self.n_blocks), c0 / sc.strain_scale])
 
     def solve(self, load=None, *, x0=None, warm_start: bool = True) -> FormulationResult:
+        """Solve for ``load`` (default: the system's own) from ``x0`` or, without one (and with
+        ``warm_start``), from this model's last answer, duals included."""
         system, sc = self.system, self.scale
         x0 = start_vector(system, x0)
         load = system.load if load is None else np.asarray(load, dtype=float)
@@ -152,35 +187,39 @@ class NLPModel:
         try:
             out = self.solver(**args)
         except RuntimeError as exc:
-            raise SolverError(f"IPOPT raised: {exc}", status="exception") from exc
+            raise SolverError(f"IPOPT raised: {exc}", status=Status.SOLVER_ERROR, native_status="exception") from exc
         elapsed = time.perf_counter() - start
         stats = self.solver.stats()
         z = np.asarray(out["x"], dtype=float).reshape(-1)
-        x = sc.to_x(z[: sc.n_dofs])
+        u_free = sc.to_u_free(z[: sc.n_dofs])
         if self.form == "constrained":
             # d/dc_hat of V' w(-s0 c_hat) is -V' s0 sigma; CasADi's lam_g balances it.
             lam = np.asarray(out["lam_g"], dtype=float).reshape(-1)[: system.n_springs]
-            stress = lam / (sc.volume * sc.strain)
+            stress = lam / (sc.volume * sc.strain_scale)
             self._warm = {"x0": z, "lam_x0": out["lam_x"], "lam_g0": out["lam_g"]}
         else:
-            stress = self.law.stress(np.minimum(system.strain(x), 0.0))
+            stress = self.law.stress(np.minimum(system.strain_at(u_free), 0.0))
             self._warm = {"x0": z}
-        status = str(stats.get("return_status", "unknown"))
+        native = str(stats.get("return_status", "unknown"))
+        success = bool(stats.get("success", False))
+        status, message = NATIVE_STATUS.get(native, Status.SOLVER_ERROR), f"IPOPT ({self.form}): {native}"
+        first, self._solved = not self._solved, True
         return FormulationResult(
-            x=x,
+            u_free=u_free,
             stress=np.asarray(stress, dtype=float),
-            success=bool(stats.get("success", False)),
+            success=success,
             status=status,
-            message=f"IPOPT ({self.form}): {status}",
+            message=message,
             iterations=int(stats.get("iter_count", 0)),
-            build_time=self.build_time,
+            build_time=self.build_time if first else 0.0,
             solve_time=elapsed,
-            info={"form": self.form},
+            info={"native_status": native, "form": self.form},
         )
 
 
-def solve(system: SpringSystem, law, *, form: str = "constrained", tol: float = 1e-14, x0=None,
-          max_iter: int = 3000, ipopt_options: dict | None = None) -> FormulationResult:
-    """Build and solve the NLP once."""
-    model = NLPModel(system, law, form=form, tol=tol, max_iter=max_iter, ipopt_options=ipopt_options)
-    return model.solve(x0=x0)
+Model = NLPModel
+
+
+def solve(system: SpringSystem, law, *, x0=None, **options) -> FormulationResult:
+    """Build and solve the NLP once (options: :data:`OPTIONS`)."""
+    return NLPModel(system, law, **options).solve(x0=x0)

@@ -46,6 +46,7 @@ from ..errors import (
 )
 from ..formulations.energy import single_threaded_blas
 from ..problem import ContactProblem, Load
+from ..status import Status
 from .exposure import ExposureAccumulator
 from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from .result import PathResult
@@ -176,20 +177,20 @@ def _solve_frame(stepper, frame, new_geometry, setup):
             return solution, "", "", None
         check_load_supported(frame)
     except LoadNotSupportedError as exc:
-        return None, "load_not_supported", str(exc), exc
+        return None, Status.NOT_SUPPORTED, str(exc), exc
     except SolverError as exc:
-        return exc.solution, exc.status or "solver_error", str(exc), exc
+        return exc.solution, Status.of_error(exc), str(exc), exc
     name, value = solution.certificate.worst()
     message = (f"{solution.method} returned no certified answer (status {solution.status!r}): certificate "
                f"residual {name} = {value:.3g} > {solution.certificate.tolerance:g}; {solution.message}")
-    return solution, solution.status or "uncertified", message, None
+    return solution, solution.status, message, None
 
 
 def _stop(k, t, status, message, solution, error):
     text = f"frame {k} (time {t:g} s): {message}"
     if isinstance(error, LoadNotSupportedError):
         return LoadNotSupportedError(text, direction=error.direction)
-    if status == "pose_error":
+    if status == Status.POSE_ERROR:
         return InputError(text)
     return SolverError(text, status=status, solution=solution)
 
@@ -286,15 +287,11 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
 
 
 def _check_inputs(problem, method, body):
-    from ..solver import METHODS
+    from ..solver import check_method
 
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
-    if method not in METHODS:
-        raise InputError(f"method must be one of {METHODS}, got {method!r}")
-    if method == "qp" and not problem.law.is_linear:
-        raise InputError(f"method 'qp' needs a LinearLaw, got {problem.law.describe()}: use method='nlp' or "
-                         f"method='newton' for nonlinear laws")
+    check_method(method, problem.law)  # a registered formulation that takes the law
     if body not in (1, 2):
         raise InputError(f"body must be 1 or 2, got {body!r}")
 
@@ -353,7 +350,8 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
                 try:
                     base = problem.with_layer(layer_for_pose(poses[k]))
                 except DeaError as exc:  # no springs at this pose, a pose the mesh check refuses
-                    status, message, solution, error = "pose_error", f"casting the springs at this pose: {exc}", None, exc
+                    status, message, solution, error = (Status.POSE_ERROR, f"casting the springs at this pose: {exc}",
+                                                        None, exc)
                 if base_regions is not None and not status:
                     frame_regions = FrameRegions(_labels(regions, base.layer), base_regions.prefixes)
             frame = base.with_load(load, body=body)  # shares the spring arrays

@@ -39,6 +39,7 @@ PICTURES = {
     "hip_gait_exposure.png": ("hip_gait", "exposure.png"),
     "knee_pressure.png": ("knee_from_meshes", "knee_pressure_linear.png"),
     "solver_study.png": ("solver_study", "solver_study.png"),
+    "calibrate_from_film.png": ("calibrate_from_film", "calibration.png"),
 }
 
 

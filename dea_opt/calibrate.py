@@ -1,0 +1,350 @@
+"""Fit parameters (``H``, ``beta``, a thickness scale, load components) to measured data.
+
+Written math: ``formulations/sensitivity.md`` ("Calibration"). ``scipy.optimize.least_squares``
+with the exact Jacobian: every evaluation solves the problem (Newton, warm-started from the
+previous one) and takes :func:`~dea_opt.sensitivity.sensitivities` of the answer. The data are
+:class:`~dea_opt.measurements.PressureMap` (film or sensor, censored to the film's range),
+:class:`~dea_opt.measurements.ForceDisplacement` and :class:`~dea_opt.measurements.ContactData`.
+Standard errors and correlations come from the Jacobian at the optimum.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import warnings
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from .errors import InputError, SolverError, ValidityWarning
+from .measurements import FILMS, ContactData, Film, ForceDisplacement, PressureMap
+from .sensitivity import LOADS, sensitivities
+
+__all__ = ["FILMS", "Calibration", "ContactData", "Film", "ForceDisplacement", "PressureMap", "apply_parameters",
+           "calibrate"]
+
+
+def _fitted_in_logs(problem, name) -> bool:
+    """Law parameters and the thickness scale are positive: fitted as ``log theta``."""
+    return name in problem.law.parameter_names or name == "thickness_scale"
+
+
+def _current(problem, name) -> float:
+    if name in problem.law.parameter_names:
+        return float(getattr(problem.law, name))
+    if name == "thickness_scale":
+        return 1.0
+    return float(problem.body2.load_vector[LOADS.index(name)])
+
+
+def apply_parameters(problem, values: dict):
+    """``problem`` with the law's parameters, the thickness scale and body 2's load components
+    (``Fx ... Mz``) in ``values`` set; the law checks its own values."""
+    law_values = {k: v for k, v in values.items() if k in problem.law.parameter_names}
+    out = problem
+    if law_values:
+        out = out.with_law(dataclasses.replace(problem.law, **law_values))
+    if "thickness_scale" in values:
+        layer = problem.layer
+        out = out.with_layer(dataclasses.replace(layer, thickness=np.asarray(layer.thickness) * values["thickness_scale"]))
+    loads = {k: v for k, v in values.items() if k in LOADS}
+    if loads:
+        vector = problem.body2.load_vector.copy()
+        for k, v in loads.items():
+            vector[LOADS.index(k)] = v
+        out = out.with_body(2, dataclasses.replace(out.body2, force=tuple(vector[:3]), moment=tuple(vector[3:]),
+                                                   prescribed=dict(out.body2.prescribed)))
+    return out
+
+
+def _check_parameters(problem, parameters) -> tuple:
+    if isinstance(parameters, str):
+        parameters = (parameters,)
+    parameters = tuple(parameters)
+    allowed = (*problem.law.parameter_names, "thickness_scale", *LOADS)
+    bad = [p for p in parameters if p not in allowed]
+    if not parameters or bad or len(set(parameters)) != len(parameters):
+        raise InputError(f"parameters must name distinct parameters among {', '.join(allowed)}, got {parameters!r}")
+    return parameters
+
+
+@dataclass(frozen=True, eq=False)
+class Calibration:
+    """The fitted parameters and how well the data determine them.
+
+    Attributes
+    ----------
+    parameters : tuple of str
+    values, start, standard_errors : dict
+        Fitted values, where the fit started, and standard errors (the parameters' units).
+    correlation, covariance : ndarray, shape (p, p)
+    residuals : ndarray
+        Weighted residuals at the optimum (measured minus predicted over their standard deviation,
+        sign reversed: predicted minus measured).
+    cost : float
+        ``|residuals|^2 / 2``.
+    success : bool
+    message : str
+    nfev : int
+        Solves made.
+    solution : Solution
+        The fitted problem's solution (body 2 as given, without prescribed curve points).
+    data : tuple
+    """
+
+    parameters: tuple
+    values: dict
+    start: dict
+    standard_errors: dict
+    correlation: np.ndarray
+    covariance: np.ndarray
+    residuals: np.ndarray
+    cost: float
+    success: bool
+    message: str
+    nfev: int
+    solution: Any
+    data: tuple
+    info: dict = field(default_factory=dict)
+
+    def summary(self) -> dict:
+        """JSON-ready: values, standard errors, correlation, cost, and the fit's outcome."""
+        return {"parameters": list(self.parameters), "values": self.values, "start": self.start,
+                "standard_errors": self.standard_errors, "correlation": self.correlation.tolist(),
+                "cost": self.cost, "n_residuals": int(self.residuals.size), "success": self.success,
+                "message": self.message, "nfev": self.nfev, "peak_pressure": self.solution.peak_pressure,
+                "contact_area": self.solution.contact_area}
+
+    def residual_map(self):
+        """One row per matched point of every pressure map: ``x, y, z`` (mm), ``measured``,
+        ``predicted`` (MPa), ``state`` (``measured``, ``below``, ``saturated``), ``spring`` and
+        ``residual`` (weighted, 0 for a censored point the model agrees with)."""
+        import pandas as pd
+
+        rows = []
+        for k, data in enumerate(self.data):
+            if not isinstance(data, PressureMap):
+                continue
+            springs, kept = data.matched(self.solution.problem.layer)
+            r, _ = data.residuals(self.solution, None, (), {"match": (springs, kept)})
+            state = np.array(["below", "measured", "saturated"])[data.state[kept] + 1]
+            rows.append(pd.DataFrame({"dataset": k, "x": data.points[kept, 0], "y": data.points[kept, 1],
+                                      "z": data.points[kept, 2], "measured": data.pressure[kept],
+                                      "predicted": self.solution.pressure[springs], "state": state,
+                                      "spring": springs, "residual": r}))
+        return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
+
+    def plot(self, path, title: str | None = None):
+        """Measured against predicted pressure (censored points at their film limit) and the map
+        of residuals, to a PNG (written atomically)."""
+        import matplotlib.pyplot as plt
+
+        from .io.atomic import write_atomic
+
+        table = self.residual_map()
+        if table.empty:
+            raise InputError("plot needs a pressure map among the data")
+        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10.5, 4.6), constrained_layout=True)
+        films = {data.film for data in self.data if isinstance(data, PressureMap) and data.film is not None}
+        film = films.pop() if len(films) == 1 else None
+        for state, marker, label in (("measured", "o", "within the film's range"), ("below", "v", "read 'below'"),
+                                     ("saturated", "^", "read 'saturated'")):
+            rows = table[table.state == state]
+            if not len(rows):
+                continue
+            # a censored reading says only "beyond the limit": drawn at the limit
+            shown = rows.measured if film is None or state == "measured" else np.full(
+                len(rows), film.lower if state == "below" else film.upper)
+            ax1.scatter(rows.predicted, shown, s=5, marker=marker, alpha=0.5, label=label)
+        top = float(max(table.measured.max(), table.predicted.max()))
+        ax1.plot([0, top], [0, top], "k-", lw=0.8)
+        if film is not None:
+            for limit in (film.lower, film.upper):
+                ax1.axhline(limit, color="0.5", ls="--", lw=0.8)
+        ax1.set(xlabel="predicted pressure (MPa)", ylabel="measured pressure (MPa)",
+                title="measured vs predicted")
+        ax1.legend(loc="upper left", fontsize=8, markerscale=2)
+        xyz = table[["x", "y", "z"]].to_numpy()
+        centred = xyz - xyz.mean(axis=0)
+        axes = np.linalg.svd(centred, full_matrices=False)[2][:2] if len(xyz) > 2 else np.eye(3)[:2]
+        plane = centred @ axes.T
+        limit = float(np.abs(table.residual).max()) or 1.0
+        sc = ax2.scatter(plane[:, 0], plane[:, 1], c=table.residual, cmap="RdBu_r", vmin=-limit, vmax=limit, s=6)
+        ax2.set(aspect="equal", xlabel="mm (in the map's plane)", ylabel="mm", title="residual (predicted - measured) / sd")
+        fig.colorbar(sc, ax=ax2, shrink=0.85)
+        text = ", ".join(f"{p} = {self.values[p]:.4g} ± {self.standard_errors[p]:.2g}" for p in self.parameters)
+        fig.suptitle(title or f"calibration: {text}", fontsize=10)
+        try:
+            return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+        finally:
+            plt.close(fig)
+
+
+def calibrate(problem, data, parameters=("H",), *, start=None, max_nfev: int = 60, scale_errors: bool = True,
+              method: str = "newton", ftol: float = 1e-10, xtol: float = 1e-10) -> Calibration:
+    """Fit ``parameters`` of ``problem`` to ``data`` by least squares with the exact Jacobian.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+        The model; its law's values (or ``start``) are where the fit starts.
+    data : PressureMap, ForceDisplacement, ContactData, or a sequence of them
+    parameters : sequence of str
+        Law parameters (``"H"``, ``"beta"``), ``"thickness_scale"``, body 2's ``"Fx" ... "Mz"``.
+    start : dict, optional
+        Starting values (default: the problem's).
+    max_nfev : int
+        Largest number of evaluations (each one or more solves).
+    scale_errors : bool
+        Scale the covariance by the residual variance ``|r|^2 / (n - p)`` (default); False when
+        the data's standard deviations are known.
+    method : str
+        The solve method (``newton``; others are tried when it fails).
+    ftol, xtol : float
+        ``least_squares``'s tolerances.
+
+    Returns
+    -------
+    Calibration
+    """
+    from scipy.optimize import least_squares
+
+    parameters = _check_parameters(problem, parameters)
+    data = (data,) if isinstance(data, (PressureMap, ForceDisplacement, ContactData)) else tuple(data)
+    if not data or not all(isinstance(x, (PressureMap, ForceDisplacement, ContactData)) for x in data):
+        raise InputError("data must be a PressureMap, ForceDisplacement or ContactData, or a sequence of them")
+    values = {p: _current(problem, p) for p in parameters}
+    values.update({k: float(v) for k, v in (start or {}).items() if k in parameters})
+    unknown = set(start or {}) - set(parameters)
+    if unknown:
+        raise InputError(f"start names {sorted(unknown)}, which are not among the parameters {parameters}")
+    logs = np.array([_fitted_in_logs(problem, p) for p in parameters])
+    theta0 = np.array([values[p] for p in parameters])
+    if (theta0[logs] <= 0).any():
+        raise InputError(f"the start of {', '.join(np.array(parameters)[logs])} must be > 0 (fitted in logarithms), "
+                         f"got {theta0[logs].tolist()}")
+    model = _Model(problem, data, parameters, logs, method)
+    z0 = np.where(logs, np.log(np.where(logs, theta0, 1.0)), theta0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ValidityWarning)
+        # within three decades of the start: a step can never leave the law's range
+        span = np.where(logs, np.log(1e3), np.inf)
+        fit = least_squares(model.residuals, z0, jac=model.jacobian, bounds=(z0 - span, z0 + span), method="trf",
+                            x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=1e-12)
+        r, Jz, solution = model.evaluate(fit.x)
+    theta = np.where(logs, np.exp(fit.x), fit.x)
+    J = Jz / np.where(logs, theta, 1.0)  # d r / d theta
+    used = (np.abs(J).sum(axis=1) > 0) | (r != 0)
+    dof = max(int(used.sum()) - len(parameters), 1)
+    variance = float(r @ r) / dof if scale_errors else 1.0
+    covariance = variance * np.linalg.pinv(J.T @ J)
+    se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    with np.errstate(invalid="ignore", divide="ignore"):
+        correlation = covariance / np.outer(se, se)
+    return Calibration(parameters, dict(zip(parameters, theta.tolist())), dict(zip(parameters, theta0.tolist())),
+                       dict(zip(parameters, se.tolist())), correlation, covariance, r, float(r @ r) / 2,
+                       bool(fit.success), str(fit.message), int(model.solves), solution, data,
+                       info={"optimality": float(fit.optimality), "nfev": int(fit.nfev), "njev": int(fit.njev or 0)})
+
+
+class _Model:
+    """Residuals and Jacobian at ``z``, computed once per point and cached (least_squares asks for
+    both at the same point)."""
+
+    def __init__(self, problem, data, parameters, logs, method):
+        self.problem, self.data, self.parameters, self.logs, self.method = problem, data, parameters, logs, method
+        self.last = None
+        self.solves = 0
+        self.caches = [{} for _ in data]
+        self.starts = {}
+
+    def _solve(self, problem, key):
+        from .solver import solve
+
+        x0 = self.starts.get(key)
+        try:
+            options = {"x0": x0} if (self.method == "newton" and x0 is not None) else {}
+            solution = solve(problem, self.method, **options)
+        except SolverError:
+            solution = solve(problem, "auto")
+        self.solves += 1
+        self.starts[key] = solution.u[problem.free_indices]
+        return solution
+
+    def evaluate(self, z):
+        if self.last is not None and np.array_equal(self.last[0], z):
+            return self.last[1:]
+        theta = np.where(self.logs, np.exp(z), z)
+        problem = apply_parameters(self.problem, dict(zip(self.parameters, theta.tolist())))
+        names = self.parameters
+        solution = None
+        rs, Js = [], []
+        for k, data in enumerate(self.data):
+            if isinstance(data, ForceDisplacement):
+                r, J = self._curve(problem, data, k)
+            else:
+                if solution is None:
+                    solution = self._solve(problem, "main")
+                    sens = sensitivities(solution, names)
+                r, J = data.residuals(solution, sens, names, self.caches[k])
+            rs.append(r)
+            Js.append(J)
+        if solution is None:
+            solution = self._solve(problem, "main")
+        r = np.concatenate(rs)
+        Jz = np.vstack(Js) * np.where(self.logs, theta, 1.0)  # d/dz = theta d/dtheta in logs
+        self.last = (z.copy(), r, Jz, solution)
+        return r, Jz, solution
+
+    def _curve(self, problem, data, k):
+        r, J = [], []
+        for i, (d, f) in enumerate(zip(data.displacement, data.force)):
+            body = problem.body2.with_prescribed(**{data.dof: float(d)})
+            solution = self._solve(problem.with_body(2, body), ("curve", k, i))
+            sens = sensitivities(solution, self.parameters)
+            sd = data.noise * (max(abs(f), 1e-12) if data.relative else 1.0)
+            r.append((solution.contact_force[data.axis] - f) / sd)
+            J.append([np.asarray(sens.contact_force[n])[data.axis] / sd for n in self.parameters])
+        return np.array(r), np.array(J)
+
+    def residuals(self, z):
+        return self.evaluate(z)[0]
+
+    def jacobian(self, z):
+        return self.evaluate(z)[1]
+
+
+def calibrate_scenario(scenario, data_path, folder, *, parameters=None, film=None, noise: float = 0.05,
+                       max_distance=None) -> tuple:
+    """``dea-opt calibrate``: fit a scenario's parameters to a pressure map CSV and write the results.
+
+    Writes ``calibration.json`` (the summary), ``residuals.csv`` (:meth:`Calibration.residual_map`)
+    and ``calibration.png`` (:meth:`Calibration.plot`) into ``folder`` (the command stages and
+    publishes it like every run's folder). Returns ``(Calibration, {name: path})``.
+    """
+    import json
+    from pathlib import Path
+
+    from .io.atomic import write_atomic
+    from .scenario import build_problem
+
+    if scenario.load_path is not None:
+        raise InputError("calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
+                         "calibrate against one frame written as a static scenario")
+    problem = build_problem(scenario)
+    names = tuple(parameters) if parameters else problem.law.parameter_names
+    data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
+    fit = calibrate(problem, data, names)
+    folder = Path(folder)
+    files = {"summary": folder / "calibration.json", "residuals": folder / "residuals.csv",
+             "plot": folder / "calibration.png"}
+    film_info = None if data.film is None else {"name": data.film.name, "lower": data.film.lower,
+                                                "upper": data.film.upper}
+    summary = {**fit.summary(), "scenario": scenario.source, "data": str(data_path), "film": film_info,
+               "noise": data.noise, "points": len(data.pressure), "points_matched": int(fit.residuals.size)}
+    write_atomic(files["summary"], lambda tmp: tmp.write_text(json.dumps(summary, indent=2, default=float)))
+    table = fit.residual_map()
+    write_atomic(files["residuals"], lambda tmp: table.to_csv(tmp, index=False))
+    fit.plot(files["plot"])
+    return fit, files

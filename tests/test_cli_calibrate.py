@@ -1,0 +1,113 @@
+"""dea-opt calibrate: a scenario and a film CSV in, the fitted law and its outputs out."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+from typer.testing import CliRunner
+
+import dea_opt as d
+from dea_opt.cli import app
+from dea_opt.scenario import build_problem, load_scenario
+
+runner = CliRunner()
+
+SCENARIO = """\
+title = "sphere on a bed, Ateshian's law"
+
+[geometry]
+kind = "sphere_on_bed"
+radius = 25.0
+thickness = 2.0
+extent = 7.0
+n_rings = 60
+n_sectors = 48
+
+[law]
+kind = "ateshian"
+H = {H}
+beta = {beta}
+
+[body2]
+reference = [0.0, 0.0, 25.0]
+free = ["uz", "rx", "ry"]
+
+[load]
+force = [0.0, 0.0, -20.0]
+point = [0.5, 0.3, 0.0]
+
+[output]
+directory = "out"
+"""
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+@pytest.fixture()
+def case(tmp_path):
+    """A scenario whose law starts 2x off, and the film the true law (H = 0.6, beta = 0.3) leaves."""
+    truth = tmp_path / "truth.toml"
+    truth.write_text(SCENARIO.format(H=0.6, beta=0.3))
+    solution = d.solve(build_problem(load_scenario(truth)))
+    rng = np.random.default_rng(4)
+    points = solution.problem.layer.points
+    reading = solution.pressure * np.exp(0.05 * rng.standard_normal(len(points)))
+    pd.DataFrame({"x": points[:, 0], "y": points[:, 1], "z": points[:, 2], "p": reading}).to_csv(
+        tmp_path / "film.csv", index=False)
+    scenario = tmp_path / "start.toml"
+    scenario.write_text(SCENARIO.format(H=1.2, beta=0.6))
+    return scenario, tmp_path / "film.csv", solution
+
+
+def test_calibrate_writes_the_fit(case):
+    scenario, film, truth = case
+    result = invoke("calibrate", scenario, "--data", film, "--film", "0.05,0.4")
+    assert result.exit_code == 0, (result.stdout, result.stderr)
+    out = scenario.parent / "out" / "calibration"
+    summary = json.loads((out / "calibration.json").read_text())
+    assert summary["parameters"] == ["H", "beta"] and summary["film"]["upper"] == 0.4
+    for name, true in (("H", 0.6), ("beta", 0.3)):
+        assert abs(summary["values"][name] - true) < 3 * summary["standard_errors"][name]
+        assert f"{summary['values'][name]:12.6g}" in result.stdout
+    table = pd.read_csv(out / "residuals.csv")
+    assert len(table) == len(truth.pressure) and {"below", "measured"} <= set(table.state)
+    assert (out / "calibration.png").read_bytes()[:4] == b"\x89PNG"
+    assert "correlation: H-beta" in result.stdout
+    manifest = json.loads((out / "manifest.json").read_text())
+    assert manifest["command"] == "calibrate" and manifest["status"] == "ok"
+    assert set(manifest["files"]) >= {"calibration.json", "residuals.csv", "calibration.png"}
+
+
+def test_calibrate_one_parameter_into_a_folder(case, tmp_path):
+    scenario, film, _ = case
+    result = invoke("calibrate", scenario, "--data", film, "--parameters", "H", "--set", "law.beta=0.3",
+                    "-o", tmp_path / "fit")
+    assert result.exit_code == 0, result.stderr
+    summary = json.loads((tmp_path / "fit" / "calibration.json").read_text())
+    assert summary["parameters"] == ["H"] and summary["values"]["H"] == pytest.approx(0.6, rel=0.01)
+
+
+@pytest.mark.parametrize("extra, expected", [
+    (["--data", "nosuch.csv"], "no such file"),
+    (["--data", "{film}", "--film", "XYZ"], "film must be one of"),
+    (["--data", "{film}", "--film", "a,b"], "--film must be"),
+    (["--data", "{film}", "--parameters", "E"], "parameters must name"),
+    (["--data", "{film}", "--noise", "-1"], "noise must be"),
+])
+def test_bad_input_exits_2_with_one_paragraph(case, extra, expected):
+    scenario, film, _ = case
+    result = invoke("calibrate", scenario, *[str(a).format(film=film) for a in extra])
+    assert result.exit_code == 2, (result.stdout, result.stderr)
+    text = result.stderr.strip()
+    assert text.startswith("dea-opt: error: ") and "\n" not in text and "Traceback" not in text
+    assert expected in text
+
+
+def test_help():
+    result = invoke("calibrate", "--help")
+    assert result.exit_code == 0 and "--data" in result.stdout and "--film" in result.stdout
