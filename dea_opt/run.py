@@ -112,6 +112,18 @@ def solve_options(section, method: str, law) -> dict:
     """
     from . import formulations
 
+    if getattr(section, "kinematics", "small") == "finite":
+        # finite kinematics: newton and nlp stand for the finite formulations, auto tries both
+        from .formulations.finite import ALIASES
+
+        chain = ["finite", "finite_nlp"] if method == "auto" else [ALIASES.get(method, method)]
+        out: dict = {}
+        for name in chain:
+            if name in formulations.names() and formulations.takes(name, law, "finite"):
+                out.update({o.name: getattr(section, o.name) for o in formulations.options(name)
+                            if not o.tolerance and o.name in ("form",)})
+                out.update(formulations.tolerance_options(name, section.tol))
+        return out
     effective = method if method != "auto" else formulations.fallback_for(law)
     if effective is None:
         return {}

@@ -416,7 +416,7 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
     for method in formulations.names() if methods is None else methods:
         if method == "auto" or method not in formulations.names():
             raise InputError(f"methods must be taken from {formulations.names()}, got {method!r}")
-        reason = formulations.why_not(method, problem.law)
+        reason = formulations.why_not(method, problem.law, problem.kinematics)
         if reason is not None:
             skipped[method] = reason
             continue

@@ -322,7 +322,7 @@ def rotation_gap_error(problem, u) -> np.ndarray:
     return error
 
 
-_KINEMATICS_ADVICE = ("outside the small-rotation kinematics of Eq. (9)-(11): solve it with "
+_KINEMATICS_ADVICE = ("outside the small-rotation kinematics of Eq. (9)-(11): use finite kinematics, "
                       "ContactProblem(..., kinematics='finite') (exact rotations, gaps at the current pose; "
                       "formulations/finite.md), fix the dofs the joint does not move, or reduce the load")
 _FINITE = "finite kinematics take rotations exactly: the small kinematics' error does not apply"

@@ -300,7 +300,7 @@ def test_newton_and_ipopt_agree(name):
 def test_auto_is_newton_and_certified():
     problem = CASES["tilted planes, moments on three axes"]
     auto = solve(problem, "auto")
-    assert auto.success and auto.method == "newton" and auto.info["fallback"] is None
+    assert auto.success and auto.method == "finite" and auto.info["fallback"] is None
 
 
 # --- the solution, its pose and reactions -------------------------------------------------------
@@ -351,7 +351,7 @@ def test_bad_input_is_named():
     with pytest.raises(d.InputError, match="targets must be"):
         d.ContactProblem(layer, d.LinearLaw(H), kinematics="finite", targets=np.zeros((20, 3)))
     problem = punch_problem(layer, 10.0, 0.0)
-    with pytest.raises(d.InputError, match="'qp'.*small-kinematics"):
+    with pytest.raises(d.InputError, match="method 'qp' cannot solve 'finite' kinematics.*method='finite'"):
         d.solve(problem, "qp")
     with pytest.raises(d.InputError, match="unknown option 'tolerance'"):
         d.solve(problem, tolerance=1e-3)

@@ -113,6 +113,7 @@ class MeshTracker:
         from ._finite_cast import Mesh1
 
         self.mesh1 = Mesh1(cast)
+        self._first_layer = cast.layer
         self._take(cast)
         self.begin()
 
@@ -150,13 +151,29 @@ class MeshTracker:
             from ..layer import SpringLayer
 
             s, m1 = self.springs, self.cast.mesh1
-            labels = self.cast.options.get("labels")
+            labels = self._labels()
             normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
             self._layer = SpringLayer(m1.triangles_center[s.faces1], normals, m1.area_faces[s.faces1],
                                       self.thickness, s.gap, source_face=s.faces1, surface=(m1.vertices, m1.faces),
                                       labels=None if labels is None else labels[s.faces1], target_points=s.q,
                                       target_normals=s.m, target_faces=s.faces2)
         return self._layer
+
+    def _labels(self):
+        """A label per face of mesh 1: the first layer's own (a scenario's regions, the parts of mesh 2
+        met), each other face taking the label of the nearest face that had one."""
+        if not hasattr(self, "_face_labels"):
+            first = self._first_layer
+            if first.labels is None:
+                self._face_labels = None
+            else:
+                from scipy.spatial import cKDTree
+
+                centres = self.cast.mesh1.triangles_center
+                nearest = cKDTree(centres[first.source_face]).query(centres)[1]
+                self._face_labels = np.asarray(first.labels)[nearest]
+                self._face_labels[first.source_face] = first.labels
+        return self._face_labels
 
     def _lose(self, reason: str, count: int) -> None:
         if count:

@@ -1,303 +1,87 @@
-"""Finite kinematics: body 2's exact rigid motion, each spring's gap at the current pose, re-cast from meshes.
+"""Finite kinematics by Newton: the registry's entry ``"finite"`` (exact rotation, gaps at the current pose).
 
 Written math: ``formulations/finite.md``. ``ContactProblem(..., kinematics="finite")`` is solved
-here (``dea_opt.solve`` sends it): body 2's coordinates are its reference's translation and its
-rotation vector taken as an exact rotation (``u[6:12]``); each spring pushes body 2 along its own
-direction with the force the law gives at its gap to its target at that pose (the tangent plane of
-a face of mesh 2, or a plane or sphere given by :class:`Targets`); the equilibrium of the free
-coordinates is solved by Newton with the consistent tangent (``method="newton"``,
-:mod:`~dea_opt.formulations._finite_newton`) or, as an independent cross-check, by IPOPT
-(``method="nlp"``, :mod:`~dea_opt.formulations.finite_nlp`). Springs cast from meshes are re-cast
-as body 2 moves (:mod:`~dea_opt.formulations._finite_recast`), and the answer is certified at
-the solved pose (:mod:`~dea_opt.formulations._finite_solution`). The QP is a small-kinematics
-method only.
+by :func:`solve` (``dea_opt.solve`` sends it there): body 2's coordinates are its reference's
+translation and its rotation vector taken as an exact rotation (``u[6:12]``); each spring pushes
+body 2 along its own direction with the force the law gives at its gap to its target at that
+pose (the tangent plane of a face of mesh 2, or a plane or sphere given by :class:`Targets`);
+Newton with the consistent tangent solves the equilibrium of the free coordinates
+(:mod:`~dea_opt.formulations._finite_newton`), springs cast from meshes follow body 2
+(:mod:`~dea_opt.formulations._finite_recast`), and the answer is certified at the solved pose
+(:mod:`~dea_opt.formulations._finite_solution`). The independent cross-check by IPOPT is
+:mod:`~dea_opt.formulations.finite_nlp`; the QP is a small-kinematics method only.
 """
 
 from __future__ import annotations
 
-import time
-import warnings
-from dataclasses import replace
+from ._finite_driver import ALIASES, plan, solve
+from ._finite_geometry import Targets
+from ._finite_solution import FiniteSolution
+from ._options import Capabilities, Option
 
-import numpy as np
-
-from ..errors import InputError, SolverError, ValidityWarning
-from ..kinematics import DOFS
-from . import _finite_newton
-from ._finite_geometry import Targets, evaluate
-from ._finite_recast import MeshTracker
-from ._finite_solution import FiniteSolution, certificate
-from ._finite_system import FiniteSystem
-from .energy import SpringSystem, modulus_scale, single_threaded_blas, start_vector
-
-__all__ = ["FiniteSolution", "Targets", "METHODS", "solve"]
+__all__ = ["ALIASES", "CAPABILITIES", "FiniteModel", "FiniteSolution", "Model", "OPTIONS", "RECAST_OPTIONS",
+           "Targets", "plan", "solve"]
 
 PAGE = "formulations/finite.md"
 
-#: The methods that solve finite kinematics, and the small-kinematics names that stand for them.
-METHODS = {"auto": "auto", "newton": "newton", "nlp": "nlp", "finite_newton": "newton", "finite_nlp": "nlp"}
-
-#: Options of the finite solve, with their defaults.
-DEFAULTS = {"x0": None, "xtol": 1e-12, "gtol": 1e-12, "max_iter": 100, "extended_start": True,
-            "recast": True, "recast_shift": 0.01, "max_recasts": 10, "form": "constrained", "tol": 1e-14,
-            "outer_tol": 1e-12, "max_outer": 60, "ipopt_options": None}
-_NEWTON = ("xtol", "gtol", "max_iter", "extended_start")
-_NLP = ("form", "tol", "outer_tol", "max_outer", "ipopt_options", "max_iter")
-_GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
-
-
-def resolve_targets(problem) -> tuple[Targets, object]:
-    """``(targets, cast)``: the springs' targets at zero displacement, and the SpringCast to re-cast
-    from (None without meshes). Checked to reproduce the layer's gaps."""
-    from ..mesh.springs import SpringCast
-
-    layer, given = problem.layer, problem.targets
-    cast = None
-    if given is None:
-        targets = Targets.from_layer(layer) if layer.has_targets else Targets.facing(layer)
-    elif isinstance(given, SpringCast):
-        cast = given
-        if len(cast.layer) != len(layer) or not np.array_equal(np.asarray(cast.layer.source_face),
-                                                               np.asarray(layer.source_face)):
-            raise InputError(f"targets is a SpringCast of {len(cast.layer)} springs, but the problem's layer has "
-                             f"{len(layer)}: pass the cast the layer came from (ContactProblem(cast.layer, ..., "
-                             f"targets=cast))")
-        targets = Targets.from_layer(cast.layer, pose=cast.pose)
-    else:
-        targets = given
-        if len(targets) != len(layer):
-            raise InputError(f"targets has {len(targets)} entries, the layer {len(layer)} springs: give one per spring")
-    s0 = evaluate(targets, layer.points, layer.normals, targets.frame).s
-    size = max(float(np.abs(layer.points).max(initial=0.0)), 1.0)
-    error = np.abs(s0 - layer.gap)
-    if len(error) and not (error.max() <= _GAP_TOL * size):
-        i = int(np.nanargmax(np.where(np.isfinite(error), error, np.inf)))
-        raise InputError(f"targets must reproduce the layer's gaps at zero displacement: spring {i} has gap "
-                         f"{layer.gap[i]:.6g} mm, its target gives {s0[i]:.6g} mm; build the targets from the same "
-                         f"geometry (Targets.from_layer(layer), the SpringCast, or planes/spheres through the gaps)")
-    return targets, cast
+#: The re-casting options of both finite formulations (formulations/finite.md, "Re-casting").
+RECAST_OPTIONS = (
+    Option("recast", bool, True, "keep springs cast from meshes (targets= a SpringCast) up to date as body 2 moves"),
+    Option("recast_shift", float, 0.01, "mm a spring's hit may move before its thickness is measured again",
+           range=(0, float("inf"))),
+    Option("full_shift", float, 5.0, "mm the hits may move before the whole of mesh 1 is cast again",
+           range=(0, float("inf"))),
+    Option("max_recasts", int, 10, "updates of the springs after converged solves, at most", range=(0, None)),
+)
+#: The options of :func:`solve` with ``method="finite"``.
+OPTIONS = (
+    Option("xtol", float, 1e-12, "relative step that counts as converged once the contact set is unchanged",
+           range=(0, 1), tolerance=True),
+    Option("gtol", float, 1e-12, "equilibrium residual in the scaled variables that counts as converged",
+           range=(0, 1), tolerance=True),
+    Option("max_iter", int, 100, "Newton iterations per solve, at most", range=(1, None)),
+    Option("extended_start", bool, True, "treat every spring as active, tension included, in the first "
+           "iteration of a cold start"),
+    *RECAST_OPTIONS,
+)
+CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",), duals=False,
+                            checks_load_first=False)
+EXTRA_OPTIONS = None
+VARIANT = None
 
 
-def check_bodies(problem) -> None:
-    """Finite kinematics move body 2 against a fixed body 1 (only the relative pose matters)."""
-    body1 = problem.body1
-    moved = [d for d, v in body1.prescribed.items() if v != 0.0]
-    if body1.free or moved:
-        what = f"free dofs {body1.free}" if body1.free else f"prescribed motion {moved}"
-        raise InputError(f"kinematics='finite' moves body 2 against a fixed body 1, but body1 has {what}: fix body 1 "
-                         f"and give the motion to body 2 (only the relative pose matters)")
+class FiniteModel:
+    """A finite-kinematics problem, re-solvable for new loads, warm-started from its last answer.
 
-
-def build_system(problem, targets) -> FiniteSystem:
-    layer, body2 = problem.layer, problem.body2
-    free = np.array([DOFS.index(d) for d in body2.free], dtype=int)
-    base = np.zeros(6)
-    for dof, value in body2.prescribed.items():
-        base[DOFS.index(dof)] = value
-    return FiniteSystem(layer.points, layer.normals, layer.areas, layer.thickness, targets,
-                        np.asarray(body2.reference, dtype=float), free, base, np.asarray(body2.force, dtype=float),
-                        np.asarray(body2.moment, dtype=float))
-
-
-def scaled_directions(problem, system, law) -> tuple[np.ndarray, float, SpringSystem]:
-    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.energy.scaling`,
-    from the resistance of the problem's small system at zero displacement (held directions left
-    out), sized by the larger of the load and the overlap of the current springs' exact gaps."""
-    small = problem.system()
-    T1 = small.resistance.basis(law.modulus)
-    s_load = float(np.linalg.norm(T1.T @ small.load)) if small.load.size else 0.0
-    e0 = system.state(system.base, law).eps
-    overlap = np.minimum(np.where(np.isfinite(e0), e0, 0.0), 0.0)
-    volume = system.areas * system.thickness * modulus_scale(law.modulus)
-    s = max(s_load, float(np.linalg.norm(np.sqrt(volume) * overlap)))
-    if not (s > 0.0 and np.isfinite(s)):
-        s = 1.0
-    return T1 * s, s * s, small
-
-
-def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, frame=None,
-          tracker=None, load_checks=None, **options) -> FiniteSolution:
-    """Solve a ``kinematics="finite"`` problem and certify it at the solved pose.
-
-    Parameters
-    ----------
-    problem : ContactProblem
-        With ``kinematics="finite"``.
-    method : {"auto", "newton", "nlp"}
-        ``"newton"``: Newton with the consistent tangent; ``"nlp"``: IPOPT on a conservative
-        surrogate re-centred at each outer iteration (``formulations/finite.md``); ``"auto"``:
-        Newton, then IPOPT if Newton's answer fails its certificate. ``"qp"`` is an InputError:
-        the QP is a small-kinematics method. (``"finite_newton"`` and ``"finite_nlp"`` are the
-        registry's names of the same.)
-    certificate_tol : float
-    strict : bool
-        Raise :class:`SolverError` when the answer fails its certificate.
-    frame : array_like (4, 4), optional
-        Body 2's pose at zero displacement (mesh 2's pose in body 1's frame), replacing the pose
-        its targets were cast at: a load path's prescribed pose of this frame, the free
-        coordinates acting on top of it.
-    tracker : MeshTracker, optional
-        The re-casting state of a load path's previous frame (``solution.tracker``).
-    load_checks : (callable, callable), optional
-        ``dea_opt.solve``'s tests of a load the springs cannot carry, ``(unresisted, cone)``, each
-        ``f(problem, system)`` raising :class:`~dea_opt.errors.LoadNotSupportedError`: the first
-        before any solve, the second before IPOPT and after a failed Newton (at zero displacement).
-    **options
-        ``x0`` (free coordinates, mm and rad), Newton's ``xtol``, ``gtol``, ``max_iter``,
-        ``extended_start``; IPOPT's ``form`` ("reduced" or "constrained"), ``tol``,
-        ``outer_tol``, ``max_outer``, ``ipopt_options``; re-casting: ``recast`` (default True),
-        ``recast_shift`` (mm, default 0.01), ``max_recasts`` (default 10).
+    The finite formulations solve a :class:`~dea_opt.problem.ContactProblem` (its targets, body
+    2's reference, the re-casting of its springs), not a small
+    :class:`~dea_opt.formulations.energy.SpringSystem`: ``FiniteModel(problem, **options)``;
+    ``solve(load=None, *, x0=None, frame=None)`` returns a certified
+    :class:`FiniteSolution` (``load`` a :class:`~dea_opt.problem.Load` on body 2).
     """
-    name = _method(method)
-    unknown = sorted(set(options) - set(DEFAULTS))
-    if unknown:
-        raise InputError(f"kinematics='finite' takes the options {sorted(DEFAULTS)}, got unknown option {unknown[0]!r}")
-    opts = {**DEFAULTS, **options}
-    with single_threaded_blas():
-        if name == "auto":
-            solution = _solve(problem, "newton", certificate_tol, opts, frame, tracker, load_checks)
-            if not solution.success:
-                reason = (f"newton ended with status {solution.status!r} and certificate residual "
-                          f"{solution.certificate.worst()}")
-                solution = _solve(problem, "nlp", certificate_tol, {**opts, "x0": None}, frame, None, load_checks)
-                solution.info["fallback"] = reason
-            solution.info.setdefault("fallback", None)
-            solution.info["requested"] = "auto"
-        else:
-            solution = _solve(problem, name, certificate_tol, opts, frame, tracker, load_checks)
-    if not solution.success and strict:
-        worst, value = solution.certificate.worst()
-        raise SolverError(
-            f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
-            f"{solution.message}); certificate residual {worst} = {value:.3g} > {certificate_tol:g}",
-            status=solution.status, solution=solution)
-    if solution.success and not solution.validity.valid:
-        warnings.warn(solution.validity.message(), ValidityWarning, stacklevel=3)
-    return solution
+
+    method = "finite"
+
+    def __init__(self, problem, law=None, **options):
+        from ..errors import InputError
+        from ..problem import ContactProblem
+
+        if not isinstance(problem, ContactProblem) or problem.kinematics != "finite":
+            raise InputError(f"the {self.method} formulation solves a ContactProblem with kinematics='finite' (built "
+                             f"by dea_opt.solve), not {type(problem).__name__}")
+        self.problem = problem if law is None else problem.with_law(law)
+        self.options = options
+        self.build_time = 0.0
+        self._x, self._tracker = None, None
+
+    def solve(self, load=None, *, x0=None, frame=None) -> FiniteSolution:
+        problem = self.problem if load is None else self.problem.with_load(load)
+        start = self._x if x0 is None else x0
+        solution = solve(problem, self.method, strict=False, frame=frame, tracker=self._tracker, x0=start,
+                         **self.options)
+        if solution.success:
+            self._x, self._tracker = solution.u[problem.free_indices], solution.tracker
+        return solution
 
 
-def _check_frame(frame) -> np.ndarray:
-    from ..mesh.springs import check_pose
-
-    return check_pose(frame, "frame")
-
-
-def _method(method) -> str:
-    if isinstance(method, str) and method in METHODS:
-        return METHODS[method]
-    if method == "qp":
-        raise InputError("method 'qp' cannot solve kinematics='finite': the QP is a small-kinematics method (its "
-                         "energy is quadratic only for the linearised motion of Eq. 9-11); use method='newton', "
-                         "'nlp' or 'auto'")
-    raise InputError(f"method must be one of {tuple(METHODS)} for kinematics='finite', got {method!r}")
-
-
-def _solve(problem, method, certificate_tol, opts, frame, tracker, load_checks) -> FiniteSolution:
-    start = time.perf_counter()
-    if problem.kinematics != "finite":
-        raise InputError("this problem has kinematics='small': solve it with dea_opt.solve")
-    check_bodies(problem)
-    targets, cast = resolve_targets(problem)
-    if tracker is None and cast is not None and opts["recast"]:
-        tracker = MeshTracker(cast, recast_shift=opts["recast_shift"])
-    if tracker is not None:
-        tracker.begin(frame)
-        targets = tracker.targets()
-    elif frame is not None:
-        targets = targets.with_frame(_check_frame(frame))
-    system = build_system(problem, targets)
-    if tracker is not None:
-        layer = tracker.layer
-        system = system.with_springs(layer.points, layer.normals, layer.areas, layer.thickness, targets)
-    law = problem.law
-    T, E0, small = scaled_directions(problem, system, law)
-    unresisted, cone = load_checks or (None, None)
-    loaded = bool(small.load.any() and small.n_dofs)
-    if loaded and unresisted is not None:
-        unresisted(problem, small)
-        if method == "nlp" and cone is not None:
-            cone(problem, small)
-    x0 = start_vector(small, opts["x0"])
-    build = time.perf_counter() - start
-    cold = x0 is None
-    x = np.zeros(len(system.free)) if cold else x0
-    inner, rounds, history, stable = None, 0, [], True
-    while True:
-        inner = _inner(method, system, law, T, E0, x, cold, opts)
-        history.extend(inner.info.get("residual_history", []))
-        x, cold = inner.u_free, False
-        if tracker is None or not inner.success:
-            break
-        if rounds >= opts["max_recasts"]:
-            stable = False  # an equilibrium of these springs; another update might still change them
-            inner.message += f"; the springs still changed after {rounds} updates (max_recasts)"
-            break
-        update = tracker.update(system, inner.state)
-        if update is None:
-            break
-        rounds += 1
-        system = update.system
-        if not update.resolve and method == "newton":
-            inner.state = update.state  # only springs that carry nothing changed: the same equilibrium
-            break
-    if tracker is not None:
-        tracker.counts["stable"] = stable
-    if method == "newton" and not inner.success and loaded and cone is not None:
-        cone(problem, small)
-    return _solution(problem, system, law, inner, method, tracker, certificate_tol, build,
-                     time.perf_counter() - start - build, history)
-
-
-def _inner(method, system, law, T, E0, x, cold, opts):
-    if not len(system.free):
-        state = system.state(system.base, law)
-        return _finite_newton.InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
-    if method == "nlp":
-        from . import finite_nlp
-
-        return finite_nlp.solve(system, law, T, E0, x0=x, **{k: opts[k] for k in _NLP})
-    return _finite_newton.solve(system, law, T, E0, x0=x, cold=cold, **{k: opts[k] for k in _NEWTON})
-
-
-def _solution(problem, system, law, inner, method, tracker, certificate_tol, build, solve_time, history):
-    state = inner.state
-    layer = problem.layer if tracker is None else tracker.layer
-    targets = system.targets
-    final = problem
-    if tracker is not None and layer is not problem.layer:
-        # The springs of the solved pose, with their gaps at zero displacement (from the same targets).
-        s0 = evaluate(targets, layer.points, layer.normals, targets.frame).s
-        s0 = np.clip(np.where(np.isfinite(s0), s0, 1e9), -1e9, 1e9)
-        final = replace(problem, layer=layer.with_gap(s0), targets=targets)
-    u = np.zeros(12)
-    u[6:] = system.coordinates(inner.u_free)
-    finite = bool(np.isfinite(u).all() and state.finite)
-    with np.errstate(invalid="ignore", over="ignore"):
-        pressure = 0.0 - law.stress(np.minimum(state.eps, 0.0))
-    reported = -pressure if inner.info.get("stress") is None else inner.info["stress"]
-    radius = final.layer_radius[1]
-    lengths = np.where(system.free < 3, 1.0, radius)
-    stiffness = float(np.sum(layer.areas / layer.thickness))
-    at_zero = system.state(system.base, law).eps
-    cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero, certificate_tol)
-    success = bool(finite and cert.passed and np.isfinite(pressure).all())
-    info = {k: v for k, v in inner.info.items() if k != "stress"}
-    info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite",
-                residual_history=history)
-    status = inner.status
-    if not success and status == "converged":
-        status = "inaccurate"
-    if tracker is not None:
-        info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
-    dropped = None if tracker is None else tracker.counts["dropped"]
-    message = inner.message
-    held = problem.system().resistance.describe(problem.free_names) if len(system.free) else []
-    if held:
-        # As for the small kinematics: directions no spring resists at zero displacement take no
-        # motion and carry no load (the minimum-norm answer).
-        info["held"] = held
-        message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
-    return FiniteSolution(problem=final, u=u, strain=state.eps, pressure=pressure, method=method, success=success,
-                          status=status, message=message, iterations=inner.iterations, build_time=build,
-                          solve_time=solve_time, certificate=cert, info=info, targets=targets, dropped=dropped,
-                          tracker=tracker)
+Model = FiniteModel

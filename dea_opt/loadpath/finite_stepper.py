@@ -17,11 +17,6 @@ from ..solution import Solution
 
 __all__ = ["FiniteStepper"]
 
-#: Options the finite solve takes (the rest of a load path's options are for other methods).
-_OPTIONS = ("xtol", "gtol", "max_iter", "extended_start", "recast", "recast_shift", "max_recasts", "form", "tol",
-            "outer_tol", "max_outer", "ipopt_options")
-
-
 class FiniteStepper:
     """Solves frame after frame with finite kinematics, carrying the pose and the re-cast springs.
 
@@ -30,7 +25,7 @@ class FiniteStepper:
 
     def __init__(self, method: str, options: dict, certificate_tol: float):
         self.method = method  # checked by the finite solve
-        self.options = {k: v for k, v in options.items() if k in _OPTIONS}
+        self.options = dict(options)  # checked by the finite solve (dea_opt.formulations.finite.plan)
         self.certificate_tol = certificate_tol
         self.x = None
         self.tracker = None

@@ -6,6 +6,8 @@ are used, so that reading and validating a scenario stays light.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..errors import DeaError, ScenarioError
@@ -189,11 +191,12 @@ def load_meshes(section: MeshGeometry) -> dict:
     return meshes
 
 
-def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
+def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None, *, as_cast: bool = False):
     """Springs from the loaded ``meshes`` with the section's options; ``pose`` overrides its pose.
 
     Each spring is labelled with its face's part of mesh 1 and, when mesh 2 is a table too,
-    with the part of mesh 2 its ray meets (``"medial/femur"``).
+    with the part of mesh 2 its ray meets (``"medial/femur"``). ``as_cast`` returns the
+    :class:`~dea_opt.mesh.SpringCast` (its layer so labelled), which finite kinematics re-cast from.
     """
     import dataclasses
 
@@ -214,10 +217,11 @@ def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
     cast = cast_springs(meshes["mesh1"], meshes["mesh2"], labels=meshes.get("labels1"), **options)
     labels2 = meshes.get("labels2")
     if labels2 is None:
-        return cast.layer
+        return cast if as_cast else cast.layer
     met = _labels_met(meshes["mesh2"], labels2, cast)
     labels = met if cast.layer.labels is None else np.char.add(np.char.add(cast.layer.labels.astype(str), "/"), met)
-    return dataclasses.replace(cast.layer, labels=labels)
+    layer = dataclasses.replace(cast.layer, labels=labels)
+    return dataclasses.replace(cast, layer=layer) if as_cast else layer
 
 
 def _labels_met(mesh2, labels2, cast) -> np.ndarray:
@@ -260,6 +264,20 @@ def apply_regions(layer, regions, cut: float | None = None):
     return dataclasses.replace(layer, labels=np.where(below, regions.names[0], regions.names[1]))
 
 
+def _finite_cast(section) -> tuple:
+    """``(SpringCast or None, references)`` of a geometry made of meshes, for finite kinematics."""
+    if isinstance(section, MeshGeometry):
+        return springs_from_mesh_section(section, load_meshes(section), as_cast=True), (None, None)
+    if isinstance(section, GeneratorGeometry):
+        built = _from_generator(section)
+        if hasattr(built, "mesh1") and hasattr(built, "mesh2"):
+            from ..mesh import cast_springs
+
+            cast = cast_springs(built.mesh1, built.mesh2, **dict(getattr(built, "options", {}) or {}))
+            return cast, (getattr(built, "reference1", None), getattr(built, "reference2", None))
+    return None, (None, None)
+
+
 def _body(section: BodySection, default_free, default_reference):
     from ..problem import Body
 
@@ -276,16 +294,22 @@ def build_problem(scenario: Scenario, layer=None):
     """
     from ..problem import ContactProblem, Load
 
+    cast = None
+    if layer is None and scenario.solve.kinematics == "finite":
+        cast, (reference1, reference2) = _finite_cast(scenario.geometry)  # re-cast as body 2 moves
+        layer = None if cast is None else cast.layer
     if layer is None:
         layer, (reference1, reference2) = build_geometry(scenario.geometry)
-    else:
+    elif cast is None:
         reference1 = reference2 = None
     if scenario.regions is not None:
         layer = apply_regions(layer, scenario.regions)
+        cast = None if cast is None else dataclasses.replace(cast, layer=layer)
     problem = ContactProblem(
         layer, build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),
         body2=_body(scenario.body2, DOFS, reference2),
+        kinematics=scenario.solve.kinematics, targets=cast,
     )
     if scenario.load is not None:
         load = scenario.load

@@ -351,6 +351,10 @@ class SolveSection(_Section):
     accuracy: list[Literal["low", "default", "high"]] = Field(
         ["default"], min_length=1, description="accuracy settings for compare")
     repeat: Count = Field(1, description="repeats per compare case")
+    kinematics: Literal["small", "finite"] = Field(
+        "small", description="small: the paper's linearised rigid motion (Eq. 9-11), gaps cast once; finite: exact "
+                             "rotations and gaps at the current pose, springs cast from meshes re-cast as body 2 "
+                             "moves (method newton and nlp stand for the finite formulations; qp is small only)")
     allow_outside_validity: bool = Field(
         False, description="exit 0 instead of 3 when an answer is certified but outside its model's validity (for "
                            "exploring on purpose; the outputs still say so)")
