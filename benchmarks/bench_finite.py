@@ -63,15 +63,16 @@ def solve_case(repeats: int = 5) -> dict:
     """The knee at 1000 N, ``uz, rx, ry`` free: finite against small, best of ``repeats``."""
     import os
 
-    import dea_opt as dea
     from common import peak_rss_mb
+
+    import dea_opt as dea
     from dea_opt.mesh import recast_at_solution
 
     missing = _missing()
     if missing:
         return {"case": "knee 1000 N", **missing}
     cast, reference = knee()
-    kw = dict(force=(0.0, 0.0, -1000.0), reference=reference, free=("uz", "rx", "ry"))
+    kw = {"force": (0.0, 0.0, -1000.0), "reference": reference, "free": ("uz", "rx", "ry")}
     law = dea.LinearLaw(10.0)
 
     def timed(make, method="auto", after=None):
@@ -115,8 +116,9 @@ def gait_case(frames: int = 101) -> dict:
     """The knee gait with finite kinematics: flexion prescribed, ``uz, ry`` found, every frame warm."""
     import os
 
-    import dea_opt as dea
     from common import peak_rss_mb
+
+    import dea_opt as dea
     from dea_opt.formulations._finite_geometry import pose_matrix
 
     missing = _missing()

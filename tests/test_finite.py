@@ -210,7 +210,7 @@ def test_sphere_on_a_bed_pressed_straight_down_is_the_small_answer():
     the small model's, and so is the answer."""
     layer = sphere_on_bed_layer(25.0, 2.0, 7.0, 40, 32)
     targets = Targets.spheres((0.0, 0.0, 25.0), 25.0, n=len(layer))
-    kw = dict(force=(0.0, 0.0, -40.0), reference=(0.0, 0.0, 25.0), free=("uz",))
+    kw = {"force": (0.0, 0.0, -40.0), "reference": (0.0, 0.0, 25.0), "free": ("uz",)}
     finite = solve(d.ContactProblem(layer, d.LinearLaw(1.0), kinematics="finite", targets=targets, **kw))
     small = solve(d.ContactProblem(layer, d.LinearLaw(1.0), **kw))
     assert abs(finite.u[8] - small.u[8]) < 1e-12
@@ -225,7 +225,8 @@ def test_ball_in_socket_turns_freely_and_agrees_with_small_to_second_order():
     targets = Targets.spheres((0.0, 0.0, 0.0), 24.8, n=len(layer))
     motions, differences = [], []
     for scale in (0.5, 1.0, 2.0, 4.0):
-        kw = dict(force=(3.0 * scale, 1.0 * scale, -10.0 * scale), reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz"))
+        kw = {"force": (3.0 * scale, 1.0 * scale, -10.0 * scale), "reference": (0.0, 0.0, 0.0),
+              "free": ("ux", "uy", "uz")}
         finite = solve(d.ContactProblem(layer, d.LinearLaw(1.0), kinematics="finite", targets=targets, **kw))
         small = solve(d.ContactProblem(layer, d.LinearLaw(1.0), **kw))
         resultant, _ = springs_on_body2(finite)

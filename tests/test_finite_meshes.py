@@ -18,7 +18,11 @@ import pytest
 
 import dea_opt as d
 from dea_opt import mesh as M
-from dea_opt.formulations._finite_geometry import Targets, evaluate, pose_matrix, rotation
+from dea_opt.formulations._finite_geometry import (
+    Targets,
+    evaluate,
+    rotation,
+)
 from dea_opt.formulations._finite_recast import off_face
 from dea_opt.geometry import hip_meshes
 
@@ -89,7 +93,7 @@ def _compare(data, degrees, axis):
     targets = Targets.from_layer(layer, pose=cast.pose)
     at_pose = evaluate(targets, layer.points, layer.normals, T @ targets.frame)
     fresh = quiet(M.cast_springs, data["mesh1"], data["mesh2"], pose=T, max_overlap=WIDE, **data["options"]).layer
-    common, i0, i1 = np.intersect1d(layer.source_face, fresh.source_face, return_indices=True)
+    _, i0, i1 = np.intersect1d(layer.source_face, fresh.source_face, return_indices=True)
     same = layer.target_faces[i0] == fresh.target_faces[i1]
     on = i0[same]
     error = np.abs(at_pose.s[on] - fresh.gap[i1[same]])

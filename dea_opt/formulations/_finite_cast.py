@@ -24,7 +24,23 @@ _SPRING = -1
 
 
 class Mesh1:
-    """Mesh 1's faces as a cast sees them, and what lies behind each (measured when first asked)."""
+    """Mesh 1's faces as a cast sees them, and what lies behind each (measured when first asked).
+
+    :meth:`of` keeps one per mesh and cast options in the mesh's trimesh cache (emptied when the
+    mesh changes), so that the solves of a load path measure each face once.
+    """
+
+    @classmethod
+    def of(cls, cast) -> Mesh1:
+        mesh = cast.mesh1
+        cache = getattr(mesh, "_cache", None)
+        key = f"dea_opt_finite_mesh1_{bool(cast.options['flip'])}_{cast.options['engine']}"
+        found = cache[key] if cache is not None else None
+        if found is None:
+            found = cls(cast)
+            if cache is not None:
+                cache[key] = found
+        return found
 
     def __init__(self, cast):
         m1, options = cast.mesh1, cast.options

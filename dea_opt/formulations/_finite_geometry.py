@@ -22,7 +22,7 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["Gaps", "Targets", "evaluate", "left_jacobian", "rotation", "rotation_and_jacobian", "pose_matrix"]
+__all__ = ["Gaps", "Targets", "evaluate", "left_jacobian", "pose_matrix", "rotation", "rotation_and_jacobian"]
 
 #: ``|n . m'|`` below which a ray runs along its target (no gap): the target turned away.
 FACING = 1e-9

@@ -112,7 +112,7 @@ class MeshTracker:
         self.recast_shift, self.full_shift, self.thickness_tol = recast_shift, full_shift, thickness_tol
         from ._finite_cast import Mesh1
 
-        self.mesh1 = Mesh1(cast)
+        self.mesh1 = Mesh1.of(cast)
         self._first_layer = cast.layer
         self._take(cast)
         self.begin()
@@ -130,7 +130,7 @@ class MeshTracker:
         from ..mesh.springs import check_pose
 
         if frame is not None:
-            self.frame = check_pose(frame, "frame")
+            self.frame = np.asarray(check_pose(frame, "frame"), dtype=float)
         self.counts = {"recasts": 0, "updates": 0, "gained": 0, "lost": 0, "left_face": 0,
                        "dropped": len(self.dropped_faces)}
         self.lost: dict = {}
@@ -151,29 +151,31 @@ class MeshTracker:
             from ..layer import SpringLayer
 
             s, m1 = self.springs, self.cast.mesh1
-            labels = self._labels()
             normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
             self._layer = SpringLayer(m1.triangles_center[s.faces1], normals, m1.area_faces[s.faces1],
                                       self.thickness, s.gap, source_face=s.faces1, surface=(m1.vertices, m1.faces),
-                                      labels=None if labels is None else labels[s.faces1], target_points=s.q,
+                                      labels=self._labels(s.faces1), target_points=s.q,
                                       target_normals=s.m, target_faces=s.faces2)
         return self._layer
 
-    def _labels(self):
-        """A label per face of mesh 1: the first layer's own (a scenario's regions, the parts of mesh 2
-        met), each other face taking the label of the nearest face that had one."""
-        if not hasattr(self, "_face_labels"):
-            first = self._first_layer
-            if first.labels is None:
-                self._face_labels = None
-            else:
-                from scipy.spatial import cKDTree
+    def _labels(self, faces):
+        """The labels of faces ``faces`` of mesh 1: the first layer's own (a scenario's regions, the
+        parts of mesh 2 met) where it had the face, else the label of its nearest spring."""
+        first = self._first_layer
+        if first.labels is None:
+            return None
+        labels = np.asarray(first.labels)
+        where = np.full(len(self.cast.mesh1.faces), -1, dtype=np.int64)
+        where[first.source_face] = np.arange(len(first.source_face))
+        index = where[faces]
+        missing = index < 0
+        if missing.any():
+            from scipy.spatial import cKDTree
 
-                centres = self.cast.mesh1.triangles_center
-                nearest = cKDTree(centres[first.source_face]).query(centres)[1]
-                self._face_labels = np.asarray(first.labels)[nearest]
-                self._face_labels[first.source_face] = first.labels
-        return self._face_labels
+            if getattr(self, "_label_tree", None) is None:
+                self._label_tree = cKDTree(first.points)
+            index[missing] = self._label_tree.query(self.cast.mesh1.triangles_center[faces[missing]])[1]
+        return labels[index]
 
     def _lose(self, reason: str, count: int) -> None:
         if count:

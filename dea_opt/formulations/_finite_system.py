@@ -19,7 +19,12 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._finite_geometry import Targets, evaluate, jacobian_transpose_derivative, rotation_and_jacobian
+from ._finite_geometry import (
+    Targets,
+    evaluate,
+    jacobian_transpose_derivative,
+    rotation_and_jacobian,
+)
 
 
 @dataclass(frozen=True, eq=False)
@@ -97,7 +102,7 @@ class State:
 
     def __init__(self, system: FiniteSystem, y, law, bilateral: bool = False):
         self.system, self.y, self.law, self.bilateral = system, y, law, bilateral
-        R, self.J = rotation_and_jacobian(y[3:6])
+        _, self.J = rotation_and_jacobian(y[3:6])
         self.centre = system.reference + y[:3]
         self.gaps = evaluate(system.targets, system.points, system.normals, system.transform(y))
         self.eps = self.gaps.s / system.thickness

@@ -19,8 +19,18 @@ from ._finite_geometry import Targets
 from ._finite_solution import FiniteSolution
 from ._options import Capabilities, Option
 
-__all__ = ["ALIASES", "CAPABILITIES", "FiniteModel", "FiniteSolution", "Model", "OPTIONS", "RECAST_OPTIONS",
-           "Targets", "plan", "solve"]
+__all__ = [
+    "ALIASES",
+    "CAPABILITIES",
+    "OPTIONS",
+    "RECAST_OPTIONS",
+    "FiniteModel",
+    "FiniteSolution",
+    "Model",
+    "Targets",
+    "plan",
+    "solve",
+]
 
 PAGE = "formulations/finite.md"
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 from ._options import Capabilities, Option, Variant
 from .finite import RECAST_OPTIONS, FiniteModel
 
-__all__ = ["CAPABILITIES", "Model", "OPTIONS"]
+__all__ = ["CAPABILITIES", "OPTIONS", "Model"]
 
 PAGE = "formulations/finite_nlp.md"
 

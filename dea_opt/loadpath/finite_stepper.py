@@ -27,9 +27,9 @@ class FiniteStepper:
         self.method = method  # checked by the finite solve
         self.options = dict(options)  # checked by the finite solve (dea_opt.formulations.finite.plan)
         self.certificate_tol = certificate_tol
-        self.x = None
-        self.tracker = None
-        self.pose = None
+        self.x: np.ndarray | None = None
+        self.tracker: object = None
+        self.pose: np.ndarray | None = None
 
     def solve(self, problem: ContactProblem, new_geometry: bool, setup: float = 0.0) -> Solution:
         from ..formulations import finite

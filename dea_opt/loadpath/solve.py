@@ -343,7 +343,7 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
         for k in range(len(loads)):
             load, t = loads[k], float(times[k])
             base, frame_regions, new_geometry, status = problem, base_regions, k == 0, ""
-            if finite:
+            if isinstance(stepper, FiniteStepper):
                 stepper.pose = None if poses is None else poses[k]
             elif moving:
                 new_geometry = True
