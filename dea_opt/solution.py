@@ -255,8 +255,9 @@ class Solution:
     @property
     def pose(self) -> np.ndarray:
         """Body 2's 4x4 pose relative to body 1 that ``u`` implies: each body's rotation vector taken as
-        an exact rotation about its reference, ``T1^-1 T2`` (for ``kinematics="small"``, the rigid
-        pose closest to the linearised motion; for ``"finite"``, the solved pose itself)."""
+        an exact rotation about its reference, ``T1^-1 T2`` (for ``kinematics="small"`` the rigid
+        motion with the linearised motion's rotation vector and translation; for ``"finite"`` the
+        solved pose itself, composed with the pose the targets were cast at)."""
         from .formulations._finite_geometry import pose_matrix
 
         c1, c2 = self.problem.body1.reference, self.problem.body2.reference

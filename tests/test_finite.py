@@ -264,6 +264,10 @@ def _cases():
             tilted, d.LinearLaw(H), body2=d.Body(reference=(0.0, 0.0, 4.0), free=("uz", "ry"), force=(0, 0, -400.0),
                                                  prescribed={"rx": np.radians(20.0)}),
             kinematics="finite", targets=planes),
+        "ball in a socket, pushed off its axis": d.ContactProblem(
+            socket_layer(radius=25.0, thickness=2.0, coverage=80.0, n_rings=20, n_sectors=40, gap=0.2),
+            d.AteshianLaw(1.0, 0.2), force=(6.0, 2.0, -20.0), reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz"),
+            kinematics="finite", targets=Targets.spheres((0.0, 0.0, 0.0), 24.8, n=800)),
         "sphere on a bed, rolled": d.ContactProblem(
             sphere_on_bed_layer(25.0, 2.0, 7.0, 20, 24), d.LinearLaw(1.0), force=(0, 0, -30.0), moment=(0, 40.0, 0),
             reference=(0.0, 0.0, 20.0), free=("uz", "ry"), kinematics="finite",
@@ -296,6 +300,17 @@ def test_newton_and_ipopt_agree(name):
     radius = np.sqrt(np.mean(np.sum((problem.layer.points - problem.body2.reference - newton.u[6:9]) ** 2, axis=1)))
     scaled = generalized / np.array([1, 1, 1, radius, radius, radius])
     assert np.abs(scaled[free]).max() <= 1e-9 * size
+
+
+def test_statuses_are_the_vocabulary_of_every_method():
+    layer = punch(10, 2)
+    unloaded = solve(d.ContactProblem(layer.with_gap(0.1), d.LinearLaw(H), reference=(0, 0, 0), free=("uz", "ry"),
+                                      kinematics="finite"))
+    assert unloaded.success and unloaded.status is d.Status.UNLOADED and not unloaded.pressure.any()
+    pressed = solve(d.ContactProblem(layer.with_gap(-0.1), d.LinearLaw(H), reference=(0, 0, 0), free=("ry",),
+                                     kinematics="finite"))
+    assert pressed.success and pressed.status is d.Status.PRELOADED and pressed.pressure.min() > 0
+    assert solve(punch_problem(layer, 50.0, 0.0)).status is d.Status.CONVERGED
 
 
 def test_auto_is_newton_and_certified():

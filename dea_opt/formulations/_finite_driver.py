@@ -21,6 +21,7 @@ import numpy as np
 
 from ..errors import InputError, SolverError, ValidityWarning
 from ..kinematics import DOFS
+from ..status import Status
 from . import _finite_newton
 from ._finite_geometry import Targets, evaluate
 from ._finite_recast import MeshTracker
@@ -271,6 +272,21 @@ def _inner(method, system, law, T, E0, x, cold, opts):
     return _finite_newton.solve(system, law, T, E0, x0=x, cold=cold, **{k: opts[k] for k in keys})
 
 
+def _status(native: str, success: bool, system, state) -> Status:
+    """The answer's :class:`~dea_opt.status.Status`: the solver's, in dea-opt's vocabulary, with the
+    statuses every method gives the same situation (no load: ``unloaded`` or ``preloaded``) and
+    ``inaccurate`` for a convergence the certificate rejects."""
+    try:
+        status = Status(native)
+    except ValueError:
+        status = Status.SOLVER_ERROR
+    if status is Status.CONVERGED and success and not (system.force.any() or system.moment.any()):
+        return Status.PRELOADED if (state.eps < 0).any() else Status.UNLOADED
+    if status is Status.CONVERGED and not success:
+        return Status.INACCURATE
+    return status
+
+
 def _solution(problem, system, law, inner, method, tracker, certificate_tol, build, solve_time, history):
     state = inner.state
     layer = problem.layer if tracker is None else tracker.layer
@@ -296,9 +312,7 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
     info = {k: v for k, v in inner.info.items() if k != "stress"}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite",
                 residual_history=history)
-    status = inner.status
-    if not success and status == "converged":
-        status = "inaccurate"
+    status = _status(inner.status, success, system, state)
     if tracker is not None:
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
     dropped = None if tracker is None else tracker.counts["dropped"]
