@@ -380,3 +380,73 @@ def test_bad_input_is_named():
         d.solve(punch_problem(layer, 10.0, 0.0, targets=Targets.facing(punch(5, 2))))
     with pytest.raises(d.LoadNotSupportedError):
         d.solve(punch_problem(layer, -10.0, 0.0))  # pulls the punch off the bed
+
+
+# --- random problems, checked by sums written here ------------------------------------------------
+
+@pytest.mark.parametrize("seed", range(8))
+def test_random_tilted_problems_are_in_equilibrium_by_our_own_sums(seed):
+    """Random targets tilted up to 15 degrees off the springs, random loads, moments and free
+    rotations: Newton's answer balances the load on the free coordinates (forces along the springs'
+    normals, moments about the reference where it is, through J^T), and IPOPT's is the same."""
+    rng = np.random.default_rng(100 + seed)
+    layer = plate_layer(8.0, 8.0, 10, 10, thickness=3.0)
+    tilt = rng.normal(0.0, 0.12, (len(layer), 2))
+    m = np.column_stack([tilt, -np.ones(len(layer))])
+    gaps = rng.uniform(-0.02, 0.05, len(layer))
+    layer = layer.with_gap(gaps)
+    targets = Targets.planes(layer.points + gaps[:, None] * layer.normals, m)
+    # springs along z resist no turn about z: rz stays fixed, its moment a reaction
+    free = ("uz", *rng.choice(["rx", "ry"], size=int(rng.integers(1, 3)), replace=False))
+    free = tuple(dof for dof in d.DOFS if dof in free)
+    force = (0.0, 0.0, -float(rng.uniform(50, 400)))
+    moment = tuple(float(v) for v in rng.normal(0.0, 60.0, 3))
+    reference = tuple(float(v) for v in rng.normal(0.0, 1.0, 3) + [0.0, 0.0, 3.0])
+    law = [d.LinearLaw(H), d.CubicLaw(H, 0.3), d.AteshianLaw(H, 0.4)][seed % 3]
+    problem = d.ContactProblem(layer, law, force=force, moment=moment, reference=reference, free=free,
+                               kinematics="finite", targets=targets)
+    newton = solve(problem, "finite")
+    resultant, about = springs_on_body2(newton)
+    J = G.left_jacobian(newton.u[9:12])
+    net = np.concatenate([resultant + force, J.T @ (about + np.array(moment))])
+    index = [d.DOFS.index(dof) for dof in free]
+    assert np.abs(net[index]).max() <= 1e-8 * max(abs(force[2]), np.abs(moment).max())
+    ipopt = solve(problem, "finite_nlp", form="reduced")
+    assert np.abs(ipopt.u - newton.u).max() <= 1e-6 * np.abs(newton.u).max()
+
+
+def test_bad_options_frames_and_starts_are_named():
+    layer = punch(10, 2)
+    problem = punch_problem(layer, 10.0, 0.0)
+    with pytest.raises(d.InputError, match="recast_shift must be a number in"):
+        d.solve(problem, recast_shift=-1.0)
+    with pytest.raises(d.InputError, match="form must be one of"):
+        d.solve(problem, "finite_nlp", form="dense")
+    with pytest.raises(d.InputError, match="x0 must have shape"):
+        d.solve(problem, x0=[0.0])
+    skew = np.eye(4)
+    skew[0, 1] = 0.5
+    with pytest.raises(d.InputError, match="frame is not rigid"):
+        d.formulations.finite.solve(problem, frame=skew)
+    with pytest.raises(d.InputError, match="prescribed motion"):
+        d.solve(d.ContactProblem(layer, d.LinearLaw(H), body1=d.Body(free=(), prescribed={"uz": 0.1}),
+                                 kinematics="finite"))
+    with pytest.raises(d.InputError, match="must be finite"):
+        Targets.planes(np.full((20, 3), np.nan), -layer.normals)
+
+
+def test_a_path_frame_the_springs_cannot_carry_is_recorded_and_the_next_starts_cold():
+    layer = punch(20, 4)
+    problem = punch_problem(layer, 0.0, 0.0)
+    loads = np.array([[0, 0, -200.0, 0, 40.0, 0], [0, 0, 200.0, 0, 0, 0], [0, 0, -250.0, 0, 40.0, 0]])
+    result = solve_path_quietly(problem, loads)
+    assert list(result.table["success"]) == [True, False, True]
+    assert result.table["status"][1] == d.Status.NOT_SUPPORTED
+    alone = solve(problem.with_load(force=loads[2, :3], moment=loads[2, 3:]))
+    assert np.abs(result.solutions[2].u - alone.u).max() <= 1e-10
+
+
+def solve_path_quietly(problem, loads):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", d.ValidityWarning)
+        return d.solve_path(problem, loads)
