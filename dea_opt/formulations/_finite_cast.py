@@ -94,6 +94,34 @@ class FaceCast:
         return _thickness(options["thickness2"], m2, faces2, points, -m2.face_normals[faces2], options["engine"])
 
 
+def _crossings(m2, engine, origins, directions, look, max_gap, depth, eps1):
+    """``(ray, face, t, cos)``: the crossings of mesh 2 facing the rays, from ``-look`` to ``max_gap``.
+
+    One first-hit query per ray; where the first crossing is a face facing the ray in front of
+    mesh 1's own far side (a smooth cartilage surface met once, the usual case) it is the only
+    candidate, else the ray is cast again for all its crossings (as the cast does for every ray).
+    """
+    caster = _caster(m2, engine)
+    eps = _self_epsilon(m2)
+    start, stop = -(look + eps), np.maximum(max_gap, look) + eps
+    first, t = caster.nearest(origins + start[:, None] * directions, directions, 0.0, np.inf)
+    t = t + start
+    found = first >= 0
+    cos = np.zeros(len(first))
+    cos[found] = -np.einsum("ij,ij->i", m2.face_normals[first[found]], directions[found])
+    simple = found & (cos > 0) & (t <= stop) & ~(-t >= depth - eps1)
+    missed = ~found | (t > stop)  # nothing ahead inside the window: no hit at all
+    again = np.flatnonzero(~simple & ~missed)
+    ray, face, dist = np.flatnonzero(simple), first[simple], t[simple]
+    if len(again):
+        more_ray, more_face, more_t = caster.hits(origins[again], directions[again], start[again], stop[again])
+        ray = np.concatenate([ray, again[more_ray]])
+        face, dist = np.concatenate([face, more_face]), np.concatenate([dist, more_t])
+    cosine = -np.einsum("ij,ij->i", m2.face_normals[face], directions[ray])
+    facing = cosine > 0
+    return ray[facing], face[facing], dist[facing], cosine[facing]
+
+
 def cast_faces(cast, pose, faces, allowed, mesh1: Mesh1) -> FaceCast:
     """Cast the faces ``faces`` of mesh 1 (K,) onto mesh 2 at ``pose`` (4x4), each ray allowed the
     overlap ``allowed`` (K,), by the rules of :func:`dea_opt.mesh.cast_springs`."""
@@ -112,11 +140,7 @@ def cast_faces(cast, pose, faces, allowed, mesh1: Mesh1) -> FaceCast:
     R, shift = pose[:3, :3], pose[:3, 3]
     origins = (mesh1.centroids[faces] - shift) @ R
     directions = mesh1.normals[faces] @ R
-    eps = _self_epsilon(m2)
-    ray, face, t = _caster(m2, engine).hits(origins, directions, -(look + eps), np.maximum(max_gap, look) + eps)
-    cos = -np.einsum("ij,ij->i", m2.face_normals[face], directions[ray])
-    facing = cos > 0
-    ray, face, t, cos = ray[facing], face[facing], t[facing], cos[facing]
+    ray, face, t, cos = _crossings(m2, engine, origins, directions, look, max_gap, depth, _self_epsilon(mesh1.mesh))
     through = -t >= depth[ray] - _self_epsilon(mesh1.mesh)
     window = (t >= -allowed[ray]) & (t <= max_gap)
     rejected = np.zeros(k, dtype=bool)

@@ -289,14 +289,14 @@ def _status(native: str, success: bool, system, state) -> Status:
 
 def _solution(problem, system, law, inner, method, tracker, certificate_tol, build, solve_time, history):
     state = inner.state
-    layer = problem.layer if tracker is None else tracker.layer
     targets = system.targets
     final = problem
-    if tracker is not None and layer is not problem.layer:
+    if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):
         # The springs of the solved pose, with their gaps at zero displacement (from the same targets).
-        s0 = evaluate(targets, layer.points, layer.normals, targets.frame).s
+        s0 = evaluate(targets, system.points, system.normals, targets.frame).s
         s0 = np.clip(np.where(np.isfinite(s0), s0, 1e9), -1e9, 1e9)
-        final = replace(problem, layer=layer.with_gap(s0), targets=targets)
+        final = replace(problem, layer=tracker.layer_with_gap(s0), targets=targets)
+    layer = final.layer
     u = np.zeros(12)
     u[6:] = system.coordinates(inner.u_free)
     finite = bool(np.isfinite(u).all() and state.finite)

@@ -147,6 +147,23 @@ class MeshTracker:
     @property
     def layer(self):
         """The springs as a :class:`~dea_opt.layer.SpringLayer` (gaps at the last update's pose)."""
+        return self.layer_with_gap(None)
+
+    def changed_from(self, layer) -> bool:
+        """Whether the springs are no longer those of ``layer`` (the problem's own)."""
+        return self._layer is not layer
+
+    def layer_with_gap(self, gap):
+        """The springs as a :class:`~dea_opt.layer.SpringLayer` with gaps ``gap`` (N,), or those of
+        the last update's pose (None)."""
+        if gap is not None:
+            from ..layer import SpringLayer
+
+            s, m1 = self.springs, self.cast.mesh1
+            normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
+            return SpringLayer(m1.triangles_center[s.faces1], normals, m1.area_faces[s.faces1], self.thickness, gap,
+                               source_face=s.faces1, surface=(m1.vertices, m1.faces), labels=self._labels(s.faces1),
+                               target_points=s.q, target_normals=s.m, target_faces=s.faces2)
         if self._layer is None:
             from ..layer import SpringLayer
 
@@ -160,10 +177,14 @@ class MeshTracker:
 
     def _labels(self, faces):
         """The labels of faces ``faces`` of mesh 1: the first layer's own (a scenario's regions, the
-        parts of mesh 2 met) where it had the face, else the label of its nearest spring."""
+        parts of mesh 2 met) where it had the face, else the label of its nearest spring. When the
+        first layer's labels are the cast's per-face labels, those."""
         first = self._first_layer
         if first.labels is None:
             return None
+        own = self.cast.options.get("labels")
+        if own is not None and np.array_equal(np.asarray(own)[first.source_face], first.labels):
+            return np.asarray(own)[faces]
         labels = np.asarray(first.labels)
         where = np.full(len(self.cast.mesh1.faces), -1, dtype=np.int64)
         where[first.source_face] = np.arange(len(first.source_face))
