@@ -178,3 +178,23 @@ def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):
     small = load_scenario(path)
     assert build_problem(small.model_copy(update={"solve": small.solve.model_copy(update={"kinematics": "small"})})
                          ).kinematics == "small"
+
+
+def test_labels_follow_the_faces_through_updates_and_whole_re_casts():
+    """A layer relabelled (a scenario's regions: by the sign of x) keeps its labels on the springs
+    of the solved pose, whether they came from updates or from a whole re-cast."""
+    import dataclasses
+
+    pair = knee_meshes()
+    cast = quiet(d.mesh.cast_springs, pair.mesh1, pair.mesh2, **pair.options)
+    side = np.where(cast.layer.points[:, 0] > 0, "east", "west")
+    cast = dataclasses.replace(cast, layer=dataclasses.replace(cast.layer, labels=side))
+    problem = d.ContactProblem(cast.layer, d.LinearLaw(H), force=(0, 0, -800.0), moment=(0, 2000.0, 0),
+                               reference=pair.reference2, free=("uz", "ry"), kinematics="finite", targets=cast)
+    for full_shift in (5.0, 1e-3):
+        solution = quiet(d.solve, problem, full_shift=full_shift)
+        counts = solution.info["recast"]
+        assert counts["recasts" if full_shift < 1 else "updates"] >= 1
+        layer = solution.problem.layer
+        assert set(layer.labels) == {"east", "west"}
+        assert (layer.labels == np.where(layer.points[:, 0] > 0, "east", "west")).all()

@@ -113,15 +113,16 @@ class MeshTracker:
         from ._finite_cast import Mesh1
 
         self.mesh1 = Mesh1.of(cast)
-        self._first_layer = cast.layer
         self._take(cast)
+        self._first_layer = cast.layer
         self.begin()
 
     def _take(self, cast) -> None:
         """Start from a whole cast (the first, or a full re-cast)."""
         self.cast, self.full = cast, np.asarray(cast.pose, dtype=float)
         self.springs = _Springs(cast.layer, cast.thickness1, cast.thickness2)
-        self._layer = cast.layer
+        # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
+        self._layer = cast.layer if not hasattr(self, "_first_layer") else None
         self.dropped_faces = np.asarray(cast.dropped.faces["overlap"], dtype=np.int64)
 
     def begin(self, frame=None) -> None:
