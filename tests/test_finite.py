@@ -433,6 +433,10 @@ def test_bad_options_frames_and_starts_are_named():
                                  kinematics="finite"))
     with pytest.raises(d.InputError, match="must be finite"):
         Targets.planes(np.full((20, 3), np.nan), -layer.normals)
+    from dea_opt.sensitivity import sensitivities
+
+    with pytest.raises(d.InputError, match="derivatives of the small kinematics"):
+        sensitivities(solve(punch_problem(layer, 10.0, 0.0)))
 
 
 def test_a_path_frame_the_springs_cannot_carry_is_recorded_and_the_next_starts_cold():
