@@ -218,8 +218,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         targets = targets.with_frame(_check_frame(frame))
     system = build_system(problem, targets)
     if tracker is not None:
-        layer = tracker.layer
-        system = system.with_springs(layer.points, layer.normals, layer.areas, layer.thickness, targets)
+        system = tracker.springs_of(system)  # a load path's previous frame's springs, or the cast's
     law = problem.law
     T, E0, small = scaled_directions(problem, system, law)
     unresisted, cone = load_checks or (None, None)

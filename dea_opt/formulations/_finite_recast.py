@@ -265,7 +265,7 @@ class MeshTracker:
             ratio = self.thickness[loaded] / before_h[loaded]
             if not len(ratio) or np.abs(ratio - 1).max() <= self.thickness_tol:
                 return None  # nothing changed
-        new_system = self._system(system)
+        new_system = self.springs_of(system)
         # Springs that carry nothing before and after change no force: no new solve for them.
         changed = np.zeros(len(keep), dtype=bool)
         changed[index] = True
@@ -289,10 +289,11 @@ class MeshTracker:
             self._lose(reason, len(faces))
         self._take(new.cast)
         self.counts["dropped"] = len(self.dropped_faces)
-        new_system = self._system(system)
+        new_system = self.springs_of(system)
         return Update(new_system, new_system.state(state.y, state.law), True)
 
-    def _system(self, system):
+    def springs_of(self, system):
+        """``system`` with this tracker's springs and targets (the load and coordinates kept)."""
         s, m1 = self.springs, self.cast.mesh1
         normals = m1.face_normals[s.faces1]
         return system.with_springs(m1.triangles_center[s.faces1], -normals if self.cast.options["flip"] else normals,
