@@ -100,7 +100,7 @@ def nlp_sensitivities(problem, wrt, *, x0=None, tol: float = 1e-14) -> dict:
     volume = ca.DM(layer.areas) * h
     energy = ca.dot(volume, twin.energy_expr(compressed, xp)) - ca.dot(r[free.tolist()], x)
     P = ca.vertcat(*symbols)
-    solver = ca.nlpsol("dea_sensitivity", "ipopt", {"x": xi, "p": P, "f": energy / sc.energy},
+    solver = ca.nlpsol("dea_sensitivity", "ipopt", {"x": xi, "p": P, "f": energy / sc.energy_scale},
                        {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": tol}})
     u = up + ca.mtimes(ca.DM(np.eye(12)[:, free]), x)
     pressure = -twin.stress_expr(compressed, xp)
@@ -110,7 +110,7 @@ def nlp_sensitivities(problem, wrt, *, x0=None, tol: float = 1e-14) -> dict:
     u_star, p_star = outputs(xi_star, Pv)
     J = ca.Function("J", [Pv], [ca.jacobian(ca.vertcat(u_star, p_star), Pv), xi_star])
     jac, xi_value = (np.asarray(v, dtype=float) for v in J(np.concatenate(nominal)))
-    out: dict = {"x": sc.to_x(xi_value.reshape(-1))}
+    out: dict = {"x": sc.to_u_free(xi_value.reshape(-1))}
     start = 0
     for name, value in zip(wrt, nominal):
         block = jac[:, start:start + value.size]
