@@ -316,7 +316,9 @@ def sweep(
     input files, overrides and dea-opt version, and recomputes the others, saying why.
     Sweeps may share a folder at once: no case is computed twice and no row is lost. On a
     terminal each finished case is printed with a progress bar; Dask's and Python's
-    messages go to sweep.log. Needs: pip install dea-opt[distributed].
+    messages go to sweep.log. A case's status is ok, outside_validity, failed or error;
+    exit 1 when a case failed or hit an error, else 3 when one is outside validity.
+    Needs: pip install dea-opt[distributed].
     """
     from collections import Counter
 
@@ -339,7 +341,12 @@ def sweep(
     if result.failed:
         typer.echo(f"dea-opt: {len(result.failed)} case(s) did not finish cleanly: {', '.join(result.failed)} "
                    f"(see the status and message columns of {result.results_path})", err=True)
-        raise typer.Exit(EXIT_UNCERTIFIED)
+    if result.outside_validity:
+        typer.echo(f"dea-opt: {len(result.outside_validity)} case(s) solved outside validity: "
+                   f"{', '.join(result.outside_validity)} (see the validity_failed column of {result.results_path})",
+                   err=True)
+    if result.exit_code:
+        raise typer.Exit(result.exit_code)
 
 
 @app.command()
