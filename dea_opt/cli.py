@@ -132,7 +132,7 @@ def _report_outcome(outcome, quiet: bool = False) -> None:
     _warn(outcome.warnings)
     if not quiet:
         typer.echo(outcome.message)
-        for line in outcome.validity:
+        for line in outcome.validity + outcome.regions:
             typer.echo(line)
         folder = outcome.folder
         typer.echo(f"outputs in {folder} (run {outcome.manifest['run_id']}, listed in manifest.json):")

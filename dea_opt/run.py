@@ -62,6 +62,9 @@ class RunOutcome:
     reasons : list of str
         Why the answer is outside validity (each failed check with its value, limit and
         advice; for a load path, the frames); empty when valid.
+    regions : list of str
+        One line per labelled region (compartment): its share of the load, peak pressure and
+        contact area (for a load path: over the frames); empty without labels.
     allow_outside_validity : bool
         ``[solve] allow_outside_validity``: an answer outside validity exits 0.
     folder : Path or None
@@ -78,6 +81,7 @@ class RunOutcome:
     valid: bool | None = True
     validity: list = field(default_factory=list)
     reasons: list = field(default_factory=list)
+    regions: list = field(default_factory=list)
     allow_outside_validity: bool = False
     folder: Path | None = None
     manifest: dict | None = None
@@ -268,7 +272,18 @@ def _run_static(scenario, problem, method, options, out, cast=None) -> RunOutcom
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose: {recast['describe']}")
     return RunOutcome("static", solution.success, message, files, headline, solution, warnings=notes,
-                      valid=validity.valid, validity=lines, reasons=[c.describe() for c in validity.failed])
+                      valid=validity.valid, validity=lines, reasons=[c.describe() for c in validity.failed],
+                      regions=_static_regions(solution))
+
+
+def _static_regions(solution) -> list[str]:
+    """One line per labelled region of a static answer."""
+    if solution.problem.layer.labels is None or not np.isfinite(solution.pressure).all():
+        return []
+    from .regions import regional_statistics
+
+    return [f"region {name}: force {r.force:.4g} N ({r.share:.1%} of the total), peak {r.peak_pressure:.4g} MPa, "
+            f"contact area {r.contact_area:.4g} mm^2" for name, r in regional_statistics(solution).items()]
 
 
 def recast_solution(solution, cast) -> tuple:
@@ -390,8 +405,11 @@ def run_path_outputs(scenario, problem, method, options, out, progress, extra_su
         lines = [f"validity: valid (every one of the {certified} certified frames)"]
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
+    regions = [f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
+               f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
+               f"contact area {r['max_contact_area']:.4g} mm^2" for name, r in summary["regions"].items()]
     return RunOutcome("path", result.success, message, files, headline, result, warnings=notes, valid=not outside,
-                      validity=lines, reasons=reasons)
+                      validity=lines, reasons=reasons, regions=regions)
 
 
 def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict, certificate_tol: float):

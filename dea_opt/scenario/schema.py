@@ -8,6 +8,7 @@ generated from the models below, so it cannot drift. Units: mm, N, N mm, MPa, s.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -71,8 +72,9 @@ def _anatomy(value):
         AnatomicalFrame.from_dict(value)
     except InputError as exc:
         message = str(exc)
-        message = "output." + message if message.startswith("anatomy") else f"output.anatomy: {message}"
-        raise ValueError(message) from None
+        if not message.startswith("anatomy"):
+            message = f"anatomy: {message}"
+        raise ValueError(re.sub(r"(?<![\w.])anatomy(?=[.:\s])", "output.anatomy", message)) from None
     return value
 
 
