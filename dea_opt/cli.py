@@ -366,7 +366,9 @@ def demo(
 
     First one gait-peak frame (2.4 kN tilted 20 degrees) by Newton, QP and NLP with the
     linear and Ateshian laws, as a table; then the whole cycle, warm-started frame by
-    frame, written to ./dea-opt-demo/: frames.csv, series.pvd, cycle.png, exposure.png,
+    frame, with the frames' validity and the share of each region of the socket (superior,
+    anterior, posterior) on the terminal, written to ./dea-opt-demo/: frames.csv, series.pvd,
+    cycle.png, exposure.png,
     exposure.vtu, summary.json, comparison.csv and, last, manifest.json. The folder must be
     new, empty or hold an earlier dea-opt run (--force: any folder).
     """

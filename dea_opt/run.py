@@ -7,9 +7,12 @@ Outputs of a static load (in the output folder): ``contact.vtu`` (the contact su
 pressure, strain, gap, thickness, ...), ``contact.csv`` (one row per spring),
 ``contact.json`` (summary, regions, certificate, validity) and ``contact.png`` (pressure map).
 Outputs of a load path: ``frames.csv`` (one row per frame), ``series.pvd`` with
-``series_frames/frame_NNNN.vtu`` (ParaView time series), ``exposure.vtu`` (exposure
-fields), ``cycle.png`` (force, pressure and contact area over time), ``exposure.png``
-(exposure maps) and ``summary.json``. Every run also writes ``manifest.json`` (last: the
+``series_frames/frame_NNNN.vtu`` (ParaView time series, each frame written as it is solved:
+nothing is kept per frame), ``exposure.vtu`` (exposure fields), ``cycle.png`` (force, moment,
+pressure and contact area over time), ``exposure.png`` (exposure maps) and ``summary.json``.
+``[output] anatomy`` draws the maps in the joint's anatomical frame. When the springs were cast
+from meshes they are re-cast at the solved pose (a load path: its peak frame), which evaluates
+the ``dropped_springs`` validity check and adds ``recast`` to ``contact.json``/``summary.json``. Every run also writes ``manifest.json`` (last: the
 run id, dea-opt version, scenario hash and every file with its size and SHA-256) and, when
 a library had something to say, ``dea-opt.log`` (:mod:`dea_opt.io.publish`,
 :mod:`dea_opt.runlog`).
@@ -217,11 +220,13 @@ def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, 
 
 
 def _drop_repeats(outcome: RunOutcome, messages, notes=()) -> None:
-    """The scenario's notes and the run's own warnings, but for the validity warnings: the
-    validity lines of the outcome state them, with every check."""
+    """The scenario's notes, the outcome's own notes (a re-cast that failed) and the run's own
+    warnings, but for the validity warnings: the validity lines of the outcome state them, with
+    every check."""
     assessed = outcome.valid is not None
-    outcome.warnings = [*notes, *(w for w in messages.own
-                                  if not (assessed and messages.categories.get(w) == "ValidityWarning"))]
+    outcome.warnings = [*notes, *outcome.warnings,
+                        *(w for w in messages.own
+                          if not (assessed and messages.categories.get(w) == "ValidityWarning"))]
 
 
 # --- one load ---------------------------------------------------------------------------

@@ -17,10 +17,10 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import KNEE
 from typer.testing import CliRunner
 
 import dea_opt as d
-from conftest import KNEE
 from dea_opt.cli import app
 from dea_opt.errors import InputError, SizeLimitError
 from dea_opt.io.atomic import TEMPORARY_NAME
@@ -471,7 +471,7 @@ def test_kill_9_of_a_first_run_mid_path_then_rerun(tmp_path):
         process.communicate(timeout=60)
     assert read_manifest(folder) is None  # nothing was published
     done = subprocess.run(_dea_opt("run", scenario, "-o", folder, "-q"), env=env, capture_output=True, text=True,
-                          timeout=300)
+                          timeout=300, check=False)
     assert done.returncode == 0, done.stderr
     assert check_outputs(folder) == [] and not [p for p in folder.rglob("*") if TEMPORARY_NAME.match(p.name)]
     assert len(pd.read_csv(folder / "frames.csv")) == 400
@@ -532,3 +532,44 @@ def test_a_load_path_cell_that_is_no_finite_number_is_quoted(tmp_path, cell, got
     result = invoke("run", tmp_path / "path.toml", "-o", tmp_path / "out")
     assert result.exit_code == 2
     assert f"path.csv, line 3, column Fz: expected a finite number, {got}" in result.stderr
+
+
+HIP_GENERATOR = """\
+[geometry]
+kind = "generator"
+function = "hip_meshes"
+parameters = { step = 6.0 }
+[law]
+kind = "linear"
+H = 10.0
+[body2]
+free = ["ux", "uy", "uz"]
+"""
+
+
+def test_a_path_with_poses_recasts_its_peak_frame_at_that_frame_s_pose(tmp_path):
+    rows = "".join(f"{0.1 * k},0,0,{-600 - 300 * k},0,0,0,0,{0.2 * k},0,0,0,0\n" for k in range(4))
+    (tmp_path / "poses.csv").write_text("time,Fx,Fy,Fz,Mx,My,Mz,pose_tx,pose_ty,pose_tz,pose_rx,pose_ry,pose_rz\n" + rows)
+    (tmp_path / "hip.toml").write_text(HIP_GENERATOR + '[load_path]\nfile = "poses.csv"\n')
+    result = invoke("run", tmp_path / "hip.toml", "-o", tmp_path / "out", "-q")
+    assert result.exit_code == 0, result.stderr
+    frames = pd.read_csv(tmp_path / "out" / "frames.csv")
+    recast = json.loads((tmp_path / "out" / "summary.json").read_text())["recast"]
+    peak = int(frames["peak_pressure"].idxmax())
+    assert recast["frame"] == peak and frames["validity_dropped_springs"].notna().tolist() == [
+        k == peak for k in range(4)]
+    # that frame's answer balances its load (summed from its row here): the re-cast compares with it
+    assert np.allclose(recast["solution_force"], -frames.loc[peak, ["Fx", "Fy", "Fz"]].to_numpy(float), atol=1e-6)
+    assert recast["kept"] <= frames.loc[peak, "n_springs"] and 0 < recast["force_error"] < 0.1
+
+
+def test_a_recast_that_cannot_be_made_is_a_warning_not_a_silence(tmp_path):
+    (tmp_path / "hip.toml").write_text(HIP_GENERATOR + '[load]\nforce = [0.0, 0.0, -1000.0]\n'
+                                       '[output]\nformats = ["json"]\n')
+    result = invoke("run", tmp_path / "hip.toml", "-o", tmp_path / "out", "-q", "-m", "newton",
+                    "--set", "solve.certificate_tol=1e-30")
+    assert result.exit_code == 1
+    assert "dea-opt: warning: springs not re-cast at the solved pose: the answer is not certified" in result.stderr
+    summary = json.loads((tmp_path / "out" / "contact.json").read_text())
+    assert "not certified" in summary["recast"]["error"]
+    assert summary["validity"]["checks"]["dropped_springs"]["status"] == "not evaluated"
