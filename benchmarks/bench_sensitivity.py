@@ -78,7 +78,7 @@ def calibration_case(seed: int = 0) -> dict:
 
     import dea_opt as dea
     from dea_opt import mesh as M
-    from dea_opt.calibrate import PressureMap, calibrate
+    from dea_opt.sensitivity import PressureMap, calibrate
 
     femur, medial, lateral = (M.load_mesh(KNEE / name) for name in KNEE_FILES)
     tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})

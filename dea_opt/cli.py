@@ -28,7 +28,7 @@ from typing import Annotated, Optional
 import typer
 
 from .errors import DeaError
-from .runlog import captured, one_line
+from .run.log import captured, one_line
 
 app = typer.Typer(
     name="dea-opt",
@@ -252,7 +252,7 @@ def compare(
         log = messages.log_text(f"dea-opt compare of {loaded.source or loaded.title}")
         if log:
             from .io.atomic import write_data
-            from .runlog import LOG_NAME
+            from .run.log import LOG_NAME
 
             files["log"] = write_data(publication.folder / LOG_NAME, log)
         publication.publish(status="ok")
@@ -372,7 +372,7 @@ def demo(
     exposure.vtu, summary.json, comparison.csv and, last, manifest.json. The folder must be
     new, empty or hold an earlier dea-opt run (--force: any folder).
     """
-    from .demo import run_demo
+    from .run.demo import run_demo
 
     outcome = run_demo(output, frames=frames, coarse=coarse, method=method, compare=compare_, progress=True,
                        echo=typer.echo, force=force)
@@ -407,11 +407,11 @@ def calibrate(
     vs predicted, residual map) and manifest.json into <output>/calibration. Exit code 1 when the
     fit did not converge.
     """
-    from .calibrate import calibrate_scenario
     from .errors import InputError
     from .io.publish import check_output_folder, output_run
     from .run import run_info
     from .scenario import load_scenario
+    from .sensitivity.calibrate import calibrate_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
     bounds = _split(film)

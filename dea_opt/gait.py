@@ -78,8 +78,8 @@ def hip_gait_load(n_frames: int = 101, body_weight: float = BODY_WEIGHT, cycle_t
     """
     import pandas as pd
 
-    from ._memory import check_memory
-    from ._validate import positive_integer
+    from ._checks.inputs import positive_integer
+    from ._checks.memory import check_memory
 
     n_frames = positive_integer("n_frames", n_frames)
     # Seven columns and about as many temporaries of one float each per frame.

@@ -15,28 +15,24 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import number_in_range, positive_integer
+from ._checks.inputs import number_in_range, positive_integer
+from ._checks.memory import check_memory, format_count
 from .errors import InputError
 from .layer import SpringLayer
-from .mesh.budget import (
-    BYTES_PER_GENERATED_FACE,
-    BYTES_PER_LAYER_SPRING,
-    check_memory,
-    format_count,
-)
+from .mesh.budget import BYTES_PER_GENERATED_FACE, BYTES_PER_LAYER_SPRING, PEAK_SHARE
 
 _FEWER = "use fewer cells (a coarser grid) for a joint-sized layer"
 
 
 def _check_springs(what: str, n: int) -> None:
     """A layer of ``n`` springs must fit in memory (checked before any array is made)."""
-    check_memory(f"{what} ({format_count(n)} springs)", BYTES_PER_LAYER_SPRING * n, _FEWER)
+    check_memory(BYTES_PER_LAYER_SPRING * n, f"{what} ({format_count(n)} springs)", _FEWER, share=PEAK_SHARE)
 
 
 def _check_faces(what: str, n_faces: int) -> None:
     """Generated meshes of ``n_faces`` faces in all must fit in memory (checked before building)."""
-    check_memory(f"{what} ({format_count(n_faces)} faces)", BYTES_PER_GENERATED_FACE * n_faces,
-                 "use a larger step or fewer cells (a joint's cartilage needs 10^4-10^5 faces)")
+    check_memory(BYTES_PER_GENERATED_FACE * n_faces, f"{what} ({format_count(n_faces)} faces)",
+                 "use a larger step or fewer cells (a joint's cartilage needs 10^4-10^5 faces)", share=PEAK_SHARE)
 
 
 def _step(step) -> float:

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import as_float_array, check_range
+from ._checks.inputs import as_float_array, check_range
 from .errors import InputError
 
 __all__ = ["SpringLayer"]

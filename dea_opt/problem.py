@@ -8,7 +8,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ._validate import SMALLEST, finite_number, vector3
+from ._checks.inputs import SMALLEST, finite_number, vector3
 from .errors import InputError
 from .formulations.energy import SpringSystem, require_finite, resistance, unresisted
 from .kinematics import DOF_NAMES, DOFS, normal_operator
@@ -390,7 +390,7 @@ def _check_kinematics(kinematics, targets) -> None:
 
 def _check_load_scale(load: np.ndarray) -> None:
     """A nonzero load sets the scale the formulations solve in: its largest component must be
-    at least :data:`~dea_opt._validate.SMALLEST` (0 means no load)."""
+    at least :data:`~dea_opt._checks.inputs.SMALLEST` (0 means no load)."""
     top = float(np.abs(load).max(initial=0.0))
     if 0.0 < top < SMALLEST:
         raise InputError(

@@ -440,7 +440,7 @@ class Solution:
         return plot_pressure(self, path, **kw)
 
     def regions(self, labels=None, planes=None):
-        """Statistics per region; see :func:`dea_opt.regions.regional_statistics`."""
-        from .regions import regional_statistics
+        """Statistics per region; see :func:`dea_opt.anatomy.regions.regional_statistics`."""
+        from .anatomy.regions import regional_statistics
 
         return regional_statistics(self, labels=labels, planes=planes)

@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._validate import number_in_range
+from ._checks.inputs import number_in_range
 from .errors import InputError
 from .problem import ContactProblem
 

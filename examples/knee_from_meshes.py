@@ -51,7 +51,7 @@ import pandas as pd
 import dea_opt
 from dea_opt import io as dio
 from dea_opt.mesh import concatenate_meshes, load_mesh, springs_from_meshes
-from dea_opt.regions import regional_statistics, split_by_axis
+from dea_opt.anatomy import regional_statistics, split_by_axis
 
 NAME = "knee_from_meshes"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME
@@ -157,7 +157,7 @@ def compartments(solution, medial_side: str = MEDIAL_SIDE) -> dict:
     """``{"medial": RegionStats, "lateral": RegionStats}`` of a knee solution.
 
     From the springs' labels when they have them; otherwise by a cut across x at the centre
-    of pressure (:func:`dea_opt.regions.split_by_axis`), medial on ``medial_side``.
+    of pressure (:func:`dea_opt.anatomy.split_by_axis`), medial on ``medial_side``.
     """
     if solution.problem.layer.labels is not None:
         return regional_statistics(solution)

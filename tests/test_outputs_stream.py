@@ -12,7 +12,8 @@ import numpy as np
 import pytest
 
 import dea_opt as d
-from dea_opt import _memory, io
+from dea_opt import io
+from dea_opt._checks import memory
 from dea_opt.errors import SizeLimitError
 from dea_opt.gait import hip_gait_load
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
@@ -153,7 +154,7 @@ def test_sizes_are_checked_before_allocating(monkeypatch):
     layer = sphere_on_bed_layer(n_rings=10, n_sectors=16)
     problem = d.ContactProblem(layer, d.LinearLaw(10.0), reference=(0, 0, 25), free=("uz",))
     need = path_memory(4, len(layer))
-    monkeypatch.setattr(_memory, "available_memory", lambda: need)  # 0.8 of it is usable
+    monkeypatch.setattr(memory, "available_memory", lambda: need)  # 0.8 of it is usable
     solved = []
     monkeypatch.setattr(d.ContactProblem, "system", lambda self: solved.append(1))
     with pytest.raises(SizeLimitError, match="keep_solutions=False and keep_pressures=False") as caught:

@@ -305,7 +305,7 @@ def test_a_load_along_an_unresisted_direction_has_no_derivative():
 
 
 def test_per_spring_operator_beyond_the_dense_limit(monkeypatch):
-    import dea_opt.sensitivity as S
+    import dea_opt.sensitivity.derivatives as S
 
     s = solve(bed_problem(LAWS[1]))
     dense = sensitivities(s, ("thickness", "gap"))
@@ -359,12 +359,12 @@ def test_page_and_modules_name_each_other():
 
     root = Path(__file__).resolve().parents[1]
     page = (root / "formulations" / "sensitivity.md").read_text()
-    for module in ("sensitivity", "onesided", "parametric", "calibrate", "measurements", "uncertainty"):
-        path = root / "dea_opt" / f"{module}.py"
-        assert f"`dea_opt/{module}.py`" in page, f"the page does not name dea_opt/{module}.py"
-        assert "formulations/sensitivity.md" in path.read_text(), f"dea_opt/{module}.py does not name its page"
-    assert d.sensitivities is sensitivities and d.calibrate.__module__ == "dea_opt.calibrate"
-    assert d.propagate.__module__ == "dea_opt.uncertainty"
+    for module in ("derivatives", "onesided", "parametric", "calibrate", "measurements", "uncertainty"):
+        path = root / "dea_opt" / "sensitivity" / f"{module}.py"
+        assert f"`dea_opt/sensitivity/{module}.py`" in page, f"the page does not name dea_opt/sensitivity/{module}.py"
+        assert "formulations/sensitivity.md" in path.read_text(), f"{path} does not name its page"
+    assert d.sensitivities is sensitivities and d.calibrate.__module__ == "dea_opt.sensitivity.calibrate"
+    assert d.propagate.__module__ == "dea_opt.sensitivity.uncertainty"
 
 
 def test_readme_snippet_runs_on_the_short_example():

@@ -190,13 +190,13 @@ def test_a_billion_frames_is_a_named_size_error_with_the_estimate(tmp_path):
 
 def test_the_mesh_memory_guard_is_a_size_limit_error():
     from dea_opt.geometry import hip_meshes
-    from dea_opt.mesh.budget import check_memory
+    from dea_opt._checks.memory import check_memory
 
     with pytest.raises(SizeLimitError) as info:
         hip_meshes(step=0.01)
     assert "hip_meshes(step=0.01)" in str(info.value) and info.value.needed > info.value.available
     with pytest.raises(SizeLimitError, match="a request would need about 1e\\+03 PB"):
-        check_memory("a request", 1e18, "ask for less")
+        check_memory(1e18, "a request", "ask for less")
 
 
 # --- 5. sweep statuses --------------------------------------------------------------------------

@@ -14,7 +14,7 @@ import math
 
 import numpy as np
 
-from .._tolerances import ANGLE_SLACK
+from .._checks.thresholds import ANGLE_SLACK
 from ..mesh.raycast import _caster, _first_per_ray, _self_epsilon
 from ..mesh.springs import LOST_REASONS, _outcomes, _thickness
 

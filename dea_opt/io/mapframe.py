@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._tolerances import AXIS_ALIGNED
+from .._checks.thresholds import AXIS_ALIGNED
 
 __all__ = ["MapFrame", "best_fit_frame", "map_frame"]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._optional import require
+from .._checks.dependencies import require
 from ..errors import InputError
 from .atomic import file_path, write_atomic
 from .draw import RASTER_LIMIT, boundary_edges, draw_regions, draw_values, map_geometry

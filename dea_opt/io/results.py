@@ -43,7 +43,7 @@ def write_results(solution, directory, *, stem: str = "contact", vtk: str = ".vt
 
     Examples
     --------
-    >>> from dea_opt.regions import split_by_axis
+    >>> from dea_opt.anatomy.regions import split_by_axis
     >>> paths = write_results(s, "out", stem="knee",
     ...                       regions=split_by_axis(s, "x"))  # doctest: +SKIP
     >>> assert max(vtk_differences(s, paths["vtk"]).values()) == 0  # doctest: +SKIP

@@ -76,10 +76,10 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     ----------
     solution : Solution
     labels, planes :
-        Passed to :func:`dea_opt.regions.regional_statistics`. Without both, the layer's
+        Passed to :func:`dea_opt.anatomy.regions.regional_statistics`. Without both, the layer's
         labels make the regions when it has any.
     regions : mapping {name: RegionStats}, optional
-        Further regions, e.g. from :func:`dea_opt.regions.split_by_axis`.
+        Further regions, e.g. from :func:`dea_opt.anatomy.regions.split_by_axis`.
     anatomy : AnatomicalFrame or dict, optional
         Adds ``anatomy`` (the frame) and, for the contact and every region,
         ``center_of_pressure_anatomical``: ``{medial, anterior, proximal}`` in mm from the
@@ -89,7 +89,7 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     -------
     dict
     """
-    from ..regions import RegionStats, regional_statistics
+    from ..anatomy.regions import RegionStats, regional_statistics
 
     layer = solution.problem.layer
     found = {}

@@ -161,7 +161,7 @@ def _levels(values, low, tolerance):
 def _delaunay(xy):
     from scipy.spatial import Delaunay, QhullError
 
-    from .._memory import available_memory
+    from .._checks.memory import available_memory
 
     if DELAUNAY_BYTES * len(xy) > 0.5 * available_memory():
         return None

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._optional import require
+from .._checks.dependencies import require
 from ..errors import InputError
 from .atomic import file_path, write_atomic
 from .surface import SurfaceData, contact_surface

@@ -36,7 +36,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .._memory import check_memory
+from .._checks.memory import check_memory
 from ..errors import (
     DeaError,
     InputError,
@@ -243,7 +243,7 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
         ``.pvd`` naming them. Use ``<output>/series_frames``.
     regions : array_like (N,) or callable, optional
         A region label per spring, or ``regions(layer) -> labels`` (e.g. a closure over
-        :func:`dea_opt.regions.label_by_axis`); default the layer's ``labels``. Each region
+        :func:`dea_opt.anatomy.regions.label_by_axis`); default the layer's ``labels``. Each region
         gets per-frame columns (:data:`~dea_opt.loadpath.table.REGION_COLUMNS`).
     layer_for_pose : callable, optional
         ``layer_for_pose(pose) -> SpringLayer``: the springs of body 2's mesh moved by

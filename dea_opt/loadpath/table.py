@@ -96,7 +96,7 @@ class FrameRegions:
 
     def columns(self, solution=None) -> dict:
         """The region columns of a certified ``solution``, or NaN for every one (``None``)."""
-        from ..regions import region_statistics
+        from ..anatomy.regions import region_statistics
 
         row = {}
         for name, mask in self.masks.items():

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from .._tolerances import RAY_EDGE, RAY_PARALLEL, SELF_HIT
+from .._checks.thresholds import RAY_EDGE, RAY_PARALLEL, SELF_HIT
 from ..errors import InputError, MissingDependencyError
 from .readers import as_mesh
 

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .._validate import number_in_range
+from .._checks.inputs import number_in_range
 from ..errors import InputError, MissingDependencyError
 from .budget import check_file_size
 from .legacy_vtk import parse_vtk_polydata

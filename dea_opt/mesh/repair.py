@@ -10,7 +10,7 @@ import warnings
 
 import numpy as np
 
-from .._tolerances import DEGENERATE_AREA
+from .._checks.thresholds import DEGENERATE_AREA
 from ..errors import InputError
 
 __all__ = ["SIZE_RANGE", "check_size", "clean", "repair"]

@@ -16,8 +16,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .._tolerances import ANGLE_SLACK, POSE_LAST_ROW, POSE_ROTATION
-from .._validate import number_in_range
+from .._checks.inputs import number_in_range
+from .._checks.thresholds import ANGLE_SLACK, POSE_LAST_ROW, POSE_ROTATION
 from ..errors import InputError
 from ..layer import SpringLayer
 from .budget import check_cast_size

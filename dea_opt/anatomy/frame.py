@@ -18,8 +18,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import as_float_array
-from .errors import InputError
+from .._checks.inputs import as_float_array
+from ..errors import InputError
 
 __all__ = ["AXES", "AnatomicalFrame"]
 

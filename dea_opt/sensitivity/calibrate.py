@@ -3,8 +3,8 @@
 Written math: ``formulations/sensitivity.md`` ("Calibration"). ``scipy.optimize.least_squares``
 with the exact Jacobian: every evaluation solves the problem (Newton, warm-started from the
 previous one) and takes :func:`~dea_opt.sensitivity.sensitivities` of the answer. The data are
-:class:`~dea_opt.measurements.PressureMap` (film or sensor, censored to the film's range),
-:class:`~dea_opt.measurements.ForceDisplacement` and :class:`~dea_opt.measurements.ContactData`.
+:class:`~dea_opt.sensitivity.measurements.PressureMap` (film or sensor, censored to the film's range),
+:class:`~dea_opt.sensitivity.measurements.ForceDisplacement` and :class:`~dea_opt.sensitivity.measurements.ContactData`.
 Standard errors and correlations come from the Jacobian at the optimum.
 """
 
@@ -17,9 +17,9 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError, SolverError, ValidityWarning
+from ..errors import InputError, SolverError, ValidityWarning
+from .derivatives import LOADS, sensitivities
 from .measurements import FILMS, ContactData, Film, ForceDisplacement, PressureMap
-from .sensitivity import LOADS, sensitivities
 
 __all__ = ["FILMS", "Calibration", "ContactData", "Film", "ForceDisplacement", "PressureMap", "apply_parameters",
            "calibrate"]
@@ -140,7 +140,7 @@ class Calibration:
         of residuals, to a PNG (written atomically)."""
         import matplotlib.pyplot as plt
 
-        from .io.atomic import write_atomic
+        from ..io.atomic import write_atomic
 
         table = self.residual_map()
         if table.empty:
@@ -260,7 +260,7 @@ class _Model:
         self.starts = {}
 
     def _solve(self, problem, key):
-        from .solver import solve
+        from ..solver import solve
 
         x0 = self.starts.get(key)
         try:
@@ -326,8 +326,8 @@ def calibrate_scenario(scenario, data_path, folder, *, parameters=None, film=Non
     import json
     from pathlib import Path
 
-    from .io.atomic import write_atomic
-    from .scenario import build_problem
+    from ..io.atomic import write_atomic
+    from ..scenario import build_problem
 
     if scenario.load_path is not None:
         raise InputError("calibrate needs a scenario with one load ([load]); this one has a [load_path]: "

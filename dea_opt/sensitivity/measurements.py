@@ -3,7 +3,7 @@ curves, contact area and centre of pressure.
 
 Written math: ``formulations/sensitivity.md`` ("Calibration"). Each kind turns a solution and its
 :class:`~dea_opt.sensitivity.Sensitivities` into weighted residuals and their Jacobian
-(:meth:`PressureMap.residuals`, ...), which :func:`dea_opt.calibrate.calibrate` stacks.
+(:meth:`PressureMap.residuals`, ...), which :func:`dea_opt.sensitivity.calibrate.calibrate` stacks.
 
 Units: mm, N, MPa.
 """
@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import InputError
+from ..errors import InputError
 
 __all__ = ["FILMS", "ContactData", "Film", "ForceDisplacement", "PressureMap"]
 

@@ -20,7 +20,7 @@ __all__ = ["LOG_NAME", "Messages", "captured", "is_own_warning", "one_line"]
 
 #: The run's log file, in its output folder.
 LOG_NAME = "dea-opt.log"
-_PACKAGE = Path(__file__).resolve().parent
+_PACKAGE = Path(__file__).resolve().parents[1]  # dea_opt/
 
 
 def one_line(text) -> str:

@@ -2,7 +2,7 @@
 
 Written math: ``formulations/sensitivity.md`` ("Cross-checks"). The reduced NLP of
 :mod:`dea_opt.formulations.nlp` (``form="reduced"``) is built again with the parameters as CasADi symbols (the law's through
-:meth:`~dea_opt.laws.Law._twin`, so its ``energy_expr`` is the same code), solved by IPOPT, and
+:meth:`~dea_opt.laws.base.Law._twin`, so its ``energy_expr`` is the same code), solved by IPOPT, and
 CasADi differentiates the solution through IPOPT's KKT system at the optimum. Nothing is shared
 with :func:`dea_opt.sensitivity.sensitivities` but the problem's arrays: no tangent, no active
 set, no scaling of the derivative. Meant for checks on small problems (the Jacobian is dense).
@@ -12,10 +12,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from .errors import InputError
-from .formulations.energy import scaling
-from .kinematics import DOFS
-from .sensitivity import LOADS, PER_SPRING
+from ..errors import InputError
+from ..formulations.energy import scaling
+from ..kinematics import DOFS
+from .derivatives import LOADS, PER_SPRING
 
 __all__ = ["nlp_sensitivities"]
 
@@ -23,7 +23,7 @@ __all__ = ["nlp_sensitivities"]
 def _namespace():
     import casadi
 
-    from .laws import _namespace as law_namespace
+    from ..laws.base import _namespace as law_namespace
 
     return law_namespace(casadi.MX.sym("probe"))
 

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._tolerances import ZERO_LENGTH
-from ._validate import as_float_array, finite_number
-from .errors import InputError
+from .._checks.inputs import as_float_array, finite_number
+from .._checks.thresholds import ZERO_LENGTH
+from ..errors import InputError
 
 __all__ = ["RegionStats", "label_by_axis", "region_statistics", "regional_statistics", "split_by_axis"]
 
@@ -308,7 +308,7 @@ def label_by_axis(layer, axis="x", at="centroid", names=None, *, anatomy=None) -
 
 def _named_axis(axis, anatomy) -> tuple:
     if anatomy is not None and isinstance(axis, str) and axis.strip().lower().lstrip("+-") not in _AXES:
-        from .anatomy import _OPPOSITE, AnatomicalFrame
+        from .frame import _OPPOSITE, AnatomicalFrame
 
         frame = AnatomicalFrame.from_dict(anatomy)
         key = axis.strip().lower()

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import importlib
 
-from .errors import MissingDependencyError
+from ..errors import MissingDependencyError
 
 
 def require(module: str, feature: str):

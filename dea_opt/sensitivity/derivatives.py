@@ -7,7 +7,7 @@ solved in the resisted basis of :class:`~dea_opt.formulations.energy.Resistance`
 formulations' scaling), so unresisted directions and units are handled as the solvers handle
 them. Springs on the edge of contact (strain within the certificate's precision of 0) make the
 derivative one-sided: each direction of change solves its own small piecewise-quadratic
-problem (:func:`dea_opt.onesided.edge_solve`), and both one-sided derivatives are returned.
+problem (:func:`dea_opt.sensitivity.onesided.edge_solve`), and both one-sided derivatives are returned.
 
 Parameters (``wrt``): the law's (``"H"``, ``"beta"``, any of ``Law.parameter_names``),
 ``"thickness_scale"`` (every thickness times ``c``, at ``c = 1``), ``"thickness"`` and ``"gap"``
@@ -22,9 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import InputError
-from .formulations.energy import modulus_scale, single_threaded_blas
-from .kinematics import DOFS
+from ..errors import InputError
+from ..formulations.energy import modulus_scale, single_threaded_blas
+from ..kinematics import DOFS
 from .onesided import edge_solve, pinv_solve
 
 __all__ = ["LOADS", "OUTPUTS", "PER_SPRING", "Sensitivities", "parameter_unit", "path_sensitivities", "sensitivities"]

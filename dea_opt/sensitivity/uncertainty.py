@@ -15,8 +15,8 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError, ValidityWarning
-from .sensitivity import PER_SPRING, sensitivities
+from ..errors import InputError, ValidityWarning
+from .derivatives import PER_SPRING, sensitivities
 
 __all__ = ["SCALARS", "MonteCarlo", "Propagation", "monte_carlo", "propagate"]
 
@@ -131,8 +131,8 @@ class MonteCarlo:
 
 def _draw(problem, rows, x0):
     """Solve the problem at every row of parameters (one Dask task)."""
+    from ..solver import solve
     from .calibrate import apply_parameters
-    from .solver import solve
 
     out = []
     for row in rows:
@@ -193,7 +193,7 @@ def monte_carlo(problem, std, n: int = 200, *, seed: int = 0, scheduler="synchro
             values = np.maximum(values, 1e-6 * abs(centre))
         draws[name] = values
     rows = [{k: float(v[i]) for k, v in draws.items()} for i in range(n)]
-    from .solver import solve
+    from ..solver import solve
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ValidityWarning)

@@ -17,8 +17,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._validate import LARGEST
-from .errors import InputError
+from .._checks.inputs import LARGEST
+from ..errors import InputError
 
 __all__ = ["HUGE", "LawKind", "LawParameter", "LawRegistry", "Range", "kind_name", "label"]
 

@@ -18,8 +18,10 @@ from pathlib import Path
 
 import numpy as np
 
-from .run import RunOutcome, run_path_outputs, check_method, publish_run, run_info, solve_options
-from .runlog import captured
+from .log import captured
+from .outcome import RunOutcome
+from .path import run_path_outputs
+from .runner import check_method, publish_run, run_info, solve_options
 
 __all__ = ["DEMO_DOME", "DEMO_SCENARIO", "demo_comparison", "demo_scenario", "hip_regions", "run_demo"]
 
@@ -75,7 +77,7 @@ _DEMO_BETA = 0.3
 
 def demo_scenario(frames: int | None = None, coarse: bool = False):
     """The demo's scenario, optionally with fewer frames and a coarse mesh."""
-    from .scenario import parse_scenario
+    from ..scenario import parse_scenario
 
     overrides = {}
     if coarse:
@@ -106,7 +108,7 @@ def hip_regions(layer, anatomy, centre=(0.0, 0.0, 0.0), dome: float = DEMO_DOME)
     -------
     ndarray of str, shape (N,)
     """
-    from .anatomy import AnatomicalFrame
+    from ..anatomy import AnatomicalFrame
 
     frame = AnatomicalFrame.from_dict(anatomy)
     arm = layer.points - np.asarray(centre, dtype=float)
@@ -119,10 +121,10 @@ def demo_comparison(scenario, progress: bool = False) -> list[dict]:
     """One gait-peak frame (2.4 kN tilted 20 degrees) by every method, linear and Ateshian laws."""
     from tqdm.auto import tqdm
 
-    from . import formulations
-    from .laws import AteshianLaw, LinearLaw
-    from .scenario import build_problem
-    from .solver import solve
+    from .. import formulations
+    from ..laws import AteshianLaw, LinearLaw
+    from ..scenario import build_problem
+    from ..solver import solve
 
     tilt = np.radians(_DEMO_TILT)
     force = _DEMO_PEAK * np.array([np.sin(tilt), 0.0, -np.cos(tilt)])
@@ -171,9 +173,9 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
     """
     import pandas as pd
 
-    from .io import write_data
-    from .io.publish import check_output_folder
-    from .scenario import build_problem
+    from ..io import write_data
+    from ..io.publish import check_output_folder
+    from ..scenario import build_problem
 
     scenario = demo_scenario(frames, coarse)
     out = check_output_folder(Path(output_dir) if output_dir is not None else Path.cwd() / "dea-opt-demo", force)

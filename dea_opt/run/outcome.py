@@ -1,0 +1,82 @@
+"""What a run did: :class:`RunOutcome`, its status and its exit code."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+__all__ = ["EXIT_CODES", "RunOutcome", "status_of"]
+
+#: Exit status of a run, by its status.
+EXIT_CODES = {"ok": 0, "certificate failed": 1, "bad input": 2, "outside validity": 3}
+
+
+@dataclass(eq=False)
+class RunOutcome:
+    """What :func:`run_scenario` did.
+
+    Attributes
+    ----------
+    kind : {"static", "path"}
+    success : bool
+        Every answer passed its certificate.
+    message : str
+        One line for the user.
+    files : dict {name: Path}
+    headline : dict
+        The numbers a sweep puts in its table (with ``valid`` and ``validity_failed``).
+    result : Solution or PathResult
+    warnings : list of str
+        dea-opt's own warnings of the run (validity, dropped springs, ...), one line each.
+    valid : bool or None
+        Every answer lies inside its model's validity (None: not assessed).
+    validity : list of str
+        Lines describing the validity (each check of a static answer; the frames outside
+        validity of a load path).
+    reasons : list of str
+        Why the answer is outside validity (each failed check with its value, limit and
+        advice; for a load path, the frames); empty when valid.
+    regions : list of str
+        One line per labelled region (compartment): its share of the load, peak pressure and
+        contact area (for a load path: over the frames); empty without labels.
+    allow_outside_validity : bool
+        ``[solve] allow_outside_validity``: an answer outside validity exits 0.
+    folder : Path or None
+        The output folder; ``manifest`` its manifest once published.
+    """
+
+    kind: str
+    success: bool
+    message: str
+    files: dict
+    headline: dict
+    result: object = None
+    warnings: list = field(default_factory=list)
+    valid: bool | None = True
+    validity: list = field(default_factory=list)
+    reasons: list = field(default_factory=list)
+    regions: list = field(default_factory=list)
+    allow_outside_validity: bool = False
+    folder: Path | None = None
+    manifest: dict | None = None
+
+    @property
+    def status(self) -> str:
+        """``"ok"``, ``"certificate failed"`` or ``"outside validity"``."""
+        return status_of(self.success, self.valid)
+
+    @property
+    def exit_code(self) -> int:
+        """0, 1 or 3 (see the module's docstring)."""
+        if self.status == "outside validity" and self.allow_outside_validity:
+            return 0
+        return EXIT_CODES[self.status]
+
+
+def status_of(success: bool, valid: bool | None) -> str:
+    """The status of a run: a failed certificate outranks an answer outside validity."""
+    if not success:
+        return "certificate failed"
+    return "outside validity" if valid is False else "ok"
+
+

@@ -1,0 +1,160 @@
+"""A load path: solve it frame by frame (streamed), re-cast its peak frame, write the outputs."""
+
+from __future__ import annotations
+
+from .log import one_line
+from .outcome import RunOutcome
+from .static import recast_solution
+
+__all__ = ["peak_recast", "run_path_outputs"]
+
+
+def _frames_text(frames) -> str:
+    shown = ", ".join(map(str, frames[:10]))
+    return shown + (", ..." if len(frames) > 10 else "")
+
+
+def run_path_outputs(scenario, problem, method, options, out, progress, extra_summary=None,
+                     stop: bool = False, cast=None) -> RunOutcome:
+    """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller).
+
+    The frames are streamed: each frame's ``.vtu`` is written as it is solved
+    (``series_frames/``) and no solution or pressure is kept per frame, so memory does not
+    grow with frames x springs. When the springs were cast from meshes (``cast``, or the
+    meshes of a path with poses), the peak frame is solved once more and its springs re-cast
+    at its solved pose (:func:`peak_recast`): its ``dropped_springs`` check is evaluated and
+    the re-cast force goes into ``summary.json`` (``recast``).
+    """
+    from ..loadpath import solve_path
+    from ..scenario import pose_caster, read_load_path
+
+    data = read_load_path(scenario.load_path)
+    caster = layer_for_pose = None
+    poses = data.poses
+    if poses is not None:
+        caster = pose_caster(scenario)
+        if caster is not None:
+            def layer_for_pose(pose):
+                return caster(pose).layer
+
+    formats, anatomy = scenario.output.formats, scenario.output.anatomy
+    loads = data.load_objects()
+    result = solve_path(problem, loads, data.poses, method=method, times=data.times, body=data.body,
+                        certificate_tol=scenario.solve.certificate_tol, stop_on_error=stop, keep_solutions=False,
+                        keep_pressures=False, series=out / "series_frames" if "vtk" in formats else None,
+                        layer_for_pose=layer_for_pose, threshold=scenario.output.exposure_threshold,
+                        progress=progress, **options)
+    notes = []
+    recast = None
+    if cast is not None or caster is not None:
+        def frame_cast(k):
+            return cast if caster is None or poses is None else caster(poses[k])
+
+        recast = peak_recast(result, loads, data.body, frame_cast, method, options, scenario.solve.certificate_tol)
+        if recast is not None and "error" in recast:
+            notes.append(recast["error"])
+    extra = {"title": scenario.title, **(extra_summary or {})}
+    if recast is not None:
+        extra["recast"] = recast
+    files = result.write(out, formats, extra_summary=extra, anatomy=anatomy)
+    summary = result.summary()
+    validity = summary["validity"]
+    outside = validity["frames_outside_validity"]
+    checks = validity["failed_checks"]
+    headline = {
+        "method": method, "success": result.success, "frames": summary["frames"], "n_springs": summary["n_springs"],
+        "failed_frames": len(summary["failed_frames"]), "peak_pressure": summary["peak_pressure"],
+        "peak_time": summary["peak_time"], "contact_area": summary["max_contact_area"],
+        "max_compressive_strain": summary["max_compressive_strain"],
+        "iterations": summary["iterations_total"], "solve_time": summary["solve_time_total"],
+        "worst_residual": summary["worst_certificate_residual"],
+        "max_pressure_time_integral": summary["exposure"]["max_pressure_time_integral"],
+        "valid": not outside, "frames_outside_validity": len(outside),
+        "validity_failed": ";".join(checks),
+        **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
+    }
+    if summary["peak_frame"] is None:
+        message = f"{summary['frames']} frames by {method}: no frame has a certified answer"
+    else:
+        message = (f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure']:.4g} MPa at "
+                   f"{summary['peak_time']:.3g} s, largest contact area {summary['max_contact_area']:.4g} mm^2, "
+                   f"{summary['solve_time_total']:.2f} s solving")
+    if not result.success:
+        message += f"; {result.failure_message()} (status and message of each in frames.csv)"
+    reasons = []
+    if outside:
+        parts = [f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
+                 for name, c in validity["checks"].items()]
+        first = (f"{len(outside)} of {summary['frames']} frame(s) outside validity ({_frames_text(outside)}), "
+                 f"failed checks: {', '.join(checks)}")
+        reasons = [first, *parts]
+        lines = [f"validity: NOT VALID: {reasons[0]}", *(f"  {r}" for r in reasons[1:])]
+    else:
+        certified = summary["frames"] - len(summary["failed_frames"])
+        lines = [f"validity: valid (every one of the {certified} certified frames)"]
+    if recast is not None and "error" not in recast:
+        lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
+    regions = [f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
+               f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
+               f"contact area {r['max_contact_area']:.4g} mm^2" for name, r in summary["regions"].items()]
+    return RunOutcome("path", result.success, message, files, headline, result, warnings=notes, valid=not outside,
+                      validity=lines, reasons=reasons, regions=regions)
+
+
+def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict, certificate_tol: float):
+    """Re-cast the springs at the solved pose of a load path's peak frame (the certified frame of
+    the largest peak pressure), and evaluate that frame's ``dropped_springs`` check.
+
+    The frames are not kept, so the peak frame is solved once more (the same answer: the
+    problem has one) and :func:`recast_solution` re-casts it: one solve and one cast, not
+    one per frame. The table's row of that frame gets ``validity_dropped_springs`` (and, when
+    the window dropped springs, ``valid`` False and ``dropped_springs`` in
+    ``validity_failed``); every other frame keeps it not evaluated (NaN).
+
+    Parameters
+    ----------
+    result : PathResult
+        Its ``table`` is updated.
+    loads : list of Load
+    body : int
+    frame_cast : callable
+        ``k -> SpringCast`` of frame ``k``.
+    method, options, certificate_tol :
+        As the path was solved.
+
+    Returns
+    -------
+    dict or None
+        ``recast_solution``'s report with ``frame`` and ``time``; None without a certified frame.
+    """
+    import warnings
+
+    from ..errors import DeaError, ValidityWarning
+    from ..solver import solve
+
+    table = result.table
+    certified = table.loc[table["success"]]
+    if not len(certified) or not certified["peak_pressure"].notna().any():
+        return None
+    row = certified["peak_pressure"].idxmax()
+    k = int(table.loc[row, "frame"])
+    where = {"frame": k, "time": float(table.loc[row, "time"])}
+    try:
+        cast = frame_cast(k)
+        problem = result.problem.with_layer(cast.layer) if result.moving else result.problem
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", ValidityWarning)
+            solution = solve(problem.with_load(loads[k], body=body), method, certificate_tol=certificate_tol,
+                             strict=False, **options)
+    except DeaError as exc:
+        return {**where, "error": f"the peak frame {k} was not re-cast at its solved pose: {one_line(str(exc))}"}
+    solution, recast = recast_solution(solution, cast)
+    if "error" in recast:
+        return {**where, "error": f"frame {k}: {recast['error']}"}
+    check = solution.validity["dropped_springs"]
+    table.loc[row, "validity_dropped_springs"] = check.value
+    if check.passed is False:
+        failed = [n for n in str(table.loc[row, "validity_failed"]).split(";") if n]
+        table.loc[row, "validity_failed"] = ";".join([*failed, check.name])
+        table.loc[row, "valid"] = False
+    return {**where, **recast}

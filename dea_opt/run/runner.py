@@ -1,0 +1,147 @@
+"""Running a scenario: its method and options, the solve, and the outputs published together."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from ..errors import InputError
+from .log import LOG_NAME, captured
+from .outcome import RunOutcome
+from .path import run_path_outputs
+from .static import run_static
+
+__all__ = ["check_method", "publish_run", "run_info", "run_scenario", "solve_options"]
+
+
+def solve_options(section, method: str, law) -> dict:
+    """Formulation options from ``[solve]`` for ``method`` (only those it accepts).
+
+    The formulation is ``method``, or under ``auto`` the one the registry falls back to for
+    ``law`` (:func:`dea_opt.formulations.fallback_for`). ``[solve].tol`` sets the options one
+    accuracy setting sets (:func:`~dea_opt.formulations.tolerance_options`), and each other
+    key of ``[solve]`` that names one of its options (``solver``, ``form``) is passed as is.
+    """
+    from .. import formulations
+
+    if getattr(section, "kinematics", "small") == "finite":
+        # finite kinematics: newton and nlp stand for the finite formulations, auto tries both
+        from ..formulations.finite import ALIASES
+
+        chain = ["finite", "finite_nlp"] if method == "auto" else [ALIASES.get(method, method)]
+        out: dict = {}
+        for name in chain:
+            if name in formulations.names() and formulations.takes(name, law, "finite"):
+                out.update({o.name: getattr(section, o.name) for o in formulations.options(name)
+                            if not o.tolerance and o.name in ("form",)})
+                out.update(formulations.tolerance_options(name, section.tol))
+        return out
+    effective = method if method != "auto" else formulations.fallback_for(law)
+    if effective is None:
+        return {}
+    options = {option.name: getattr(section, option.name) for option in formulations.options(effective)
+               if not option.tolerance and getattr(section, option.name, None) is not None}
+    return options | formulations.tolerance_options(effective, section.tol)
+
+
+def check_method(method: str | None, default: str) -> str:
+    """``method`` (or the scenario's ``default``), checked against the scenario's method names."""
+    from ..scenario import METHOD_NAMES
+
+    method = default if method is None else method.strip().lower()
+    if method not in METHOD_NAMES:
+        raise InputError(f"method (--method or [solve].method) must be one of {', '.join(METHOD_NAMES)}, "
+                         f"got {method!r}")
+    return method
+
+
+def run_info(scenario, command: str, method: str | None = None) -> dict:
+    """What a manifest records about the run of ``scenario``."""
+    return {"command": command, "title": scenario.title, "scenario": scenario.source,
+            "scenario_sha256": scenario.text_sha256, "overrides": scenario.overrides,
+            **({"method": method} if method else {})}
+
+
+def run_scenario(scenario, output_dir=None, *, method: str | None = None, progress: bool = False,
+                 force: bool = False, stop_on_error: bool = False) -> RunOutcome:
+    """Solve a scenario and publish its outputs into one folder.
+
+    Parameters
+    ----------
+    scenario : Scenario
+    output_dir : str or Path, optional
+        Default ``[output].directory`` (relative to the scenario file). It must be new,
+        empty or hold an earlier dea-opt run (:func:`dea_opt.io.publish.check_output_folder`).
+    method : str, optional
+        Overrides ``[solve].method``.
+    progress : bool
+        Progress bar over the frames of a load path (on a terminal).
+    force : bool
+        Write into a folder that holds other files.
+    stop_on_error : bool
+        A load path stops at its first frame without a certified answer (a DeaError, and
+        nothing published) instead of recording it and going on.
+
+    Returns
+    -------
+    RunOutcome
+        Its ``exit_code`` is the command line's.
+
+    Raises
+    ------
+    DeaError
+        Bad input (:class:`~dea_opt.errors.OutputFolderError` for a folder of someone
+        else's), a load no spring can carry, a solver that fails outright. Nothing is
+        published then, and the folder keeps what it held.
+    dea_opt.io.publish.RunInterrupted
+        Ctrl-C; its ``report`` says what the folder holds.
+    """
+    from ..io.publish import check_output_folder
+    from ..scenario import build_problem_cast
+
+    method = check_method(method, scenario.solve.method)
+    out = check_output_folder(scenario.output_dir(output_dir), force)
+    with captured() as messages:
+        problem, cast = build_problem_cast(scenario)
+        options = solve_options(scenario.solve, method, problem.law)
+
+        def solve_and_write(folder):
+            if scenario.load_path is None:
+                return run_static(scenario, problem, method, options, folder, cast)
+            return run_path_outputs(scenario, problem, method, options, folder, progress, stop=stop_on_error,
+                                    cast=cast)
+
+        outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
+                              info=run_info(scenario, "run", method))
+    return outcome
+
+
+def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, info: dict) -> RunOutcome:
+    """Run ``solve_and_write(folder) -> RunOutcome`` in the staged folder ``out`` and publish it."""
+    from ..io.publish import output_run
+
+    with output_run(out, force=force, info=info) as publication:
+        outcome = solve_and_write(publication.folder)
+        outcome.allow_outside_validity = scenario.solve.allow_outside_validity
+        messages.collect()
+        _drop_repeats(outcome, messages, scenario.notes)
+        log = messages.log_text(f"dea-opt {info.get('command', 'run')} of {scenario.source or scenario.title}")
+        if log:
+            from ..io.atomic import write_data
+
+            outcome.files["log"] = write_data(publication.folder / LOG_NAME, log)
+        outcome.manifest = publication.publish(
+            status=outcome.status, exit_code=outcome.exit_code, success=outcome.success, valid=outcome.valid)
+        outcome.folder = publication.folder
+    return outcome
+
+
+def _drop_repeats(outcome: RunOutcome, messages, notes=()) -> None:
+    """The scenario's notes, the outcome's own notes (a re-cast that failed) and the run's own
+    warnings, but for the validity warnings: the validity lines of the outcome state them, with
+    every check."""
+    assessed = outcome.valid is not None
+    outcome.warnings = [*notes, *outcome.warnings,
+                        *(w for w in messages.own
+                          if not (assessed and messages.categories.get(w) == "ValidityWarning"))]
+
+

@@ -1,0 +1,104 @@
+"""One static load: solve, re-cast springs cast from meshes at the solved pose, write the outputs."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .log import one_line
+from .outcome import RunOutcome
+
+__all__ = ["recast_solution", "run_static"]
+
+
+def run_static(scenario, problem, method, options, out, cast=None) -> RunOutcome:
+    from .. import io
+    from ..io.summary import summary_dict, write_json
+    from ..solver import solve
+
+    solution = solve(problem, method, certificate_tol=scenario.solve.certificate_tol, strict=False, **options)
+    notes = []
+    recast = None
+    if cast is not None:
+        solution, recast = recast_solution(solution, cast)
+        if "error" in recast:
+            notes.append(recast["error"])
+    formats, anatomy = scenario.output.formats, scenario.output.anatomy
+    files = {}
+    if "vtk" in formats:
+        files["vtk"] = io.to_vtk(solution, out / "contact.vtu")
+    if "csv" in formats:
+        files["csv"] = io.to_csv(solution, out / "contact.csv")
+    if "json" in formats:
+        summary = summary_dict(solution, anatomy=anatomy)
+        if recast is not None:
+            summary["recast"] = recast
+        files["json"] = write_json(summary, out / "contact.json")
+    if "png" in formats:
+        files["png"] = io.plot_pressure(solution, out / "contact.png", anatomy=anatomy)
+    name, value = solution.certificate.worst()
+    validity = solution.validity
+    headline = {
+        "method": solution.method, "success": solution.success, "n_springs": len(solution.pressure),
+        "peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
+        "contact_area": solution.contact_area, "max_compressive_strain": solution.max_compressive_strain,
+        "iterations": solution.iterations, "solve_time": solution.solve_time, "worst_residual": value,
+        **validity.columns(),
+        **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
+    }
+    if solution.success:
+        message = (f"{solution.method}: peak pressure {solution.peak_pressure:.4g} MPa, contact area "
+                   f"{solution.contact_area:.4g} mm^2, {solution.iterations} iterations, certificate passed")
+    else:
+        message = (f"{solution.method} returned no certified answer (status {solution.status!r}; {name} = "
+                   f"{value:.3g} > {scenario.solve.certificate_tol:g}); the outputs hold the uncertified answer")
+    lines = [f"validity: {validity.summary()}"]
+    lines += [f"  {check.describe()}" for check in validity.checks]
+    if recast is not None and "error" not in recast:
+        lines.append(f"re-cast at the solved pose: {recast['describe']}")
+    return RunOutcome("static", solution.success, message, files, headline, solution, warnings=notes,
+                      valid=validity.valid, validity=lines, reasons=[c.describe() for c in validity.failed],
+                      regions=_static_regions(solution))
+
+
+def _static_regions(solution) -> list[str]:
+    """One line per labelled region of a static answer."""
+    if solution.problem.layer.labels is None or not np.isfinite(solution.pressure).all():
+        return []
+    from ..anatomy.regions import regional_statistics
+
+    return [f"region {name}: force {r.force:.4g} N ({r.share:.1%} of the total), peak {r.peak_pressure:.4g} MPa, "
+            f"contact area {r.contact_area:.4g} mm^2" for name, r in regional_statistics(solution).items()]
+
+
+def recast_solution(solution, cast) -> tuple:
+    """``(solution, recast)``: the springs of ``cast`` re-cast at the pose ``solution`` reached
+    (:func:`dea_opt.mesh.recast_at_solution`) and the solution carrying the count the window
+    dropped there (its ``dropped_springs`` validity check evaluated).
+
+    ``recast`` is JSON-ready: the counts (``springs``, ``kept``, ``gained``, ``lost``,
+    ``dropped``, ``rejected``), the force (N) and moment (N mm, about body 2's reference)
+    the re-cast springs carry at that pose beside the solution's own (``solution_force``,
+    ``solution_moment``), their relative difference ``force_error`` and a one-line
+    ``describe``; or ``{"error": ...}`` when the answer is not certified or the re-cast failed
+    (the solution is then returned as it is).
+    """
+    from ..errors import DeaError
+    from ..mesh import recast_at_solution
+
+    if not solution.success or not np.isfinite(solution.u).all():
+        return solution, {"error": "springs not re-cast at the solved pose: the answer is not certified"}
+    try:
+        again = recast_at_solution(solution, cast)
+    except DeaError as exc:
+        return solution, {"error": f"springs not re-cast at the solved pose: {one_line(str(exc))}"}
+    info = {
+        "springs": len(again.cast.layer), "kept": again.kept, "gained": len(again.gained),
+        "lost": {reason: len(faces) for reason, faces in again.lost.items()},
+        "dropped": again.dropped, "rejected": again.rejected,
+        **{name: np.asarray(getattr(again, name), dtype=float).tolist()
+           for name in ("force", "moment", "solution_force", "solution_moment")},
+        "force_error": again.force_error, "describe": again.describe(),
+    }
+    return solution.with_validity(dropped=again.dropped), info
+
+
