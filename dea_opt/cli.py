@@ -29,6 +29,7 @@ import typer
 
 from .errors import DeaError
 from .run.log import captured, one_line
+from .status import RunStatus
 
 app = typer.Typer(
     name="dea-opt",
@@ -40,10 +41,10 @@ app = typer.Typer(
     rich_markup_mode=None,
 )
 
-EXIT_OK = 0
-EXIT_UNCERTIFIED = 1
-EXIT_ERROR = 2
-EXIT_OUTSIDE_VALIDITY = 3
+EXIT_OK = RunStatus.OK.exit_code  # 0
+EXIT_UNCERTIFIED = RunStatus.CERTIFICATE_FAILED.exit_code  # 1
+EXIT_ERROR = RunStatus.ERROR.exit_code  # 2
+EXIT_OUTSIDE_VALIDITY = RunStatus.OUTSIDE_VALIDITY.exit_code  # 3
 EXIT_INTERRUPTED = 130
 
 
@@ -139,9 +140,9 @@ def _report_outcome(outcome, quiet: bool = False) -> None:
         for name, path in outcome.files.items():
             shown = Path(path).relative_to(folder) if Path(path).is_relative_to(folder) else path
             typer.echo(f"  {name:13s} {shown}")
-    if outcome.status == "certificate failed":
+    if outcome.status.failed:
         typer.echo(f"dea-opt: {one_line(outcome.message)}", err=True)
-    elif outcome.status == "outside validity":
+    elif outcome.status is RunStatus.OUTSIDE_VALIDITY:
         allowed = " (allowed by [solve] allow_outside_validity)" if outcome.allow_outside_validity else ""
         typer.echo(f"dea-opt: solved outside validity{allowed}: {one_line('; '.join(outcome.reasons))}", err=True)
     if outcome.exit_code:
@@ -152,8 +153,9 @@ ScenarioArg = Annotated[Path, typer.Argument(help="The scenario TOML file (see: 
                                              show_default=False)]
 OutputOpt = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: the "
                                                    "scenario's [output].directory).", show_default=False)]
-MethodOpt = Annotated[Optional[str], typer.Option("--method", "-m", help="auto | newton | qp | nlp "
-                                                  "(default: the scenario's [solve].method).", show_default=False)]
+MethodOpt = Annotated[Optional[str], typer.Option("--method", "-m", help="auto, or a registered formulation "
+                                                  "(default: the scenario's [solve].method; dea-opt schema lists "
+                                                  "them).", show_default=False)]
 SetOpt = Annotated[Optional[list[str]], typer.Option("--set", help="Override a scenario value, e.g. "
                                                      "--set law.H=0.45 (repeatable).", show_default=False)]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Write into the output folder even if it holds files dea-opt "
@@ -208,7 +210,8 @@ def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = Non
 @_reported
 def compare(
     scenario: ScenarioArg,
-    methods: Annotated[Optional[str], typer.Option(help="Comma-separated: newton,qp,nlp (default: [solve].methods).",
+    methods: Annotated[Optional[str], typer.Option(help="Comma-separated registered formulations (default: "
+                                                   "[solve].methods, else every one that solves the problem).",
                                                    show_default=False)] = None,
     solvers: Annotated[Optional[str], typer.Option(help="QP solvers for qp, e.g. CLARABEL,OSQP,SCS,PIQP (default: "
                                                    "[solve].solvers, cut to those installed).",
@@ -255,7 +258,7 @@ def compare(
             from .run.log import LOG_NAME
 
             files["log"] = write_data(publication.folder / LOG_NAME, log)
-        publication.publish(status="ok")
+        publication.publish(status=RunStatus.OK)
     _warn(messages.own)
     typer.echo(result.format_table())
     typer.echo("")
@@ -425,8 +428,8 @@ def calibrate(
         fit, files = calibrate_scenario(loaded, data, publication.folder, parameters=_split(parameters),
                                         film=film_value, noise=noise, max_distance=max_distance)
         messages.collect()
-        publication.publish(status="ok" if fit.success else "not converged",
-                            exit_code=EXIT_OK if fit.success else EXIT_UNCERTIFIED)
+        publication.publish(status=RunStatus.OK if fit.success else RunStatus.NOT_CONVERGED,
+                            exit_code=EXIT_OK if fit.success else RunStatus.NOT_CONVERGED.exit_code)
     _warn(messages.own)
     typer.echo(f"{'parameter':>16s} {'start':>12s} {'fitted':>12s} {'std error':>12s}")
     for name in fit.parameters:

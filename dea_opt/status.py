@@ -1,4 +1,5 @@
-"""One status vocabulary for every formulation, every solve and every frame of a load path.
+"""One status vocabulary for every formulation, every solve and every frame of a load path, and
+one for every run.
 
 Each formulation maps its solver's own status (Newton's, cvxpy's, IPOPT's) to a
 :class:`Status` and keeps the original in ``info["native_status"]``; the same situation gets
@@ -11,13 +12,18 @@ certificate passed. A certified answer (``success``) has one of the statuses of
 passes the certificate all the same (its own word stays in ``info["native_status"]`` and
 ``info["solver_success"]``). An uncertified one has any other status. Written math:
 ``formulations/energy.md`` ("Statuses").
+
+A run (``dea-opt run``, ``demo``, ``compare``, ``calibrate``, a sweep's case) ends with a
+:class:`RunStatus`: the ``status`` of its ``manifest.json``, of a sweep's row, and the source of
+its exit code. A run that has an answer without a certificate says why, in the words of the
+frames' :class:`Status` where one cause covers them (``load_not_supported``, ``pose_error``).
 """
 
 from __future__ import annotations
 
 from enum import StrEnum
 
-__all__ = ["CERTIFIABLE", "Status"]
+__all__ = ["CERTIFIABLE", "RunStatus", "Status"]
 
 
 class Status(StrEnum):
@@ -97,3 +103,73 @@ _DESCRIPTIONS = {
 
 #: The statuses of an answer a solver (or no solver) produced as intended.
 CERTIFIABLE = frozenset({Status.CONVERGED, Status.NO_FREE_DOFS, Status.HELD, Status.UNLOADED, Status.PRELOADED})
+
+
+class RunStatus(StrEnum):
+    """How a run ended: ``manifest.json``'s ``status``, a sweep row's, and the exit code's source.
+
+    ``RunStatus.X.description`` says it in one line and ``RunStatus.X.exit_code`` is the exit
+    code of the command (the README's table). A ``str`` enum: JSON and CSV see the plain value.
+    """
+
+    OK = "ok"
+    OUTSIDE_VALIDITY = "outside_validity"
+    CERTIFICATE_FAILED = "certificate_failed"
+    LOAD_NOT_SUPPORTED = "load_not_supported"
+    POSE_ERROR = "pose_error"
+    NOT_CONVERGED = "not_converged"
+    ERROR = "error"
+
+    def __repr__(self) -> str:
+        return repr(self.value)
+
+    @property
+    def description(self) -> str:
+        """One line: when a run ends with this status."""
+        return _RUN_DESCRIPTIONS[self]
+
+    @property
+    def exit_code(self) -> int:
+        """The command's exit code: 0 ok, 3 outside validity, 2 error, 1 any answer without a
+        certificate (or a fit that did not converge)."""
+        return {RunStatus.OK: 0, RunStatus.OUTSIDE_VALIDITY: 3, RunStatus.ERROR: 2}.get(self, 1)
+
+    @property
+    def failed(self) -> bool:
+        """The run has an answer without a certificate, or could not run (exit code 1 or 2)."""
+        return self.exit_code in (1, 2)
+
+    @classmethod
+    def of_frame(cls, status) -> RunStatus:
+        """The run status a failed answer (or frame) of :class:`Status` ``status`` gives its run."""
+        return {Status.NOT_SUPPORTED: cls.LOAD_NOT_SUPPORTED, Status.POSE_ERROR: cls.POSE_ERROR}.get(
+            status, cls.CERTIFICATE_FAILED)
+
+    @classmethod
+    def of_run(cls, success: bool, valid: bool | None, failures=()) -> RunStatus:
+        """The status of a run: a failure outranks an answer outside validity.
+
+        ``failures`` are the :class:`Status` of its answers (a load path's frames) without a
+        certificate. When they differ in cause, ``certificate_failed`` outranks ``pose_error``,
+        which outranks ``load_not_supported``.
+        """
+        if not success:
+            causes = {cls.of_frame(status) for status in failures} or {cls.CERTIFICATE_FAILED}
+            return next(s for s in (cls.CERTIFICATE_FAILED, cls.POSE_ERROR, cls.LOAD_NOT_SUPPORTED) if s in causes)
+        return cls.OUTSIDE_VALIDITY if valid is False else cls.OK
+
+
+_RUN_DESCRIPTIONS = {
+    RunStatus.OK: "every answer passed its certificate and lies inside its model's validity",
+    RunStatus.OUTSIDE_VALIDITY: "every answer passed its certificate, but one lies outside its model's validity "
+                                "(exit 0 with [solve] allow_outside_validity)",
+    RunStatus.CERTIFICATE_FAILED: "an answer (a load path: a frame) has no certificate: the solver's answer failed "
+                                  "it, or the solver gave up without one",
+    RunStatus.LOAD_NOT_SUPPORTED: "every frame without a certificate has a load the springs cannot carry "
+                                  "(frame status load_not_supported)",
+    RunStatus.POSE_ERROR: "the frames without a certificate are frames whose springs could not be cast at their pose "
+                          "(or loads the springs cannot carry)",
+    RunStatus.NOT_CONVERGED: "a calibration's least squares did not converge",
+    RunStatus.ERROR: "the run could not be done (a sweep's case: its message says why); at the command line, bad "
+                     "input is one paragraph and no outputs",
+}

@@ -119,12 +119,12 @@ def _variants(method, solvers, forms) -> list[tuple[str, dict]]:
     return [(variant.label(value), {option.name: value}) for value in values]
 
 
-def _cases(methods, solvers, accuracy, repeat, law, forms=("constrained",)):
+def _cases(methods, solvers, accuracy, repeat, law, forms=("constrained",), kinematics="small"):
     skipped = []
     cases = []
     for acc in accuracy:
         for method in methods:
-            reason = formulations.why_not(method, law)
+            reason = formulations.why_not(method, law, kinematics)
             if reason is not None:
                 if reason not in skipped:
                     skipped.append(reason)
@@ -283,7 +283,8 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
     ----------
     problem : ContactProblem
     methods : sequence of str, optional
-        Registered formulations (default all: :func:`dea_opt.formulations.names`).
+        Registered formulations (default: every one of :func:`dea_opt.formulations.names` that
+        solves the problem; one named that does not is skipped, with a note).
     solvers : sequence of str
         QP solvers for the formulations a study varies by their ``solver`` option (``qp``;
         cvxpy names). The default list is cut to the installed ones; a solver named
@@ -324,7 +325,9 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
 
     if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
         raise InputError(f"repeat must be a positive integer, got {repeat!r}")
-    methods = formulations.names() if methods is None else methods
+    if methods is None:
+        methods = [name for name in formulations.names()
+                   if formulations.why_not(name, problem.law, problem.kinematics) is None]
     methods, solvers, accuracy = _check_names(methods, solvers, accuracy)
     check_load_supported(problem)
     import warnings
@@ -334,7 +337,7 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
         reference = solve(problem, formulations.DEFAULT, strict=False)
     reference = reference if reference.success else None
     forms = _check_forms(methods, nlp_forms)
-    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms)
+    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms, problem.kinematics)
     rows = []
     for acc, method, label, options, r in tqdm(cases, desc="compare", unit="run", leave=False,
                                                  disable=None if progress else True):

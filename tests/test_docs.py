@@ -150,3 +150,15 @@ def test_the_readme_status_table_lists_every_status_with_its_description():
     assert set(rows) == {status.value for status in Status}
     for status in Status:
         assert rows[status.value] == status.description.replace("|", "\\|"), status
+
+
+def test_the_readme_run_status_table_lists_every_run_status_with_its_exit_code_and_description():
+    from dea_opt.status import RunStatus
+
+    readme = (ROOT / "README.md").read_text()
+    table = readme.split("### Run statuses", 1)[1].split("\n#", 1)[0]
+    rows = {m.group(1): (int(m.group(2)), m.group(3).strip())
+            for m in re.finditer(r"^\| `(\w+)` \| (\d+) \| (.+?) \|$", table, re.MULTILINE)}
+    assert set(rows) == {status.value for status in RunStatus}
+    for status in RunStatus:
+        assert rows[status.value] == (status.exit_code, status.description.replace("|", "\\|")), status

@@ -150,6 +150,56 @@ def test_a_registered_formulation_in_compare_and_a_study(toy):
     assert rows.loc["low", "solver_tol"] == 1e-3 and rows.loc["low", "iterations"] < rows.loc["default", "iterations"]
 
 
+PLATE_SCENARIO = """\
+[geometry]
+kind = "plate"
+nx = 80
+ny = 4
+[law]
+kind = "linear"
+H = 20.0
+[body2]
+free = ["uz", "rx", "ry"]
+[load]
+force = [0.0, 0.0, -500.0]
+point = [10.0, 0.0, 0.0]
+[output]
+formats = ["json"]
+[solve]
+"""
+
+
+def test_a_registered_formulation_is_a_scenario_s_method(toy, tmp_path):
+    from dea_opt.run import run_scenario
+    from dea_opt.scenario import method_names, parse_scenario
+
+    assert method_names() == ("auto", *formulations.names()) and "toy" in method_names()
+    scenario = parse_scenario(PLATE_SCENARIO + 'method = "toy"\nmethods = ["newton", "toy"]\n')
+    assert scenario.solve.method == "toy" and scenario.solve.methods == ["newton", "toy"]
+    outcome = run_scenario(scenario, tmp_path / "out")
+    solution = outcome.result
+    assert outcome.exit_code == 0 and solution.method == "toy" and solution.success
+    force, _ = own_balance(solution, solution.problem)
+    assert force[2] == pytest.approx(500.0, rel=1e-6)
+    # a name nobody registered is an error naming the key and the registered names
+    with pytest.raises(d.ScenarioError, match=r"solve\.method.*must be one of auto, newton, .*toy.*got 'bfgs'"):
+        parse_scenario(PLATE_SCENARIO + 'method = "bfgs"\n')
+    with pytest.raises(d.ScenarioError, match=r"solve\.methods.*got 'auto'"):
+        parse_scenario(PLATE_SCENARIO + 'methods = ["auto"]\n')
+
+
+def test_an_unregistered_formulation_is_no_longer_a_scenario_s_method():
+    from dea_opt.scenario import parse_scenario
+
+    formulations.register("toy2", toy_module())
+    try:
+        assert parse_scenario(PLATE_SCENARIO + 'method = "toy2"\n').solve.method == "toy2"
+    finally:
+        formulations.unregister("toy2")
+    with pytest.raises(d.ScenarioError, match="got 'toy2'"):
+        parse_scenario(PLATE_SCENARIO + 'method = "toy2"\n')
+
+
 def test_its_options_are_checked_by_the_registry(toy):
     problem = plate()
     with pytest.raises(d.InputError, match=r"method 'toy' takes the options \['gtol', 'maxiter', 'x0'\], "

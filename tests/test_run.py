@@ -24,6 +24,7 @@ from dea_opt.io.publish import read_manifest
 from dea_opt.laws import LAWS, Law, register_law
 from dea_opt.law_registry import Range
 from dea_opt.scenario import parse_scenario, schema_text
+from dea_opt.status import RunStatus
 
 EXAMPLES = Path(__file__).resolve().parents[1] / "examples" / "scenarios"
 runner = CliRunner()
@@ -70,20 +71,20 @@ def test_outside_validity_exits_3_with_the_reason_unless_allowed(tmp_path):
     last = stderr_lines(result)[-1]
     assert last.startswith(f"dea-opt: solved outside validity: strain {strain:.4g} > 0.3")
     assert "use AteshianLaw" in last and len(stderr_lines(result)) == 1  # said once, not twice
-    assert read_manifest(tmp_path / "a")["status"] == "outside validity"
+    assert read_manifest(tmp_path / "a")["status"] == RunStatus.OUTSIDE_VALIDITY
     result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path / "b", "--set", "law.H=5",
                     "--set", "solve.allow_outside_validity=true")
     assert result.exit_code == 0
     assert "solved outside validity (allowed by [solve] allow_outside_validity)" in result.stderr
     assert json.loads((tmp_path / "b" / "contact.json").read_text())["validity"]["valid"] is False
-    assert read_manifest(tmp_path / "b")["status"] == "outside validity"
+    assert read_manifest(tmp_path / "b")["status"] == RunStatus.OUTSIDE_VALIDITY
 
 
 def test_a_failed_certificate_outranks_validity(tmp_path):
     result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path, "--set", "law.H=5", "-m", "newton",
                     "--set", "solve.certificate_tol=1e-30")
     assert result.exit_code == 1 and "no certified answer" in result.stderr
-    assert read_manifest(tmp_path)["status"] == "certificate failed"
+    assert read_manifest(tmp_path)["status"] == RunStatus.CERTIFICATE_FAILED
 
 
 HIP_PATH = """\
@@ -127,7 +128,9 @@ def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):
     scenario.write_text(HIP_PATH.format(H=4.0))
     result = invoke("run", scenario, "-o", tmp_path / "out", "-m", "newton", "--set", "solve.certificate_tol=1e-30")
     assert result.exit_code == 1 and "11 of 11 frames have no certified answer: frame 0 (0 s)" in result.stderr
-    assert read_manifest(tmp_path / "out")["status"] == "certificate failed"
+    assert read_manifest(tmp_path / "out")["status"] == RunStatus.CERTIFICATE_FAILED
+    failures = read_manifest(tmp_path / "out")["failures"]  # the frames' own statuses, counted
+    assert sum(failures.values()) == 11 and "load_not_supported" not in failures
     # --stop-on-error: the first failed frame ends the run, a named error, nothing published
     result = invoke("run", scenario, "-o", tmp_path / "stopped", "-m", "newton", "--stop-on-error",
                     "--set", "solve.certificate_tol=1e-30")

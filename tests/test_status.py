@@ -127,3 +127,35 @@ def test_a_solver_error_carries_a_status():
         quiet(d.solve, _plate().with_load(force=(0, 0, -300.0), point=(10.0, 0, 0)), "newton", max_iter=1)
     assert info.value.status is Status.MAX_ITERATIONS and info.value.native_status == "max_iter"
     assert info.value.solution.status is Status.MAX_ITERATIONS
+
+
+# --- run statuses: one vocabulary for manifests, sweep rows and exit codes ----------------------
+
+@pytest.mark.parametrize("success, valid, failures, expected", [
+    (True, True, (), "ok"),
+    (True, None, (), "ok"),
+    (True, False, (), "outside_validity"),
+    (False, False, (), "certificate_failed"),  # a failure outranks validity
+    (False, True, ("inaccurate",), "certificate_failed"),
+    (False, True, ("load_not_supported", "load_not_supported"), "load_not_supported"),
+    (False, True, ("pose_error", "load_not_supported"), "pose_error"),
+    (False, True, ("load_not_supported", "solver_error"), "certificate_failed"),
+])
+def test_a_run_status_names_the_cause_of_its_failures(success, valid, failures, expected):
+    from dea_opt.status import RunStatus
+
+    status = RunStatus.of_run(success, valid, [Status(f) for f in failures])
+    assert status is RunStatus(expected) and status == expected
+    assert status.exit_code == {"ok": 0, "outside_validity": 3}.get(expected, 1)
+
+
+def test_run_statuses_are_their_strings_with_an_exit_code_and_a_description():
+    from dea_opt.status import RunStatus
+
+    assert json.loads(json.dumps({"status": RunStatus.LOAD_NOT_SUPPORTED})) == {"status": "load_not_supported"}
+    assert [s for s in RunStatus if s.failed] == [RunStatus.CERTIFICATE_FAILED, RunStatus.LOAD_NOT_SUPPORTED,
+                                                   RunStatus.POSE_ERROR, RunStatus.NOT_CONVERGED, RunStatus.ERROR]
+    assert RunStatus.ERROR.exit_code == 2 and all(len(s.description) > 20 for s in RunStatus)
+    # the frame statuses a run's status repeats are the same words
+    assert RunStatus.of_frame(Status.NOT_SUPPORTED) == Status.NOT_SUPPORTED
+    assert RunStatus.of_frame(Status.POSE_ERROR) == Status.POSE_ERROR

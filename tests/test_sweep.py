@@ -16,6 +16,7 @@ from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError, MissingDependencyError
+from dea_opt.status import RunStatus
 from dea_opt.sweep import (
     JOURNAL_NAME,
     RESULTS_NAME,
@@ -102,20 +103,20 @@ def test_a_failing_case_is_recorded_and_its_retry_replaces_the_row(scenario, tmp
     table = result.table.set_index("load_path.scale")
     assert table.loc[1.0, "status"] == "ok"
     # A load path goes on past frames the springs cannot carry: the case ran, its frames failed.
-    assert table.loc[-1.0, "status"] == "failed"
+    assert table.loc[-1.0, "status"] == RunStatus.LOAD_NOT_SUPPORTED
     frames = pd.read_csv(Path(table.loc[-1.0, "output_dir"]) / "frames.csv", keep_default_na=False)
     assert (frames["status"] == "load_not_supported").all() and frames["message"].str.contains("cannot carry").all()
     assert len(result.failed) == 1
     first_row = table.loc[-1.0].to_dict()
     retry = run_sweep(scenario, ["load_path.scale=1,-1"], out, scheduler="synchronous", retry_failed=True)
     assert retry.ran == result.failed and retry.skipped == [table.loc[1.0, "case_id"]]
-    assert retry.recomputed == {result.failed[0]: "its row says failed; retrying"}
+    assert retry.recomputed == {result.failed[0]: "its row says load_not_supported; retrying"}
     # The CSV a user opens: one row per case, the failed one replaced by its retry.
     csv = pd.read_csv(out / RESULTS_NAME, dtype={"case_id": str})
     assert len(csv) == 2 and csv["case_id"].is_unique
     assert runs(out) == {table.loc[1.0, "case_id"]: 1, result.failed[0]: 2}
     retried = csv.set_index("case_id").loc[result.failed[0]]
-    assert retried["status"] == "failed" and retried["wall_time"] != first_row["wall_time"]
+    assert retried["status"] == RunStatus.LOAD_NOT_SUPPORTED and retried["wall_time"] != first_row["wall_time"]
     # The journal keeps both computations of the failed case; the later one is the row.
     lines = journal_lines(out)
     assert [r["case_id"] for r in lines].count(result.failed[0]) == 2 and len(lines) == 3

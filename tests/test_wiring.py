@@ -24,6 +24,7 @@ from dea_opt.errors import InputError, SizeLimitError
 from dea_opt.io.atomic import TEMPORARY_NAME
 from dea_opt.io.publish import check_outputs, read_manifest
 from dea_opt.scenario import load_scenario, parse_scenario, read_load_path, schema_text
+from dea_opt.status import RunStatus
 
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text(encoding="utf-8")
@@ -80,7 +81,9 @@ def test_a_path_is_streamed_and_a_frame_that_cannot_be_carried_is_recorded(tmp_p
     manifest = read_manifest(tmp_path / "out")
     series = sorted(name for name in manifest["files"] if name.startswith("series_frames/"))
     assert series == [f"series_frames/frame_{k:04d}.vtu" for k in range(5)]
-    assert manifest["status"] == "certificate failed" and manifest["exit_code"] == 1
+    # the manifest says why precisely: the frame's load cannot be carried, no certificate failed
+    assert manifest["status"] == RunStatus.LOAD_NOT_SUPPORTED and manifest["exit_code"] == 1
+    assert manifest["failures"] == {"load_not_supported": 1}
     assert check_outputs(tmp_path / "out") == []
 
 
@@ -222,9 +225,9 @@ def test_a_sweep_case_outside_validity_is_not_ok(tmp_path):
 
 
 def test_the_readme_documents_the_sweep_statuses():
-    from dea_opt.sweep.cases import STATUSES
+    from dea_opt.sweep.cases import RETRIED, STATUSES
 
-    assert STATUSES == ("ok", "outside_validity", "failed", "error")
+    assert set(STATUSES) == set(RunStatus) and set(RETRIED) == {s for s in RunStatus if s.exit_code in (1, 2)}
     for status in STATUSES:
         assert f"| `{status}` |" in README
 

@@ -1,14 +1,16 @@
-"""What a run did: :class:`RunOutcome`, its status and its exit code."""
+"""What a run did: :class:`RunOutcome`, its status (a :class:`~dea_opt.status.RunStatus`) and its exit code."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from ..status import RunStatus
+
 __all__ = ["EXIT_CODES", "RunOutcome", "status_of"]
 
-#: Exit status of a run, by its status.
-EXIT_CODES = {"ok": 0, "certificate failed": 1, "bad input": 2, "outside validity": 3}
+#: Exit status of a run, by its status (:attr:`RunStatus.exit_code`).
+EXIT_CODES = {status: status.exit_code for status in RunStatus}
 
 
 @dataclass(eq=False)
@@ -41,6 +43,8 @@ class RunOutcome:
         contact area (for a load path: over the frames); empty without labels.
     allow_outside_validity : bool
         ``[solve] allow_outside_validity``: an answer outside validity exits 0.
+    failures : dict {Status: int}
+        The statuses of the answers without a certificate (a load path's frames), counted.
     folder : Path or None
         The output folder; ``manifest`` its manifest once published.
     """
@@ -57,26 +61,26 @@ class RunOutcome:
     reasons: list = field(default_factory=list)
     regions: list = field(default_factory=list)
     allow_outside_validity: bool = False
+    failures: dict = field(default_factory=dict)
     folder: Path | None = None
     manifest: dict | None = None
 
     @property
-    def status(self) -> str:
-        """``"ok"``, ``"certificate failed"`` or ``"outside validity"``."""
-        return status_of(self.success, self.valid)
+    def status(self) -> RunStatus:
+        """``ok``, ``outside_validity``, or why an answer has no certificate
+        (:meth:`RunStatus.of_run`)."""
+        return status_of(self.success, self.valid, self.failures)
 
     @property
     def exit_code(self) -> int:
-        """0, 1 or 3 (see the module's docstring)."""
-        if self.status == "outside validity" and self.allow_outside_validity:
+        """0, 1 or 3 (see :mod:`dea_opt.run`)."""
+        if self.status is RunStatus.OUTSIDE_VALIDITY and self.allow_outside_validity:
             return 0
-        return EXIT_CODES[self.status]
+        return self.status.exit_code
 
 
-def status_of(success: bool, valid: bool | None) -> str:
-    """The status of a run: a failed certificate outranks an answer outside validity."""
-    if not success:
-        return "certificate failed"
-    return "outside validity" if valid is False else "ok"
+def status_of(success: bool, valid: bool | None, failures=()) -> RunStatus:
+    """The status of a run (:meth:`RunStatus.of_run`): a failure outranks an answer outside validity."""
+    return RunStatus.of_run(success, valid, failures)
 
 

@@ -97,8 +97,11 @@ def run_path_outputs(scenario, problem, method, options, out, progress, extra_su
     regions = [f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
                f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
                f"contact area {r['max_contact_area']:.4g} mm^2" for name, r in summary["regions"].items()]
+    failures: dict = {}
+    for frame in result.failures():
+        failures[frame["status"]] = failures.get(frame["status"], 0) + 1
     return RunOutcome("path", result.success, message, files, headline, result, warnings=notes, valid=not outside,
-                      validity=lines, reasons=reasons, regions=regions)
+                      validity=lines, reasons=reasons, regions=regions, failures=failures)
 
 
 def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict, certificate_tol: float):

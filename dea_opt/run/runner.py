@@ -4,7 +4,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from ..errors import InputError
 from .log import LOG_NAME, captured
 from .outcome import RunOutcome
 from .path import run_path_outputs
@@ -45,13 +44,10 @@ def solve_options(section, method: str, law) -> dict:
 
 def check_method(method: str | None, default: str) -> str:
     """``method`` (or the scenario's ``default``), checked against the scenario's method names."""
-    from ..scenario import METHOD_NAMES
+    from ..scenario import check_method_name
 
     method = default if method is None else method.strip().lower()
-    if method not in METHOD_NAMES:
-        raise InputError(f"method (--method or [solve].method) must be one of {', '.join(METHOD_NAMES)}, "
-                         f"got {method!r}")
-    return method
+    return check_method_name(method, "method (--method or [solve].method)")
 
 
 def run_info(scenario, command: str, method: str | None = None) -> dict:
@@ -129,8 +125,9 @@ def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, 
             from ..io.atomic import write_data
 
             outcome.files["log"] = write_data(publication.folder / LOG_NAME, log)
-        outcome.manifest = publication.publish(
-            status=outcome.status, exit_code=outcome.exit_code, success=outcome.success, valid=outcome.valid)
+        failures = {"failures": {str(k): int(n) for k, n in outcome.failures.items()}} if outcome.failures else {}
+        outcome.manifest = publication.publish(status=outcome.status, exit_code=outcome.exit_code,
+                                               success=outcome.success, valid=outcome.valid, **failures)
         outcome.folder = publication.folder
     return outcome
 

@@ -54,7 +54,6 @@ from .schema import (
     FORMATS,
     GEOMETRY_KINDS,
     LOAD_PATH_COLUMNS,
-    METHOD_NAMES,
     BodySection,
     GeneratorGeometry,
     LawSection,
@@ -69,13 +68,14 @@ from .schema import (
     SolveSection,
     SphereOnBedGeometry,
     SpringsGeometry,
+    check_method_name,
+    method_names,
 )
 
 __all__ = [
     "FORMATS",
     "GEOMETRY_KINDS",
     "LOAD_PATH_COLUMNS",
-    "METHOD_NAMES",
     "BodySection",
     "GeneratorGeometry",
     "LawSection",
@@ -99,9 +99,11 @@ __all__ = [
     "build_layer",
     "build_problem",
     "build_problem_cast",
+    "check_method_name",
     "cast_from_mesh_section",
     "load_meshes",
     "load_scenario",
+    "method_names",
     "parse_scenario",
     "parse_set",
     "pose_builder",
@@ -113,3 +115,10 @@ __all__ = [
     "springs_from_mesh_section",
     "write_springs",
 ]
+
+
+def __getattr__(name: str):
+    # METHOD_NAMES, the former constant: the method names registered now (:func:`method_names`)
+    if name == "METHOD_NAMES":
+        return method_names()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -20,6 +20,7 @@ from .schema import (
     SphereOnBedGeometry,
     SpringsGeometry,
     law_model,
+    method_names,
 )
 
 __all__ = ["schema_text"]
@@ -67,14 +68,21 @@ def schema_text() -> str:
             for name, field in model.model_fields.items():
                 if name == "kind" and len(models) > 1:
                     continue
-                lines.append(_field_line(name, field))
+                lines.append(_field_line(name, field, _choices(model, name)))
     return "\n".join(lines) + "\n"
 
 
-def _field_line(name: str, field) -> str:
+def _choices(model, name: str) -> str:
+    """The method names registered now, for the keys that name methods."""
+    if model is SolveSection and name in ("method", "methods"):
+        return " | ".join(method_names()[0 if name == "method" else 1:])
+    return ""
+
+
+def _field_line(name: str, field, choices: str = "") -> str:
     from pydantic_core import PydanticUndefined
 
-    description = field.description or ""
+    description = (field.description or "") + (f": {choices}" if choices else "")
     if field.default is PydanticUndefined and field.default_factory is None:
         return f"{name} = ...  # required; {description}"
     default = field.default_factory() if field.default_factory is not None else field.default

@@ -27,17 +27,43 @@ from ..kinematics import DOFS
 from ..laws import LAWS
 
 __all__ = [
-    "FORMATS", "GEOMETRY_KINDS", "LOAD_PATH_COLUMNS", "METHOD_NAMES", "BodySection", "GeneratorGeometry",
+    "FORMATS", "GEOMETRY_KINDS", "LOAD_PATH_COLUMNS", "BodySection", "GeneratorGeometry",
     "LawSection", "LoadPathSection", "LoadSection", "MeshGeometry", "OutputSection", "PlateGeometry",
     "RegionsSection", "Scenario", "SocketGeometry", "SolveSection", "SphereOnBedGeometry", "SpringsGeometry",
-    "law_model",
+    "check_method_name", "law_model", "method_names",
 ]
 
-METHOD_NAMES = ("auto", "newton", "qp", "nlp")
 FORMATS = ("csv", "json", "vtk", "png")
 #: The quantities of a load path a column can be: time, force, moment and the pose of mesh 2.
 LOAD_PATH_COLUMNS = ("time", "Fx", "Fy", "Fz", "Mx", "My", "Mz",
                      "pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz")
+
+
+def method_names() -> tuple:
+    """The methods a scenario names: ``auto`` and every registered formulation
+    (:func:`dea_opt.formulations.names`), read when a scenario is checked, so a formulation
+    registered after import is accepted."""
+    from .. import formulations
+
+    return ("auto", *formulations.names())
+
+
+def check_method_name(method, what: str = "method", auto: bool = True) -> str:
+    """``method`` if it is one of :func:`method_names` (without ``auto`` unless ``auto``);
+    an :class:`~dea_opt.errors.InputError` (a ``ValueError``) naming ``what`` otherwise."""
+    from ..errors import InputError
+
+    names = method_names() if auto else method_names()[1:]
+    if not isinstance(method, str) or method not in names:
+        raise InputError(f"{what} must be one of {', '.join(names)}, got {method!r}")
+    return method
+
+
+def __getattr__(name: str):
+    # METHOD_NAMES, the former constant: the names registered now
+    if name == "METHOD_NAMES":
+        return method_names()
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # --- field types ------------------------------------------------------------------------
@@ -115,6 +141,12 @@ NonNegative = Annotated[float, Field(ge=0)]
 Count = Annotated[int, Field(ge=1)]
 Dof = Literal["ux", "uy", "uz", "rx", "ry", "rz"]
 DofList = Annotated[list[Dof], BeforeValidator(_dof_list)]
+#: A method name (:func:`method_names`); the JSON schema lists the names registered when it is made.
+Method = Annotated[str, AfterValidator(lambda name: check_method_name(name, "the method")),
+                   Field(json_schema_extra=lambda schema: schema.update(enum=list(method_names())))]
+#: A formulation compared by ``dea-opt compare`` (a method name other than ``auto``).
+ComparedMethod = Annotated[str, AfterValidator(lambda name: check_method_name(name, "a compared method", auto=False)),
+                           Field(json_schema_extra=lambda schema: schema.update(enum=list(method_names()[1:])))]
 
 
 class _Section(BaseModel):
@@ -358,13 +390,14 @@ class RegionsSection(_Section):
 class SolveSection(_Section):
     """How to solve (``run``) and what to compare (``compare``)."""
 
-    method: Literal["auto", "newton", "qp", "nlp"] = Field("auto", description="auto | newton | qp | nlp")
+    method: Method = Field("auto", description="auto, or a registered formulation")
     solver: str = Field("CLARABEL", description="QP solver for method qp (any cvxpy QP solver)")
     tol: Positive | None = Field(None, description="solver tolerance (default: the formulation's)")
     certificate_tol: Positive = Field(1e-6, description="bound on every certificate residual")
     form: Literal["constrained", "reduced"] = Field("constrained", description="NLP form")
-    methods: list[Literal["newton", "qp", "nlp"]] = Field(
-        ["newton", "qp", "nlp"], min_length=1, description="methods for compare")
+    methods: list[ComparedMethod] | None = Field(
+        None, min_length=1, description="methods for compare (default: every registered formulation that solves the "
+                                        "problem)")
     solvers: list[str] = Field(
         ["CLARABEL", "OSQP", "SCS", "PIQP"], min_length=1, description="QP solvers for compare")
     accuracy: list[Literal["low", "default", "high"]] = Field(

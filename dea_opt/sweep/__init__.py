@@ -11,9 +11,10 @@ A row counts as finished only while it was computed from the same content: the s
 scenario text, the same bytes of every input file the case reads, the same overrides and
 ``--method``, the same dea-opt version (its ``key`` column, :mod:`dea_opt.sweep.keys`).
 A rerun skips the finished cases and recomputes the others, saying why; the new row
-replaces the old one. ``retry_failed`` recomputes the rows whose status is ``failed`` or
-``error``. A row's ``status`` is ``ok``, ``outside_validity``, ``failed`` or ``error``
-(:data:`~dea_opt.sweep.cases.STATUSES`).
+replaces the old one. ``retry_failed`` recomputes the rows of a case without a certified answer
+or with an error (:data:`~dea_opt.sweep.cases.RETRIED`). A row's ``status`` is a
+:class:`~dea_opt.status.RunStatus`: ``ok``, ``outside_validity``, ``certificate_failed``,
+``load_not_supported``, ``pose_error`` or ``error`` (:data:`~dea_opt.sweep.cases.STATUSES`).
 
 Several sweeps may work on one folder at once (the same sweep twice, or sweeps with other
 cases): a process claims a case before computing it (a lock that dies with the process),
@@ -38,7 +39,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, MissingDependencyError
-from ..scenario import METHOD_NAMES, load_scenario
+from ..status import RunStatus
+from ..scenario import check_method_name, load_scenario
 from . import journal
 from .cases import (
     RETRIED,
@@ -110,17 +112,17 @@ class SweepResult:
 
     @property
     def failed(self) -> list:
-        """This sweep's case ids whose status is ``failed`` or ``error``."""
+        """This sweep's case ids without a certified answer or with an error (:data:`RETRIED`)."""
         return self._with_status(RETRIED)
 
     @property
     def outside_validity(self) -> list:
         """This sweep's case ids whose status is ``outside_validity``."""
-        return self._with_status(("outside_validity",))
+        return self._with_status((RunStatus.OUTSIDE_VALIDITY,))
 
     @property
     def exit_code(self) -> int:
-        """1 when a case is ``failed`` or ``error``; else 3 when a case is ``outside_validity``
+        """1 when a case has no certified answer or an error; else 3 when a case is ``outside_validity``
         and its scenario does not allow it (``[solve] allow_outside_validity``); else 0."""
         if self.failed:
             return 1
@@ -140,7 +142,7 @@ def format_row(row: dict, overrides: dict, note: str = "") -> str:
     wall = row.get("wall_time")
     if isinstance(wall, (int, float)):
         line += f"  {wall:.1f} s"
-    if row.get("status") == "error":
+    if row.get("status") == RunStatus.ERROR:
         message = " ".join(str(row.get("message", "")).split())
         line += f"  ({message[:100]}{'...' if len(message) > 100 else ''})"
     return line + (f"  {note}" if note else "")
@@ -176,9 +178,7 @@ def _check(workers, method) -> str | None:
         raise InputError(f"workers must be a positive integer, got {workers!r}")
     if method is None:
         return None
-    if not isinstance(method, str) or method.strip().lower() not in METHOD_NAMES:
-        raise InputError(f"method (--method) must be one of {', '.join(METHOD_NAMES)}, got {method!r}")
-    return method.strip().lower()
+    return check_method_name(method.strip().lower() if isinstance(method, str) else method, "method (--method)")
 
 
 def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = None, workers: int = 2,

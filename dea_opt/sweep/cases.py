@@ -12,6 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DeaError, InputError, ScenarioError
+from ..status import RunStatus
 from ..scenario import parse_scenario, parse_set
 from . import journal
 from .keys import ContentKey, content_key
@@ -30,15 +31,13 @@ __all__ = [
     "work_claimed",
 ]
 
-#: Every status a case's row can have: ``ok`` (every answer certified and inside its model's
-#: validity), ``outside_validity`` (certified, but an answer lies outside validity: exit 3 of
-#: ``dea-opt run``), ``failed`` (an answer, or a load path's frame, has no certified answer) and
-#: ``error`` (the case could not run: its ``message`` says why).
-STATUSES = ("ok", "outside_validity", "failed", "error")
-#: The statuses ``--retry-failed`` recomputes.
-RETRIED = ("failed", "error")
-#: A run's status (:attr:`dea_opt.run.RunOutcome.status`) as a case's status.
-_CASE_STATUS = {"ok": "ok", "outside validity": "outside_validity", "certificate failed": "failed"}
+#: Every status a case's row can have: a run's (:class:`~dea_opt.status.RunStatus`: ``ok``,
+#: ``outside_validity`` (exit 3 of ``dea-opt run``), ``certificate_failed``, ``load_not_supported``
+#: or ``pose_error`` when an answer, or a load path's frame, has no certified answer) or ``error``
+#: (the case could not run: its ``message`` says why).
+STATUSES = tuple(RunStatus)
+#: The statuses ``--retry-failed`` recomputes: an answer without a certificate, or an error.
+RETRIED = tuple(status for status in RunStatus if status.failed)
 
 
 def case_id(overrides: dict) -> str:
@@ -111,8 +110,9 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
     dict
         The case's row: ``case_id``, the overrides, ``status`` (one of :data:`STATUSES`:
         ``ok``; ``outside_validity`` when certified but outside its model's validity;
-        ``failed`` when an answer, or a frame, has no certified answer; ``error`` with
-        ``message`` when the case could not run), ``exit_code`` (that of ``dea-opt run``), headline
+        ``certificate_failed``, ``load_not_supported`` or ``pose_error`` when an answer, or a
+        frame, has no certified answer; ``error`` with ``message`` when the case could not
+        run), ``exit_code`` (that of ``dea-opt run``), headline
         numbers (for a load path: the largest over the frames), ``warnings`` (the run's
         validity warnings, joined by `` | ``), ``wall_time`` (s),
         ``output_dir``, ``finished``, ``pid`` and the content key's fields.
@@ -132,15 +132,15 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
         columns = (key or content_key(scenario, sha, overrides, method)).columns()
         # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
         outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False, force=True)
-        row |= {"status": _CASE_STATUS[outcome.status], "exit_code": outcome.exit_code, "message": outcome.message,
+        row |= {"status": str(outcome.status), "exit_code": outcome.exit_code, "message": outcome.message,
                 **outcome.headline,
                 "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings)}
     except DeaError as exc:
-        row |= {"status": "error", "message": " ".join(str(exc).split())}
+        row |= {"status": str(RunStatus.ERROR), "message": " ".join(str(exc).split())}
     except Exception as exc:  # noqa: BLE001 - one broken case must not end the sweep
         last = traceback.extract_tb(exc.__traceback__)[-1]
         where = f"{Path(last.filename).name}:{last.lineno}"
-        row |= {"status": "error", "message": f"{type(exc).__name__}: {exc} ({where})"}
+        row |= {"status": str(RunStatus.ERROR), "message": f"{type(exc).__name__}: {exc} ({where})"}
     row |= {"wall_time": time.perf_counter() - start, "output_dir": str(case_dir),
             "finished": time.strftime("%Y-%m-%dT%H:%M:%S"), "pid": os.getpid(), **columns}
     return row
