@@ -23,7 +23,7 @@ import tempfile
 import time
 import traceback
 from pathlib import Path
-from typing import Annotated, Optional
+from typing import Annotated
 
 import typer
 
@@ -151,12 +151,12 @@ def _report_outcome(outcome, quiet: bool = False) -> None:
 
 ScenarioArg = Annotated[Path, typer.Argument(help="The scenario TOML file (see: dea-opt schema).",
                                              show_default=False)]
-OutputOpt = Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: the "
+OutputOpt = Annotated[Path | None, typer.Option("--output", "-o", help="Output folder (default: the "
                                                    "scenario's [output].directory).", show_default=False)]
-MethodOpt = Annotated[Optional[str], typer.Option("--method", "-m", help="auto, or a registered formulation "
+MethodOpt = Annotated[str | None, typer.Option("--method", "-m", help="auto, or a registered formulation "
                                                   "(default: the scenario's [solve].method; dea-opt schema lists "
                                                   "them).", show_default=False)]
-SetOpt = Annotated[Optional[list[str]], typer.Option("--set", help="Override a scenario value, e.g. "
+SetOpt = Annotated[list[str] | None, typer.Option("--set", help="Override a scenario value, e.g. "
                                                      "--set law.H=0.45 (repeatable).", show_default=False)]
 ForceOpt = Annotated[bool, typer.Option("--force", help="Write into the output folder even if it holds files dea-opt "
                                         "did not write (files named like the outputs are replaced).")]
@@ -210,21 +210,21 @@ def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = Non
 @_reported
 def compare(
     scenario: ScenarioArg,
-    methods: Annotated[Optional[str], typer.Option(help="Comma-separated registered formulations (default: "
+    methods: Annotated[str | None, typer.Option(help="Comma-separated registered formulations (default: "
                                                    "[solve].methods, else every one that solves the problem).",
                                                    show_default=False)] = None,
-    solvers: Annotated[Optional[str], typer.Option(help="QP solvers for qp, e.g. CLARABEL,OSQP,SCS,PIQP (default: "
+    solvers: Annotated[str | None, typer.Option(help="QP solvers for qp, e.g. CLARABEL,OSQP,SCS,PIQP (default: "
                                                    "[solve].solvers, cut to those installed).",
                                                    show_default=False)] = None,
-    accuracy: Annotated[Optional[str], typer.Option(help="low | default | high, or several comma-separated "
+    accuracy: Annotated[str | None, typer.Option(help="low | default | high, or several comma-separated "
                                                     "(default: [solve].accuracy).", show_default=False)] = None,
-    repeat: Annotated[Optional[int], typer.Option(help="Runs per combination (default: [solve].repeat).",
+    repeat: Annotated[int | None, typer.Option(help="Runs per combination (default: [solve].repeat).",
                                                   show_default=False)] = None,
-    frame: Annotated[Optional[int], typer.Option(help="For a load path: the frame to compare on (default: the "
+    frame: Annotated[int | None, typer.Option(help="For a load path: the frame to compare on (default: the "
                                                  "largest force).", show_default=False)] = None,
     nlp_forms: Annotated[str, typer.Option(help="NLP forms for nlp, comma-separated: constrained,reduced.")]
     = "constrained",
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
                                                    "[output].directory>/compare).", show_default=False)] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
@@ -299,11 +299,11 @@ def sweep(
     set_: Annotated[list[str], typer.Option("--set", help="KEY=V1,V2,... e.g. --set law.H=0.3,0.45,0.6 "
                                             "(repeatable; the cases are the Cartesian product).",
                                             show_default=False)],
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address (default: a LocalCluster); "
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address (default: a LocalCluster); "
                                                      "'synchronous' runs here, one case at a time.",
                                                      show_default=False)] = None,
     workers: Annotated[int, typer.Option(help="Worker processes of the LocalCluster.")] = 2,
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Folder of sweep.csv, sweep.jsonl, "
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="Folder of sweep.csv, sweep.jsonl, "
                                                    "sweep.log and cases/ (default: <scenario output>/sweep).",
                                                    show_default=False)] = None,
     method: MethodOpt = None,
@@ -355,9 +355,9 @@ def sweep(
 @app.command()
 @_reported
 def demo(
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder.",
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="Output folder.",
                                                    show_default="./dea-opt-demo")] = None,
-    frames: Annotated[Optional[int], typer.Option(help="Resample the 101-frame gait cycle to N frames.",
+    frames: Annotated[int | None, typer.Option(help="Resample the 101-frame gait cycle to N frames.",
                                                   show_default=False, min=2)] = None,
     coarse: Annotated[bool, typer.Option(help="A coarse socket and 11 frames: a few seconds.")] = False,
     method: MethodOpt = None,
@@ -390,15 +390,15 @@ def calibrate(
     scenario: ScenarioArg,
     data: Annotated[Path, typer.Option("--data", help="Pressure map CSV with columns x, y, z, p (mm, MPa), in "
                                        "the springs' frame.", show_default=False)],
-    parameters: Annotated[Optional[str], typer.Option(help="Parameters to fit, e.g. H,beta (default: the law's; "
+    parameters: Annotated[str | None, typer.Option(help="Parameters to fit, e.g. H,beta (default: the law's; "
                                                       "also thickness_scale, Fx..Mz).", show_default=False)] = None,
-    film: Annotated[Optional[str], typer.Option(help="The film's range: LLLW, LLW, LW, MS, HS or LOWER,UPPER in "
+    film: Annotated[str | None, typer.Option(help="The film's range: LLLW, LLW, LW, MS, HS or LOWER,UPPER in "
                                                 "MPa (readings at its limits are censored).",
                                                 show_default=False)] = None,
     noise: Annotated[float, typer.Option(help="Relative noise of a reading.")] = 0.05,
-    max_distance: Annotated[Optional[float], typer.Option(help="Drop points farther than this from every spring "
+    max_distance: Annotated[float | None, typer.Option(help="Drop points farther than this from every spring "
                                                           "(mm).", show_default=False)] = None,
-    output: Annotated[Optional[Path], typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
+    output: Annotated[Path | None, typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
                                                    "[output].directory>/calibration).", show_default=False)] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,

@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["hip_gait_load", "load_hip_gait", "write_hip_gait_csv", "HIP_GAIT_CSV", "BODY_WEIGHT"]
+__all__ = ["BODY_WEIGHT", "HIP_GAIT_CSV", "hip_gait_load", "load_hip_gait", "write_hip_gait_csv"]
 
 #: Body weight the shipped curve is scaled to (N), about 76 kg.
 BODY_WEIGHT = 750.0

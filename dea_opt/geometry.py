@@ -12,14 +12,18 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._checks.inputs import number_in_range, positive_integer
+from ._checks.inputs import as_float_array, number_in_range, positive_integer
 from ._checks.memory import check_memory, format_count
 from .errors import InputError
 from .layer import SpringLayer
 from .mesh.budget import BYTES_PER_GENERATED_FACE, BYTES_PER_LAYER_SPRING, PEAK_SHARE
+
+if TYPE_CHECKING:
+    import trimesh
 
 _FEWER = "use fewer cells (a coarser grid) for a joint-sized layer"
 
@@ -67,7 +71,9 @@ def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: in
     X, Y = np.meshgrid(xs, ys, indexing="ij")
     points = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
     normals = np.tile([0.0, 0.0, 1.0], (X.size, 1))
-    return SpringLayer(points, normals, dx * dy, thickness)
+    n = len(points)
+    return SpringLayer(points, normals, np.full(n, dx * dy), as_float_array("thickness", thickness, (n,),
+                                                                           allow_scalar_for=n))
 
 
 def sphere_on_bed_layer(radius: float = 25.0, thickness: float = 2.0, extent: float = 8.0,
@@ -92,7 +98,8 @@ def sphere_on_bed_layer(radius: float = 25.0, thickness: float = 2.0, extent: fl
     normals = np.tile([0.0, 0.0, 1.0], (R.size, 1))
     areas = np.repeat(ring_area, n_sectors)
     gap = radius - np.sqrt(radius**2 - R.ravel() ** 2)
-    return SpringLayer(points, normals, areas, thickness, gap)
+    n = len(points)
+    return SpringLayer(points, normals, areas, as_float_array("thickness", thickness, (n,), allow_scalar_for=n), gap)
 
 
 def socket_layer(radius: float = 25.0, thickness: float = 2.0, coverage: float = 90.0,
@@ -116,7 +123,10 @@ def socket_layer(radius: float = 25.0, thickness: float = 2.0, coverage: float =
     direction = np.column_stack([
         (np.sin(P) * np.cos(F)).ravel(), (np.sin(P) * np.sin(F)).ravel(), (-np.cos(P)).ravel()
     ])
-    return SpringLayer(radius * direction, -direction, np.repeat(area, n_sectors), thickness, gap)
+    n = len(direction)
+    return SpringLayer(radius * direction, -direction, np.repeat(area, n_sectors),
+                       as_float_array("thickness", thickness, (n,), allow_scalar_for=n),
+                       as_float_array("gap", gap, (n,), allow_scalar_for=n))
 
 
 # --------------------------------------------------------------------------------------------
@@ -155,7 +165,7 @@ def _closed_volume(articular: np.ndarray, base: np.ndarray, mask: np.ndarray | N
     ci, cj = np.nonzero(mask)
     a, b, c, d = vid(ci, cj), vid(ci + 1, cj), vid(ci + 1, cj + 1), vid(ci, cj + 1)
     top = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
-    faces = [top, top + n_grid]
+    caps = [top, top + n_grid]  # the articular and the base faces
     # side walls on every cell edge whose neighbour is outside the region
     inside = np.pad(mask, ((1, 1), (0, 0) if periodic else (1, 1)), constant_values=False)
     off = 0 if periodic else 1
@@ -171,7 +181,7 @@ def _closed_volume(articular: np.ndarray, base: np.ndarray, mask: np.ndarray | N
         walls.append(np.column_stack([p_, q_, q_ + n_grid]))
         walls.append(np.column_stack([p_, q_ + n_grid, p_ + n_grid]))
     vertices = np.vstack([articular.reshape(-1, 3), base.reshape(-1, 3)])
-    faces = np.vstack(faces + walls)
+    faces = np.vstack(caps + walls)
     # Orient each face: articular faces along (articular - base), base faces against it,
     # walls away from the centre of their cell.
     corner = vertices[faces]
@@ -331,8 +341,8 @@ class MeshPair:
     """
 
     name: str
-    mesh1: object
-    mesh2: object
+    mesh1: trimesh.Trimesh
+    mesh2: trimesh.Trimesh
     reference1: tuple = (0.0, 0.0, 0.0)
     reference2: tuple = (0.0, 0.0, 0.0)
     options: dict = field(default_factory=dict)

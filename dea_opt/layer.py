@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -78,7 +78,7 @@ class SpringLayer:
     normals: np.ndarray
     areas: np.ndarray
     thickness: np.ndarray
-    gap: np.ndarray = 0.0
+    gap: np.ndarray = field(default_factory=lambda: np.zeros(()))  # 0 for every spring
     source_face: np.ndarray | None = None
     surface: tuple | None = None
     labels: np.ndarray | None = None

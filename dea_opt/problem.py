@@ -15,7 +15,7 @@ from .kinematics import DOF_NAMES, DOFS, normal_operator
 from .laws import Law, check_law
 from .layer import SpringLayer
 
-__all__ = ["Body", "Load", "ContactProblem", "DOFS"]
+__all__ = ["DOFS", "Body", "ContactProblem", "Load"]
 
 
 @dataclass(frozen=True)
@@ -107,7 +107,7 @@ class Body:
         set_(self, "prescribed", MappingProxyType(prescribed))
         set_(self, "free", tuple(d for d in _dof_tuple("free", self.free) if d not in prescribed))
 
-    def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None) -> "Body":
+    def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None) -> Body:
         """A copy carrying ``load`` (or the load made of ``force``, ``moment``, ``point``)."""
         if load is None:
             load = Load(force=force, moment=moment, point=point)
@@ -116,7 +116,7 @@ class Body:
         f, m = load.about(self.reference)
         return replace(self, force=f, moment=m, prescribed=dict(self.prescribed))
 
-    def with_prescribed(self, **values) -> "Body":
+    def with_prescribed(self, **values) -> Body:
         """A copy with these dofs prescribed (e.g. ``uz=-0.2``)."""
         prescribed = {**self.prescribed, **values}
         free = tuple(d for d in DOFS if d in self.free or (d in self.prescribed and d not in values))
@@ -129,6 +129,8 @@ class Body:
 
 
 FIXED = Body(free=())
+#: Body 2's default: free in every dof, unloaded, its reference at the origin.
+_FREE = Body()
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,7 +166,7 @@ class ContactProblem:
     layer: SpringLayer
     law: Law
     body1: Body = FIXED
-    body2: Body = None
+    body2: Body = _FREE  # the default stands for "not given": the shorthand builds it
     force: InitVar = None
     moment: InitVar = None
     reference: InitVar = None
@@ -181,9 +183,9 @@ class ContactProblem:
         if not isinstance(self.body1, Body):
             raise InputError(f"body1 must be a dea_opt.Body, got {type(self.body1).__name__}")
         shorthand = any(v is not None for v in (force, moment, reference, free, load))
-        body2 = self.body2
+        body2 = _FREE if self.body2 is None else self.body2  # None: as not given
         if shorthand:
-            if body2 is not None:
+            if body2 is not _FREE:
                 raise InputError(
                     "give either body2=Body(...) or the shorthand force/moment/reference/free/"
                     "load, not both"
@@ -196,8 +198,6 @@ class ContactProblem:
             )
             if load is not None:
                 body2 = body2.with_load(load)
-        elif body2 is None:
-            body2 = Body()
         if not isinstance(body2, Body):
             raise InputError(f"body2 must be a dea_opt.Body, got {type(body2).__name__}")
         object.__setattr__(self, "body2", body2)
@@ -217,14 +217,14 @@ class ContactProblem:
                 new.__dict__[name] = self.__dict__[name]
         return new
 
-    def with_law(self, law: Law) -> "ContactProblem":
+    def with_law(self, law: Law) -> ContactProblem:
         return replace(self, law=law)
 
-    def with_layer(self, layer: SpringLayer) -> "ContactProblem":
+    def with_layer(self, layer: SpringLayer) -> ContactProblem:
         return replace(self, layer=layer)
 
-    def with_body(self, body: int, new: Body) -> "ContactProblem":
-        return replace(self, **{_body_key(body): new})
+    def with_body(self, body: int, new: Body) -> ContactProblem:
+        return replace(self, body1=new) if _body_key(body) == "body1" else replace(self, body2=new)
 
     # --- derived arrays -----------------------------------------------------------------
     @cached_property

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -32,6 +33,9 @@ from .formulations.energy import (
 from .kinematics import DOF_NAMES
 from .status import Status
 from .validity import Validity, assess
+
+if TYPE_CHECKING:
+    from .problem import ContactProblem
 
 __all__ = ["Certificate", "Solution", "certify"]
 
@@ -219,7 +223,7 @@ class Solution:
     free-dof vector ``x`` of ``formulations/energy.md``, which is ``u[problem.free_indices]``).
     """
 
-    problem: object
+    problem: ContactProblem
     u: np.ndarray
     strain: np.ndarray
     pressure: np.ndarray

@@ -28,12 +28,18 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from . import formulations
 from .errors import DeaError, InputError
 from .status import Status
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+    from .solution import Solution
 
 __all__ = ["ACCURACY", "Accuracy", "StudyResult", "installed_qp_solvers", "run_study", "shifted_geometric_mean"]
 
@@ -223,9 +229,9 @@ class StudyResult:
         Combinations that do not apply (qp with a nonlinear law).
     """
 
-    table: object
-    summary: object
-    reference: object = None
+    table: pd.DataFrame
+    summary: pd.DataFrame
+    reference: Solution | None = None
     skipped: list = field(default_factory=list)
 
     def to_csv(self, directory) -> dict:
@@ -334,8 +340,8 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
 
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        reference = solve(problem, formulations.DEFAULT, strict=False)
-    reference = reference if reference.success else None
+        solved = solve(problem, formulations.DEFAULT, strict=False)
+    reference = solved if solved.success else None
     forms = _check_forms(methods, nlp_forms)
     cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms, problem.kinematics)
     rows = []

@@ -112,11 +112,11 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     value, trial = line.slope(1.0)
     if value <= abs(slope0) * _EXACT_STEP and value >= lower_ok:
         return 1.0, trial, 1
-    if value > upper_ok and np.isfinite(value) and value <= abs(slope0):
-        # A slight overshoot of the full Newton step: accept it on Armijo's condition,
-        # checked with energies while they still resolve the decrease.
-        if line.phi(1.0) - line.phi(0.0) <= _WOLFE_DECREASE * slope0:
-            return 1.0, trial, 3
+    # A slight overshoot of the full Newton step: accept it on Armijo's condition, checked
+    # with energies while they still resolve the decrease.
+    if (value > upper_ok and np.isfinite(value) and value <= abs(slope0)
+            and line.phi(1.0) - line.phi(0.0) <= _WOLFE_DECREASE * slope0):
+        return 1.0, trial, 3
     lo, hi = 0.0, None
     alpha = 1.0
     for evaluation in range(2, max_evaluations + 1):
@@ -252,7 +252,7 @@ def _solve(
         # The scaling makes the larger of the load and the overlap of size 1: that floor keeps
         # a press fit under no load (internal forces cancelling, r = 0) from being judged
         # against rounding noise.
-        norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1.0)
+        norm = max(float(np.linalg.norm(r)), float(np.linalg.norm(internal)), 1.0)
         gnorm = np.linalg.norm(g) / norm
         if not np.isfinite(gnorm):
             status, message = "nan", "the law returned a non-finite stress"
@@ -263,7 +263,7 @@ def _solve(
             break
         compressed = np.minimum(eps, 0.0)
 
-        def all_springs():
+        def all_springs(compressed=compressed):  # this iteration's strains
             return _tangent(AT, V * law.tangent(compressed))
 
         d = None
@@ -302,10 +302,10 @@ def _solve(
         active = eps < 0
         settled = previous_active is not None and np.array_equal(active, previous_active)
         previous_active = active
-        if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(np.linalg.norm(xi), 1e-300):
+        if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(float(np.linalg.norm(xi)), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
             internal = AT @ (V * law.stress(np.minimum(eps, 0.0)))
-            norm = max(np.linalg.norm(r), np.linalg.norm(internal), 1.0)
+            norm = max(float(np.linalg.norm(r)), float(np.linalg.norm(internal)), 1.0)
             if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break

@@ -180,9 +180,10 @@ def atomic_open(path, mode: str = "w", *, encoding: str | None = None, newline: 
     """
     if mode not in ("w", "wb"):
         raise InputError(f"mode must be 'w' or 'wb', got {mode!r}")
-    text = {} if mode == "wb" else {"encoding": encoding or "utf-8", "newline": newline}
-    with atomic_path(path, argument=argument) as tmp, open(tmp, mode, **text) as handle:
-        yield handle
+    with atomic_path(path, argument=argument) as tmp:
+        handle = open(tmp, "wb") if mode == "wb" else open(tmp, "w", encoding=encoding or "utf-8", newline=newline)
+        with handle:
+            yield handle
 
 
 # --- staging: a run's files wait until they are published together ----------------------

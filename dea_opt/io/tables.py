@@ -321,8 +321,8 @@ def _springs_from_npz(path: Path):
     points = np.column_stack([columns["x"], columns["y"], columns["z"]])
     normals = np.column_stack([columns["nx"], columns["ny"], columns["nz"]])
     try:
-        return SpringLayer(points, normals, columns["area"], columns["thickness"], columns.get("gap", 0.0),
-                           labels=labels)
+        gap = columns["gap"] if "gap" in columns else np.zeros(len(points))
+        return SpringLayer(points, normals, columns["area"], columns["thickness"], gap, labels=labels)
     except InputError as exc:
         raise InputError(f"springs table {path}: {exc}") from None
 
@@ -351,7 +351,7 @@ def write_springs(layer, path) -> Path:
     columns = [layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
                layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
                layer.areas, layer.thickness, layer.gap]
-    header = (*SPRING_COLUMNS, "gap")
+    header: tuple[str, ...] = (*SPRING_COLUMNS, "gap")
     rows = [np.asarray(c, dtype=float).tolist() for c in columns]
     if layer.labels is not None:
         labels = np.asarray(layer.labels)

@@ -74,7 +74,7 @@ class Law:
     #: Largest compressive strain (a positive fraction) over which the law describes
     #: cartilage, or ``None`` if it states no range of its own: :mod:`dea_opt.validity` then
     #: applies only its crushing limit to it. Override it in a law of your own.
-    valid_compression = None
+    valid_compression: typing.ClassVar[float | None] = None
     #: ``{parameter: Range(low, high, unit, meaning)}``: what the registry (:data:`LAWS`), the
     #: scenario schema and ``dea-opt schema`` say of each parameter; a parameter without one
     #: takes any number and is checked by the class alone.

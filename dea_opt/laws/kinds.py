@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 import typing
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -231,6 +232,8 @@ class PolynomialLaw(_PolynomialStress):
         "order": Range(1, 40, "", "Taylor order"),
     }
     name = "polynomial"
+    # Set by __post_init__ (and _twin): the Taylor coefficients of H and beta.
+    _coefficients: np.ndarray = dataclasses.field(init=False, repr=False, compare=False)
 
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))

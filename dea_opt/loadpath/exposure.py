@@ -92,17 +92,13 @@ class ExposureAccumulator:
         self.time_above = np.zeros(self.n_sites)
         self.excess = np.zeros(self.n_sites)
         self.peak = np.zeros(self.n_sites)
-        self._last = None
-        self._last_time = None
-        self._first_time = None
-        self._end_time = None
+        self._last: tuple[float, np.ndarray] | None = None  # the last counted frame: (time, pressure per site)
+        self._span: tuple[float, float] | None = None  # (first, last) time of the frames seen
 
     def _note(self, t: float) -> None:
-        if self._end_time is not None and not t > self._end_time:
-            raise InputError(f"exposure frames must come in increasing time, got {t!r} after {self._end_time!r}")
-        if self._first_time is None:
-            self._first_time = t
-        self._end_time = t
+        if self._span is not None and not t > self._span[1]:
+            raise InputError(f"exposure frames must come in increasing time, got {t!r} after {self._span[1]!r}")
+        self._span = (t if self._span is None else self._span[0], t)
 
     def add(self, t: float, pressure, sites=None) -> None:
         """Add the frame at time ``t`` (s): ``pressure`` (MPa) per spring, ``sites`` its site (default: spring i is site i)."""
@@ -117,21 +113,21 @@ class ExposureAccumulator:
             p1 = np.zeros(self.n_sites)
             np.maximum.at(p1, np.asarray(sites), pressure)
         if self._last is not None:
-            dt = t - self._last_time
-            p0 = self._last
+            dt = t - self._last[0]
+            p0 = self._last[1]
             self.integral += 0.5 * (p0 + p1) * dt
             above, excess = _above(p0, p1, dt, self.threshold)
             self.time_above += above
             self.excess += excess
         np.maximum(self.peak, p1, out=self.peak)
-        self._last, self._last_time = p1, t
+        self._last = (t, p1)
 
     def skip(self, t: float) -> None:
         """A frame at time ``t`` without a certified answer: bridged, not counted."""
         self._note(float(t))
 
     def result(self) -> Exposure:
-        duration = 0.0 if self._first_time is None else float(self._end_time - self._first_time)
+        duration = 0.0 if self._span is None else float(self._span[1] - self._span[0])
         return Exposure(self.threshold, self.integral, self.time_above, self.excess, self.peak, duration)
 
 

@@ -9,6 +9,7 @@ import math
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -19,10 +20,19 @@ from ..problem import ContactProblem
 from .exposure import Exposure
 from .series import FrameSeries, write_pvd
 
+if TYPE_CHECKING:
+    import pandas as pd
+
 __all__ = ["FORMATS", "PathResult", "write_pvd"]
 
 #: What :meth:`PathResult.write` can write.
 FORMATS = ("csv", "json", "vtk", "png")
+
+
+def _largest(values) -> int | None:
+    """The position of the largest of ``values`` (a Series), NaN skipped; None when all are NaN."""
+    array = values.to_numpy(dtype=float)
+    return None if np.isnan(array).all() else int(np.nanargmax(array))
 
 
 def _nan_or(value):
@@ -59,7 +69,7 @@ class PathResult:
         The frames' ``.vtu`` files written while solving (``series=``).
     """
 
-    table: object
+    table: pd.DataFrame
     times: np.ndarray
     pressures: list | None
     solutions: list | None
@@ -99,8 +109,8 @@ class PathResult:
     def failures(self) -> list[dict]:
         """``[{frame, time, status, message}]`` of every failed frame."""
         rows = self.table.loc[~self.table["success"], ["frame", "time", "status", "message"]]
-        return [{"frame": int(r.frame), "time": float(r.time), "status": r.status, "message": r.message}
-                for r in rows.itertuples(index=False)]
+        return [{"frame": int(r["frame"]), "time": float(r["time"]), "status": r["status"], "message": r["message"]}
+                for r in rows.to_dict("records")]
 
     def failure_message(self, shown: int = 3, width: int = 160) -> str:
         """One line naming the frames without a certified answer and why (empty when none):
@@ -121,13 +131,13 @@ class PathResult:
         table = self.table
         outside = self.frames_outside_validity
         checks: dict = {}
-        for row in table.loc[table["success"] & ~table["valid"]].itertuples(index=False):
-            for name in filter(None, str(row.validity_failed).split(";")):
+        for row in table.loc[table["success"] & ~table["valid"]].to_dict("records"):
+            for name in filter(None, str(row["validity_failed"]).split(";")):
                 entry = checks.setdefault(name, {"frames": [], "worst": -math.inf, "worst_frame": None})
-                entry["frames"].append(int(row.frame))
-                value = getattr(row, f"validity_{name}", math.nan)
+                entry["frames"].append(int(row["frame"]))
+                value = row.get(f"validity_{name}", math.nan)
                 if math.isfinite(value) and value > entry["worst"]:
-                    entry["worst"], entry["worst_frame"] = float(value), int(row.frame)
+                    entry["worst"], entry["worst_frame"] = float(value), int(row["frame"])
         return {
             "valid": self.valid,
             "frames_outside_validity": outside,
@@ -144,15 +154,15 @@ class PathResult:
         for name, prefix in self.regions.items():
             share = table[f"{prefix}_force_share"]
             peak = table[f"{prefix}_peak_pressure"]
-            k = peak.idxmax() if peak.notna().any() else None
+            k = _largest(peak)
             out[name] = {
                 "columns": prefix,
                 "mean_force_share": _nan_or(share.mean()),
                 "min_force_share": _nan_or(share.min()),
                 "max_force_share": _nan_or(share.max()),
                 "peak_pressure": _nan_or(peak.max()),
-                "peak_frame": None if k is None else int(table.loc[k, "frame"]),
-                "peak_time": math.nan if k is None else float(table.loc[k, "time"]),
+                "peak_frame": None if k is None else int(table["frame"].iloc[k]),
+                "peak_time": math.nan if k is None else float(table["time"].iloc[k]),
                 "max_contact_area": _nan_or(table[f"{prefix}_contact_area"].max()),
             }
         return out
@@ -172,7 +182,7 @@ class PathResult:
         """Headline numbers of the path (plain Python values; NaN where no frame has an answer)."""
         table = self.table
         ok = table.loc[table["success"]]
-        k = ok["peak_pressure"].idxmax() if len(ok) else None
+        k = _largest(ok["peak_pressure"])
         return {
             "method": self.method,
             "law": self.problem.law.describe(),
@@ -183,9 +193,9 @@ class PathResult:
             "valid": self.valid,
             "validity": self.validity_summary(),
             "n_springs": int(table["n_springs"].max()),
-            "peak_pressure": math.nan if k is None else float(table.loc[k, "peak_pressure"]),
-            "peak_frame": None if k is None else int(table.loc[k, "frame"]),
-            "peak_time": math.nan if k is None else float(table.loc[k, "time"]),
+            "peak_pressure": math.nan if k is None else float(ok["peak_pressure"].iloc[k]),
+            "peak_frame": None if k is None else int(ok["frame"].iloc[k]),
+            "peak_time": math.nan if k is None else float(ok["time"].iloc[k]),
             "max_contact_area": _nan_or(ok["contact_area"].max()),
             "max_compressive_strain": _nan_or(ok["max_compressive_strain"].max()),
             "iterations_total": int(table["iterations"].sum()),
@@ -244,6 +254,7 @@ class PathResult:
         layer = self.problem.layer
         data = {name: np.ascontiguousarray(value, dtype=float) for name, value in self.exposure.fields().items()}
         if self.moving:
+            assert layer.surface is not None  # a moving mesh's springs were cast from its surface
             vertices, faces = layer.surface
             surface = SurfaceData(np.asarray(vertices), np.asarray(faces, dtype=np.int64), "triangle", data)
         else:

@@ -70,7 +70,7 @@ class _ArrayLoads:
 
     def __getitem__(self, k: int) -> Load:
         row = self.array[k]
-        return Load(force=row[:3], moment=row[3:] if len(row) == 6 else 0.0)
+        return Load(force=tuple(row[:3]), moment=tuple(row[3:6]) if len(row) == 6 else (0.0, 0.0, 0.0))
 
     def __iter__(self):
         return (self[k] for k in range(len(self)))
@@ -368,6 +368,7 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
                 accumulator.skip(t)
                 bar.set_postfix(failed=failed, refresh=False)
             else:
+                assert solution is not None  # a frame without a status has its certified answer
                 layer = frame_layer(frame, solution)
                 if finite and base_regions is not None:
                     frame_regions = FrameRegions(_labels(regions, layer), base_regions.prefixes)

@@ -171,7 +171,8 @@ def make_table(rows: list, region_prefixes: dict | None = None):
     """The rows as a DataFrame: :data:`TABLE_COLUMNS`, the validity checks, then the regions'."""
     import pandas as pd
 
-    validity, regions = [], []
+    validity: list[str] = []
+    regions: list[str] = []
     region_names = {f"{p}_{c}" for p in (region_prefixes or {}).values() for c in REGION_COLUMNS}
     for row in rows:
         for key in row:

@@ -96,7 +96,7 @@ def springs_both_ways(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=No
         "backward": b,
         "area": rel(f["area"], b["area"]),
         "stiffness": rel(f["stiffness"], b["stiffness"]),
-        "direction": float(np.linalg.norm(sf + sb) / max(np.linalg.norm(sf), np.linalg.norm(sb), 1e-300)),
+        "direction": float(np.linalg.norm(sf + sb) / max(float(np.linalg.norm(sf)), float(np.linalg.norm(sb)), 1e-300)),
     }
     return TwoWaySprings(forward, backward, asymmetry)
 

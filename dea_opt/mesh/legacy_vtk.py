@@ -54,6 +54,14 @@ class _VtkCursor:
         self.index += 1
         return [head]
 
+    def header(self, count: int) -> list[str]:
+        """The next section header, with its ``count`` further tokens in ASCII mode (a binary
+        header is its whole line); a ``ValueError`` where the file ends instead."""
+        line = self.keyword()
+        if line is None:
+            raise ValueError("the file ends before a section it announces")
+        return line if self.binary else line + self.take(count)
+
     def take(self, count: int) -> list[str]:
         """The next ``count`` header tokens (ASCII mode)."""
         out = [t.decode("ascii", "replace") for t in self.tokens[self.index:self.index + count]]
@@ -116,9 +124,9 @@ def _read_cells(cursor: _VtkCursor, header: list[str], version: float) -> tuple[
     """One POLYGONS/TRIANGLE_STRIPS/LINES/VERTICES section as (sizes, connectivity)."""
     if version >= 5.0:  # OFFSETS and CONNECTIVITY arrays
         n_offsets, n_conn = int(header[1]), int(header[2])
-        offsets_header = cursor.keyword() if cursor.binary else cursor.keyword() + cursor.take(1)
+        offsets_header = cursor.header(1)
         offsets = cursor.array(n_offsets, offsets_header[1])
-        conn_header = cursor.keyword() if cursor.binary else cursor.keyword() + cursor.take(1)
+        conn_header = cursor.header(1)
         connectivity = cursor.array(n_conn, conn_header[1])
         return np.diff(offsets), connectivity
     n_cells, size = int(header[1]), int(header[2])
@@ -170,7 +178,7 @@ def parse_vtk_polydata(path: Path) -> tuple[np.ndarray, np.ndarray] | None:
         elif key == "FIELD":  # dataset-level field data (e.g. a time value): skip its arrays
             header = header if cursor.binary else header + cursor.take(2)
             for _ in range(int(header[2])):
-                array = cursor.keyword() if cursor.binary else cursor.keyword() + cursor.take(3)
+                array = cursor.header(3)
                 cursor.array(int(array[1]) * int(array[2]), array[3])
         elif key in ("POINT_DATA", "CELL_DATA"):
             break  # attributes are not needed for the geometry

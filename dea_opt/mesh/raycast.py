@@ -8,6 +8,8 @@ is vectorized over rays. Lengths in mm.
 
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from .._checks.thresholds import RAY_EDGE, RAY_PARALLEL, SELF_HIT
@@ -102,7 +104,7 @@ class _GridCaster:
         rows_o, rows_d = np.ascontiguousarray(origins.T), np.ascontiguousarray(directions.T)
         bounds = np.searchsorted(np.cumsum(number), np.arange(0, int(number.sum()), self._CHUNK), "right")
         bounds = np.append(np.unique(bounds), len(keys))
-        for lo_i, hi_i in zip(bounds[:-1], bounds[1:]):  # chunks of candidates, not of faces
+        for lo_i, hi_i in itertools.pairwise(bounds):  # chunks of candidates, not of faces
             cand = _expand(first[lo_i:hi_i], number[lo_i:hi_i])
             r = ray[np.repeat(piece[lo_i:hi_i], number[lo_i:hi_i])]
             f = self.faces[cand]

@@ -79,7 +79,7 @@ def demo_scenario(frames: int | None = None, coarse: bool = False):
     """The demo's scenario, optionally with fewer frames and a coarse mesh."""
     from ..scenario import parse_scenario
 
-    overrides = {}
+    overrides: dict[str, object] = {}
     if coarse:
         overrides |= {"geometry.n_rings": 12, "geometry.n_sectors": 36}
         frames = frames or 11

@@ -52,7 +52,7 @@ class Messages:
     categories: dict = field(default_factory=dict)
     _caught: list = field(default_factory=list, repr=False)
 
-    def collect(self) -> "Messages":
+    def collect(self) -> Messages:
         """Sort the warnings recorded so far into ``own`` and ``log``."""
         caught, self._caught[:] = list(self._caught), []
         for message in caught:

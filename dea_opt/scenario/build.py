@@ -361,7 +361,7 @@ def _problem(scenario: Scenario, layer, references, cast):
     )
     if scenario.load is not None:
         load = scenario.load
-        scaled = Load(force=np.multiply(load.force, load.scale), moment=np.multiply(load.moment, load.scale),
+        scaled = Load(force=tuple(np.multiply(load.force, load.scale)), moment=tuple(np.multiply(load.moment, load.scale)),
                       point=None if load.point is None else tuple(load.point))
         problem = problem.with_load(scaled, body=load.body)
     return problem

@@ -4,6 +4,9 @@
 from __future__ import annotations
 
 import textwrap
+from typing import get_args
+
+from pydantic import BaseModel
 
 from ..laws import LAWS
 from .schema import (
@@ -25,7 +28,7 @@ from .schema import (
 
 __all__ = ["schema_text"]
 
-_SECTIONS = (
+_SECTIONS: tuple[tuple[str, tuple[type[BaseModel], ...] | None], ...] = (
     ("geometry", (PlateGeometry, SphereOnBedGeometry, SocketGeometry, MeshGeometry, SpringsGeometry,
                   GeneratorGeometry)),
     ("law", None),  # one model per registered kind, made when the schema is printed
@@ -54,12 +57,12 @@ def schema_text() -> str:
         lines.append("")
         lines.append(f"[{table}]")
         if len(models) > 1:
-            kinds = " | ".join(m.model_fields["kind"].annotation.__args__[0] for m in models)
+            kinds = " | ".join(_kind(m) for m in models)
             lines.append(f"# Choose one kind ({kinds}); each kind takes the keys listed under it.")
         for model in models:
             doc = " ".join((model.__doc__ or "").replace("``", "").split())
             if len(models) > 1:
-                kind = model.model_fields["kind"].annotation.__args__[0]
+                kind = _kind(model)
                 lines.append("")
                 lines.extend(textwrap.wrap(f"--- {doc}", 96, initial_indent="# ", subsequent_indent="#     "))
                 lines.append(f'kind = "{kind}"')
@@ -70,6 +73,11 @@ def schema_text() -> str:
                     continue
                 lines.append(_field_line(name, field, _choices(model, name)))
     return "\n".join(lines) + "\n"
+
+
+def _kind(model: type[BaseModel]) -> str:
+    """The ``kind`` a model of a table with several kinds stands for (its ``Literal``)."""
+    return get_args(model.model_fields["kind"].annotation)[0]
 
 
 def _choices(model, name: str) -> str:

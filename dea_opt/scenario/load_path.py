@@ -10,6 +10,7 @@ Units: s, N, N mm, mm.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
@@ -63,7 +64,7 @@ def read_load_path(section: LoadPathSection) -> LoadPathData:
     if section.builtin == "hip_gait":
         from ..gait import HIP_GAIT_CSV
 
-        source = HIP_GAIT_CSV
+        source: Path | str | None = HIP_GAIT_CSV
     else:
         source = section.file
     if section.columns is not None:

@@ -12,6 +12,8 @@ import hashlib
 import os
 import re
 import tomllib
+from collections.abc import Mapping
+from typing import Any
 from pathlib import Path
 
 from pydantic import BaseModel, ValidationError
@@ -130,8 +132,8 @@ def _fit_law_to_kind(data: dict, overrides: dict) -> list[str]:
         del law[key]
     if not dropped:
         return []
-    return [f"law kind {kind!r} takes no {', '.join(dropped)}: dropped {', '.join(f'law.{k}' for k in dropped)} "
-            f"for this case"]
+    names = ", ".join(f"law.{k}" for k in dropped)
+    return [f"law kind {kind!r} takes no {', '.join(dropped)}: dropped {names} for this case"]
 
 
 def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, overrides: dict) -> str:
@@ -142,7 +144,7 @@ def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, ove
             loc = (*loc, "kind")
         key = _key_path(loc)
         line = None if error["type"] == "missing" else _find_line(text, loc)
-        if any(key == k or key.startswith(k + ".") or key.startswith(k + "[") for k in overrides):
+        if any(key == k or key.startswith((k + ".", k + "[")) for k in overrides):
             where = f"{key} (from --set)"
         else:
             where = f"{key} (line {line})" if line else (key or "top level")
@@ -165,7 +167,7 @@ def _key_path(loc: tuple) -> str:
     return text
 
 
-def _message(error: dict, loc: tuple, data: dict) -> str:
+def _message(error: Mapping[str, Any], loc: tuple, data: dict) -> str:
     kind = error["type"]
     given = error.get("input")
     law = _law_kind(loc, data)
@@ -195,8 +197,7 @@ def _message(error: dict, loc: tuple, data: dict) -> str:
         shown = f"{limit:g}" if isinstance(limit, (int, float)) else repr(limit)
         return f"must be {bounds[kind]} {shown}, got {_short(given)}"
     message = error["msg"]
-    if message.startswith("Value error, "):
-        message = message[len("Value error, "):]
+    message = message.removeprefix("Value error, ")
     if kind in ("float_type", "int_type", "string_type", "bool_type", "list_type", "dict_type",
                 "literal_error", "int_from_float", "float_parsing"):
         message += f", got {_short(given)}" + (" (a string)" if isinstance(given, str) else "")

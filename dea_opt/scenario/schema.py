@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import re
 from pathlib import Path
-from typing import Annotated, Any, Literal, Union
+from typing import Annotated, Any, Literal, get_args
 
 from pydantic import (
     AfterValidator,
@@ -33,10 +33,12 @@ __all__ = [
     "check_method_name", "law_model", "method_names",
 ]
 
-FORMATS = ("csv", "json", "vtk", "png")
+Format = Literal["csv", "json", "vtk", "png"]
+FORMATS: tuple[Format, ...] = get_args(Format)
 #: The quantities of a load path a column can be: time, force, moment and the pose of mesh 2.
-LOAD_PATH_COLUMNS = ("time", "Fx", "Fy", "Fz", "Mx", "My", "Mz",
-                     "pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz")
+LoadPathColumn = Literal["time", "Fx", "Fy", "Fz", "Mx", "My", "Mz",
+                         "pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz"]
+LOAD_PATH_COLUMNS: tuple[LoadPathColumn, ...] = get_args(LoadPathColumn)
 
 
 def method_names() -> tuple:
@@ -123,7 +125,8 @@ def _mesh_files(value, info: ValidationInfo):
     files = {}
     for label, path in value.items():
         if not isinstance(path, str):
-            raise ValueError(f"the mesh labelled {label!r} must be a path (a string), got {path!r}")
+            # pydantic turns a ValueError (not a TypeError) into a validation error naming the key
+            raise ValueError(f"the mesh labelled {label!r} must be a path (a string), got {path!r}")  # noqa: TRY004
         try:
             files[label] = _existing_file(path, info)
         except ValueError as exc:
@@ -244,7 +247,7 @@ class SpringsGeometry(_Section):
 
 
 Geometry = Annotated[
-    Union[PlateGeometry, SphereOnBedGeometry, SocketGeometry, GeneratorGeometry, MeshGeometry, SpringsGeometry],
+    PlateGeometry | SphereOnBedGeometry | SocketGeometry | GeneratorGeometry | MeshGeometry | SpringsGeometry,
     Field(discriminator="kind"),
 ]
 GEOMETRY_KINDS = ("plate", "sphere_on_bed", "socket", "generator", "meshes", "springs")
@@ -289,10 +292,13 @@ def law_model(kind) -> type[BaseModel]:
     if key in _LAW_MODELS:
         return _LAW_MODELS[key]
     config = ConfigDict(extra="forbid", strict=True)
+    # The kinds are the registry's, known when the model is made: a Literal built at run time.
+    fields: dict[str, Any]
     if not isinstance(kind, str) or kind not in LAWS:
-        model = create_model("UnknownLaw", __config__=config, kind=(Literal[tuple(LAWS)], "linear"))
+        fields = {"kind": (Literal.__getitem__(tuple(LAWS)), "linear")}
+        name, doc = "UnknownLaw", None
     else:
-        fields = {"kind": (Literal[kind], kind)}
+        fields = {"kind": (Literal.__getitem__(kind), kind)}
         for p in LAWS[kind].parameters:
             bounds = {}
             if p.range is not None and p.range.low is not None:
@@ -301,9 +307,9 @@ def law_model(kind) -> type[BaseModel]:
                 bounds["le"] = p.range.high
             default = ... if p.required else p.default
             fields[p.name] = (p.type, Field(default, description=p.describe(), **bounds))
-        model = create_model(f"{kind}Law", __config__=config, __doc__=f"{kind}: {LAWS[kind].doc}", **fields)
-    _LAW_MODELS[key] = model
-    return model
+        name, doc = f"{kind}Law", f"{kind}: {LAWS[kind].doc}"
+    _LAW_MODELS[key] = create_model(name, __config__=config, __doc__=doc, **fields)
+    return _LAW_MODELS[key]
 
 
 class BodySection(_Section):
@@ -339,7 +345,7 @@ class LoadPathSection(_Section):
     file: File | None = Field(None, description="load CSV, or OpenSim .sto/.mot (path)")
     builtin: Literal["hip_gait"] | None = Field(
         None, description='a shipped load path instead of a file: "hip_gait" (synthetic, 101 frames)')
-    columns: dict[Literal[LOAD_PATH_COLUMNS], str] | None = Field(
+    columns: dict[LoadPathColumn, str] | None = Field(
         None, description='for .sto/.mot: the file\'s column of each quantity, e.g. {Fx = "knee_r_on_femur_r_in_'
                           'femur_r_fx", ...} (Fx, Fy, Fz required; a leading "-" negates a column; time defaults '
                           'to "time"; quantities not named are 0)')
@@ -373,7 +379,7 @@ class RegionsSection(_Section):
     lateral compartments. Which side is medial depends on the frame and the body's side: check it."""
 
     split: Literal["x", "y", "z", "-x", "-y", "-z"] = Field(description="the axis to split across")
-    at: Union[float, Literal["centroid"]] = Field(
+    at: float | Literal["centroid"] = Field(
         "centroid", description='where to cut along the axis (mm), or "centroid": the springs\' area centroid')
     names: Annotated[list[str], Field(min_length=2, max_length=2)] = Field(
         ["medial", "lateral"], description="the labels below and above the cut")
@@ -418,7 +424,7 @@ class OutputSection(_Section):
     directory: Annotated[str, AfterValidator(_no_nul)] = Field(
         "results", description="output folder (relative to the scenario file): new, empty, or holding an earlier "
                                "dea-opt run")
-    formats: list[Literal["csv", "json", "vtk", "png"]] = Field(
+    formats: list[Format] = Field(
         list(FORMATS), description="any of csv, json, vtk, png")
     exposure_threshold: NonNegative = Field(
         1.0, description="pressure threshold of the exposure measures (MPa)")

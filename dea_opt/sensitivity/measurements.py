@@ -180,7 +180,7 @@ class PressureMap:
         """``(spring index per kept point, kept points)``: each point's nearest spring."""
         from scipy.spatial import cKDTree
 
-        distance, index = cKDTree(layer.points).query(self.points)
+        distance, index = (np.asarray(a) for a in cKDTree(layer.points).query(self.points))
         limit = self.max_distance
         if limit is None:
             limit = 2.0 * float(np.sqrt(np.median(layer.areas)))

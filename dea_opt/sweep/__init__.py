@@ -39,8 +39,8 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, MissingDependencyError
-from ..status import RunStatus
 from ..scenario import check_method_name, load_scenario
+from ..status import RunStatus
 from . import journal
 from .cases import (
     RETRIED,

@@ -12,8 +12,8 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DeaError, InputError, ScenarioError
-from ..status import RunStatus
 from ..scenario import parse_scenario, parse_set
+from ..status import RunStatus
 from . import journal
 from .keys import ContentKey, content_key
 
