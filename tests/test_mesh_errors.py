@@ -72,6 +72,9 @@ BAD_FILES = {
     "face index out of range": ("index.obj", OBJ.replace("f 1 2 3", "f 1 2 9").encode(),
                                 ["could not be read as OBJ", "expected an OBJ surface"]),
     "zero bytes": ("empty.stl", b"", ["is empty (0 bytes)", "expected a .stl triangle surface"]),
+    "legacy VTK 5.1 that ends in its POLYGONS": (
+        "cut.vtk", b"# vtk DataFile Version 5.1\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
+                   b"POLYGONS 2 3\n", ["could not be read as legacy VTK POLYDATA", "the file ends before a section"]),
 }
 
 
