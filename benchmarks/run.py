@@ -23,6 +23,8 @@ Sections (``--only``):
 * ``study``: the comparison study's QP solvers at 1e4 and 1e5 springs.
 * ``threads``: Newton at 1e6 springs and the Newton gait again with the BLAS pools capped at
   one thread, to show how much the machine's load costs through OpenBLAS's threads.
+* ``finite``: the real knee with finite kinematics, one solve against the small kinematics and a
+  101-frame gait (``bench_finite.py``; skipped without ``../shared/data/knee``).
 
 Every heavy case runs in a fresh subprocess (its peak RSS is its own). The output starts with
 the machine, the software, the BLAS pools (threadpoolctl) and the load average, then a table
@@ -44,12 +46,13 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 import bench_core  # noqa: E402
+import bench_finite  # noqa: E402
 import bench_mesh  # noqa: E402
 import bench_qp  # noqa: E402
 import bench_study  # noqa: E402
 from common import header, loglog_slope, print_table, write_csv  # noqa: E402
 
-SECTIONS = ("core", "cubic", "qp", "mesh", "gait", "study", "threads", "sensitivity")
+SECTIONS = ("core", "cubic", "qp", "mesh", "gait", "study", "threads", "sensitivity", "finite")
 
 FULL = {
     "core": {"problems": ["plate", "sphere", "box"], "sizes": [1e3, 1e4, 1e5, 1e6],
@@ -65,6 +68,7 @@ FULL = {
     "study": {"problem": "sphere", "sizes": [1e4, 1e5]},
     "threads": {"core": [("box", "newton", 1e4), ("box", "newton", 1e5), ("box", "newton", 1e6)], "gait": ["newton"]},
     "sensitivity": {"springs": 1e5, "calibration": True},
+    "finite": {"frames": 101, "repeats": 5},
 }
 
 QUICK = {
@@ -77,6 +81,7 @@ QUICK = {
     "study": {"problem": "sphere", "sizes": [1e3]},
     "threads": {"core": [], "gait": []},
     "sensitivity": {"springs": 1e3, "calibration": False},
+    "finite": {"frames": 11, "repeats": 2},
 }
 
 CORE_COLUMNS = ["problem", "law", "method", "n_springs", "n_dofs", "build_s", "solve_s", "solve_first_s", "total_s",
@@ -416,6 +421,23 @@ def targets(results) -> list[dict]:
                            r["calibration_s"] if ok else None, lambda v: v < 2.0,
                            (f"{r['solves']} solves; H {r['H']:.4g} MPa (true 5), beta {r['beta']:.4g} (true 0.6)")
                            if ok else (r or {}).get("status", "not run (quick)")))
+    # 10. Finite kinematics on the real knee.
+    finite = results.get("finite")
+    if finite is not None:
+        r = _find(finite, case="knee 1000 N, uz rx ry")
+        ok = r is not None and "ratio" in r
+        out.append(_target("knee, 1000 N, uz rx ry free: finite / small kinematics, whole dea.solve (re-casts "
+                           "included)", "<= 5x", r["ratio"] if ok else None, lambda v: v <= 5.0,
+                           (f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} "
+                            f"deg), small {r['small_s']:.3g} s; small + its validation re-cast "
+                            f"{r['small_recast_s']:.3g} s ({r['finite_s'] / r['small_recast_s']:.2f}x)") if ok
+                           else (r or {}).get("status", "not run"), fmt=lambda v: f"{v:.1f}x"))
+        r = next((row for row in finite if str(row.get("case", "")).startswith("knee gait")), None)
+        ok = r is not None and "wall_s" in r and r.get("frames") == 101
+        out.append(_target("101-frame knee gait, finite kinematics (flexion prescribed, uz ry found)", "< 10 s",
+                           r["wall_s"] if ok else None, lambda v: v < 10.0,
+                           (f"{r['per_frame_s'] * 1e3:.0f} ms a frame; the small kinematics' path without poses "
+                            f"{r['small_path_s']:.3g} s") if ok else (r or {}).get("status", "not run (quick)")))
     # The same growth with Newton's BLAS at one thread (information: no target of its own).
     pts = sorted((r["n_springs"], r["solve_s"]) for r in threads or [] if r.get("method") == "newton"
                  and r.get("problem") == "box" and "solve_s" in r and 0.9e4 <= r["n_springs"] <= 1.1e6)
@@ -518,6 +540,15 @@ def main(argv=None) -> int:
         results["sensitivity"] = rows
         say.table(rows, bench_sensitivity.COLUMNS)
         save("sensitivity", rows, bench_sensitivity.COLUMNS)
+
+    if "finite" in sections:
+        say(f"\n## finite: the real knee with finite kinematics (one solve against the small kinematics, and a "
+            f"{cfg['finite']['frames']}-frame gait)")
+        rows = bench_finite.run(cfg["finite"]["frames"], args.timeout, isolate=not args.quick,
+                                repeats=cfg["finite"]["repeats"])
+        results["finite"] = rows
+        say.table(rows, bench_finite.COLUMNS)
+        save("finite", rows, bench_finite.COLUMNS)
 
     rows = targets(results)
     say("\n## TARGETS" + (" (--quick: sizes below the targets' are 'not run')" if args.quick else ""))

@@ -45,7 +45,7 @@ def _side(side) -> str | None:
     if side is None:
         return None
     if not isinstance(side, str) or side.strip().lower() not in _SIDES:
-        raise InputError(f"side must be 'right' or 'left' (the limb), got {side!r}")
+        raise InputError(f"anatomy.side must be 'right' or 'left' (the limb), got {side!r}")
     return side.strip().lower()
 
 
@@ -100,7 +100,7 @@ class AnatomicalFrame:
             origin.setflags(write=False)
             set_(self, "origin", origin)
         if not isinstance(self.origin_name, str) or not self.origin_name:
-            raise InputError(f"origin_name must be a nonempty string, got {self.origin_name!r}")
+            raise InputError(f"anatomy.origin_name must be a nonempty string, got {self.origin_name!r}")
 
     # --- constructors -------------------------------------------------------------------
     @classmethod

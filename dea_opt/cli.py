@@ -132,7 +132,7 @@ def _report_outcome(outcome, quiet: bool = False) -> None:
     _warn(outcome.warnings)
     if not quiet:
         typer.echo(outcome.message)
-        for line in outcome.validity:
+        for line in outcome.validity + outcome.regions:
             typer.echo(line)
         folder = outcome.folder
         typer.echo(f"outputs in {folder} (run {outcome.manifest['run_id']}, listed in manifest.json):")
@@ -316,7 +316,9 @@ def sweep(
     input files, overrides and dea-opt version, and recomputes the others, saying why.
     Sweeps may share a folder at once: no case is computed twice and no row is lost. On a
     terminal each finished case is printed with a progress bar; Dask's and Python's
-    messages go to sweep.log. Needs: pip install dea-opt[distributed].
+    messages go to sweep.log. A case's status is ok, outside_validity, failed or error;
+    exit 1 when a case failed or hit an error, else 3 when one is outside validity.
+    Needs: pip install dea-opt[distributed].
     """
     from collections import Counter
 
@@ -339,7 +341,12 @@ def sweep(
     if result.failed:
         typer.echo(f"dea-opt: {len(result.failed)} case(s) did not finish cleanly: {', '.join(result.failed)} "
                    f"(see the status and message columns of {result.results_path})", err=True)
-        raise typer.Exit(EXIT_UNCERTIFIED)
+    if result.outside_validity:
+        typer.echo(f"dea-opt: {len(result.outside_validity)} case(s) solved outside validity: "
+                   f"{', '.join(result.outside_validity)} (see the validity_failed column of {result.results_path})",
+                   err=True)
+    if result.exit_code:
+        raise typer.Exit(result.exit_code)
 
 
 @app.command()
@@ -359,7 +366,9 @@ def demo(
 
     First one gait-peak frame (2.4 kN tilted 20 degrees) by Newton, QP and NLP with the
     linear and Ateshian laws, as a table; then the whole cycle, warm-started frame by
-    frame, written to ./dea-opt-demo/: frames.csv, series.pvd, cycle.png, exposure.png,
+    frame, with the frames' validity and the share of each region of the socket (superior,
+    anterior, posterior) on the terminal, written to ./dea-opt-demo/: frames.csv, series.pvd,
+    cycle.png, exposure.png,
     exposure.vtu, summary.json, comparison.csv and, last, manifest.json. The folder must be
     new, empty or hold an earlier dea-opt run (--force: any folder).
     """

@@ -1,7 +1,11 @@
 """``dea-opt demo``: the embedded hip, compared at the gait peak by every method, then a whole gait cycle.
 
-The outputs are published like a run's (:mod:`dea_opt.io.publish`): ``comparison.csv``,
-``frames.csv``, ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``,
+The socket's springs are labelled by region of the acetabulum (:func:`hip_regions`: the
+superior dome, and the anterior and posterior walls), and the maps are drawn in the hip's
+anatomical frame (``[output] anatomy`` of :data:`DEMO_SCENARIO`); the terminal lists the
+validity of the frames and each region's share of the load. The outputs are published like a
+run's (:mod:`dea_opt.io.publish`): ``comparison.csv``, ``frames.csv`` (with per-region
+columns), ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``,
 ``exposure.vtu``, ``summary.json`` and, last, ``manifest.json``.
 """
 
@@ -9,6 +13,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -16,7 +21,7 @@ import numpy as np
 from .run import RunOutcome, run_path_outputs, check_method, publish_run, run_info, solve_options
 from .runlog import captured
 
-__all__ = ["DEMO_SCENARIO", "demo_comparison", "demo_scenario", "run_demo"]
+__all__ = ["DEMO_DOME", "DEMO_SCENARIO", "demo_comparison", "demo_scenario", "hip_regions", "run_demo"]
 
 #: The embedded default of ``dea-opt demo`` (also ``examples/scenarios/hip_gait.toml``).
 DEMO_SCENARIO = '''\
@@ -52,10 +57,16 @@ builtin = "hip_gait"
 [solve]
 method = "auto"
 
+# The synthetic cycle's frame (dea_opt.gait): +x medial, +y anterior, and the socket opens
+# toward +z, so its dome (-z) is proximal; a right hip.
 [output]
 directory = "dea-opt-demo"
 exposure_threshold = 1.0
+anatomy = {medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, -1.0], side = "right"}
 '''
+
+#: Half-angle (degrees) of the acetabular dome labelled ``superior`` by :func:`hip_regions`.
+DEMO_DOME = 35.0
 
 _DEMO_PEAK = 2400.0  # N, the gait-peak frame of the comparison
 _DEMO_TILT = 20.0  # degrees from the socket axis
@@ -73,6 +84,35 @@ def demo_scenario(frames: int | None = None, coarse: bool = False):
     if frames is not None:
         overrides["load_path.frames"] = frames
     return parse_scenario(DEMO_SCENARIO, name="demo.toml", overrides=overrides)
+
+
+def hip_regions(layer, anatomy, centre=(0.0, 0.0, 0.0), dome: float = DEMO_DOME) -> np.ndarray:
+    """Regions of an acetabular layer: ``superior`` (the dome), ``anterior`` and ``posterior`` (the walls).
+
+    Parameters
+    ----------
+    layer : SpringLayer
+        Springs on the socket.
+    anatomy : AnatomicalFrame or dict
+        The hip's anatomical frame (:meth:`dea_opt.anatomy.AnatomicalFrame.from_dict`).
+    centre : array_like, shape (3,)
+        The socket's centre (mm).
+    dome : float
+        A spring within ``dome`` degrees of the proximal direction, seen from ``centre``, is
+        ``superior``; any other is ``anterior`` or ``posterior`` by the side of the frontal
+        plane through ``centre`` it lies on.
+
+    Returns
+    -------
+    ndarray of str, shape (N,)
+    """
+    from .anatomy import AnatomicalFrame
+
+    frame = AnatomicalFrame.from_dict(anatomy)
+    arm = layer.points - np.asarray(centre, dtype=float)
+    cosine = (arm @ frame.proximal) / np.linalg.norm(arm, axis=1)
+    wall = np.where(arm @ frame.anterior >= 0.0, "anterior", "posterior")
+    return np.where(cosine >= np.cos(np.radians(dome)), "superior", wall)
 
 
 def demo_comparison(scenario, progress: bool = False) -> list[dict]:
@@ -141,6 +181,8 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
     start = time.perf_counter()
     with captured() as messages:
         problem = build_problem(scenario)
+        problem = problem.with_layer(replace(problem.layer, labels=hip_regions(problem.layer,
+                                                                               scenario.output.anatomy)))
         options = solve_options(scenario.solve, method, problem.law)
 
         def solve_and_write(folder):
@@ -162,7 +204,7 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
                               info=run_info(scenario, "demo", method))
     out = outcome.folder or out
     echo(f"Gait cycle: {outcome.message}")
-    for line in outcome.validity:
+    for line in outcome.validity + outcome.regions:
         echo(line)
     echo(f"Wrote {len(outcome.files) + 1} outputs to {out} in {time.perf_counter() - start:.1f} s:")
     for name, path in {**outcome.files, "manifest": out / "manifest.json"}.items():

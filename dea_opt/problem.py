@@ -145,6 +145,20 @@ class ContactProblem:
         Shorthand for body 2 with body 1 fixed: ``ContactProblem(layer, law,
         force=(0, 0, -500), reference=(0, 0, 0), free=("uz", "rx", "ry"))``.
         ``load`` is a :class:`Load` (use it for a force acting at a point).
+    kinematics : {"small", "finite"}
+        ``"small"`` (default): the linearised rigid motion of Eq. (9)-(11), gaps cast once.
+        ``"finite"``: body 2 moves by the exact rotation of its rotation vector ``u[9:12]``
+        about its reference plus ``u[6:9]``, each spring's gap is taken to its target at that
+        pose, and springs cast from meshes are re-cast as body 2 moves
+        (``formulations/finite.md``). Body 1 stays fixed; the load on body 2 is a force at its
+        reference and a moment, both constant in space.
+    targets : Targets, SpringCast or None
+        Finite kinematics only: each spring's target on body 2. A
+        :class:`~dea_opt.mesh.SpringCast` (the cast that made ``layer``) gives the tangent
+        planes of the faces its rays met and lets the solver re-cast; ``None`` takes the layer's
+        own targets when it was cast from meshes, else each spring's own plane (through
+        ``p + gap n``, normal ``-n``); :class:`~dea_opt.formulations.finite.Targets` gives
+        planes or spheres explicitly.
     """
 
     layer: SpringLayer
@@ -156,8 +170,11 @@ class ContactProblem:
     reference: InitVar = None
     free: InitVar = None
     load: InitVar = None
+    kinematics: str = "small"
+    targets: object = None
 
     def __post_init__(self, force, moment, reference, free, load):
+        _check_kinematics(self.kinematics, self.targets)
         if not isinstance(self.layer, SpringLayer):
             raise InputError(f"layer must be a SpringLayer, got {type(self.layer).__name__}")
         check_law(self.law)
@@ -338,9 +355,10 @@ class ContactProblem:
         return np.array(radius)
 
     def __repr__(self) -> str:
+        kinematics = ", kinematics='finite'" if self.kinematics == "finite" else ""
         return (
             f"ContactProblem({self.layer!r}, {self.law.describe()}, free={self.free_names}, "
-            f"load={self.load_vector.round(6).tolist()})"
+            f"load={self.load_vector.round(6).tolist()}{kinematics})"
         )
 
 
@@ -348,6 +366,26 @@ class ContactProblem:
 #: dofs only, never on the loads.
 _GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius", "_factor",
                    "_stiffness", "_resistance")
+
+
+KINEMATICS = ("small", "finite")
+
+
+def _check_kinematics(kinematics, targets) -> None:
+    """``kinematics`` is "small" or "finite"; ``targets`` only with "finite", and of a known kind."""
+    if not isinstance(kinematics, str) or kinematics not in KINEMATICS:
+        raise InputError(f"kinematics must be one of {KINEMATICS}, got {kinematics!r}")
+    if targets is None:
+        return
+    if kinematics != "finite":
+        raise InputError("targets are for kinematics='finite' (the small kinematics of Eq. 9-11 use the layer's "
+                         "gaps only): pass kinematics='finite' or leave targets out")
+    from .formulations._finite_geometry import Targets
+    from .mesh.springs import SpringCast
+
+    if not isinstance(targets, (Targets, SpringCast)):
+        raise InputError(f"targets must be a dea_opt.formulations.finite.Targets, a dea_opt.mesh.SpringCast or None, "
+                         f"got {type(targets).__name__}")
 
 
 def _check_load_scale(load: np.ndarray) -> None:

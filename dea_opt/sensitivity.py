@@ -229,6 +229,9 @@ def sensitivities(solution, wrt=("H",), *, area_band: float | None = None, edge:
     if not getattr(solution, "success", False):
         raise InputError(f"sensitivities need a certified solution; this one has status "
                          f"{getattr(solution, 'status', '?')!r} (certificate not passed)")
+    if getattr(getattr(solution, "problem", None), "kinematics", "small") == "finite":
+        raise InputError("sensitivities are derivatives of the small kinematics of Eq. (9)-(11); a solution of "
+                         "kinematics='finite' has none here: differentiate a small-kinematics solve")
     if isinstance(wrt, str):
         wrt = (wrt,)
     wrt = tuple(wrt)

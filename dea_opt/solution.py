@@ -18,7 +18,7 @@ numerator is exactly 0 is 0 (also when ``F = 0``).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -232,6 +232,8 @@ class Solution:
     solve_time: float
     certificate: Certificate
     info: dict = field(default_factory=dict)
+    #: A validity report evaluated beyond the defaults (:meth:`with_validity`); None: the default.
+    assessed_validity: Validity | None = field(default=None, repr=False)
 
     # scipy.optimize names
     @property
@@ -251,6 +253,17 @@ class Solution:
     @property
     def body2_displacement(self) -> np.ndarray:
         return self.u[6:]
+
+    @property
+    def pose(self) -> np.ndarray:
+        """Body 2's 4x4 pose relative to body 1 that ``u`` implies: each body's rotation vector taken as
+        an exact rotation about its reference, ``T1^-1 T2`` (for ``kinematics="small"`` the rigid
+        motion with the linearised motion's rotation vector and translation; for ``"finite"`` the
+        solved pose itself, composed with the pose the targets were cast at)."""
+        from .formulations._finite_geometry import pose_matrix
+
+        c1, c2 = self.problem.body1.reference, self.problem.body2.reference
+        return np.linalg.inv(pose_matrix(self.u[:6], c1)) @ pose_matrix(self.u[6:], c2)
 
     @property
     def in_contact(self) -> np.ndarray:
@@ -317,13 +330,50 @@ class Solution:
 
     @cached_property
     def validity(self) -> Validity:
-        """The :class:`~dea_opt.validity.Validity` report of this answer with the default limits.
+        """The :class:`~dea_opt.validity.Validity` report of this answer: the one given to
+        :meth:`with_validity`, else the default limits with ``dropped_springs`` not evaluated.
 
-        For other limits, or a count of springs dropped at the solved pose, call
-        :func:`dea_opt.validity.assess` ``(solution.problem, solution.u, solution.strain,
-        solution.pressure, limits=..., dropped=...)``.
+        For other limits, or a count of springs dropped at the solved pose, use
+        :meth:`with_validity`, or call :func:`dea_opt.validity.assess` ``(solution.problem,
+        solution.u, solution.strain, solution.pressure, limits=..., dropped=...)``.
         """
+        if self.assessed_validity is not None:
+            return self.assessed_validity
         return assess(self.problem, self.u, self.strain, self.pressure)
+
+    def with_validity(self, validity: Validity | None = None, *, dropped: int | None = None,
+                      limits=None) -> Solution:
+        """A copy of this solution whose :attr:`validity` is ``validity``, or is assessed with
+        ``dropped`` and ``limits`` (this solution is frozen and stays as it is).
+
+        Parameters
+        ----------
+        validity : Validity, optional
+            A report of this answer (from :func:`dea_opt.validity.assess`).
+        dropped : int, optional
+            Springs the proximity window drops at the solved pose, e.g.
+            ``dea_opt.mesh.recast_at_solution(solution, cast).dropped``: evaluates the
+            ``dropped_springs`` check.
+        limits : ValidityLimits, optional
+            Default :data:`dea_opt.validity.DEFAULT_LIMITS`.
+
+        Returns
+        -------
+        Solution
+            Everything else shared with this one (``info`` copied).
+        """
+        from .errors import InputError
+        from .validity import DEFAULT_LIMITS
+
+        if validity is not None:
+            if not isinstance(validity, Validity):
+                raise InputError(f"validity must be a dea_opt.validity.Validity, got {type(validity).__name__}")
+            if dropped is not None or limits is not None:
+                raise InputError("give validity, or dropped and limits to assess it, not both")
+        else:
+            validity = assess(self.problem, self.u, self.strain, self.pressure,
+                              limits=DEFAULT_LIMITS if limits is None else limits, dropped=dropped)
+        return replace(self, info=dict(self.info), assessed_validity=validity)
 
     @property
     def reactions(self) -> dict:

@@ -45,21 +45,25 @@ _CONE_TOL = 1e-7
 
 def _describe_direction(problem: ContactProblem, names, vector) -> str:
     """The large components of a generalized force in words, each in its own units: a force
-    in N, a moment in N mm about the body's reference point."""
+    in N, a moment in N mm about the body's reference point (named once per body)."""
     vector = np.asarray(vector, dtype=float)
     top = float(np.abs(vector).max(initial=0.0))
     parts = []
-    for name, value in zip(names, vector):
-        if top == 0.0 or abs(value) < 1e-3 * top:
-            continue
-        body, dof = name.split(".")
-        reference = (problem.body1 if body == "body1" else problem.body2).reference
-        if dof[0] == "u":
-            parts.append(f"force {value:+.4g} N along {dof[1]} on {body}")
-        else:
+    for body in ("body1", "body2"):
+        moments = []
+        for name, value in zip(names, vector):
+            if top == 0.0 or abs(value) < 1e-3 * top or not name.startswith(f"{body}."):
+                continue
+            dof = name.split(".")[1]
+            if dof[0] == "u":
+                parts.append(f"force {value:+.4g} N along {dof[1]} on {body}")
+            else:
+                moments.append(f"moment {value:+.4g} N mm along {dof[1]} on {body}")
+        if moments:
+            reference = (problem.body1 if body == "body1" else problem.body2).reference
             point = ", ".join(f"{c:.4g}" for c in reference)
-            parts.append(f"moment {value:+.4g} N mm along {dof[1]} on {body} (about its reference point "
-                         f"({point}) mm)")
+            moments[-1] += f" ({'moments' if len(moments) > 1 else 'moment'} about its reference point ({point}) mm)"
+            parts.extend(moments)
     return ", ".join(parts) or "none"
 
 
@@ -104,9 +108,13 @@ def _check_unresisted(problem: ContactProblem, system) -> None:
 
 
 def _check_cone(problem: ContactProblem, system) -> None:
-    """The cone test over the resisted directions, in arc lengths (moments over the radius)."""
-    from scipy.optimize import nnls
+    """The cone test over the resisted directions, in arc lengths (moments over the radius).
 
+    The unbalanced part reported is the smallest in that measure (``formulations/energy.md``,
+    "When is there a solution?"): ``|| (r - r_c) / L ||`` over every load ``r_c`` the springs
+    can carry, with ``L`` 1 mm for a translation and the layer's radius for a rotation, as the
+    certificate measures loads. So it is never larger than the load itself in that measure.
+    """
     res = system.resistance
     D, Q = res.lengths, res.range
     rhs = Q.T @ (system.load / D)
@@ -119,29 +127,59 @@ def _check_cone(problem: ContactProblem, system) -> None:
     norms = np.linalg.norm(columns, axis=0)
     keep = ~unresisted(system.volume * norms**2, res.scale) & (norms > 0)
     columns = columns[:, keep] / norms[keep]
+    residual = _cone_residual(columns, rhs)
+    if residual is None:
+        return  # undecided: leave it to the solver and its certificate
+    remainder, residual_norm = residual
+    if residual_norm <= _CONE_TOL * rnorm:
+        return
     names = list(problem.free_names)
-    if columns.shape[1]:
-        # nnls is compiled code: never hand it an empty or non-finite matrix (it aborts the
-        # process on an m x 0 one).
-        require_finite("the spring directions", columns, rhs)
-        try:
-            lam, residual_norm = nnls(columns, rhs, maxiter=50 * max(len(rhs), 1) + 100)
-        except RuntimeError:
-            return  # undecided: leave it to the solver and its certificate
-        if residual_norm <= _CONE_TOL * rnorm:
-            return
-        remainder = rhs - columns @ lam
-    else:
-        remainder, residual_norm = rhs, rnorm
-    remainder = D * (Q @ remainder)
-    pulls = "pulls the bodies apart or loads a direction no spring resists"
+    unbalanced = D * (Q @ remainder)
+    carried = system.load - unbalanced
+    radii = {f"{D[j]:.4g} mm about {names[j].split('.')[0]}'s reference point": None
+             for j in range(len(names)) if names[j].split(".")[1][0] == "r"}
+    measure = (f"moments counted over the layer's radius, {', '.join(radii)}, as the certificate does"
+               if radii else "in N")
     raise LoadNotSupportedError(
-        f"compression-only springs cannot carry this load: it {pulls}. "
-        f"Unbalanced part: {_describe_direction(problem, names, remainder)} "
-        f"({residual_norm / rnorm:.3g} of the load). Check the load's sign (body 2 is pushed "
-        f"toward body 1 by a load along -normal), fix the unresisted dofs, or add springs.",
-        direction=dict(zip(names, remainder.tolist())),
+        f"compression-only springs cannot carry this load: {_cone_cause(problem, names, system.load, D, Q, columns)}. "
+        f"Smallest unbalanced part ({measure}): {_describe_direction(problem, names, unbalanced)}, "
+        f"{residual_norm / rnorm:.3g} of the load in that measure; the nearest load the springs can carry is "
+        f"{_describe_direction(problem, names, carried)}. Check the load's sign (body 2 is pushed toward body 1 by "
+        f"a load along -normal) and its units (N, N mm), fix the unresisted dofs, or add springs.",
+        direction=dict(zip(names, unbalanced.tolist())),
     )
+
+
+def _cone_residual(columns, rhs):
+    """``(rhs - columns @ lam, its norm)`` for the ``lam >= 0`` nearest ``rhs`` (NNLS), or None
+    when NNLS did not finish."""
+    from scipy.optimize import nnls
+
+    if not columns.shape[1]:
+        return rhs, float(np.linalg.norm(rhs))
+    # nnls is compiled code: never hand it an empty or non-finite matrix (it aborts the
+    # process on an m x 0 one).
+    require_finite("the spring directions", columns, rhs)
+    try:
+        lam, residual_norm = nnls(columns, rhs, maxiter=50 * max(len(rhs), 1) + 100)
+    except RuntimeError:
+        return None
+    return rhs - columns @ lam, float(residual_norm)
+
+
+def _cone_cause(problem, names, load, D, Q, columns) -> str:
+    """Why the load lies outside the springs' cone, in words: its moment is more than the
+    springs can carry with its force (when the force alone could be carried), or it pulls
+    the bodies apart."""
+    rotation = np.array([name.split(".")[1][0] == "r" for name in names])
+    force_only = np.where(rotation, 0.0, load)
+    if rotation.any() and (load[rotation] != 0).any() and force_only.any():
+        rhs = Q.T @ (force_only / D)
+        residual = _cone_residual(columns, rhs)
+        if residual is not None and residual[1] <= _CONE_TOL * float(np.linalg.norm(rhs)):
+            return ("its force could be carried, but its moment is more than the springs can balance with that force "
+                    "(the lever arms of the contact are too short)")
+    return "it pulls the bodies apart, or loads a direction no spring can push back on"
 
 
 def _warn_validity(solution: Solution) -> None:
@@ -351,6 +389,11 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
     """
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
+    if problem.kinematics == "finite":
+        from .formulations import finite
+
+        return finite.solve(problem, method, certificate_tol=certificate_tol, strict=strict,
+                            load_checks=(_check_unresisted, _check_cone), **options)
     with single_threaded_blas():
         return _solve(problem, method, certificate_tol, strict, options)
 
@@ -411,7 +454,7 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
     for method in formulations.names() if methods is None else methods:
         if method == "auto" or method not in formulations.names():
             raise InputError(f"methods must be taken from {formulations.names()}, got {method!r}")
-        reason = formulations.why_not(method, problem.law)
+        reason = formulations.why_not(method, problem.law, problem.kinematics)
         if reason is not None:
             skipped[method] = reason
             continue

@@ -322,13 +322,18 @@ def rotation_gap_error(problem, u) -> np.ndarray:
     return error
 
 
-_KINEMATICS_ADVICE = ("outside the small-rotation kinematics of Eq. (9)-(11): fix the dofs the joint does not "
-                      "move, reduce the load, or use finite kinematics (not built yet)")
+_KINEMATICS_ADVICE = ("outside the small-rotation kinematics of Eq. (9)-(11): use finite kinematics, "
+                      "ContactProblem(..., kinematics='finite') (exact rotations, gaps at the current pose; "
+                      "formulations/finite.md), fix the dofs the joint does not move, or reduce the load")
+_FINITE = "finite kinematics take rotations exactly: the small kinematics' error does not apply"
 
 
 def _rotation_checks(problem, u, limits: ValidityLimits) -> tuple[Check, Check]:
     u = np.asarray(u, dtype=float)
     degrees = math.degrees(max(float(np.linalg.norm(u[3:6])), float(np.linalg.norm(u[9:12]))))
+    if getattr(problem, "kinematics", "small") == "finite":
+        return (Check("rotation", degrees, limits.rotation, "deg", None, _FINITE),
+                Check("gap_error", math.nan, limits.gap_error, "of thickness", None, _FINITE, (("mm", math.nan),)))
     if not np.isfinite(u).all():
         degrees = math.nan
     passed = degrees <= limits.rotation

@@ -228,7 +228,8 @@ def test_a_bad_registration_is_refused(name, module, match):
 
 
 def test_unknown_names_and_bad_capabilities():
-    with pytest.raises(d.InputError, match=r"method must be one of \('auto', 'newton', 'qp', 'nlp'\), got 'simplex'"):
+    with pytest.raises(d.InputError, match=r"method must be one of \('auto', 'newton', 'qp', 'nlp', 'finite', 'finite_nlp'\), "
+                                          r"got 'simplex'"):
         formulations.get("simplex")
     with pytest.raises(d.InputError, match="Capabilities.laws must be 'linear' or 'any'"):
         Capabilities(laws="cubic")

@@ -126,7 +126,7 @@ def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):
     scenario = tmp_path / "hip.toml"
     scenario.write_text(HIP_PATH.format(H=4.0))
     result = invoke("run", scenario, "-o", tmp_path / "out", "-m", "newton", "--set", "solve.certificate_tol=1e-30")
-    assert result.exit_code == 1 and "failed their certificate" in result.stderr
+    assert result.exit_code == 1 and "11 of 11 frames have no certified answer: frame 0 (0 s)" in result.stderr
     assert read_manifest(tmp_path / "out")["status"] == "certificate failed"
     # --stop-on-error: the first failed frame ends the run, a named error, nothing published
     result = invoke("run", scenario, "-o", tmp_path / "stopped", "-m", "newton", "--stop-on-error",
@@ -311,10 +311,12 @@ def test_law_kinds_in_a_sweep_drop_what_a_kind_does_not_take(tmp_path):
                                                            'kind = "ateshian"\nH = 10.0\nbeta = 0.3'))
     result = invoke("sweep", tmp_path / "plate.toml", "--set", "law.kind=linear,ateshian", "--set",
                     "law.beta=0.2,0.4", "--scheduler", "synchronous", "-o", tmp_path / "sweep")
-    assert result.exit_code == 0, result.stderr
+    # the linear cases carry 5 MPa on H = 10 MPa: strain 0.5, past the linear law's 30 %
+    assert result.exit_code == 3, result.stderr
     table = pd.read_csv(tmp_path / "sweep" / "sweep.csv")
-    assert len(table) == 4 and (table["status"] == "ok").all()
     linear = table[table["law.kind"] == "linear"]
+    assert len(table) == 4 and (table.loc[table["law.kind"] == "ateshian", "status"] == "ok").all()
+    assert (linear["status"] == "outside_validity").all() and (linear["validity_failed"] == "strain").all()
     assert linear["warnings"].str.contains("law kind 'linear' takes no beta: dropped law.beta").all()
     assert np.allclose(linear["peak_pressure"], 5.0, rtol=1e-9)  # 2000 N over 400 mm^2
     assert table[table["law.kind"] == "ateshian"]["warnings"].isna().all()
@@ -335,7 +337,7 @@ def test_library_warnings_go_to_the_log_and_dea_opts_own_to_one_line(tmp_path, m
     import dea_opt.scenario as scenario_package
     from dea_opt.mesh.springs import _warn_dropped
 
-    original = scenario_package.build_problem
+    original = scenario_package.build_problem_cast
 
     def noisy(scenario, *args, **kwargs):
         warnings.warn("a library's deprecation", DeprecationWarning)  # raised here: not dea-opt's
@@ -343,7 +345,7 @@ def test_library_warnings_go_to_the_log_and_dea_opts_own_to_one_line(tmp_path, m
         _warn_dropped(np.array([1.0, np.nan]), np.ones(2), np.array([True, False]), None, 1.0)  # dea-opt's own
         return original(scenario, *args, **kwargs)
 
-    monkeypatch.setattr(scenario_package, "build_problem", noisy)
+    monkeypatch.setattr(scenario_package, "build_problem_cast", noisy)
     result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path / "out", "-q")
     assert result.exit_code == 0, result.stderr
     lines = stderr_lines(result)
@@ -360,7 +362,7 @@ def test_an_unexpected_failure_is_one_paragraph_with_the_traceback_in_a_file(tmp
     def broken(*args, **kwargs):
         raise ZeroDivisionError("a bug")
 
-    monkeypatch.setattr(scenario_package, "build_problem", broken)
+    monkeypatch.setattr(scenario_package, "build_problem_cast", broken)
     result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path / "out")
     assert result.exit_code == 2 and "Traceback" not in result.stderr
     text = stderr_lines(result)

@@ -16,7 +16,8 @@ from dea_opt import Status, formulations
 from dea_opt.geometry import plate_layer, sphere_on_bed_layer
 from dea_opt.status import CERTIFIABLE
 
-METHODS = formulations.names()
+#: The formulations of the small kinematics (the finite ones solve kinematics="finite" problems only).
+METHODS = tuple(n for n in formulations.names() if "small" in formulations.capabilities(n).kinematics)
 
 
 def _plate(gap=0.0, H=20.0):

@@ -125,7 +125,7 @@ def test_an_edited_scenario_is_recomputed_and_says_why(plate, tmp_path):
 
 def test_the_cli_prints_the_stale_summary(plate, tmp_path):
     out = tmp_path / "sweep"
-    args = ["sweep", str(plate), "--set", "law.H=5,10", "--scheduler", "synchronous", "-o", str(out)]
+    args = ["sweep", str(plate), "--set", "law.H=8,10", "--scheduler", "synchronous", "-o", str(out)]
     assert CliRunner().invoke(app, args).exit_code == 0
     plate.write_text(PLATE.replace("point = [5.0", "point = [4.0"))
     result = CliRunner().invoke(app, args)

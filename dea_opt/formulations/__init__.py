@@ -43,6 +43,9 @@ FORMULATIONS: dict = {
     "newton": "dea_opt.formulations.newton",
     "qp": "dea_opt.formulations.qp",
     "nlp": "dea_opt.formulations.nlp",
+    # Finite kinematics (exact rotation, gaps at the current pose): kinematics="finite" problems only.
+    "finite": "dea_opt.formulations.finite",
+    "finite_nlp": "dea_opt.formulations.finite_nlp",
 }
 
 #: The formulation ``method="auto"`` runs first, the reference of comparison studies, and the

@@ -119,12 +119,26 @@ def check_outputs(folder) -> list[str]:
 
 # --- which folders a run may write into ---------------------------------------------------
 
-def _internal(entry: os.DirEntry) -> bool:
-    """dea-opt's own bookkeeping: the lock, temporary files, a sweep's or comparison's folder."""
+def _other_run(entry: os.DirEntry) -> bool:
+    """A sub-folder another dea-opt command made (a sweep's or a comparison's)."""
+    return entry.is_dir(follow_symlinks=False) and any((Path(entry.path) / mark).exists()
+                                                       for mark in _OWN_SUBFOLDER_MARKS)
+
+
+def _internal(entry: os.DirEntry, depth: int = 0) -> bool:
+    """dea-opt's own bookkeeping: the lock, temporary files, a sweep's or comparison's folder,
+    and a sub-folder holding nothing else (``series_frames/`` of a run killed before it
+    published: only its staged frames, or nothing)."""
     if entry.name == LOCK_NAME or (TEMPORARY_NAME.match(entry.name) and entry.is_file(follow_symlinks=False)):
         return True
-    if entry.is_dir(follow_symlinks=False):
-        return any((Path(entry.path) / mark).exists() for mark in _OWN_SUBFOLDER_MARKS)
+    if _other_run(entry):
+        return True
+    if entry.is_dir(follow_symlinks=False) and depth < 2:
+        try:
+            with os.scandir(entry.path) as inner:
+                return all(_internal(e, depth + 1) for e in inner)
+        except OSError:
+            return False
     return False
 
 
@@ -187,7 +201,7 @@ def _remove_stale(folder: Path) -> list[Path]:
     removed = []
     folders = [folder]
     with contextlib.suppress(OSError), os.scandir(folder) as entries:
-        folders += [Path(e.path) for e in entries if e.is_dir(follow_symlinks=False) and not _internal(e)]
+        folders += [Path(e.path) for e in entries if e.is_dir(follow_symlinks=False) and not _other_run(e)]
     for where in folders:
         with contextlib.suppress(OSError), os.scandir(where) as entries:
             for entry in entries:

@@ -199,7 +199,7 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
 
     path = Path(path)
     try:
-        table = pd.read_csv(path, comment="#", dtype=str, skipinitialspace=True)
+        table = pd.read_csv(path, comment="#", dtype=str, skipinitialspace=True, keep_default_na=False)
     except pd.errors.EmptyDataError:
         raise InputError(f"{what} {path} is empty: expected a header line with columns "
                          f"{','.join(required)}") from None

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import time
 import warnings
+from dataclasses import replace
 
 import numpy as np
 
@@ -47,6 +48,7 @@ from ..formulations.energy import single_threaded_blas
 from ..problem import ContactProblem, Load
 from ..status import Status
 from .exposure import ExposureAccumulator
+from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from .result import PathResult
 from .series import FrameSeries
 from .stepper import Stepper
@@ -198,7 +200,8 @@ def _stop(k, t, status, message, solution, error):
 def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "auto", times=None, body: int = 2,
                certificate_tol: float = 1e-6, stop_on_error: bool = False, strict: bool = False,
                keep_solutions: bool = True, keep_pressures: bool = True, series=None, regions=None,
-               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, **options) -> PathResult:
+               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, kinematics: str | None = None,
+               **options) -> PathResult:
     """Solve ``problem`` under each load of a path, warm-starting every frame from the last.
 
     Parameters
@@ -249,6 +252,12 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
         Pressure threshold (MPa) of the exposure measures.
     progress : bool
         Show a progress bar on a terminal (tqdm; nothing when stderr is not a terminal).
+    kinematics : {"small", "finite"}, optional
+        Overrides ``problem.kinematics``. With ``"finite"`` (``formulations/finite.md``) every
+        frame starts from the previous frame's pose and re-cast springs; ``poses`` then
+        prescribe body 2's mesh pose per frame with the free dofs acting on top of it (the gait
+        set-up: flexion from the kinematics, the rest found), re-cast from the problem's
+        ``targets=`` SpringCast rather than by ``layer_for_pose``.
     **options
         For the formulation: ``tol``, ``solver`` (qp), ``form``, ``max_iter`` (nlp),
         ``gtol``, ``xtol`` (newton).
@@ -274,7 +283,7 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
                            certificate_tol=certificate_tol, stop=bool(stop_on_error or strict),
                            keep_solutions=keep_solutions, keep_pressures=keep_pressures, series=series,
                            regions=regions, layer_for_pose=layer_for_pose, threshold=threshold,
-                           progress=progress, options=options)
+                           progress=progress, kinematics=kinematics, options=options)
 
 
 def _check_inputs(problem, method, body):
@@ -298,18 +307,29 @@ def _labels(regions, layer):
 
 
 def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, stop, keep_solutions,
-                keep_pressures, series, regions, layer_for_pose, threshold, progress, options) -> PathResult:
+                keep_pressures, series, regions, layer_for_pose, threshold, progress, kinematics,
+                options) -> PathResult:
     """The body of :func:`solve_path`."""
-    _check_inputs(problem, method, body)
+    if kinematics is not None and isinstance(problem, ContactProblem):
+        problem = replace(problem, kinematics=kinematics)
+    finite = isinstance(problem, ContactProblem) and problem.kinematics == "finite"
+    if not finite:
+        _check_inputs(problem, method, body)
+    elif body != 2:
+        raise InputError(f"kinematics='finite' moves body 2 against a fixed body 1: loads act on body 2, got body={body!r}")
     loads, times = _frames(loads, times)
-    poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
-    moving = poses is not None
+    if finite:
+        poses = check_finite_poses(problem, poses, len(loads))
+        moving = moves(problem, poses)
+    else:
+        poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
+        moving = poses is not None
     labels = _labels(regions, problem.layer)
     n_regions = 0 if labels is None else len(np.unique(labels))
     n_sites = _site_count(problem.layer, moving)
     check_frames(len(loads), len(problem.layer), keep_solutions=keep_solutions, keep_pressures=keep_pressures,
                  moving=moving, n_regions=n_regions)
-    stepper = Stepper(method, options, certificate_tol)
+    stepper = FiniteStepper(method, options, certificate_tol) if finite else Stepper(method, options, certificate_tol)
     accumulator = ExposureAccumulator(n_sites, threshold)
     frames = FrameSeries(series, len(loads)) if series is not None else None
     start = time.perf_counter()
@@ -323,7 +343,9 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
         for k in range(len(loads)):
             load, t = loads[k], float(times[k])
             base, frame_regions, new_geometry, status = problem, base_regions, k == 0, ""
-            if moving:
+            if isinstance(stepper, FiniteStepper):
+                stepper.pose = None if poses is None else poses[k]
+            elif moving:
                 new_geometry = True
                 try:
                     base = problem.with_layer(layer_for_pose(poses[k]))
@@ -346,8 +368,11 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
                 accumulator.skip(t)
                 bar.set_postfix(failed=failed, refresh=False)
             else:
+                layer = frame_layer(frame, solution)
+                if finite and base_regions is not None:
+                    frame_regions = FrameRegions(_labels(regions, layer), base_regions.prefixes)
                 rows.append(solved_row(k, t, vector, solution, frame_regions))
-                accumulator.add(t, solution.pressure, _sites(frame.layer, moving))
+                accumulator.add(t, solution.pressure, _sites(layer, moving))
             certified = None if status else solution
             if keep_pressures:
                 pressures.append(np.array(certified.pressure) if certified is not None
@@ -355,7 +380,7 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
             if keep_solutions:
                 solutions.append(solution)
             if frames is not None:
-                frames.write(k, t, frame.layer, certified)
+                frames.write(k, t, frame_layer(frame, certified), certified)
             bar.update()
     finally:
         bar.close()

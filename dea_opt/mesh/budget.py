@@ -1,7 +1,8 @@
 """Memory guards: the size of a mesh to build, read or cast is checked before allocating.
 
 An oversized request (``hip_meshes(step=0.01)``, a cast between two meshes of tens of
-millions of faces, a multi-gigabyte mesh file) is an :class:`~dea_opt.errors.InputError`
+millions of faces, a multi-gigabyte mesh file) is a :class:`~dea_opt.errors.SizeLimitError`
+(an :class:`~dea_opt.errors.InputError`)
 that names the parameter and gives an estimate of the memory it would need, rather than a
 process killed by the operating system. The estimates are peak bytes per face, measured on
 this code (``tests/test_mesh_errors.py`` checks one is an upper bound on a measured peak), compared
@@ -12,7 +13,7 @@ from __future__ import annotations
 
 import os
 
-from ..errors import InputError
+from ..errors import SizeLimitError
 
 __all__ = [
     "BYTES_PER_CAST_FACE",
@@ -76,7 +77,8 @@ def format_bytes(n: float) -> str:
 
 
 def check_memory(what: str, estimate: float, advice: str) -> None:
-    """Raise an InputError when ``estimate`` bytes exceed the memory available.
+    """Raise :class:`~dea_opt.errors.SizeLimitError` (an InputError) when ``estimate`` bytes
+    exceed the memory available.
 
     Parameters
     ----------
@@ -90,8 +92,9 @@ def check_memory(what: str, estimate: float, advice: str) -> None:
     available = available_memory()
     estimate = float(min(estimate, 10**300))  # counts from tiny steps may exceed any float
     if estimate > available:
-        raise InputError(f"{what} would need about {format_bytes(estimate)} of memory, more than the "
-                         f"{format_bytes(available)} available: {advice}")
+        raise SizeLimitError(f"{what} would need about {format_bytes(estimate)} of memory, more than the "
+                             f"{format_bytes(available)} available: {advice}", needed=estimate,
+                             available=float(available), what=what)
 
 
 def check_cast_size(n_faces1: int, n_faces2: int, engine: str = "grid") -> None:

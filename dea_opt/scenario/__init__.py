@@ -40,10 +40,14 @@ from .build import (
     build_law,
     build_layer,
     build_problem,
+    build_problem_cast,
+    cast_from_mesh_section,
     load_meshes,
     pose_builder,
+    pose_caster,
     springs_from_mesh_section,
 )
+from .docs import schema_text
 from .load_path import LoadPathData, pose_matrices, read_load_path
 from .parse import apply_overrides, load_scenario, parse_scenario, parse_set
 from .schema import (
@@ -66,7 +70,6 @@ from .schema import (
     SphereOnBedGeometry,
     SpringsGeometry,
 )
-from .docs import schema_text
 
 __all__ = [
     "FORMATS",
@@ -90,16 +93,19 @@ __all__ = [
     "SphereOnBedGeometry",
     "SpringsGeometry",
     "apply_overrides",
+    "apply_regions",
     "build_geometry",
     "build_law",
     "build_layer",
     "build_problem",
-    "apply_regions",
+    "build_problem_cast",
+    "cast_from_mesh_section",
     "load_meshes",
     "load_scenario",
     "parse_scenario",
     "parse_set",
     "pose_builder",
+    "pose_caster",
     "pose_matrices",
     "read_load_path",
     "read_springs",

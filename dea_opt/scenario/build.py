@@ -6,6 +6,8 @@ are used, so that reading and validating a scenario stays light.
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 
 from ..errors import DeaError, ScenarioError
@@ -23,8 +25,20 @@ from .schema import (
     SpringsGeometry,
 )
 
-__all__ = ["apply_regions", "build_geometry", "build_layer", "build_law", "build_problem", "load_meshes",
-           "pose_builder", "springs_from_mesh_section"]
+__all__ = [
+    "apply_regions",
+    "build_geometry",
+    "build_geometry_cast",
+    "build_law",
+    "build_layer",
+    "build_problem",
+    "build_problem_cast",
+    "cast_from_mesh_section",
+    "load_meshes",
+    "pose_builder",
+    "pose_caster",
+    "springs_from_mesh_section",
+]
 
 
 def build_law(section: LawSection):
@@ -122,25 +136,46 @@ def _layer_of(built, name: str, pose=None):
         if pose is not None:
             raise ScenarioError(f"geometry.function {name} returns springs, not meshes, so poses cannot move it")
         return built
-    if hasattr(built, "mesh1") and hasattr(built, "mesh2"):
-        options = dict(getattr(built, "options", {}) or {})
-        if pose is not None:
-            options["pose"] = pose
-        from ..mesh import springs_from_meshes
+    return _cast_of(built, name, pose).layer
 
-        return springs_from_meshes(built.mesh1, built.mesh2, **options)
-    raise ScenarioError(f"geometry.function {name} returned {type(built).__name__}, not a SpringLayer or a "
-                        f"pair of meshes")
+
+def _cast_of(built, name: str, pose=None):
+    """The :class:`~dea_opt.mesh.SpringCast` of a generated pair of meshes (mesh 2 at ``pose``)."""
+    if not (hasattr(built, "mesh1") and hasattr(built, "mesh2")):
+        raise ScenarioError(f"geometry.function {name} returned {type(built).__name__}, not a SpringLayer or a "
+                            f"pair of meshes")
+    options = {} if pose is None else {"pose": pose}
+    if callable(getattr(built, "cast", None)):
+        return built.cast(**options)
+    from ..mesh import cast_springs
+
+    return cast_springs(built.mesh1, built.mesh2, **{**dict(getattr(built, "options", {}) or {}), **options})
 
 
 def build_geometry(section) -> tuple:
     """``(layer, (reference1, reference2))``: a generated mesh pair brings its bodies' reference
     points; other geometries give ``(None, None)``."""
+    layer, references, _ = build_geometry_cast(section)
+    return layer, references
+
+
+def build_geometry_cast(section) -> tuple:
+    """``(layer, (reference1, reference2), cast)``: as :func:`build_geometry`, with the
+    :class:`~dea_opt.mesh.SpringCast` the springs came from when they were cast from meshes
+    (files or a generated pair), else None; :func:`dea_opt.mesh.recast_at_solution` takes it."""
     if isinstance(section, GeneratorGeometry):
         built = _from_generator(section)
-        return _layer_of(built, section.function), (getattr(built, "reference1", None),
-                                                    getattr(built, "reference2", None))
-    return build_layer(section), (None, None)
+        references = (getattr(built, "reference1", None), getattr(built, "reference2", None))
+        from ..layer import SpringLayer
+
+        if isinstance(built, SpringLayer):
+            return built, references, None
+        cast = _cast_of(built, section.function)
+        return cast.layer, references, cast
+    if isinstance(section, MeshGeometry):
+        cast = cast_from_mesh_section(section, load_meshes(section))
+        return cast.layer, (None, None), cast
+    return build_layer(section), (None, None), None
 
 
 def pose_builder(scenario):
@@ -150,20 +185,35 @@ def pose_builder(scenario):
     ``[geometry]``. The meshes are read (or made) once; each call casts the springs again with
     mesh 2 moved by the 4x4 ``pose``.
     """
+    caster = pose_caster(scenario)
+    return None if caster is None else (lambda pose: caster(pose).layer)
+
+
+def pose_caster(scenario):
+    """``pose -> SpringCast`` for geometries made of meshes (None for spring geometries): as
+    :func:`pose_builder`, keeping what each ray met (for :func:`dea_opt.mesh.recast_at_solution`);
+    the cast's layer carries the labels of ``[regions]``."""
+    import dataclasses
+
     section = getattr(scenario, "geometry", scenario)
     regions = getattr(scenario, "regions", None)
     if isinstance(section, MeshGeometry):
         meshes = load_meshes(section)
-        cast = lambda pose: springs_from_mesh_section(section, meshes, pose)  # noqa: E731
+        cast = lambda pose: cast_from_mesh_section(section, meshes, pose)
     elif isinstance(section, GeneratorGeometry) and hasattr(built := _from_generator(section), "mesh1"):
-        cast = lambda pose: _layer_of(built, section.function, pose)  # noqa: E731
+        cast = lambda pose: _cast_of(built, section.function, pose)
     else:
         return None
     if regions is None:
         return cast
     # One cut for every frame: the springs of the start pose decide where it lies.
-    cut = _cut(cast(None), regions)
-    return lambda pose: apply_regions(cast(pose), regions, cut)
+    cut = _cut(cast(None).layer, regions)
+
+    def labelled(pose):
+        springs = cast(pose)
+        return dataclasses.replace(springs, layer=apply_regions(springs.layer, regions, cut))
+
+    return labelled
 
 
 def _load_part(files, scale: float):
@@ -189,12 +239,19 @@ def load_meshes(section: MeshGeometry) -> dict:
     return meshes
 
 
-def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
+def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None, *, as_cast: bool = False):
     """Springs from the loaded ``meshes`` with the section's options; ``pose`` overrides its pose.
 
     Each spring is labelled with its face's part of mesh 1 and, when mesh 2 is a table too,
-    with the part of mesh 2 its ray meets (``"medial/femur"``).
+    with the part of mesh 2 its ray meets (``"medial/femur"``). ``as_cast`` returns the
+    :class:`~dea_opt.mesh.SpringCast` (its layer so labelled), which finite kinematics re-cast from.
     """
+    cast = cast_from_mesh_section(section, meshes, pose)
+    return cast if as_cast else cast.layer
+
+
+def cast_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
+    """The :class:`~dea_opt.mesh.SpringCast` of :func:`springs_from_mesh_section` (its layer labelled)."""
     import dataclasses
 
     from ..mesh import cast_springs
@@ -214,10 +271,10 @@ def springs_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
     cast = cast_springs(meshes["mesh1"], meshes["mesh2"], labels=meshes.get("labels1"), **options)
     labels2 = meshes.get("labels2")
     if labels2 is None:
-        return cast.layer
+        return cast
     met = _labels_met(meshes["mesh2"], labels2, cast)
     labels = met if cast.layer.labels is None else np.char.add(np.char.add(cast.layer.labels.astype(str), "/"), met)
-    return dataclasses.replace(cast.layer, labels=labels)
+    return dataclasses.replace(cast, layer=dataclasses.replace(cast.layer, labels=labels))
 
 
 def _labels_met(mesh2, labels2, cast) -> np.ndarray:
@@ -274,18 +331,33 @@ def build_problem(scenario: Scenario, layer=None):
     With ``[load]`` the problem carries that load; with ``[load_path]`` it carries no
     load yet (:func:`read_load_path` gives the frames). ``layer`` replaces the geometry's.
     """
+    if layer is None:
+        return build_problem_cast(scenario)[0]
+    return _problem(scenario, layer, (None, None), None)
+
+
+def build_problem_cast(scenario: Scenario) -> tuple:
+    """``(problem, cast)``: :func:`build_problem` and the :class:`~dea_opt.mesh.SpringCast` its
+    springs were cast by (None unless they came from meshes), to re-cast them at the solved
+    pose (:func:`dea_opt.mesh.recast_at_solution`); finite kinematics re-casts from it as body 2
+    moves."""
+    layer, references, cast = build_geometry_cast(scenario.geometry)
+    return _problem(scenario, layer, references, cast), cast
+
+
+def _problem(scenario: Scenario, layer, references, cast):
     from ..problem import ContactProblem, Load
 
-    if layer is None:
-        layer, (reference1, reference2) = build_geometry(scenario.geometry)
-    else:
-        reference1 = reference2 = None
+    reference1, reference2 = references
     if scenario.regions is not None:
         layer = apply_regions(layer, scenario.regions)
+        cast = None if cast is None else dataclasses.replace(cast, layer=layer)
     problem = ContactProblem(
         layer, build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),
         body2=_body(scenario.body2, DOFS, reference2),
+        kinematics=scenario.solve.kinematics,
+        targets=cast if scenario.solve.kinematics == "finite" else None,
     )
     if scenario.load is not None:
         load = scenario.load

@@ -86,6 +86,10 @@ def read_load_path(section: LoadPathSection) -> LoadPathData:
         raise ScenarioError(f"{name}: pose columns must come all six together; missing {', '.join(missing)}")
     poses = pose_matrices(np.column_stack([table[c] for c in _POSE_COLUMNS])) if present else None
     if section.frames is not None and section.frames != len(times):
+        from ..loadpath import check_frames
+
+        # Before any array of that length exists: a path of 1e9 frames is a named error, not the OOM killer.
+        check_frames(section.frames, what=f"load_path.frames = {section.frames}")
         times, loads, poses = _resample(times, loads, poses, section.frames)
     point = None if section.point is None else tuple(section.point)
     return LoadPathData(times=times, loads=loads, poses=poses, body=section.body, point=point)

@@ -8,6 +8,7 @@ generated from the models below, so it cannot drift. Units: mm, N, N mm, MPa, s.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Annotated, Any, Literal, Union
 
@@ -57,6 +58,24 @@ def _existing_file(value: str, info: ValidationInfo) -> str:
     if not path.is_file():
         raise ValueError(f"file not found: {path}")
     return str(path.resolve())
+
+
+def _anatomy(value):
+    """A table :meth:`dea_opt.anatomy.AnatomicalFrame.from_dict` accepts, kept as the plain table;
+    its errors name ``output.anatomy.<key>``."""
+    if value is None:
+        return None
+    from ..anatomy import AnatomicalFrame
+    from ..errors import InputError
+
+    try:
+        AnatomicalFrame.from_dict(value)
+    except InputError as exc:
+        message = str(exc)
+        if not message.startswith("anatomy"):
+            message = f"anatomy: {message}"
+        raise ValueError(re.sub(r"(?<![\w.])anatomy(?=[.:\s])", "output.anatomy", message)) from None
+    return value
 
 
 def _dof_list(value):
@@ -351,6 +370,10 @@ class SolveSection(_Section):
     accuracy: list[Literal["low", "default", "high"]] = Field(
         ["default"], min_length=1, description="accuracy settings for compare")
     repeat: Count = Field(1, description="repeats per compare case")
+    kinematics: Literal["small", "finite"] = Field(
+        "small", description="small: the paper's linearised rigid motion (Eq. 9-11), gaps cast once; finite: exact "
+                             "rotations and gaps at the current pose, springs cast from meshes re-cast as body 2 "
+                             "moves (method newton and nlp stand for the finite formulations; qp is small only)")
     allow_outside_validity: bool = Field(
         False, description="exit 0 instead of 3 when an answer is certified but outside its model's validity (for "
                            "exploring on purpose; the outputs still say so)")
@@ -366,6 +389,12 @@ class OutputSection(_Section):
         list(FORMATS), description="any of csv, json, vtk, png")
     exposure_threshold: NonNegative = Field(
         1.0, description="pressure threshold of the exposure measures (MPa)")
+    anatomy: Annotated[dict[str, Any] | None, AfterValidator(_anatomy)] = Field(
+        None, description='the anatomical frame of the maps and centres of pressure: two or three of medial, '
+                          'anterior, proximal (directions, mesh coordinates) and side = "right" | "left", e.g. '
+                          '{medial = [1, 0, 0], proximal = [0, 0, 1], side = "right"}; or landmarks = {medial = '
+                          '[...], lateral = [...], proximal = [...]} with side (and origin = "midpoint", a '
+                          'landmark or a point, mm); see dea_opt.anatomy.AnatomicalFrame.from_dict')
 
 
 class Scenario(_Section):

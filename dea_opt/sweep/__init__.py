@@ -11,7 +11,9 @@ A row counts as finished only while it was computed from the same content: the s
 scenario text, the same bytes of every input file the case reads, the same overrides and
 ``--method``, the same dea-opt version (its ``key`` column, :mod:`dea_opt.sweep.keys`).
 A rerun skips the finished cases and recomputes the others, saying why; the new row
-replaces the old one. ``retry_failed`` recomputes the rows whose status is not ``ok``.
+replaces the old one. ``retry_failed`` recomputes the rows whose status is ``failed`` or
+``error``. A row's ``status`` is ``ok``, ``outside_validity``, ``failed`` or ``error``
+(:data:`~dea_opt.sweep.cases.STATUSES`).
 
 Several sweeps may work on one folder at once (the same sweep twice, or sweeps with other
 cases): a process claims a case before computing it (a lock that dies with the process),
@@ -39,6 +41,7 @@ from ..errors import InputError, MissingDependencyError
 from ..scenario import METHOD_NAMES, load_scenario
 from . import journal
 from .cases import (
+    RETRIED,
     Case,
     CaseTask,
     case_id,
@@ -99,13 +102,32 @@ class SweepResult:
     adopted: list = field(default_factory=list)
     recomputed: dict = field(default_factory=dict)
 
-    @property
-    def failed(self) -> list:
-        """This sweep's case ids whose status is not ``ok``."""
-        if not len(self.table) or "status" not in self.table:
+    def _with_status(self, statuses) -> list:
+        if self.table is None or not len(self.table) or "status" not in self.table:
             return []
         status = dict(zip(self.table["case_id"], self.table["status"]))
-        return [c for c in self.cases if status.get(c, "ok") != "ok"]
+        return [c for c in self.cases if status.get(c, "ok") in statuses]
+
+    @property
+    def failed(self) -> list:
+        """This sweep's case ids whose status is ``failed`` or ``error``."""
+        return self._with_status(RETRIED)
+
+    @property
+    def outside_validity(self) -> list:
+        """This sweep's case ids whose status is ``outside_validity``."""
+        return self._with_status(("outside_validity",))
+
+    @property
+    def exit_code(self) -> int:
+        """1 when a case is ``failed`` or ``error``; else 3 when a case is ``outside_validity``
+        and its scenario does not allow it (``[solve] allow_outside_validity``); else 0."""
+        if self.failed:
+            return 1
+        table = self.table
+        codes = dict(zip(table["case_id"], table["exit_code"])) if "exit_code" in table else {}
+        # A row without an exit code (an older dea-opt's) counts as not allowed.
+        return 3 if any(codes.get(c) != 0 for c in self.outside_validity) else 0
 
 
 def format_row(row: dict, overrides: dict, note: str = "") -> str:
@@ -228,7 +250,7 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
     for case in cases:
         record = records.get(case.id)
         reason = None if record is None else stale_reason(record, keys[case.id])
-        if record is not None and reason is None and retry_failed and record.get("status") != "ok":
+        if record is not None and reason is None and retry_failed and record.get("status") in RETRIED:
             reason = f"its row says {record.get('status')}; retrying"
         if record is not None and reason is None:
             skipped.append(case.id)

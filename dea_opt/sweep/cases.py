@@ -17,6 +17,7 @@ from . import journal
 from .keys import ContentKey, content_key
 
 __all__ = [
+    "RETRIED",
     "STATUSES",
     "Case",
     "CaseTask",
@@ -29,8 +30,15 @@ __all__ = [
     "work_claimed",
 ]
 
-#: Every status a case's row can have.
-STATUSES = ("ok", "failed", "error")
+#: Every status a case's row can have: ``ok`` (every answer certified and inside its model's
+#: validity), ``outside_validity`` (certified, but an answer lies outside validity: exit 3 of
+#: ``dea-opt run``), ``failed`` (an answer, or a load path's frame, has no certified answer) and
+#: ``error`` (the case could not run: its ``message`` says why).
+STATUSES = ("ok", "outside_validity", "failed", "error")
+#: The statuses ``--retry-failed`` recomputes.
+RETRIED = ("failed", "error")
+#: A run's status (:attr:`dea_opt.run.RunOutcome.status`) as a case's status.
+_CASE_STATUS = {"ok": "ok", "outside validity": "outside_validity", "certificate failed": "failed"}
 
 
 def case_id(overrides: dict) -> str:
@@ -101,8 +109,10 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
     Returns
     -------
     dict
-        The case's row: ``case_id``, the overrides, ``status`` (``ok``; ``failed`` when an
-        answer failed its certificate; ``error`` with ``message`` otherwise), headline
+        The case's row: ``case_id``, the overrides, ``status`` (one of :data:`STATUSES`:
+        ``ok``; ``outside_validity`` when certified but outside its model's validity;
+        ``failed`` when an answer, or a frame, has no certified answer; ``error`` with
+        ``message`` when the case could not run), ``exit_code`` (that of ``dea-opt run``), headline
         numbers (for a load path: the largest over the frames), ``warnings`` (the run's
         validity warnings, joined by `` | ``), ``wall_time`` (s),
         ``output_dir``, ``finished``, ``pid`` and the content key's fields.
@@ -122,7 +132,8 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
         columns = (key or content_key(scenario, sha, overrides, method)).columns()
         # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
         outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False, force=True)
-        row |= {"status": "ok" if outcome.success else "failed", "message": outcome.message, **outcome.headline,
+        row |= {"status": _CASE_STATUS[outcome.status], "exit_code": outcome.exit_code, "message": outcome.message,
+                **outcome.headline,
                 "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings)}
     except DeaError as exc:
         row |= {"status": "error", "message": " ".join(str(exc).split())}
@@ -167,7 +178,8 @@ def work(task: CaseTask) -> dict:
 
 
 def _accepted(record: dict, retry_failed: bool) -> bool:
-    return record.get("status") == "ok" or (not retry_failed and record.get("status") in STATUSES)
+    status = record.get("status")
+    return status in STATUSES and not (retry_failed and status in RETRIED)
 
 
 def work_claimed(task: CaseTask) -> dict:

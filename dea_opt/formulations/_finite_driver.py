@@ -1,0 +1,328 @@
+"""Finite kinematics, the solve: targets, the equilibrium by Newton or IPOPT, re-casting, the certificate.
+
+Written math: ``formulations/finite.md``. :func:`solve` is what ``dea_opt.solve`` runs for a
+``ContactProblem(..., kinematics="finite")`` (the registry's entries are
+:mod:`~dea_opt.formulations.finite`, Newton, and :mod:`~dea_opt.formulations.finite_nlp`, IPOPT):
+it resolves each spring's target, builds the arrays of
+:class:`~dea_opt.formulations._finite_system.FiniteSystem`, solves the equilibrium of the free
+coordinates (:mod:`~dea_opt.formulations._finite_newton` or
+:mod:`~dea_opt.formulations._finite_ipopt`), keeps springs cast from meshes up to date as body 2
+moves (:mod:`~dea_opt.formulations._finite_recast`) and certifies the answer at the solved pose
+(:mod:`~dea_opt.formulations._finite_solution`).
+"""
+
+from __future__ import annotations
+
+import time
+import warnings
+from dataclasses import replace
+
+import numpy as np
+
+from ..errors import InputError, SolverError, ValidityWarning
+from ..kinematics import DOFS
+from ..status import Status
+from . import _finite_newton
+from ._finite_geometry import Targets, evaluate
+from ._finite_recast import MeshTracker
+from ._finite_solution import FiniteSolution, certificate
+from ._finite_system import FiniteSystem
+from .energy import SpringSystem, modulus_scale, single_threaded_blas, start_vector
+
+__all__ = ["ALIASES", "plan", "solve"]
+
+#: For a finite problem the small kinematics' method names stand for the finite formulations.
+ALIASES = {"newton": "finite", "nlp": "finite_nlp"}
+#: The re-casting options both finite formulations declare: under ``auto`` they go to both.
+SHARED = ("recast", "recast_shift", "full_shift", "max_recasts")
+_GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
+
+
+def resolve_targets(problem) -> tuple[Targets, object]:
+    """``(targets, cast)``: the springs' targets at zero displacement, and the SpringCast to re-cast
+    from (None without meshes). Checked to reproduce the layer's gaps."""
+    from ..mesh.springs import SpringCast
+
+    layer, given = problem.layer, problem.targets
+    cast = None
+    if given is None:
+        targets = Targets.from_layer(layer) if layer.has_targets else Targets.facing(layer)
+    elif isinstance(given, SpringCast):
+        cast = given
+        if len(cast.layer) != len(layer) or not np.array_equal(np.asarray(cast.layer.source_face),
+                                                               np.asarray(layer.source_face)):
+            raise InputError(f"targets is a SpringCast of {len(cast.layer)} springs, but the problem's layer has "
+                             f"{len(layer)}: pass the cast the layer came from (ContactProblem(cast.layer, ..., "
+                             f"targets=cast))")
+        targets = Targets.from_layer(cast.layer, pose=cast.pose)
+    else:
+        targets = given
+        if len(targets) != len(layer):
+            raise InputError(f"targets has {len(targets)} entries, the layer {len(layer)} springs: give one per spring")
+    s0 = evaluate(targets, layer.points, layer.normals, targets.frame).s
+    size = max(float(np.abs(layer.points).max(initial=0.0)), 1.0)
+    error = np.abs(s0 - layer.gap)
+    if len(error) and not (error.max() <= _GAP_TOL * size):
+        i = int(np.nanargmax(np.where(np.isfinite(error), error, np.inf)))
+        raise InputError(f"targets must reproduce the layer's gaps at zero displacement: spring {i} has gap "
+                         f"{layer.gap[i]:.6g} mm, its target gives {s0[i]:.6g} mm; build the targets from the same "
+                         f"geometry (Targets.from_layer(layer), the SpringCast, or planes/spheres through the gaps)")
+    return targets, cast
+
+
+def check_bodies(problem) -> None:
+    """Finite kinematics move body 2 against a fixed body 1 (only the relative pose matters)."""
+    body1 = problem.body1
+    moved = [d for d, v in body1.prescribed.items() if v != 0.0]
+    if body1.free or moved:
+        what = f"free dofs {body1.free}" if body1.free else f"prescribed motion {moved}"
+        raise InputError(f"kinematics='finite' moves body 2 against a fixed body 1, but body1 has {what}: fix body 1 "
+                         f"and give the motion to body 2 (only the relative pose matters)")
+
+
+def build_system(problem, targets) -> FiniteSystem:
+    layer, body2 = problem.layer, problem.body2
+    free = np.array([DOFS.index(d) for d in body2.free], dtype=int)
+    base = np.zeros(6)
+    for dof, value in body2.prescribed.items():
+        base[DOFS.index(dof)] = value
+    return FiniteSystem(layer.points, layer.normals, layer.areas, layer.thickness, targets,
+                        np.asarray(body2.reference, dtype=float), free, base, np.asarray(body2.force, dtype=float),
+                        np.asarray(body2.moment, dtype=float))
+
+
+def scaled_directions(problem, system, law) -> tuple[np.ndarray, float, SpringSystem]:
+    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.energy.scaling`,
+    from the resistance of the problem's small system at zero displacement (held directions left
+    out), sized by the larger of the load and the overlap of the current springs' exact gaps."""
+    small = problem.system()
+    T1 = small.resistance.basis(law.modulus)
+    s_load = float(np.linalg.norm(T1.T @ small.load)) if small.load.size else 0.0
+    e0 = system.state(system.base, law).eps
+    overlap = np.minimum(np.where(np.isfinite(e0), e0, 0.0), 0.0)
+    volume = system.areas * system.thickness * modulus_scale(law.modulus)
+    s = max(s_load, float(np.linalg.norm(np.sqrt(volume) * overlap)))
+    if not (s > 0.0 and np.isfinite(s)):
+        s = 1.0
+    return T1 * s, s * s, small
+
+
+def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
+    """``[(formulation, its options, x0), ...]`` in the order ``method`` tries them, for finite kinematics.
+
+    ``method`` is ``"auto"`` (the registered formulations that solve finite kinematics for
+    ``law``, in order: ``finite``, then ``finite_nlp``), one of them, or ``"newton"``/``"nlp"``
+    (:data:`ALIASES`). Any other is an :class:`~dea_opt.errors.InputError` from the registry
+    (``qp``: a small-kinematics method). Options are checked by the registry; under ``auto``
+    each goes to the first formulation that declares it, the re-casting ones to both.
+    """
+    from . import check_options, check_takes, names, takes
+    from . import options as declared
+
+    name = ALIASES.get(method, method) if isinstance(method, str) else method
+    options = dict(options)
+    x0 = options.pop("x0", None)
+    if name != "auto":
+        if not isinstance(name, str) or name not in names():
+            raise InputError(f"method must be one of {('auto', *names())}, got {method!r}")
+        check_takes(name, law, "finite")
+        return [(name, check_options(name, options), x0)]
+    chain = [n for n in names() if takes(n, law, "finite")][:2]
+    parts: dict = {n: {} for n in chain}
+    known = {n: {option.name for option in declared(n)} for n in chain}
+    for key, value in options.items():
+        homes = [n for n in chain if key in known[n]]
+        if not homes:
+            accepted = sorted(set().union(*known.values()) | {"x0"})
+            raise InputError(f"method 'auto' takes the options {accepted}, got unknown option {key!r}")
+        for home in homes if key in SHARED else homes[:1]:
+            parts[home][key] = value
+    return [(n, check_options(n, parts[n]), x0 if i == 0 else None) for i, n in enumerate(chain)]
+
+
+def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, frame=None,
+          tracker=None, load_checks=None, **options) -> FiniteSolution:
+    """Solve a ``kinematics="finite"`` problem and certify it at the solved pose.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+        With ``kinematics="finite"``.
+    method : str
+        ``"finite"`` (or ``"newton"``): Newton with the consistent tangent; ``"finite_nlp"``
+        (or ``"nlp"``): IPOPT on a conservative surrogate re-centred at each outer iteration
+        (``formulations/finite_nlp.md``); ``"auto"``: Newton, then IPOPT if Newton's answer
+        fails its certificate (``solution.info["fallback"]`` says why). ``"qp"`` is an
+        :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
+    certificate_tol : float
+    strict : bool
+        Raise :class:`SolverError` when the answer fails its certificate.
+    frame : array_like (4, 4), optional
+        Body 2's pose at zero displacement (mesh 2's pose in body 1's frame), replacing the pose
+        its targets were cast at: a load path's prescribed pose of this frame, the free
+        coordinates acting on top of it.
+    tracker : MeshTracker, optional
+        The re-casting state of a load path's previous frame (``solution.tracker``).
+    load_checks : (callable, callable), optional
+        ``dea_opt.solve``'s tests of a load the springs cannot carry, ``(unresisted, cone)``, each
+        ``f(problem, system)`` raising :class:`~dea_opt.errors.LoadNotSupportedError`: the first
+        before any solve, the second before IPOPT and after a failed Newton (at zero displacement).
+    **options
+        ``x0`` (free coordinates, mm and rad) and the options of the formulation
+        (:data:`dea_opt.formulations.finite.OPTIONS`, :data:`dea_opt.formulations.finite_nlp.OPTIONS`).
+    """
+    if not (isinstance(certificate_tol, (int, float)) and 0 < certificate_tol < 1):
+        raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
+    steps = plan(method, problem.law, options)
+    with single_threaded_blas():
+        name, opts, x0 = steps[0]
+        solution = _solve(problem, name, certificate_tol, opts, x0, frame, tracker, load_checks)
+        if method == "auto":
+            if not solution.success and len(steps) > 1:
+                reason = (f"{name} ended with status {solution.status!r} and certificate residual "
+                          f"{solution.certificate.worst()}")
+                fallback, opts, _ = steps[1]
+                solution = _solve(problem, fallback, certificate_tol, opts, None, frame, None, load_checks)
+                solution.info["fallback"] = reason
+            solution.info.setdefault("fallback", None)
+            solution.info["requested"] = "auto"
+    if not solution.success and strict:
+        worst, value = solution.certificate.worst()
+        raise SolverError(
+            f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
+            f"{solution.message}); certificate residual {worst} = {value:.3g} > {certificate_tol:g}",
+            status=solution.status, solution=solution)
+    if solution.success and not solution.validity.valid:
+        warnings.warn(solution.validity.message(), ValidityWarning, stacklevel=3)
+    return solution
+
+
+def _check_frame(frame) -> np.ndarray:
+    from ..mesh.springs import check_pose
+
+    return check_pose(frame, "frame")
+
+
+def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_checks) -> FiniteSolution:
+    start = time.perf_counter()
+    if problem.kinematics != "finite":
+        raise InputError("this problem has kinematics='small': solve it with dea_opt.solve")
+    check_bodies(problem)
+    targets, cast = resolve_targets(problem)
+    if tracker is None and cast is not None and opts["recast"]:
+        tracker = MeshTracker(cast, recast_shift=opts["recast_shift"], full_shift=opts["full_shift"])
+    if tracker is not None:
+        tracker.begin(frame)
+        targets = tracker.targets()
+    elif frame is not None:
+        targets = targets.with_frame(_check_frame(frame))
+    system = build_system(problem, targets)
+    if tracker is not None:
+        system = tracker.springs_of(system)  # a load path's previous frame's springs, or the cast's
+    law = problem.law
+    T, E0, small = scaled_directions(problem, system, law)
+    unresisted, cone = load_checks or (None, None)
+    loaded = bool(small.load.any() and small.n_dofs)
+    if loaded and unresisted is not None:
+        unresisted(problem, small)
+        if method == "finite_nlp" and cone is not None:
+            cone(problem, small)
+    x0 = start_vector(small, x0)
+    build = time.perf_counter() - start
+    cold = x0 is None
+    x = np.zeros(len(system.free)) if cold else x0
+    inner, rounds, history, stable = None, 0, [], True
+    while True:
+        inner = _inner(method, system, law, T, E0, x, cold, opts)
+        history.extend(inner.info.get("residual_history", []))
+        x, cold = inner.u_free, False
+        if tracker is None or not inner.success:
+            break
+        if rounds >= opts["max_recasts"]:
+            stable = False  # an equilibrium of these springs; another update might still change them
+            inner.message += f"; the springs still changed after {rounds} updates (max_recasts)"
+            break
+        update = tracker.update(system, inner.state)
+        if update is None:
+            break
+        rounds += 1
+        system = update.system
+        if not update.resolve and method == "finite":
+            inner.state = update.state  # only springs that carry nothing changed: the same equilibrium
+            break
+    if tracker is not None:
+        tracker.counts["stable"] = stable
+    if method == "finite" and not inner.success and loaded and cone is not None:
+        cone(problem, small)
+    return _solution(problem, system, law, inner, method, tracker, certificate_tol, build,
+                     time.perf_counter() - start - build, history)
+
+
+def _inner(method, system, law, T, E0, x, cold, opts):
+    if not len(system.free):
+        state = system.state(system.base, law)
+        return _finite_newton.InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
+    if method == "finite_nlp":
+        from . import _finite_ipopt
+
+        keys = ("form", "tol", "outer_tol", "max_outer", "max_iter", "ipopt_options")
+        return _finite_ipopt.solve(system, law, T, E0, x0=x, **{k: opts[k] for k in keys})
+    keys = ("xtol", "gtol", "max_iter", "extended_start")
+    return _finite_newton.solve(system, law, T, E0, x0=x, cold=cold, **{k: opts[k] for k in keys})
+
+
+def _status(native: str, success: bool, system, state) -> Status:
+    """The answer's :class:`~dea_opt.status.Status`: the solver's, in dea-opt's vocabulary, with the
+    statuses every method gives the same situation (no load: ``unloaded`` or ``preloaded``) and
+    ``inaccurate`` for a convergence the certificate rejects."""
+    try:
+        status = Status(native)
+    except ValueError:
+        status = Status.SOLVER_ERROR
+    if status is Status.CONVERGED and success and not (system.force.any() or system.moment.any()):
+        return Status.PRELOADED if (state.eps < 0).any() else Status.UNLOADED
+    if status is Status.CONVERGED and not success:
+        return Status.INACCURATE
+    return status
+
+
+def _solution(problem, system, law, inner, method, tracker, certificate_tol, build, solve_time, history):
+    state = inner.state
+    targets = system.targets
+    final = problem
+    if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):
+        # The springs of the solved pose, with their gaps at zero displacement (from the same targets).
+        s0 = evaluate(targets, system.points, system.normals, targets.frame).s
+        s0 = np.clip(np.where(np.isfinite(s0), s0, 1e9), -1e9, 1e9)
+        final = replace(problem, layer=tracker.layer_with_gap(s0), targets=targets)
+    layer = final.layer
+    u = np.zeros(12)
+    u[6:] = system.coordinates(inner.u_free)
+    finite = bool(np.isfinite(u).all() and state.finite)
+    with np.errstate(invalid="ignore", over="ignore"):
+        pressure = 0.0 - law.stress(np.minimum(state.eps, 0.0))
+    reported = -pressure if inner.info.get("stress") is None else inner.info["stress"]
+    radius = final.layer_radius[1]
+    lengths = np.where(system.free < 3, 1.0, radius)
+    stiffness = float(np.sum(layer.areas / layer.thickness))
+    at_zero = system.state(system.base, law).eps
+    cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero, certificate_tol)
+    success = bool(finite and cert.passed and np.isfinite(pressure).all())
+    info = {k: v for k, v in inner.info.items() if k != "stress"}
+    info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite",
+                residual_history=history)
+    status = _status(inner.status, success, system, state)
+    if tracker is not None:
+        info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
+    dropped = None if tracker is None else tracker.counts["dropped"]
+    message = inner.message
+    held = problem.system().resistance.describe(problem.free_names) if len(system.free) else []
+    if held:
+        # As for the small kinematics: directions no spring resists at zero displacement take no
+        # motion and carry no load (the minimum-norm answer).
+        info["held"] = held
+        message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
+    return FiniteSolution(problem=final, u=u, strain=state.eps, pressure=pressure, method=method, success=success,
+                          status=status, message=message, iterations=inner.iterations, build_time=build,
+                          solve_time=solve_time, certificate=cert, info=info, targets=targets, dropped=dropped,
+                          tracker=tracker)

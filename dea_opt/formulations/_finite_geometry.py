@@ -1,0 +1,330 @@
+"""Finite kinematics, geometry: exact rotations and each spring's gap to its target, with derivatives.
+
+Written math: ``formulations/finite.md`` ("Pose", "Targets", "Gap and its derivative"). Body 2's
+pose is ``x' = c + t + R(theta) (x - c)`` with ``R`` the exact rotation of the rotation vector
+``theta`` about the reference ``c``. Each spring ``i`` of the layer (a point ``p_i`` and a unit
+normal ``n_i`` of body 1, which stays fixed) looks along its ray ``p_i + s n_i`` at its target on
+body 2: the tangent plane of a mesh face (a point ``q_i`` and the face's outward normal ``m_i``)
+or a sphere (centre ``o_i``, radius ``rho_i``, the spring outside a ball or inside a socket).
+The gap ``s_i`` is where the ray meets the target moved by the pose; its derivative along a
+motion of body 2 (translation rate ``v`` of the reference, angular velocity ``w``) is
+
+    ds_i = m_i' . (v + w x (h_i - c')) / (n_i . m_i')
+
+with ``h_i = p_i + s_i n_i`` the hit and ``m_i'`` the target's normal there. Lengths in mm.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import InputError
+
+__all__ = ["Gaps", "Targets", "evaluate", "left_jacobian", "pose_matrix", "rotation", "rotation_and_jacobian"]
+
+#: ``|n . m'|`` below which a ray runs along its target (no gap): the target turned away.
+FACING = 1e-9
+#: Gap (mm) of a spring whose ray misses its target: open, it carries nothing.
+MISSED = np.inf
+
+
+def _coefficients(theta):
+    """``(a, b, c)`` = ``(sin t / t, (1 - cos t) / t^2, (t - sin t) / t^3)`` of ``t = |theta|``.
+
+    Written in ``tau = theta . theta`` (each is an even, entire function of ``t``), so that a
+    complex ``theta`` (the complex-step derivative of :func:`left_jacobian`) is exact too; the
+    Taylor series below ``tau = 1e-6`` avoid the cancellation of the closed forms.
+    """
+    tau = theta @ theta
+    if abs(tau) < 1e-6:
+        a = 1 - tau / 6 + tau**2 / 120
+        b = 0.5 - tau / 24 + tau**2 / 720
+        c = 1 / 6 - tau / 120 + tau**2 / 5040
+        return a, b, c
+    t = np.sqrt(tau + 0j) if np.iscomplexobj(theta) else np.sqrt(tau)
+    s, co = np.sin(t), np.cos(t)
+    return s / t, (1 - co) / tau, (t - s) / (tau * t)
+
+
+def _hat(v) -> np.ndarray:
+    """``[v]x``, the matrix of ``v x``."""
+    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]], dtype=np.result_type(v, float))
+
+
+def rotation(theta) -> np.ndarray:
+    """``R = exp([theta]x) = I + a [theta]x + b [theta]x^2`` (Rodrigues), shape (3, 3)."""
+    theta = np.asarray(theta)
+    a, b, _ = _coefficients(theta)
+    W = _hat(theta)
+    return np.eye(3) + a * W + b * (W @ W)
+
+
+def left_jacobian(theta) -> np.ndarray:
+    """``J(theta) = I + b [theta]x + c [theta]x^2``: ``dR R^T = [J dtheta]x`` (3, 3).
+
+    The angular velocity of body 2 is ``w = J(theta) dtheta/dt`` for a rate of its rotation
+    vector; ``J^T M`` is the generalized force of a moment ``M`` on the rotation vector.
+    """
+    theta = np.asarray(theta)
+    _, b, c = _coefficients(theta)
+    W = _hat(theta)
+    return np.eye(3) + b * W + c * (W @ W)
+
+
+def rotation_and_jacobian(theta) -> tuple[np.ndarray, np.ndarray]:
+    return rotation(theta), left_jacobian(theta)
+
+
+def jacobian_transpose_derivative(theta, moment) -> np.ndarray:
+    """``D[:, j] = d/dtheta_j (J(theta)^T moment)`` (3, 3), exact by complex steps (no subtraction)."""
+    theta = np.asarray(theta, dtype=float)
+    moment = np.asarray(moment, dtype=float)
+    h = 1e-30
+    out = np.empty((3, 3))
+    for j in range(3):
+        step = theta.astype(complex)
+        step[j] += 1j * h
+        out[:, j] = (left_jacobian(step).T @ moment).imag / h
+    return out
+
+
+def pose_matrix(u6, reference) -> np.ndarray:
+    """The 4x4 pose of a body displaced by ``u6 = (ux, uy, uz, rx, ry, rz)`` about ``reference``:
+    ``x' = c + t + R(theta) (x - c)`` with the exact rotation of the rotation vector."""
+    u6 = np.asarray(u6, dtype=float)
+    c = np.asarray(reference, dtype=float)
+    T = np.eye(4)
+    T[:3, :3] = rotation(u6[3:6])
+    T[:3, 3] = c + u6[:3] - T[:3, :3] @ c
+    return T
+
+
+@dataclass(frozen=True, eq=False)
+class Targets:
+    """Each spring's target on body 2, in body 2's own frame, and where that frame sits.
+
+    A target is the tangent plane of a face (``radius == 0``: a point ``points[i]`` on it and its
+    unit outward normal ``normals[i]``, the side body 1 faces) or a sphere (``radius > 0``:
+    centre ``points[i]``; ``concave[i]`` when the spring sits inside it, as in a socket, else
+    outside a ball). ``frame`` (4x4) places body 2's own frame at zero displacement: mesh 2's
+    pose of the cast (identity for targets given in the world frame). ``faces`` are the faces of
+    mesh 2 the planes belong to (None for targets not cast from a mesh).
+
+    Build them with :meth:`planes`, :meth:`spheres`, :meth:`facing` or :meth:`from_layer`.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    radius: np.ndarray
+    concave: np.ndarray
+    frame: np.ndarray
+    faces: np.ndarray | None = None
+
+    def __post_init__(self):
+        n = len(self.points)
+        for name, arr, shape in (("points", self.points, (n, 3)), ("normals", self.normals, (n, 3)),
+                                 ("radius", self.radius, (n,)), ("concave", self.concave, (n,)),
+                                 ("frame", self.frame, (4, 4))):
+            if np.shape(arr) != shape:
+                raise InputError(f"targets.{name} must have shape {shape}, got {np.shape(arr)}")
+        if not (np.isfinite(self.points).all() and np.isfinite(self.normals).all() and np.isfinite(self.radius).all()):
+            raise InputError("targets must be finite (points, normals, radius)")
+        if (self.radius < 0).any():
+            raise InputError(f"targets.radius must be >= 0 (0 for a plane), got {self.radius.min():g}")
+        plane = self.radius == 0
+        length = np.linalg.norm(self.normals[plane], axis=1)
+        if plane.any() and np.abs(length - 1).max() > 1e-6:
+            raise InputError("targets.normals of planes must be unit vectors")
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    @property
+    def is_plane(self) -> np.ndarray:
+        return self.radius == 0
+
+    def subset(self, index) -> Targets:
+        faces = None if self.faces is None else self.faces[index]
+        return Targets(self.points[index], self.normals[index], self.radius[index], self.concave[index],
+                       self.frame, faces)
+
+    def with_frame(self, frame) -> Targets:
+        """The same targets with body 2's own frame placed by ``frame`` (4x4) at zero displacement."""
+        return Targets(self.points, self.normals, self.radius, self.concave, np.asarray(frame, dtype=float),
+                       self.faces)
+
+    # --- constructors -------------------------------------------------------------------
+    @classmethod
+    def planes(cls, points, normals) -> Targets:
+        """Planes through ``points`` (N, 3) with unit outward ``normals`` (N, 3), in the world frame
+        at zero displacement (mm)."""
+        points = _array("points", points, 2)
+        normals = _array("normals", normals, 2)
+        if normals.shape != points.shape:
+            raise InputError(f"normals must have the shape of points {points.shape}, got {normals.shape}")
+        length = np.linalg.norm(normals, axis=1)
+        if len(length) and not (length > 0).all():
+            raise InputError("normals must be nonzero vectors")
+        n = len(points)
+        return cls(points, normals / length[:, None], np.zeros(n), np.zeros(n, bool), np.eye(4))
+
+    @classmethod
+    def spheres(cls, centres, radius, concave=False, n=None) -> Targets:
+        """Spheres of centre ``centres`` ((N, 3) or (3,)) and ``radius`` (> 0, mm; (N,) or a
+        number): ``concave`` when the springs sit inside them (a socket), else outside (a ball).
+        ``n`` broadcasts one sphere to ``n`` springs."""
+        centres = np.atleast_2d(_array("centres", centres, None))
+        n = len(centres) if n is None else int(n)
+        centres = np.broadcast_to(centres, (n, 3)).copy() if len(centres) in (1, n) else centres
+        radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,)).copy()
+        if not (np.isfinite(radius).all() and (radius > 0).all()):
+            raise InputError(f"radius must be finite and > 0 (mm), got {radius.min() if n else radius}")
+        concave = np.broadcast_to(np.asarray(concave, dtype=bool), (n,)).copy()
+        return cls(centres, np.zeros((n, 3)), radius, concave, np.eye(4))
+
+    @classmethod
+    def facing(cls, layer) -> Targets:
+        """Each spring's own plane: through ``p + gap n`` with normal ``-n`` (a flat target normal
+        to the spring, as for a rigid flat punch on a bed). The default without targets."""
+        return cls.planes(layer.points + layer.gap[:, None] * layer.normals, -layer.normals)
+
+    @classmethod
+    def from_layer(cls, layer, pose=None) -> Targets:
+        """The tangent planes of the faces of mesh 2 a cast layer's springs met.
+
+        ``pose`` is mesh 2's pose of the cast (``cast.pose``); without it, it is recovered from the
+        layer (the rigid map from ``target_points`` to the hits ``points + gap normals``) and
+        checked to 1e-6 mm.
+        """
+        if not getattr(layer, "has_targets", False):
+            raise InputError("the layer has no targets (target_points, target_normals, target_faces): give "
+                             "Targets.planes(...) or Targets.spheres(...), or cast the springs from meshes")
+        hits = layer.points + layer.gap[:, None] * layer.normals
+        frame = _recover_frame(layer.target_points, hits) if pose is None else np.asarray(pose, dtype=float)
+        n = len(layer)
+        return cls(np.array(layer.target_points), np.array(layer.target_normals), np.zeros(n), np.zeros(n, bool),
+                   frame, np.array(layer.target_faces))
+
+
+def _array(name, value, ndim) -> np.ndarray:
+    try:
+        arr = np.array(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be numeric, got {type(value).__name__}") from None
+    if (ndim == 2 and (arr.ndim != 2 or arr.shape[1] != 3)) or arr.shape[-1:] != (3,):
+        raise InputError(f"{name} must have shape (N, 3), got {arr.shape}")
+    if not np.isfinite(arr).all():
+        raise InputError(f"{name} must be finite")
+    return arr
+
+
+def _recover_frame(own, world) -> np.ndarray:
+    """The rigid 4x4 map of points ``own`` (N, 3) onto ``world`` (Kabsch), the identity when it fits."""
+    scale = max(float(np.abs(world).max(initial=0.0)), 1.0)
+    if not len(own) or np.abs(own - world).max() <= 1e-9 * scale:
+        return np.eye(4)
+    a, b = own.mean(axis=0), world.mean(axis=0)
+    U, _, Vt = np.linalg.svd((own - a).T @ (world - b))
+    D = np.diag([1.0, 1.0, np.sign(np.linalg.det(Vt.T @ U.T))])
+    R = Vt.T @ D @ U.T
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, b - R @ a
+    error = float(np.abs(own @ R.T + T[:3, 3] - world).max())
+    if error > 1e-6 * scale:
+        raise InputError(f"the layer's targets are not one rigid motion away from its hits (off by {error:.3g} mm): "
+                         f"pass the cast's pose, Targets.from_layer(layer, pose=cast.pose)")
+    return T
+
+
+@dataclass(frozen=True, eq=False)
+class Gaps:
+    """The springs' gaps at one pose.
+
+    Attributes
+    ----------
+    s : ndarray (N,)
+        Gap along each spring's ray (mm); ``inf`` where it misses its target (open).
+    hit : ndarray (N, 3)
+        ``p + s n`` (world frame, mm); NaN where missed.
+    m : ndarray (N, 3)
+        The target's unit outward normal at the hit (world frame).
+    along : ndarray (N,)
+        ``n . m`` (< 0 where the target faces the spring).
+    valid : ndarray of bool (N,)
+    """
+
+    s: np.ndarray
+    hit: np.ndarray
+    m: np.ndarray
+    along: np.ndarray
+    valid: np.ndarray
+
+    def rows(self, centre) -> np.ndarray:
+        """``b_i = [m; (h - c') x m] / (n . m)`` (6, N): ``ds_i`` per unit translation of body 2's
+        reference and per unit angular velocity; zero where missed."""
+        out = np.zeros((6, len(self.s)))
+        v = self.valid
+        scale = 1.0 / self.along[v]
+        out[:3, v] = (self.m[v] * scale[:, None]).T
+        out[3:, v] = (np.cross(self.hit[v] - centre, self.m[v]) * scale[:, None]).T
+        return out
+
+
+def evaluate(targets: Targets, points, normals, transform) -> Gaps:
+    """The gaps of springs ``(points, normals)`` to ``targets`` moved by ``transform`` (4x4: body 2's
+    own frame to the world, i.e. the displacement composed with ``targets.frame``)."""
+    R, shift = transform[:3, :3], transform[:3, 3]
+    n_springs = len(points)
+    s = np.full(n_springs, MISSED)
+    m = np.zeros((n_springs, 3))
+    along = np.zeros(n_springs)
+    plane = targets.is_plane
+    if plane.all():
+        _plane(targets.points, targets.normals, points, normals, R, shift, s, m, along, slice(None))
+    else:
+        for rows in (np.flatnonzero(plane), np.flatnonzero(~plane)):
+            if not len(rows):
+                continue
+            if plane[rows[0]]:
+                _plane(targets.points[rows], targets.normals[rows], points[rows], normals[rows], R, shift, s, m,
+                       along, rows)
+            else:
+                _sphere(targets.points[rows] @ R.T + shift, targets.radius[rows], targets.concave[rows],
+                        points[rows], normals[rows], s, m, along, rows)
+    valid = np.isfinite(s)
+    hit = points + np.where(valid, s, np.nan)[:, None] * normals
+    return Gaps(s, hit, m, along, valid)
+
+
+def _plane(q, mq, p, n, R, shift, s, m, along, rows) -> None:
+    mm = mq @ R.T
+    a = np.einsum("ij,ij->i", n, mm)
+    b = np.einsum("ij,ij->i", q @ R.T + shift - p, mm)
+    facing = a < -FACING
+    with np.errstate(divide="ignore", invalid="ignore"):
+        s[rows] = np.where(facing, b / np.where(facing, a, -1.0), MISSED)
+    m[rows], along[rows] = mm, a
+
+
+def _sphere(o, rho, concave, p, n, s, m, along, rows) -> None:
+    d = p - o
+    beta = np.einsum("ij,ij->i", n, d)
+    gamma = np.einsum("ij,ij->i", d, d) - rho**2
+    disc = beta**2 - gamma
+    root = np.sqrt(np.maximum(disc, 0.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        # The root that cancels least: s1 s2 = gamma (the product of the roots).
+        near = np.where(beta <= 0, gamma / (root - beta), -beta - root)  # entering a ball
+        far = np.where(beta >= 0, -gamma / (beta + root), root - beta)  # leaving from inside a socket
+    gap = np.where(concave, far, near)
+    # A ball wholly behind a spring outside it (both roots negative) is no target.
+    behind = ~concave & (gamma > 0) & (beta > 0)
+    hit = p + gap[:, None] * n
+    sign = np.where(concave, -1.0, 1.0)
+    normal = sign[:, None] * (hit - o) / rho[:, None]
+    a = -root / rho
+    ok = (disc >= 0) & ~behind & (root > FACING * rho)
+    s[rows] = np.where(ok, gap, MISSED)
+    m[rows], along[rows] = np.where(ok[:, None], normal, 0.0), np.where(ok, a, 0.0)

@@ -1,0 +1,199 @@
+"""Finite kinematics, Newton: the consistent tangent and the small-kinematics Newton's globalization.
+
+Written math: ``formulations/finite.md`` ("Newton"). The iterate is body 2's free coordinates
+``x = x0 + T xi`` in the scaled variables of :func:`~dea_opt.formulations.energy.scaling`
+(``T`` from the layer at the start pose). Each iteration solves ``T^T K T dxi = -T^T r`` with
+the exact (non-symmetric) tangent ``K`` of the residual ``r``, and searches the line with the
+Wolfe conditions of the small Newton on ``phi'(a) = r(x + a T dxi) . T dxi``: the power of the
+net forces along the line, the derivative of a 1-D energy whatever the forces. Where the Newton
+direction is no descent (the tangent's skew part dominates) the symmetric part, then the
+springs' material stiffness, give one; where the compressed springs miss a direction, the safe
+step of the small Newton adds the stiffness of every spring.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .energy import UNRESISTED, unresisted
+from .newton import _line_search
+
+_WOLFE_CURVATURE = 0.9
+_WOLFE_CURVATURE_SAFE = 0.01
+_SAFE_WEIGHT = 1e-3
+_CRUSH_WINDOW = 1e-4
+
+
+@dataclass
+class InnerResult:
+    """What one Newton (or IPOPT) solve with fixed targets found."""
+
+    u_free: np.ndarray
+    state: object
+    success: bool
+    status: str
+    message: str
+    iterations: int = 0
+    solve_time: float = 0.0
+    info: dict = field(default_factory=dict)
+
+
+class _Line:
+    """``phi'(a) = r(x + a d) . d`` (scaled), one pass over the springs per evaluation; ``phi`` is its
+    integral from 0 (Simpson's rule on the cached slopes), used only to accept a slight overshoot."""
+
+    def __init__(self, system, law, x, direction, energy_scale, slope0):
+        self.system, self.law, self.x, self.d = system, law, x, direction
+        self.scale, self.slope0 = energy_scale, slope0
+        self._cache: dict = {}
+
+    def slope(self, alpha):
+        if alpha in self._cache:
+            return self._cache[alpha]
+        state = self.system.state(self.system.coordinates(self.x + alpha * self.d), self.law)
+        if state.crushed or not state.finite:
+            out = (np.inf, state)  # beyond the law's domain, or a target lost edge-on: an overshoot
+        else:
+            value = float(state.residual() @ self.d) / self.scale
+            out = (value if np.isfinite(value) else np.inf, state)
+        self._cache = {alpha: out}
+        return out
+
+    def phi(self, alpha) -> float:
+        if alpha == 0:
+            return 0.0
+        end = self.slope(alpha)[0]
+        middle = self.slope(0.5 * alpha)[0]
+        value = alpha * (self.slope0 + 4.0 * middle + end) / 6.0
+        return value if np.isfinite(value) else np.inf
+
+    energy = phi  # the name the small Newton's line search used before the registry
+
+
+def _direction(K, g, material) -> tuple[np.ndarray, bool]:
+    """``(d, safe)``: ``-K^{-1} g``, its pseudo-inverse where ``g`` lies in ``K``'s range, else a safe
+    step ``-(K + 1e-3 K_all)^{-1} g`` (``K_all`` the material stiffness of every spring)."""
+    if not g.size:
+        return g.copy(), False
+    if not (np.isfinite(K).all() and np.isfinite(g).all()):
+        return np.full_like(g, np.nan), False
+    U, sv, Vt = np.linalg.svd(K)
+    keep = ~unresisted(sv, max(float(sv[0]), 1.0))
+    if keep.all():
+        return -np.linalg.solve(K, g), False
+    coeff = U[:, keep].T @ g
+    outside = g - U[:, keep] @ coeff
+    if keep.any() and np.linalg.norm(outside) <= 1e-9 * np.linalg.norm(g):
+        return -(Vt[keep].T @ (coeff / sv[keep])), False
+    K = K + _SAFE_WEIGHT * material()
+    try:
+        return -np.linalg.solve(K, g), True
+    except np.linalg.LinAlgError:
+        return -np.linalg.lstsq(K, g, rcond=UNRESISTED)[0], True
+
+
+def _descent(K, g, material) -> tuple[np.ndarray, bool, str]:
+    """A direction with ``g . d < 0``: Newton's, else the symmetric part's, else the material one's."""
+    d, safe = _direction(K, g, material)
+    if g @ d < 0:
+        return d, safe, "newton"
+    d, safe = _direction(0.5 * (K + K.T), g, material)
+    if g @ d < 0:
+        return d, safe, "symmetric"
+    Km = material()
+    try:
+        d = -np.linalg.solve(Km + _SAFE_WEIGHT * np.trace(Km) / max(len(g), 1) * np.eye(len(g)), g)
+    except np.linalg.LinAlgError:
+        d = -g
+    return d, True, "material"
+
+
+def solve(system, law, T, energy_scale, *, x0, xtol=1e-12, gtol=1e-12, max_iter=100, extended_start=True,
+          cold=True) -> InnerResult:
+    """Newton's method on the finite-kinematics residual of ``system`` (targets fixed).
+
+    Parameters
+    ----------
+    system : FiniteSystem
+    law : Law
+    T : ndarray (m, k)
+        The scaled directions: ``x = x0 + T xi``.
+    energy_scale : float
+        ``E0`` (N mm): residuals are divided by it in the scaled variables.
+    x0 : ndarray (m,)
+        Start (mm, rad).
+    cold : bool
+        ``x0`` is no warm start: the first iteration may use the extended range.
+    """
+    start = time.perf_counter()
+    free = system.free
+    x = np.array(x0, dtype=float)
+    state = system.state(system.coordinates(x), law)
+    status, message, success = "max_iterations", f"no convergence in {max_iter} iterations", False
+    history, evaluations, kinds = [], 0, []
+    previous_active = None
+    it = 0
+    for it in range(1, max_iter + 1):
+        if not state.finite:
+            status, message = "non_finite", "the law returned a non-finite stress, or a target was lost edge-on"
+            break
+        g = T.T @ state.residual() / energy_scale
+        norm = max(float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
+                   float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale, 1.0)
+        gnorm = float(np.linalg.norm(g)) / norm
+        history.append(gnorm)
+        if gnorm <= gtol:
+            status, message, success = "converged", "equilibrium residual below gtol", True
+            break
+
+        def material(state=state):
+            return T.T @ state.material() @ T / energy_scale
+
+        d = None
+        if it == 1 and extended_start and cold:
+            bilateral = system.state(state.y, law, bilateral=True)
+            if bilateral.finite:
+                Kb = T.T @ bilateral.tangent() @ T / energy_scale
+                d, safe = _direction(Kb, T.T @ bilateral.residual() / energy_scale, material)
+                kind = "extended"
+                if not (np.isfinite(d).all() and g @ d < 0):
+                    d = None  # no descent for the unilateral problem
+        if d is None:
+            K = T.T @ state.tangent() @ T / energy_scale
+            d, safe, kind = _descent(K, g, material)
+        kinds.append(kind)
+        slope = float(g @ d)
+        if not (np.isfinite(slope) and slope < 0):
+            status, message = "stalled", "no descent direction (a load along a direction no spring resists?)"
+            break
+        Td = T @ d
+        line = _Line(system, law, x, Td, energy_scale, slope)
+        alpha, trial, used = _line_search(line, slope, _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE)
+        evaluations += used
+        if alpha is None:
+            status, message = "line_search_failed", "the line search found no acceptable step"
+            break
+        step = alpha * Td
+        x = x + step
+        state = trial
+        active = state.eps < 0
+        settled = previous_active is not None and np.array_equal(active, previous_active)
+        previous_active = active
+        scaled_step = float(np.linalg.norm(alpha * d))
+        size = float(np.linalg.norm(np.linalg.lstsq(T, x - x0, rcond=None)[0])) if T.size else 0.0
+        if alpha == 1.0 and settled and scaled_step <= xtol * max(size, 1e-300):
+            g = T.T @ state.residual() / energy_scale
+            norm = max(float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
+                       float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale, 1.0)
+            if float(np.linalg.norm(g)) / norm <= max(gtol, 1e-9):
+                status, message, success = "converged", "step below xtol (Eq. 20)", True
+                break
+    if not success and law.bounded_strain and state.eps[state.gaps.valid].min(initial=0.0) < -1 + _CRUSH_WINDOW:
+        status = "crushed"
+        message = (f"{message}; springs reach eps = {state.eps.min():.6f}, crushed through their thickness before "
+                   f"the load is carried: the load is beyond what this layer can bear")
+    return InnerResult(x, state, success, status, message, it, time.perf_counter() - start,
+                       {"residual_history": history, "line_evaluations": evaluations, "directions": kinds})

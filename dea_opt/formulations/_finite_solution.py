@@ -1,0 +1,143 @@
+"""Finite kinematics, results: the solution at the solved pose and its certificate there.
+
+Written math: ``formulations/finite.md`` ("Certificate in the deformed configuration"). The
+certificate is the one of :func:`dea_opt.solution.certify`, with every quantity taken at the
+solved pose: the forces the springs exert along their directions ``n_i`` about body 2's current
+reference point ``c' = c + t``, mapped to the free coordinates by ``blockdiag(I, J(theta))``,
+against the load mapped the same way; the strains are the gaps at that pose over the thickness.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+
+from ..kinematics import DOF_NAMES
+from ..solution import Solution, certify
+from .energy import SpringSystem
+
+
+class _Deformed:
+    """What :func:`~dea_opt.solution.certify` reads of a problem, at the solved pose."""
+
+    def __init__(self, layer, law, system: SpringSystem, free_indices, eps):
+        self.layer, self.law, self._system, self.free_indices, self._eps = layer, law, system, free_indices, eps
+
+    def system(self) -> SpringSystem:
+        return self._system
+
+    def strain(self, u) -> np.ndarray:
+        return self._eps
+
+
+def generalized(state) -> np.ndarray:
+    """Each spring's force direction on body 2's six coordinates, ``blockdiag(I, J)^T a_i`` (6, N)."""
+    A = state.force_rows()
+    A[3:] = state.J.T @ A[3:]
+    return A
+
+
+def certificate(state, law, layer, lengths, stiffness, u, reported_stress, strain_at_zero, tolerance):
+    """The :class:`~dea_opt.solution.Certificate` of a finite-kinematics answer at its solved pose.
+
+    Parameters
+    ----------
+    state : State
+        The springs at the solved pose.
+    layer : SpringLayer
+        The springs (for their areas).
+    lengths : ndarray (m,)
+        The free coordinates' lengths (1 mm; the layer's radius for a rotation).
+    stiffness : float
+        ``sum_i S_i / h_i`` (mm).
+    u : ndarray (12,)
+    reported_stress : ndarray (N,)
+        The formulation's spring stress (MPa).
+    strain_at_zero : ndarray (N,)
+        The strains with the free coordinates at zero (the initial overlap of gaps and prescribed motion).
+    """
+    system = state.system
+    free = system.free
+    eps = _finite(state.eps)
+    AT = np.ascontiguousarray(generalized(state)[free] / system.thickness)
+    load = state.load6[free]
+    volume = system.areas * system.thickness
+    # A small factor R (R^T R = A^T diag(V) A) spares the decision of the resisted directions an
+    # SVD of the N x m matrix.
+    factor = np.linalg.qr((AT * np.sqrt(volume)).T, mode="r") if AT.size else np.zeros((0, len(free)))
+    small = SpringSystem(AT, _finite(strain_at_zero), volume, load, lengths, factor, stiffness)
+    deformed = _Deformed(layer, law, small, 6 + free, eps)
+    return certify(deformed, u, reported_stress, tolerance)
+
+
+def _finite(eps) -> np.ndarray:
+    """Strains of springs whose ray misses its target (``inf``) as a large finite number: open."""
+    return np.where(np.isfinite(eps), eps, 1e300)
+
+
+@dataclass(frozen=True, eq=False)
+class FiniteSolution(Solution):
+    """A :class:`~dea_opt.solution.Solution` of finite kinematics: every quantity at the solved pose.
+
+    ``problem.layer`` holds the springs of the solved pose (after any re-casts); ``strain`` is
+    each spring's gap at that pose over its thickness. ``targets`` are the springs' targets
+    (:class:`~dea_opt.formulations._finite_geometry.Targets`); ``info`` counts the re-casts and
+    the springs they gained, lost and dropped (``info["recast"]``); ``tracker`` is the re-casting
+    state a load path's next frame continues from.
+    """
+
+    targets: object = None
+    dropped: int | None = None
+    tracker: object = field(default=None, repr=False)
+
+    @property
+    def pose(self) -> np.ndarray:
+        """Body 2's mesh pose in body 1's frame (4x4): the exact motion of ``u`` composed with the pose
+        the springs' targets were cast at; ``SpringLayer.from_meshes(..., pose=solution.pose)``
+        casts the springs afresh there."""
+        from ._finite_geometry import pose_matrix
+
+        frame = np.eye(4) if self.targets is None else self.targets.frame
+        return pose_matrix(self.u[6:], self.problem.body2.reference) @ frame
+
+    @property
+    def contact_moment(self) -> np.ndarray:
+        """Moment the springs exert on body 2 about its reference point at the solved pose (N mm)."""
+        arm = self.problem.layer.points - (np.asarray(self.problem.body2.reference) + self.u[6:9])
+        return np.cross(arm, self._normal_forces).sum(axis=0)
+
+    @property
+    def reactions(self) -> dict:
+        """Generalized force the supports apply at every coordinate that is not free (N, N mm): body 1's
+        six about its reference, body 2's on its translation and rotation vector at the solved pose."""
+        from ._finite_geometry import left_jacobian
+
+        problem, layer = self.problem, self.problem.layer
+        f = -self.pressure * layer.areas
+        c1 = np.asarray(problem.body1.reference)
+        q1 = -np.concatenate([f @ layer.normals, f @ np.cross(layer.points - c1, layer.normals)])
+        c2 = np.asarray(problem.body2.reference) + self.u[6:9]
+        J = left_jacobian(self.u[9:12])
+        spring2 = np.concatenate([f @ layer.normals, J.T @ (f @ np.cross(layer.points - c2, layer.normals))])
+        load = problem.load_vector
+        load2 = np.concatenate([load[6:9], J.T @ load[9:12]])
+        reaction = np.concatenate([q1 - load[:6], spring2 - load2])
+        held = np.setdiff1d(np.arange(12), problem.free_indices)
+        return {DOF_NAMES[i]: float(reaction[i]) for i in held}
+
+    @cached_property
+    def validity(self):
+        """The validity report at the solved pose, with the springs the window dropped there (when
+        the springs were re-cast from meshes)."""
+        from ..validity import assess
+
+        return assess(self.problem, self.u, self.strain, self.pressure, dropped=self.dropped)
+
+    def summary(self) -> dict:
+        out = super().summary()
+        out["kinematics"] = "finite"
+        out["pose"] = self.pose.tolist()
+        out["recast"] = dict(self.info.get("recast", {}))
+        return out

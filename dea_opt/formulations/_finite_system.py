@@ -1,0 +1,189 @@
+"""Finite kinematics, equilibrium: the springs' forces at a pose of body 2, the residual and its tangent.
+
+Written math: ``formulations/finite.md`` ("Forces", "Residual", "Tangent"). Body 2's coordinates
+are ``y = (t, theta)``: the translation of its reference point and its rotation vector (``u[6:12]``
+of the 12-vector, taken exactly). Spring ``i`` pushes body 2 along its own direction ``n_i`` (body
+1, fixed) with ``f_i = S_i sigma(min(s_i / h_i, 0))`` (tension positive), ``s_i`` the gap to its
+target at the pose. On the six coordinates the net generalized force is
+
+    r(y) = [rho_F; J(theta)^T rho_M],   rho_F = sum_i f_i n_i - F,
+    rho_M = sum_i f_i (p_i - c') x n_i - M,   c' = c + t
+
+(``F`` a constant force at the reference, ``M`` a constant moment), zero on the free coordinates
+at equilibrium; on the others it is minus the reaction. Its exact Jacobian is the tangent.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ._finite_geometry import (
+    Targets,
+    evaluate,
+    jacobian_transpose_derivative,
+    rotation_and_jacobian,
+)
+
+
+@dataclass(frozen=True, eq=False)
+class FiniteSystem:
+    """The arrays of a finite-kinematics problem: springs, targets, body 2's coordinates and load.
+
+    Attributes
+    ----------
+    points, normals : ndarray (N, 3)
+        The springs on body 1 (mm, unit), fixed.
+    areas, thickness : ndarray (N,)
+        ``S_i`` (mm^2), ``h_i`` (mm).
+    targets : Targets
+    reference : ndarray (3,)
+        ``c``: body 2's reference point at zero displacement (mm).
+    free : ndarray of int (m,)
+        Body 2's free coordinates among ``(ux, uy, uz, rx, ry, rz)`` = ``(t, theta)``.
+    base : ndarray (6,)
+        Body 2's coordinates with the free ones at zero (prescribed values, zeros).
+    force, moment : ndarray (3,)
+        The load on body 2: ``F`` (N) at its reference, ``M`` (N mm), constant in space.
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    areas: np.ndarray
+    thickness: np.ndarray
+    targets: Targets
+    reference: np.ndarray
+    free: np.ndarray
+    base: np.ndarray
+    force: np.ndarray
+    moment: np.ndarray
+    cross: np.ndarray = field(init=False, repr=False)
+
+    def __post_init__(self):
+        # p x n once: the moment about c' is sum f (p x n) - c' x sum f n
+        object.__setattr__(self, "cross", np.cross(self.points, self.normals))
+
+    def __len__(self) -> int:
+        return len(self.points)
+
+    def coordinates(self, u_free) -> np.ndarray:
+        """Body 2's six coordinates ``y`` for the free values ``u_free`` (mm, rad)."""
+        y = self.base.copy()
+        y[self.free] = u_free
+        return y
+
+    def transform(self, y) -> np.ndarray:
+        """Body 2's own frame to the world at ``y``: the displacement composed with ``targets.frame``."""
+        R, _ = rotation_and_jacobian(y[3:6])
+        D = np.eye(4)
+        D[:3, :3] = R
+        D[:3, 3] = self.reference + y[:3] - R @ self.reference
+        return D @ self.targets.frame
+
+    def with_load(self, force, moment) -> FiniteSystem:
+        return FiniteSystem(self.points, self.normals, self.areas, self.thickness, self.targets, self.reference,
+                            self.free, self.base, np.asarray(force, float), np.asarray(moment, float))
+
+    def with_springs(self, points, normals, areas, thickness, targets) -> FiniteSystem:
+        return FiniteSystem(points, normals, areas, thickness, targets, self.reference, self.free, self.base,
+                            self.force, self.moment)
+
+    def state(self, y, law, bilateral: bool = False) -> State:
+        """Everything at ``y`` that the residual needs (one pass over the springs)."""
+        return State(self, np.asarray(y, dtype=float), law, bilateral)
+
+
+class State:
+    """The springs' gaps, strains and forces at one pose, the residual there, and (on demand) its tangent.
+
+    ``bilateral`` evaluates the law in tension too (the extended range of a cold start).
+    """
+
+    def __init__(self, system: FiniteSystem, y, law, bilateral: bool = False):
+        self.system, self.y, self.law, self.bilateral = system, y, law, bilateral
+        _, self.J = rotation_and_jacobian(y[3:6])
+        self.centre = system.reference + y[:3]
+        self.gaps = evaluate(system.targets, system.points, system.normals, system.transform(y))
+        self.eps = self.gaps.s / system.thickness
+        with np.errstate(over="ignore", invalid="ignore"):
+            self.sigma = law.stress(self.eps if bilateral else np.minimum(self.eps, 0.0))
+        if bilateral:
+            self.sigma = np.where(self.gaps.valid, self.sigma, 0.0)
+        f = system.areas * self.sigma
+        self.force_sum = f @ system.normals
+        moment = f @ system.cross - np.cross(self.centre, self.force_sum)
+        self.spring = np.concatenate([self.force_sum, moment])  # sum f a_i, spatial, about c'
+        self.net = self.spring - np.concatenate([system.force, system.moment])
+        self.residual6 = np.concatenate([self.net[:3], self.J.T @ self.net[3:]])
+        self.load6 = np.concatenate([system.force, self.J.T @ system.moment])
+        self.internal6 = self.residual6 + self.load6
+
+    @property
+    def finite(self) -> bool:
+        return bool(np.isfinite(self.residual6).all())
+
+    @property
+    def crushed(self) -> bool:
+        """Beyond a bounded law's domain (a spring at ``eps <= -1``)."""
+        return bool(self.law.bounded_strain and self.eps[self.gaps.valid].min(initial=0.0) <= -1.0)
+
+    def residual(self) -> np.ndarray:
+        """``r(y)`` on the free coordinates (N, N mm)."""
+        return self.residual6[self.system.free]
+
+    def force_rows(self) -> np.ndarray:
+        """``a_i = [n_i; (p_i - c') x n_i]`` (6, N): spring ``i``'s force direction and moment arm."""
+        s = self.system
+        return np.vstack([s.normals.T, (s.cross - np.cross(self.centre, s.normals)).T])
+
+    def tangent(self, rows=None, weights=None) -> np.ndarray:
+        """``dr/dy`` on the free coordinates (m, m): the consistent tangent.
+
+        ``sum_i k_i a_i b_i^T`` over the compressed springs (``k_i = S_i sigma'(eps_i) / h_i``,
+        ``b_i`` the gap's derivative), the lever arm moving with the reference, mapped by
+        ``blockdiag(I, J)``, plus the derivative of ``J^T`` against the net moment.
+        """
+        s, gaps = self.system, self.gaps
+        if rows is None:
+            active = gaps.valid & ((self.eps < 0) | self.bilateral)
+            rows = np.flatnonzero(active)
+        if weights is None:
+            eps = self.eps[rows] if self.bilateral else np.minimum(self.eps[rows], 0.0)
+            weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
+        A = self.force_rows()[:, rows]
+        B = _rows(gaps, rows, self.centre)
+        K = (A * weights) @ B.T
+        K[3:, :3] += _hat(self.force_sum)  # the lever arm p - c' shortens as the reference moves
+        M = np.eye(6)
+        M[3:, 3:] = self.J
+        Kc = np.zeros((6, 6))
+        Kc[:3] = K[:3] @ M
+        Kc[3:] = self.J.T @ K[3:] @ M
+        Kc[3:, 3:] += jacobian_transpose_derivative(self.y[3:6], self.net[3:])
+        free = s.free
+        return Kc[np.ix_(free, free)]
+
+    def material(self) -> np.ndarray:
+        """``sum_i k_i a_i a_i^T`` over every spring with a valid target, at the small-strain
+        modulus where open: symmetric positive (semi)definite, for safe steps."""
+        s, gaps = self.system, self.gaps
+        rows = np.flatnonzero(gaps.valid)
+        eps = np.minimum(self.eps[rows], 0.0)
+        weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
+        A = self.force_rows()[:, rows]
+        M = np.eye(6)
+        M[3:, 3:] = self.J
+        A = M.T @ A
+        A = A[s.free]
+        return (A * weights) @ A.T
+
+
+def _rows(gaps, rows, centre) -> np.ndarray:
+    m, hit, along = gaps.m[rows], gaps.hit[rows], gaps.along[rows]
+    scale = 1.0 / along
+    return np.vstack([(m * scale[:, None]).T, (np.cross(hit - centre, m) * scale[:, None]).T])
+
+
+def _hat(v) -> np.ndarray:
+    return np.array([[0.0, -v[2], v[1]], [v[2], 0.0, -v[0]], [-v[1], v[0], 0.0]])

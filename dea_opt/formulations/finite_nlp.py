@@ -1,0 +1,40 @@
+"""Finite kinematics by IPOPT: the registry's entry ``"finite_nlp"``, the independent cross-check.
+
+Written math: ``formulations/finite_nlp.md``. The same finite-kinematics problem as
+:mod:`~dea_opt.formulations.finite` (exact rotation, gaps at the current pose, forces along the
+springs), solved by IPOPT on a conservative surrogate re-centred at each outer iteration, built in
+CasADi with its own derivatives (:mod:`~dea_opt.formulations._finite_ipopt`); the springs are
+constrained to compression and their forces are the multipliers. Newton and IPOPT agree to 1e-6
+on every test problem (``tests/test_finite.py``).
+"""
+
+from __future__ import annotations
+
+from ._options import Capabilities, Option, Variant
+from .finite import RECAST_OPTIONS, FiniteModel
+
+__all__ = ["CAPABILITIES", "OPTIONS", "Model"]
+
+PAGE = "formulations/finite_nlp.md"
+
+#: The options of ``dea_opt.solve`` with ``method="finite_nlp"`` on a finite problem.
+OPTIONS = (
+    Option("form", str, "constrained", "constrained (each spring's compression a variable, its force the "
+           "multiplier) or reduced (min(eps, 0) in the energy)", choices=("constrained", "reduced")),
+    Option("tol", float, 1e-14, "IPOPT's tolerance in the scaled variables", range=(0, 1), tolerance=True),
+    Option("outer_tol", float, 1e-12, "scaled step of an outer iteration that counts as the fixed point",
+           range=(0, 1), tolerance=True),
+    Option("max_outer", int, 60, "outer iterations (re-centred IPOPT solves) per solve, at most", range=(1, None)),
+    Option("max_iter", int, 3000, "IPOPT iterations per outer iteration, at most", range=(1, None)),
+    Option("ipopt_options", dict, None, "IPOPT option names to values, passed on"),
+    *RECAST_OPTIONS,
+)
+CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",), duals=True, checks_load_first=True)
+EXTRA_OPTIONS = None
+VARIANT = Variant("form", {"constrained": "IPOPT-finite", "reduced": "IPOPT-finite-reduced"})
+
+
+class Model(FiniteModel):
+    """:class:`~dea_opt.formulations.finite.FiniteModel` solved by IPOPT."""
+
+    method = "finite_nlp"

@@ -1,0 +1,325 @@
+"""The pieces wired end to end through ``dea-opt run``/``sweep``/``demo`` and the API (issues 10, 11):
+load paths streamed frame by frame with every frame's status, the anatomical frame from the scenario,
+size checks before resampling, sweep statuses, the demo's regions, and a folder a killed run left
+behind (the re-cast at the solved pose and the unsupported-load diagnostic: test_wiring_recast.py)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from conftest import KNEE
+from typer.testing import CliRunner
+
+from dea_opt.cli import app
+from dea_opt.errors import InputError, SizeLimitError
+from dea_opt.io.atomic import TEMPORARY_NAME
+from dea_opt.io.publish import check_outputs, read_manifest
+from dea_opt.scenario import load_scenario, parse_scenario, read_load_path, schema_text
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text(encoding="utf-8")
+KNEE_EXAMPLES = ROOT / "examples" / "scenarios" / "knee"
+KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
+needs_knee = pytest.mark.skipif(not all((KNEE / f).is_file() for f in KNEE_FILES), reason="no knee meshes")
+runner = CliRunner()
+
+
+def invoke(*args):
+    return runner.invoke(app, [str(a) for a in args])
+
+
+SOCKET = """\
+[geometry]
+kind = "socket"
+radius = 25.0
+thickness = 3.0
+coverage = 80.0
+gap = 0.1
+n_rings = 10
+n_sectors = 30
+[law]
+kind = "linear"
+H = 10.0
+[body2]
+free = ["ux", "uy", "uz"]
+"""
+
+
+def socket_path(tmp_path, rows, extra="") -> Path:
+    """A socket scenario with a load path of ``rows`` ``(time, Fx, Fy, Fz)``."""
+    (tmp_path / "path.csv").write_text("time,Fx,Fy,Fz\n" + "".join(f"{t},{x},{y},{z}\n" for t, x, y, z in rows))
+    scenario = tmp_path / "path.toml"
+    scenario.write_text(SOCKET + '[load_path]\nfile = "path.csv"\n' + extra)
+    return scenario
+
+
+# --- 1. load paths through dea-opt run: streamed, every frame recorded, exit 1 / 3 ----------------
+
+def test_a_path_is_streamed_and_a_frame_that_cannot_be_carried_is_recorded(tmp_path):
+    # frame 2 pulls the head out of the socket (+z): no spring can carry it; the others push it in
+    rows = [(0.1 * k, 0.0, 0.0, 800.0 if k == 2 else -800.0 - 100.0 * k) for k in range(5)]
+    scenario = socket_path(tmp_path, rows)
+    result = invoke("run", scenario, "-o", tmp_path / "out")
+    assert result.exit_code == 1, result.stderr
+    message = result.stderr.strip().splitlines()[-1]
+    assert "1 of 5 frames have no certified answer: frame 2 (0.2 s) load_not_supported" in message
+    assert "failed their certificate" not in message  # not a certificate failure
+    frames = pd.read_csv(tmp_path / "out" / "frames.csv")
+    assert frames["success"].tolist() == [True, True, False, True, True]
+    assert frames.loc[2, "status"] == "load_not_supported" and np.isnan(frames.loc[2, "peak_pressure"])
+    # every frame has its .vtu, written while solving, and the manifest lists each
+    manifest = read_manifest(tmp_path / "out")
+    series = sorted(name for name in manifest["files"] if name.startswith("series_frames/"))
+    assert series == [f"series_frames/frame_{k:04d}.vtu" for k in range(5)]
+    assert manifest["status"] == "certificate failed" and manifest["exit_code"] == 1
+    assert check_outputs(tmp_path / "out") == []
+
+
+def test_run_path_outputs_keeps_nothing_per_frame(tmp_path):
+    from dea_opt.run import run_scenario
+
+    scenario = load_scenario(socket_path(tmp_path, [(0.1 * k, 0.0, 0.0, -500.0 - 200.0 * k) for k in range(4)]))
+    outcome = run_scenario(scenario, tmp_path / "out")
+    assert outcome.exit_code == 0 and outcome.result.solutions is None and outcome.result.pressures is None
+    assert outcome.result.frame_files is not None and len(outcome.result.frame_files.files) == 4
+    # the table still holds each frame's answer: the resultant equals the applied force (own sum)
+    table = outcome.result.table
+    applied = np.linalg.norm(table[["Fx", "Fy", "Fz"]].to_numpy(), axis=1)
+    assert np.allclose(table["resultant"], applied, rtol=1e-6)
+
+
+# --- 2. the anatomical frame from the scenario ------------------------------------------------------
+
+PLATE = """\
+[geometry]
+kind = "plate"
+length = 40.0
+width = 10.0
+nx = 40
+ny = 10
+[law]
+kind = "linear"
+H = 10.0
+[body2]
+free = ["uz", "rx", "ry"]
+[load]
+force = [0.0, 0.0, -500.0]
+point = [5.0, 0.0, 0.0]
+"""
+ANATOMY = '[output]\nanatomy = {medial = [0.0, 1.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "left"}\n'
+
+
+def test_the_scenario_anatomy_reaches_the_json_and_the_map(tmp_path):
+    (tmp_path / "plate.toml").write_text(PLATE + ANATOMY)
+    result = invoke("run", tmp_path / "plate.toml", "-o", tmp_path / "out")
+    assert result.exit_code == 0, result.stderr
+    summary = json.loads((tmp_path / "out" / "contact.json").read_text())
+    springs = pd.read_csv(tmp_path / "out" / "contact.csv", comment="#")
+    points, area, pressure = springs[["x", "y", "z"]].to_numpy(), springs["area"].to_numpy(), springs["pressure"]
+    centroid = area @ points / area.sum()
+    cop = (pressure * area).to_numpy() @ points / (pressure * area).sum()
+    # a left limb: anterior x proximal is the right, lateral; so anterior = proximal x medial... = -x here
+    medial, proximal = np.array([0.0, 1.0, 0.0]), np.array([0.0, 0.0, 1.0])
+    anterior = np.cross(proximal, medial)
+    got = summary["center_of_pressure_anatomical"]
+    expected = (cop - centroid) @ np.array([medial, anterior, proximal]).T
+    assert np.allclose([got["medial"], got["anterior"], got["proximal"]], expected, atol=1e-9)
+    assert summary["anatomy"]["side"] == "left" and np.allclose(summary["anatomy"]["anterior"], anterior)
+    assert (tmp_path / "out" / "contact.png").read_bytes()[:4] == b"\x89PNG"
+
+
+def test_a_path_summary_carries_the_anatomy(tmp_path):
+    scenario = socket_path(tmp_path, [(0.0, 0.0, 0.0, -500.0), (0.1, 0.0, 0.0, -900.0)],
+                           '[output]\nanatomy = {medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, -1.0], '
+                           'side = "right"}\n')
+    assert invoke("run", scenario, "-o", tmp_path / "out").exit_code == 0
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert np.allclose(summary["anatomy"]["anterior"], [0.0, 1.0, 0.0])  # medial x... right limb: +y
+
+
+@pytest.mark.parametrize("value, words", [
+    ('{medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "up"}', "output.anatomy.side must be"),
+    ('{medial = [0.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right"}',
+     "output.anatomy.medial must be a nonzero direction"),
+    ('{medial = [1.0, 0.0, 0.0], proximal = [1.0, 0.1, 0.0], side = "right"}',
+     "output.anatomy.proximal and output.anatomy.medial must be far from parallel"),
+    ('{medial = [1.0, 0.0, 0.0], up = [0.0, 0.0, 1.0]}', "output.anatomy: unknown key up"),
+    ('{medial = [1.0, "a", 0.0], proximal = [0.0, 0.0, 1.0], side = "right"}', "output.anatomy.medial must be"),
+    ('{landmarks = {medial = [1.0, 0.0, 0.0], lateral = [-1.0, 0.0, 0.0], proximal = [0.0, 0.0, 9.0]}}',
+     "output.anatomy.landmarks: side"),
+    ('"right"', "output.anatomy (line 16)"),
+])
+def test_a_bad_anatomy_names_its_key(tmp_path, value, words):
+    (tmp_path / "plate.toml").write_text(PLATE + f"[output]\nanatomy = {value}\n")
+    result = invoke("run", tmp_path / "plate.toml", "-o", tmp_path / "out")
+    assert result.exit_code == 2 and result.stderr.startswith("dea-opt: error:")
+    assert words in result.stderr and "Traceback" not in result.stderr
+    assert not (tmp_path / "out").exists()
+
+
+def test_the_anatomy_key_is_documented():
+    assert "# anatomy = ...  # optional; the anatomical frame" in schema_text()
+    assert "[output] anatomy" in README and "anatomy = {medial" in README
+    knee = (KNEE_EXAMPLES / "knee.toml").read_text()
+    assert "anatomy = { medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = \"right\" }" in knee
+
+
+# --- 3. sizes checked before allocating ----------------------------------------------------------
+
+def test_a_billion_frames_is_a_named_size_error_with_the_estimate(tmp_path):
+    text = SOCKET + '[load_path]\nbuiltin = "hip_gait"\nframes = 1000000000\n'
+    with pytest.raises(SizeLimitError) as info:
+        read_load_path(parse_scenario(text).load_path)
+    error = info.value
+    assert isinstance(error, InputError) and error.what == "load_path.frames = 1000000000"
+    assert error.needed > 1e12 and error.needed > error.available  # a TB-sized table, more than there is
+    (tmp_path / "big.toml").write_text(text)
+    result = invoke("run", tmp_path / "big.toml", "-o", tmp_path / "out")
+    assert result.exit_code == 2 and "load_path.frames = 1000000000 would need about" in result.stderr
+    assert "TB of memory" in result.stderr
+
+
+def test_the_mesh_memory_guard_is_a_size_limit_error():
+    from dea_opt.geometry import hip_meshes
+    from dea_opt.mesh.budget import check_memory
+
+    with pytest.raises(SizeLimitError) as info:
+        hip_meshes(step=0.01)
+    assert "hip_meshes(step=0.01)" in str(info.value) and info.value.needed > info.value.available
+    with pytest.raises(SizeLimitError, match="a request would need about 1e\\+03 PB"):
+        check_memory("a request", 1e18, "ask for less")
+
+
+# --- 5. sweep statuses --------------------------------------------------------------------------
+
+def test_a_sweep_case_outside_validity_is_not_ok(tmp_path):
+    (tmp_path / "plate.toml").write_text(PLATE + '[output]\nformats = ["json"]\n')
+    args = ["sweep", tmp_path / "plate.toml", "--set", "law.H=5,10", "--scheduler", "synchronous"]
+    result = invoke(*args, "-o", tmp_path / "s")
+    assert result.exit_code == 3 and "1 case(s) solved outside validity" in result.stderr
+    table = pd.read_csv(tmp_path / "s" / "sweep.csv").set_index("law.H")
+    strain = table["peak_pressure"] / table.index  # the linear law: strain = pressure / H, computed here
+    assert strain[5] > 0.3 > strain[10]
+    assert table.loc[5, "status"] == "outside_validity" and table.loc[5, "validity_failed"] == "strain"
+    assert table.loc[10, "status"] == "ok" and table.loc[5, "exit_code"] == 3
+    # a rerun and --retry-failed keep the row: it is a finished computation, not a failure
+    again = invoke(*args, "-o", tmp_path / "s", "--retry-failed")
+    assert again.exit_code == 3 and "0 case(s) run, 2 already finished" in again.stdout
+    # allowed by the scenario: exit 0, the row still says so
+    allowed = invoke(*args, "-o", tmp_path / "a", "--set", "solve.allow_outside_validity=true")
+    assert allowed.exit_code == 0, allowed.stderr
+    table = pd.read_csv(tmp_path / "a" / "sweep.csv").set_index("law.H")
+    assert table.loc[5, "status"] == "outside_validity" and table.loc[5, "exit_code"] == 0
+
+
+def test_the_readme_documents_the_sweep_statuses():
+    from dea_opt.sweep.cases import STATUSES
+
+    assert STATUSES == ("ok", "outside_validity", "failed", "error")
+    for status in STATUSES:
+        assert f"| `{status}` |" in README
+
+
+# --- 7. the demo: validity and compartments ----------------------------------------------------
+
+def test_hip_regions_label_the_dome_and_the_walls():
+    from dea_opt.demo import hip_regions
+    from dea_opt.geometry import socket_layer
+
+    layer = socket_layer(25.0, 3.0, 80.0, 16, 36)
+    frame = {"medial": (1.0, 0.0, 0.0), "proximal": (0.0, 0.0, -1.0), "side": "right"}
+    labels = hip_regions(layer, frame, dome=35.0)
+    polar = np.degrees(np.arccos(-layer.points[:, 2] / 25.0))  # from the socket's pole, computed here
+    assert (labels[polar < 35.0 - 1e-9] == "superior").all() and (labels[polar > 35.0 + 1e-9] != "superior").all()
+    walls = polar > 35.0
+    assert (labels[walls & (layer.points[:, 1] > 0)] == "anterior").all()
+    assert (labels[walls & (layer.points[:, 1] < 0)] == "posterior").all()
+
+
+def test_the_demo_shows_validity_and_the_regions(tmp_path):
+    result = invoke("demo", "--coarse", "--frames", "6", "--no-compare", "-o", tmp_path)
+    assert result.exit_code == 0, result.stderr
+    out = result.stdout
+    assert "validity: valid (every one of the 6 certified frames)" in out
+    for region in ("anterior", "posterior", "superior"):
+        assert f"region {region}: force share" in out
+    frames = pd.read_csv(tmp_path / "frames.csv")
+    shares = frames[["anterior_force_share", "posterior_force_share", "superior_force_share"]].sum(axis=1)
+    assert np.allclose(shares, 1.0)
+    summary = json.loads((tmp_path / "summary.json").read_text())
+    assert set(summary["regions"]) == {"anterior", "posterior", "superior"}
+    assert np.allclose(summary["anatomy"]["anterior"], [0.0, 1.0, 0.0]) and summary["anatomy"]["side"] == "right"
+
+
+# --- the attack: a folder a killed run left, two runs at once ------------------------------------
+
+def test_a_folder_left_by_a_first_run_killed_mid_path_is_taken_by_the_next(tmp_path):
+    folder = tmp_path / "out"
+    (folder / "series_frames").mkdir(parents=True)  # what kill -9 leaves before anything was published
+    (folder / ".dea-opt.lock").write_text("123\n")
+    staged = folder / "series_frames" / ".frame_0000.vtu.0123abcd.tmp.vtu"
+    staged.write_text("half a frame")
+    scenario = socket_path(tmp_path, [(0.0, 0.0, 0.0, -500.0), (0.1, 0.0, 0.0, -900.0)])
+    result = invoke("run", scenario, "-o", folder)
+    assert result.exit_code == 0, result.stderr
+    assert not staged.exists() and check_outputs(folder) == []
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes").mkdir()
+    (tmp_path / "mine" / "notes" / "thesis.txt").write_text("mine")  # a user's folder is still refused
+    assert invoke("run", scenario, "-o", tmp_path / "mine").exit_code == 2
+
+
+def _dea_opt(*args) -> list[str]:
+    return [sys.executable, "-m", "dea_opt.cli", *map(str, args)]
+
+
+@pytest.mark.slow
+def test_kill_9_of_a_first_run_mid_path_then_rerun(tmp_path):
+    rows = [(0.01 * k, 0.0, 0.0, -500.0 - 2.0 * k) for k in range(400)]
+    scenario = socket_path(tmp_path, rows, '[output]\nformats = ["vtk", "csv", "json"]\n')
+    folder = tmp_path / "out"
+    env = {**os.environ, "MPLBACKEND": "Agg"}
+    process = subprocess.Popen(_dea_opt("run", scenario, "-o", folder, "-q"), env=env, stdout=subprocess.PIPE,
+                               stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 120
+        while not any(TEMPORARY_NAME.match(p.name) for p in folder.rglob("*")) and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert process.poll() is None, "the run finished before it could be killed"
+        process.send_signal(signal.SIGKILL)
+    finally:
+        process.communicate(timeout=60)
+    assert read_manifest(folder) is None  # nothing was published
+    done = subprocess.run(_dea_opt("run", scenario, "-o", folder, "-q"), env=env, capture_output=True, text=True,
+                          timeout=300, check=False)
+    assert done.returncode == 0, done.stderr
+    assert check_outputs(folder) == [] and not [p for p in folder.rglob("*") if TEMPORARY_NAME.match(p.name)]
+    assert len(pd.read_csv(folder / "frames.csv")) == 400
+
+
+def test_two_runs_into_one_folder_at_once(tmp_path):
+    from dea_opt.io.publish import output_run
+
+    scenario = socket_path(tmp_path, [(0.0, 0.0, 0.0, -500.0)])
+    with output_run(tmp_path / "out"):  # another run holds the folder
+        result = invoke("run", scenario, "-o", tmp_path / "out")
+    assert result.exit_code == 2 and "another dea-opt run" in result.stderr
+    assert invoke("run", scenario, "-o", tmp_path / "out").exit_code == 0
+
+
+@pytest.mark.parametrize("cell, got", [("nan", "got 'nan'"), ("inf", "got 'inf'"), ("", "got an empty cell")])
+def test_a_load_path_cell_that_is_no_finite_number_is_quoted(tmp_path, cell, got):
+    (tmp_path / "path.csv").write_text(f"time,Fx,Fy,Fz\n0,0,0,-500\n0.1,0,0,{cell}\n")
+    (tmp_path / "path.toml").write_text(SOCKET + '[load_path]\nfile = "path.csv"\n')
+    result = invoke("run", tmp_path / "path.toml", "-o", tmp_path / "out")
+    assert result.exit_code == 2
+    assert f"path.csv, line 3, column Fz: expected a finite number, {got}" in result.stderr
