@@ -82,10 +82,10 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
 
     import clarabel
     import numpy as np
-
-    import dea_opt as dea
     from bench_core import make_problem
     from common import peak_rss_mb
+
+    import dea_opt as dea
     from dea_opt.formulations.qp import OPTIONS, QPModel
 
     tol = next(o.default for o in OPTIONS if o.name == "tol")

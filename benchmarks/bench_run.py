@@ -128,7 +128,7 @@ def _cli_command(scenario: Path, out: Path, python_flags=()) -> list:
 
 def _timed(command, cwd) -> tuple:
     start = time.perf_counter()
-    done = subprocess.run(command, cwd=cwd, capture_output=True, text=True, timeout=900)
+    done = subprocess.run(command, cwd=cwd, capture_output=True, text=True, timeout=900, check=False)
     return time.perf_counter() - start, done
 
 
@@ -155,8 +155,8 @@ def run_case(repeats: int = 3, frames: int = 51, timeout: float = 900.0) -> dict
         folder = Path(tmp)
         scenario = write_scenario(folder, frames)
         out = folder / "out"
-        code = ("import json, sys; sys.path.insert(0, {here!r}); from bench_run import inprocess; "
-                "print('ROW', json.dumps(inprocess({path!r})))").format(here=str(HERE), path=str(scenario))
+        code = (f"import json, sys; sys.path.insert(0, {str(HERE)!r}); from bench_run import inprocess; "
+                f"print('ROW', json.dumps(inprocess({str(scenario)!r})))")
         cli, inproc, python, first, rows, exit_code = [], [], [], None, [], None
         for _ in range(repeats):
             wall, done = _timed(_cli_command(scenario, out), folder)

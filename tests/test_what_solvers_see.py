@@ -13,7 +13,7 @@ import pytest
 import scipy.sparse as sp
 
 import dea_opt as d
-from dea_opt.formulations.energy import SpringSystem, scaling
+from dea_opt.formulations.energy import SpringSystem
 from dea_opt.formulations.nlp import NLPModel
 from dea_opt.formulations.qp import QPModel
 from dea_opt.study import installed_qp_solvers
@@ -130,7 +130,7 @@ def test_the_default_qp_imports_no_cvxpy():
             "p = d.ContactProblem(plate_layer(10.0, 10.0, 8, 8, thickness=2.0), d.LinearLaw(5.0), "
             "force=(0, 0, -50.0), free=('uz',)); s = d.solve(p, 'qp', solver='clarabel'); "
             "print(s.success, s.info['native_status'], 'cvxpy' in sys.modules)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["True", "Solved", "False"]
 

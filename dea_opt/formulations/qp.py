@@ -265,9 +265,11 @@ class QPModel:
         start = time.perf_counter()
         try:
             xi, lam, native, iterations, solver_time = self.backend.solve(scaled)
-        except (InputError, SolverError):
+        except (InputError, SolverError, KeyboardInterrupt, SystemExit):
             raise
-        except Exception as exc:  # noqa: BLE001 - a solver's own failure, whatever its type
+        except BaseException as exc:
+            # A solver's own failure, whatever its type: a panic in Clarabel's Rust arrives as
+            # pyo3's PanicException, which derives from BaseException.
             raise SolverError(f"{self.solver} failed: {exc}", status=Status.SOLVER_ERROR) from exc
         elapsed = time.perf_counter() - start
         first, self.compiled = not self.compiled, True
