@@ -7,11 +7,13 @@ from __future__ import annotations
 
 import csv
 import datetime as _dt
+import io
 import os
 import platform
 import resource
 import time
 import warnings
+from contextlib import redirect_stdout
 from pathlib import Path
 
 import numpy as np
@@ -275,3 +277,30 @@ def blas_limit(threads: int | None):
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(int(threads))
+
+
+class Report:
+    """Prints to the terminal and keeps a copy for ``run.txt``."""
+
+    def __init__(self):
+        self.text = io.StringIO()
+        self.start = time.perf_counter()
+
+    def __call__(self, line: str = "") -> None:
+        print(line, flush=True)
+        self.text.write(line + "\n")
+
+    def table(self, rows, columns) -> None:
+        buffer = io.StringIO()
+        with redirect_stdout(buffer):
+            print_table(rows, columns) if rows else print("(no rows)")
+        self(buffer.getvalue().rstrip("\n"))
+
+    def progress(self, what: str, row: dict, key: str) -> None:
+        value = row.get(key)
+        shown = f"{key}={value:.4g}" if isinstance(value, float) else f"status={row.get('status')}"
+        self(f"  [{time.perf_counter() - self.start:6.0f} s] {what}: {shown}")
+
+
+def _fmt_s(value) -> str:
+    return f"{value:.3g} s" if isinstance(value, (int, float)) and value == value else "not run"

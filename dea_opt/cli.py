@@ -310,6 +310,9 @@ def sweep(
     retry_failed: Annotated[bool, typer.Option(help="Recompute the cases recorded as error or failed (their "
                                                "rows are replaced).")] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but the final summary.")] = False,
+    outputs: Annotated[str | None, typer.Option(help="The files each case writes, comma-separated: csv, json, "
+                                                   "vtk, png, or none (default: the scenario's [output].formats).",
+                                                   show_default=False)] = None,
 ):
     """Run the Cartesian product of --set values, each case a Dask task.
 
@@ -335,7 +338,7 @@ def sweep(
         tqdm.write(line, file=sys.stdout)
 
     result = run_sweep(scenario, set_, output, scheduler=scheduler, workers=workers, method=method,
-                       retry_failed=retry_failed, progress=live, on_report=report if live else None)
+                       retry_failed=retry_failed, progress=live, on_report=report if live else None, outputs=outputs)
     adopted = f", {len(result.adopted)} finished by another sweep meanwhile" if result.adopted else ""
     typer.echo(f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished{adopted}; results: "
                f"{result.results_path}")

@@ -81,8 +81,8 @@ _DESCRIPTIONS = {
     Status.UNLOADED: "no load and no overlap: nothing moves and no spring carries anything, no solver runs",
     Status.PRELOADED: "no load, but springs overlap (a press fit): the equilibrium of the overlap alone by the "
                       "default formulation (Newton), the same answer for every method",
-    Status.INACCURATE: "the solver stopped at an answer it doubts (cvxpy's optimal_inaccurate, IPOPT's acceptable "
-                       "level), or claimed one that fails dea-opt's certificate",
+    Status.INACCURATE: "the solver stopped at an answer it doubts (Clarabel's AlmostSolved, cvxpy's "
+                       "optimal_inaccurate, IPOPT's acceptable level), or claimed one that fails dea-opt's certificate",
     Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence",
     Status.LINE_SEARCH_FAILED: "no step along the search direction decreased the energy enough (Newton's line "
                                "search, IPOPT's failed restoration)",

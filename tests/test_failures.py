@@ -113,6 +113,25 @@ def test_inaccurate_answer_is_not_a_success(solver, options):
 
 
 def test_qp_solver_that_raises(monkeypatch):
+    """Clarabel, called through its own API, raising inside its solve (a Rust panic arrives
+    as an exception of its own type)."""
+    import clarabel
+
+    class Broken:
+        def __init__(self, *args):
+            pass
+
+        def solve(self):
+            raise RuntimeError("forced failure")
+
+    monkeypatch.setattr(clarabel, "DefaultSolver", Broken)
+    with pytest.raises(d.SolverError, match="forced failure") as info:
+        d.solve(_plate(), "qp")
+    assert info.value.status is Status.SOLVER_ERROR
+
+
+@pytest.mark.parametrize("solver", [s for s in ("OSQP", "PIQP", "SCS") if s in installed_qp_solvers()][:1])
+def test_qp_solver_through_cvxpy_that_raises(monkeypatch, solver):
     import cvxpy as cp
 
     def broken(self, *args, **kwargs):
@@ -120,7 +139,7 @@ def test_qp_solver_that_raises(monkeypatch):
 
     monkeypatch.setattr(cp.Problem, "solve", broken)
     with pytest.raises(d.SolverError, match="forced failure") as info:
-        d.solve(_plate(), "qp")
+        d.solve(_plate(), "qp", solver=solver)
     assert info.value.status is Status.SOLVER_ERROR
 
 

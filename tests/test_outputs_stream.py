@@ -57,13 +57,15 @@ def test_chunked_csv_equals_the_reference(plate_solution, tmp_path, monkeypatch,
 
 
 @pytest.mark.parametrize("block", [64, 1 << 20])
-@pytest.mark.parametrize("binary", [True, False])
-def test_streamed_vtu_reads_back_exactly(plate_solution, tmp_path, monkeypatch, block, binary):
+@pytest.mark.parametrize("binary, compress", [(True, False), (True, True), (False, False)])
+def test_streamed_vtu_reads_back_exactly(plate_solution, tmp_path, monkeypatch, block, binary, compress):
     monkeypatch.setattr(vtkxml, "_BLOCK", block)  # many compressed blocks per array, or one
     monkeypatch.setattr(vtkxml, "_CHUNK", 3 * 5)  # base64 chunks that do not align with anything
-    path = io.to_vtk(plate_solution, tmp_path / "c.vtu", binary=binary)
-    text = path.read_text()
-    assert ('compressor="vtkZLibDataCompressor"' in text) == binary
+    monkeypatch.setattr(vtkxml, "_RAW", block)  # appended arrays written in many pieces, or one
+    path = io.to_vtk(plate_solution, tmp_path / "c.vtu", binary=binary, compress=compress)
+    text = path.read_bytes()
+    assert (b'compressor="vtkZLibDataCompressor"' in text) == compress
+    assert (b'<AppendedData encoding="raw">' in text) == (binary and not compress)
     mesh = meshio.read(path)
     layer = plate_solution.problem.layer
     np.testing.assert_array_equal(mesh.points, layer.points)

@@ -66,7 +66,7 @@ def test_the_status_of_a_run_that_raised(exc, status):
     assert Status.of_error(exc) is status
 
 
-@pytest.mark.parametrize("method, native", [("newton", "converged"), ("qp", "optimal"), ("nlp", "Solve_Succeeded")])
+@pytest.mark.parametrize("method, native", [("newton", "converged"), ("qp", "Solved"), ("nlp", "Solve_Succeeded")])
 def test_each_method_keeps_its_solver_s_own_status(method, native):
     s = quiet(d.solve, _plate().with_load(force=(0, 0, -100.0)), method)
     assert s.success and s.status is Status.CONVERGED

@@ -84,6 +84,8 @@ class Option:
                 raise InputError(f"{name} must be a dict of {self.doc}, got {value!r}")
             return dict(value)
         text = self.normalize(value) if self.normalize is not None and isinstance(value, str) else value
+        if isinstance(text, str) and text == self.default:
+            return text  # the default needs no asking (qp's choices import cvxpy, ~1 s)
         accepted = self.accepted()
         if not isinstance(text, str) or (accepted and text not in accepted):
             raise InputError(f"{name} must be one of {list(accepted)} ({self.doc}), got {value!r}")

@@ -102,29 +102,30 @@ class NLPModel:
         V = ca.DM(sc.volume)
         e0 = system.e0
         r = ca.MX.sym("r", k)
-        xi = ca.MX.sym("xi", k)
         if form == "constrained":
-            # Each block of about sqrt(N) springs sees its own copy of xi, tied to xi by
-            # equalities: the KKT matrix then has no row as long as N, which MUMPS's ordering
-            # handles badly (formulations/nlp.md, "Block copies").
+            # Each block of about sqrt(N) springs sees its own copy of the dofs, tied to the
+            # first block's copy (which is xi) by equalities: the KKT matrix then has no row as
+            # long as N, which MUMPS's ordering handles badly (formulations/nlp.md, "Block copies").
             size = max(int(np.ceil(np.sqrt(n))), 1)
             self.n_blocks = nb = max(int(np.ceil(n / size)), 1)
             block = np.arange(n) // size
             select = ca.DM(ca.Sparsity.triplet(nb, n, block.tolist(), list(range(n))), 1.0)
             copies = ca.MX.sym("xi_blocks", k, nb)
+            xi = copies[:, 0]
             c = ca.MX.sym("c_hat", n)
-            z = ca.vertcat(xi, ca.vec(copies), c)
+            z = ca.vertcat(ca.vec(copies), c)
             stored = ca.dot(V, law.energy(-s0 * c))
             contact = c + ca.sum1(ca.DM(sc.AT / s0) * ca.mtimes(copies, select)).T
-            tie = ca.vec(copies - ca.repmat(xi, 1, nb))
+            tie = ca.vec(copies[:, 1:] - ca.repmat(xi, 1, nb - 1))
             g = ca.vertcat(contact, tie)
-            self.lbg = np.concatenate([-e0 / s0, np.zeros(k * nb)])
-            self.ubg = np.concatenate([np.full(n, np.inf), np.zeros(k * nb)])
+            self.lbg = np.concatenate([-e0 / s0, np.zeros(k * (nb - 1))])
+            self.ubg = np.concatenate([np.full(n, np.inf), np.zeros(k * (nb - 1))])
             upper = (1.0 - _CRUSH_MARGIN) / s0 if law.bounded_strain else np.inf
-            self.lbx = np.concatenate([np.full(k * (nb + 1), -np.inf), np.zeros(n)])
-            self.ubx = np.concatenate([np.full(k * (nb + 1), np.inf), np.full(n, upper)])
+            self.lbx = np.concatenate([np.full(k * nb, -np.inf), np.zeros(n)])
+            self.ubx = np.concatenate([np.full(k * nb, np.inf), np.full(n, upper)])
             nlp = {"x": z, "p": r, "f": stored - ca.dot(r, xi), "g": g}
         else:
+            xi = ca.MX.sym("xi", k)
             eps = ca.DM(e0) + ca.mtimes(ca.DM(sc.AT.T), xi)
             stored = ca.dot(V, law.energy(ca.fmin(eps, 0)))
             self.lbg = self.ubg = np.zeros(0)
@@ -165,7 +166,7 @@ class NLPModel:
         c0 = np.maximum(-(self.system.e0 + xi0 @ sc.AT), 0.0)
         if self.law.bounded_strain:
             c0 = np.minimum(c0, 0.5)
-        return np.concatenate([xi0, np.tile(xi0, self.n_blocks), c0 / sc.strain_scale])
+        return np.concatenate([np.tile(xi0, self.n_blocks), c0 / sc.strain_scale])
 
     def solve(self, load=None, *, x0=None, warm_start: bool = True) -> FormulationResult:
         """Solve for ``load`` (default: the system's own) from ``x0`` or, without one (and with

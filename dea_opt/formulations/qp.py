@@ -1,9 +1,14 @@
-"""The linear-law DEA problem as a convex QP, modelled in cvxpy and solved by Clarabel.
+"""The linear-law DEA problem as a convex QP: Clarabel's own API by default, cvxpy for the others.
 
-Written math: ``formulations/qp.md``. Variables: the free dofs ``x`` (``u_free`` in the
-code) and the compressive strain ``c``; ``min 1/2 sum V_i H c_i^2 - r . x`` s.t. ``c >= 0``, ``c + e0 + A x >= 0``.
-The load is the only cvxpy Parameter, so a new load re-solves without recompiling; spring
-forces come from the duals of ``c + e0 + A x >= 0`` (``lambda_i = V_i H c_i``).
+Written math: ``formulations/qp.md``. Variables: the free dofs ``x`` (``u_free`` in the code) and
+the compressive strain ``c``; ``min 1/2 sum V_i H c_i^2 - r . x`` s.t. ``c >= 0``,
+``c + e0 + A x >= 0``: ``k + N`` variables, a diagonal ``P`` and ``2N`` rows of the
+nonnegative cone, and nothing else. The default solver, Clarabel, gets exactly these matrices
+through its Python API (cvxpy's canonicalization cost more than the 10 % the speed issue
+allows); any other QP solver cvxpy knows gets the same problem through cvxpy, written so that
+cvxpy adds no variable or row (qp.md, "What the solver sees"). Only the load changes between
+re-solves (Clarabel's ``update(q=...)``; cvxpy's one Parameter); spring forces come from the
+duals of ``c + e0 + A x >= 0`` (``lambda_i = V_i H c_i``).
 """
 
 from __future__ import annotations
@@ -28,7 +33,10 @@ from .energy import (
 
 PAGE = "formulations/qp.md"
 
-#: Tolerance options of each solver cvxpy knows, as functions of one tolerance.
+#: The solver called through its own API, without cvxpy.
+DIRECT = "CLARABEL"
+
+#: Tolerance options of each solver, as functions of one tolerance.
 TOLERANCE_OPTIONS = {
     "CLARABEL": lambda tol: {"tol_gap_abs": tol, "tol_gap_rel": tol, "tol_feas": tol, "tol_ktratio": tol * 1e-2},
     "OSQP": lambda tol: {"eps_abs": tol, "eps_rel": tol, "polishing": True, "max_iter": 200_000},
@@ -40,27 +48,40 @@ TOLERANCE_OPTIONS = {
 
 @lru_cache(maxsize=1)
 def _installed_solvers() -> tuple:
-    """cvxpy's installed solvers (asking costs milliseconds, which a load path repeats)."""
-    import cvxpy as cp
-
-    return tuple(cp.installed_solvers())
+    """Clarabel and the QP solvers cvxpy has installed (asked only when a solver is named
+    other than the default: importing cvxpy costs most of a second)."""
+    try:
+        import cvxpy as cp
+    except ImportError:  # pragma: no cover - cvxpy is a core dependency
+        return (DIRECT,)
+    return tuple(dict.fromkeys((DIRECT, *cp.installed_solvers())))
 
 
 OPTIONS = (
-    Option("solver", str, "CLARABEL", "a QP solver cvxpy has installed", choices=_installed_solvers,
-           normalize=str.upper),
+    Option("solver", str, DIRECT, "CLARABEL (called directly) or a QP solver cvxpy has installed",
+           choices=_installed_solvers, normalize=str.upper),
     Option("tol", float, 1e-10, "the solver's own tolerances (TOLERANCE_OPTIONS)", range=(0, 1), tolerance=True,
            build=False),
-    Option("warm_start", bool, True, "cvxpy's warm_start (re-solves reuse the compiled problem either way)",
-           build=False),
+    Option("warm_start", bool, True, "cvxpy's warm_start for the solvers called through cvxpy (Clarabel starts "
+           "cold; re-solves reuse the factorization's structure either way)", build=False),
 )
 CAPABILITIES = Capabilities(laws="linear", warm_start=False, duals=True, checks_load_first=True)
-EXTRA_OPTIONS = "passed to the QP solver through cvxpy's solve"
+EXTRA_OPTIONS = "passed to the QP solver (Clarabel's settings, or through cvxpy's solve)"
 VARIANT = Variant("solver")
 
-#: cvxpy's statuses, as dea-opt's vocabulary (formulations/qp.md, "Statuses"); any other is
-#: a solver error.
+#: The solvers' own statuses, as dea-opt's vocabulary (formulations/qp.md, "Statuses"): Clarabel's
+#: words when it is called directly, cvxpy's for the others; any other is a solver error.
 NATIVE_STATUS = {
+    "Solved": Status.CONVERGED,
+    "AlmostSolved": Status.INACCURATE,
+    "PrimalInfeasible": Status.INFEASIBLE,
+    "AlmostPrimalInfeasible": Status.INFEASIBLE,
+    "DualInfeasible": Status.UNBOUNDED,
+    "AlmostDualInfeasible": Status.UNBOUNDED,
+    "MaxIterations": Status.MAX_ITERATIONS,
+    "MaxTime": Status.MAX_ITERATIONS,
+    "InsufficientProgress": Status.STALLED,
+    "NumericalError": Status.SOLVER_ERROR,
     "optimal": Status.CONVERGED,
     "optimal_inaccurate": Status.INACCURATE,
     "infeasible": Status.INFEASIBLE,
@@ -71,17 +92,139 @@ NATIVE_STATUS = {
     "solver_error": Status.SOLVER_ERROR,
 }
 
+#: Clarabel's statuses whose iterate is an answer to judge (the others' is a certificate of
+#: infeasibility or nothing); cvxpy draws the same line.
+_WITH_ITERATE = ("Solved", "AlmostSolved", "MaxIterations", "MaxTime", "InsufficientProgress")
+
+
+def _rejected(solver: str, options: dict, exc: Exception) -> InputError:
+    own = ", ".join(option.name for option in OPTIONS)
+    return InputError(f"{solver} rejected the options {sorted(options)}: {exc} (dea_opt's own qp options are "
+                      f"{own}; the rest go to the solver)")
+
+
+class _Clarabel:
+    """The minimal QP in Clarabel's own form: ``min 1/2 z'Pz + q'z`` s.t. ``Gz + s = b``,
+    ``s >= 0``, with ``z = (xi, c_hat)``; the matrices are built in place as CSC arrays."""
+
+    def __init__(self, scale, e0, modulus: float, tol: float, options: dict):
+        try:
+            import clarabel
+        except ImportError as exc:  # pragma: no cover - clarabel is a core dependency
+            raise MissingDependencyError("method 'qp' needs clarabel: pip install clarabel") from exc
+        import scipy.sparse as sp
+
+        self.clarabel = clarabel
+        k, n, s0 = scale.n_dofs, e0.size, scale.strain_scale
+        self.k, self.n = k, n
+        settings = clarabel.DefaultSettings()
+        settings.verbose = False
+        for name, value in {**TOLERANCE_OPTIONS[DIRECT](tol), **options}.items():
+            try:
+                setattr(settings, name, value)
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise _rejected(DIRECT, options, exc) from None
+        self.settings = settings
+        # P: diag(0_k, Vs H s0^2), upper triangle, only the c columns stored.
+        p_ptr = np.concatenate([np.zeros(k, dtype=np.int64), np.arange(n + 1, dtype=np.int64)])
+        self.P = sp.csc_array((scale.volume * modulus * s0**2, np.arange(k, k + n), p_ptr), shape=(k + n, k + n))
+        # G: rows 0..N-1 are -c_hat (c >= 0), rows N..2N-1 are -(M xi + c_hat) with M = A T / s0,
+        # so that s = b - G z is c_hat and c_hat + M xi + e0 / s0. Column j < k (a dof) holds
+        # -M[:, j] in rows N..2N-1; column k + i (a spring) holds -1 in rows i and N + i.
+        rows = np.empty(k * n + 2 * n, dtype=np.int64)
+        data = np.empty(k * n + 2 * n)
+        rows[: k * n] = np.tile(np.arange(n, 2 * n), k)
+        data[: k * n] = (scale.AT / -s0).ravel()
+        rows[k * n:] = np.stack([np.arange(n), np.arange(n, 2 * n)], axis=1).ravel()
+        data[k * n:] = -1.0
+        g_ptr = np.concatenate([np.arange(k + 1) * n, k * n + 2 * np.arange(1, n + 1)])
+        self.G = sp.csc_array((data, rows, g_ptr), shape=(2 * n, k + n))
+        # A dof a spring does not feel (a face parallel to a translation) is a structural zero:
+        # stored, it would cost Clarabel's KKT fill-in (10 % more time on the box).
+        self.G.eliminate_zeros()
+        self.b = np.concatenate([np.zeros(n), e0 / s0])
+        self.cones = [clarabel.NonnegativeConeT(2 * n)]
+        self.solver = None
+
+    def solve(self, scaled_load):
+        """``(xi, lambda_hat, native status, iterations, Clarabel's solve_time)``."""
+        q = np.concatenate([-scaled_load, np.zeros(self.n)])
+        if self.solver is not None and self.solver.is_data_update_allowed():
+            self.solver.update(q=q)
+        else:
+            self.solver = self.clarabel.DefaultSolver(self.P, q, self.G, self.b, self.cones, self.settings)
+        out = self.solver.solve()
+        native = str(out.status)
+        if native in _WITH_ITERATE:
+            z = np.asarray(out.x, dtype=float)
+            xi, lam = z[: self.k], np.asarray(out.z, dtype=float)[self.n:]
+        else:
+            xi, lam = np.full(self.k, np.nan), np.full(self.n, np.nan)
+        return xi, lam, native, int(out.iterations), float(out.solve_time)
+
+
+class _Cvxpy:
+    """The same QP modelled in cvxpy, for the solvers other than Clarabel.
+
+    The variable is ``d = w c_hat`` with ``w = sqrt(Vs H) s0``, so the objective is
+    ``1/2 sum_squares(d)`` of a variable (cvxpy adds no auxiliary variable or row for it) and
+    the contact rows are multiplied by ``w``: their duals are ``lambda_hat / w``.
+    """
+
+    def __init__(self, scale, e0, modulus: float, solver: str, tol: float, warm_start: bool, options: dict):
+        try:
+            import cvxpy as cp
+        except ImportError as exc:  # pragma: no cover - cvxpy is a core dependency
+            raise MissingDependencyError(f"qp with solver {solver!r} needs cvxpy: pip install cvxpy") from exc
+        self.cp, self.solver, self.warm_start = cp, solver, warm_start
+        self.options = options
+        self.settings = {**TOLERANCE_OPTIONS.get(solver, lambda t: {})(tol), **options}
+        k, n, s0 = scale.n_dofs, e0.size, scale.strain_scale
+        self.w = np.sqrt(scale.volume * modulus) * s0
+        self.xi = cp.Variable(k, name="xi")
+        self.d = cp.Variable(n, nonneg=True, name="d")
+        self.load = cp.Parameter(k, name="r")
+        weighted = np.ascontiguousarray((scale.AT * (self.w / s0)).T)
+        self.contact = self.d + weighted @ self.xi >= -self.w * e0 / s0
+        self.problem = cp.Problem(cp.Minimize(0.5 * cp.sum_squares(self.d) - self.load @ self.xi), [self.contact])
+
+    def solve(self, scaled_load):
+        cp = self.cp
+        self.load.value = scaled_load
+        try:
+            with warnings.catch_warnings():
+                # dea_opt certifies every answer itself; cvxpy's own doubt adds nothing.
+                warnings.filterwarnings("ignore", message="Solution may be inaccurate")
+                self.problem.solve(solver=self.solver, warm_start=self.warm_start, **self.settings)
+        except (cp.error.SolverError, TypeError, ValueError, KeyError) as exc:
+            # An option the solver does not know is the caller's input (PIQP raises TypeError,
+            # SCS a TypeError of its own, OSQP a SolverError naming the setting).
+            named = any(str(key) in str(exc) for key in self.options)
+            if self.options and (named or not isinstance(exc, cp.error.SolverError)):
+                raise _rejected(self.solver, self.options, exc) from None
+            raise SolverError(f"{self.solver} failed: {exc}", status=Status.SOLVER_ERROR) from exc
+        stats = self.problem.solver_stats
+        xi, dual = self.xi.value, self.contact.dual_value
+        n = self.w.size
+        if xi is None or dual is None:
+            xi, lam = np.full(self.load.size, np.nan), np.full(n, np.nan)
+        else:
+            xi, lam = np.asarray(xi, dtype=float).reshape(-1), np.asarray(dual, dtype=float).reshape(n) * self.w
+        solver_time = stats.solve_time if stats and stats.solve_time is not None else float("nan")
+        return xi, lam, str(self.problem.status), int(stats.num_iters or 0) if stats else 0, solver_time
+
 
 class QPModel:
-    """A compiled cvxpy model of one spring system, re-solvable for new loads.
+    """A QP of one spring system, built once and re-solvable for new loads.
 
     Parameters
     ----------
     system : SpringSystem
     law : LinearLaw
     **options
-        :data:`OPTIONS` (``solver``, default ``"CLARABEL"``; ``tol``, default 1e-10;
-        ``warm_start``); any other option goes to the solver.
+        :data:`OPTIONS` (``solver``, default ``"CLARABEL"``, called through its own API;
+        ``tol``, default 1e-10; ``warm_start``, cvxpy's); any other option goes to the solver
+        (an unknown Clarabel setting is an :class:`InputError` when the model is built).
     """
 
     def __init__(self, system: SpringSystem, law, **options):
@@ -91,37 +234,27 @@ class QPModel:
         self.tol, self.warm_start = checked["tol"], checked["warm_start"]
         if not CAPABILITIES.takes(law):
             raise InputError(f"method 'qp' needs a LinearLaw, got {law.describe()}: use another method for this law")
-        try:
-            import cvxpy as cp
-        except ImportError as exc:  # pragma: no cover - cvxpy is a core dependency
-            raise MissingDependencyError("method 'qp' needs cvxpy: pip install cvxpy") from exc
         start = time.perf_counter()
         self.solver = checked["solver"]
         self.system, self.law = system, law
         # Solved in the scaled variables xi (u_free = T xi) and c = s0 c_hat, so that the
         # solver's absolute tolerances mean the same for every unit and load size.
         self.scale = sc = scaling(system, law.H)
-        k, n = sc.n_dofs, system.n_springs
-        self.trivial = k == 0  # nothing resisted: no model (Clarabel must not see an empty one)
-        self.build_time = time.perf_counter() - start
+        self.trivial = sc.n_dofs == 0  # nothing resisted: no model (a solver must not see an empty one)
         self.compiled = False
-        if self.trivial:
-            return
-        self.xi = cp.Variable(k, name="xi")
-        self.c = cp.Variable(n, nonneg=True, name="c")
-        self.load = cp.Parameter(k, name="r")
-        weight = np.sqrt(sc.volume * law.H) * sc.strain_scale
-        require_finite("the QP's data", weight, sc.AT, system.e0)
-        objective = 0.5 * cp.sum_squares(cp.multiply(weight, self.c)) - self.load @ self.xi
-        self.contact = self.c + (sc.AT.T / sc.strain_scale) @ self.xi >= -system.e0 / sc.strain_scale
-        self.problem = cp.Problem(cp.Minimize(objective), [self.contact])
+        self.backend = None
+        if not self.trivial:
+            require_finite("the QP's data", sc.volume, sc.AT, system.e0)
+            if self.solver == DIRECT:
+                self.backend = _Clarabel(sc, system.e0, law.H, self.tol, self.solver_options)
+            else:
+                self.backend = _Cvxpy(sc, system.e0, law.H, self.solver, self.tol, self.warm_start,
+                                      self.solver_options)
         self.build_time = time.perf_counter() - start
 
     def solve(self, load=None, *, x0=None) -> FormulationResult:
         """Solve for ``load`` (default: the system's own load); ``x0`` is checked and then
         ignored: interior-point solvers start cold."""
-        import cvxpy as cp
-
         start_vector(self.system, x0)
         load = self.system.load if load is None else np.asarray(load, dtype=float)
         trivial = trivial_result(self.system, self.law, load)
@@ -129,47 +262,28 @@ class QPModel:
             return trivial
         scaled = self.scale.load(load)
         require_finite("the load", scaled)
-        self.load.value = scaled
-        solver_options = self.solver_options
-        options = {**TOLERANCE_OPTIONS.get(self.solver, lambda t: {})(self.tol), **solver_options}
         start = time.perf_counter()
         try:
-            with warnings.catch_warnings():
-                # dea_opt certifies every answer itself; cvxpy's own doubt adds nothing.
-                warnings.filterwarnings("ignore", message="Solution may be inaccurate")
-                self.problem.solve(solver=self.solver, warm_start=self.warm_start, **options)
-        except (cp.error.SolverError, TypeError, ValueError, KeyError) as exc:
-            # An option the solver does not know is the caller's input (Clarabel and PIQP raise
-            # TypeError, SCS a TypeError of its own, OSQP a SolverError naming the setting).
-            named = any(str(key) in str(exc) for key in solver_options)
-            if solver_options and (named or not isinstance(exc, cp.error.SolverError)):
-                own = ", ".join(option.name for option in OPTIONS)
-                raise InputError(
-                    f"{self.solver} rejected the options {sorted(solver_options)}: {exc} (dea_opt's own qp "
-                    f"options are {own}; the rest go to the solver)") from None
+            xi, lam, native, iterations, solver_time = self.backend.solve(scaled)
+        except (InputError, SolverError, KeyboardInterrupt, SystemExit):
+            raise
+        except BaseException as exc:
+            # A solver's own failure, whatever its type: a panic in Clarabel's Rust arrives as
+            # pyo3's PanicException, which derives from BaseException.
             raise SolverError(f"{self.solver} failed: {exc}", status=Status.SOLVER_ERROR) from exc
         elapsed = time.perf_counter() - start
-        stats = self.problem.solver_stats
-        native = str(self.problem.status)
-        first = not self.compiled
-        self.compiled = True
-        xi = self.xi.value
-        mu = self.contact.dual_value
+        first, self.compiled = not self.compiled, True
         n = self.system.n_springs
-        if xi is None or mu is None:
-            u_free, mu = np.full(self.system.n_dofs, np.nan), np.full(n, np.nan)
-        else:
-            u_free = self.scale.to_u_free(np.asarray(xi, dtype=float).reshape(-1))
-        # mu = V' H s0^2 c_hat = V' H s0 c, so sigma = -H c = -mu / (V' s0)
-        stress = -np.asarray(mu, dtype=float).reshape(n) / (self.scale.volume * self.scale.strain_scale)
-        solver_time = stats.solve_time if stats and stats.solve_time is not None else float("nan")
+        # lambda_hat = Vs H s0^2 c_hat = Vs H s0 c, so sigma = -H c = -lambda_hat / (Vs s0)
+        stress = -lam / (self.scale.volume * self.scale.strain_scale)
+        status = NATIVE_STATUS.get(native, Status.SOLVER_ERROR)
         return FormulationResult(
-            u_free=np.asarray(u_free, dtype=float).reshape(-1),
-            stress=stress,
-            success=native == cp.OPTIMAL,
-            status=NATIVE_STATUS.get(native, Status.SOLVER_ERROR),
+            u_free=self.scale.to_u_free(xi).reshape(-1),
+            stress=stress.reshape(n),
+            success=status is Status.CONVERGED,
+            status=status,
             message=f"{self.solver}: {native}",
-            iterations=int(stats.num_iters or 0) if stats else 0,
+            iterations=iterations,
             build_time=self.build_time if first else 0.0,
             solve_time=elapsed,
             info={"native_status": native, "solver": self.solver, "solver_time": solver_time,

@@ -15,7 +15,7 @@ import numpy as np
 from .atomic import write_atomic
 from .draw import draw_regions, draw_values, map_geometry
 from .mapframe import map_frame
-from .plots import decorate_map, note_frame
+from .plots import decorate_map, note_frame, save_options
 
 __all__ = ["plot_cycle", "plot_exposure"]
 
@@ -34,7 +34,7 @@ def _figure(figsize):
 def _save(fig, path, dpi=120) -> Path:
     path = Path(path)
     fmt = path.suffix.lower().lstrip(".") or "png"
-    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi))
+    return write_atomic(path, lambda tmp: fig.savefig(tmp, format=fmt, dpi=dpi, **save_options(fmt)))
 
 
 def _components(table, names, anatomy):

@@ -221,9 +221,14 @@ def boundary_edges(triangles: np.ndarray) -> np.ndarray:
     """Edges (E, 2) that belong to one triangle only: the outline of a set of triangles."""
     if len(triangles) == 0:
         return np.zeros((0, 2), dtype=np.int64)
+    triangles = np.asarray(triangles, dtype=np.int64)
     edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
-    unique, counts = np.unique(edges, axis=0, return_counts=True)
-    return unique[counts == 1]
+    # One integer per edge, in the rows' lexicographic order: numpy.unique of rows (axis=0)
+    # sorts a structured view, about ten times slower.
+    width = int(edges[:, 1].max()) + 1
+    keys, counts = np.unique(edges[:, 0] * width + edges[:, 1], return_counts=True)
+    once = keys[counts == 1]
+    return np.stack([once // width, once % width], axis=1)
 
 
 def draw_regions(ax, geometry: MapGeometry, labels) -> None:

@@ -26,6 +26,12 @@ __all__ = ["best_fit_frame", "decorate_map", "note_frame", "plot_pressure"]
 _PICTURE_FORMATS = (".png", ".pdf", ".svg")
 
 
+def save_options(fmt: str) -> dict:
+    """savefig's options for ``fmt``: PNGs at zlib's fastest level (a third less time to
+    encode, about a tenth larger)."""
+    return {"pil_kwargs": {"compress_level": 1}} if fmt == "png" else {}
+
+
 def decorate_map(ax, frame, geometry) -> None:
     """Limits, equal scale, axis labels and the anatomical side names."""
     low, high = geometry.extent
@@ -208,5 +214,5 @@ def plot_pressure(solution, path, *, view: str = "plane", cmap: str = "viridis",
         title = (f"{solution.method}: peak {solution.peak_pressure:.4g} MPa, "
                  f"resultant {np.linalg.norm(solution.contact_force):.4g} N, area {solution.contact_area:.4g} mm$^2$")
     ax.set_title(title, fontsize="medium")
-    write_atomic(target, lambda tmp: fig.savefig(tmp, format=fmt[1:], dpi=dpi))
+    write_atomic(target, lambda tmp: fig.savefig(tmp, format=fmt[1:], dpi=dpi, **save_options(fmt[1:])))
     return target

@@ -60,9 +60,10 @@ def label_codes(labels) -> dict:
     return {name: i for i, name in enumerate(np.unique(text).tolist())}
 
 
-def spring_fields(layer, solution=None) -> dict:
+def spring_fields(layer, solution=None, static: SurfaceData | None = None) -> dict:
     """The per-spring arrays of :func:`contact_surface`; NaN results without a ``solution``
-    (a frame that failed)."""
+    (a frame that failed). ``static``: a surface of the same layer made earlier, whose arrays
+    of the layer alone (gap, thickness, normal, area, source_face, label) are reused."""
     n = len(layer)
     if solution is None:
         nan = np.full(n, np.nan)
@@ -73,6 +74,10 @@ def spring_fields(layer, solution=None) -> dict:
         strain = np.asarray(solution.strain, dtype=float)
         force = np.asarray(solution.spring_force, dtype=float)
         contact = solution.in_contact.astype(np.uint8)
+    if static is not None:
+        data = dict(static.spring_data)
+        data.update(pressure=pressure, strain=strain, in_contact=contact, spring_force=force)
+        return {name: np.ascontiguousarray(value) for name, value in data.items()}
     data = {
         "pressure": pressure,
         "strain": strain,

@@ -9,12 +9,13 @@ their times. Units: mm, MPa, N, s.
 from __future__ import annotations
 
 import os
+from dataclasses import replace
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
 
 from ..io.atomic import write_data
 from ..io.surface import layer_surface, spring_fields
 from ..io.vtk import write_surface
+from ..io.vtkxml import quoteattr
 
 __all__ = ["FrameSeries", "write_pvd"]
 
@@ -35,10 +36,17 @@ class FrameSeries:
         self.digits = max(4, len(str(max(int(n_frames) - 1, 0))))
         self.files: list[Path] = []
         self.times: list[float] = []
+        self._layer = self._surface = None
 
     def write(self, k: int, t: float, layer, solution=None) -> Path:
         """Frame ``k`` at time ``t`` (s): ``solution``'s fields on ``layer``, or NaN (None)."""
-        surface = layer_surface(layer, spring_fields(layer, solution))
+        fields = spring_fields(layer, solution, static=self._surface if layer is self._layer else None)
+        if layer is not self._layer:
+            # The surface and the layer's own fields (gap, normals, labels, ...) are the same in
+            # every frame on one layer: made once (the labels' codes sort every label).
+            self._layer, self._surface = layer, layer_surface(layer, fields)
+        surface = replace(self._surface, cell_data=fields) if self._surface.cell_data else \
+            replace(self._surface, point_data=fields)
         path = write_surface(surface, self.folder / f"frame_{k:0{self.digits}d}.vtu")
         self.files.append(path)
         self.times.append(float(t))

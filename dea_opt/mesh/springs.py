@@ -217,9 +217,20 @@ def cast_springs(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None,
                  max_angle: float = MAX_ANGLE, flip: bool = False, labels=None,
                  engine: str = "auto") -> SpringCast:
     """Like :func:`springs_from_meshes`, also returning what each ray met (:class:`SpringCast`)."""
+    m1, m2, options = prepare_cast(mesh1, mesh2, thickness1=thickness1, thickness2=thickness2, max_gap=max_gap,
+                                   max_overlap=max_overlap, max_angle=max_angle, flip=flip, labels=labels,
+                                   engine=engine)
+    T = check_pose(pose)
+    return _cast(m1, m2, np.eye(4) if T is None else T, options)
+
+
+def prepare_cast(mesh1, mesh2, *, thickness1=None, thickness2=None, max_gap: float = MAX_GAP,
+                 max_overlap: float = MAX_OVERLAP, max_angle: float = MAX_ANGLE, flip: bool = False, labels=None,
+                 engine: str = "auto") -> tuple:
+    """``(mesh1, mesh2, options)`` of :func:`cast_springs` before any ray: the checked meshes and
+    the options resolved on them (what a cast at any pose starts from; a sweep's cache keeps it)."""
     m1, kept1 = _prepare(mesh1, "mesh1")
     m2, kept2 = _prepare(mesh2, "mesh2")
-    T = check_pose(pose)
     check_cast_size(len(m1.faces), len(m2.faces), _engine(engine))
     options = {
         "thickness1": _resolve_thickness(thickness1, "thickness1", m1, kept1),
@@ -231,7 +242,7 @@ def cast_springs(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None,
         "labels": _per_face_labels(labels, m1, kept1),
         "engine": engine,
     }
-    return _cast(m1, m2, np.eye(4) if T is None else T, options)
+    return m1, m2, options
 
 
 def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
@@ -302,14 +313,22 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
         sel, gap, hit_face, hit_point2 = sel[good], gap[good], hit_face[good], hit_point2[good]
         h1, h2, total = h1[good], h2[good], total[good]
 
+    return assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome)
+
+
+def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome) -> SpringCast:
+    """The :class:`SpringCast` of what the rays found: the faces of mesh 1 with a spring
+    (``sel``), their gaps, the faces of mesh 2 met and where (in mesh 2's frame), the two
+    thicknesses, and every face's outcome. A sweep's cache keeps these arrays and nothing else."""
+    normals = -m1.face_normals if options["flip"] else m1.face_normals
     face_labels = options["labels"]
     layer = SpringLayer(
-        centroids[sel], normals[sel], m1.area_faces[sel], total, gap,
+        m1.triangles_center[sel], normals[sel], m1.area_faces[sel], h1 + h2, gap,
         source_face=sel.astype(np.int64), surface=(m1.vertices, m1.faces),
         labels=None if face_labels is None else face_labels[sel],
         target_points=hit_point2, target_normals=m2.face_normals[hit_face], target_faces=hit_face,
     )
-    hit_point = hit_point2 @ R.T + shift
+    hit_point = hit_point2 @ T[:3, :3].T + T[:3, 3]
     dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
     return SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome))
 

@@ -217,7 +217,14 @@ def pose_caster(scenario):
 
 
 def _load_part(files, scale: float):
-    """``(mesh, labels)``: one mesh (labels None), or a table of labelled meshes joined into one."""
+    """``(mesh, labels)``: one mesh (labels None), or a table of labelled meshes joined into one;
+    read once per process inside a sweep's cache (:mod:`dea_opt.sweep.spring_cache`)."""
+    from ..sweep import spring_cache
+
+    return spring_cache.mesh_part(files, scale, _read_part)
+
+
+def _read_part(files, scale: float):
     from ..mesh import concatenate_meshes, load_mesh
 
     if isinstance(files, dict):
@@ -229,13 +236,11 @@ def load_meshes(section: MeshGeometry) -> dict:
     """Read the meshes of a ``kind = "meshes"`` geometry: ``mesh1``, ``mesh2`` (a table of labelled
     meshes joined into one), their face labels ``labels1``, ``labels2`` (None for one mesh) and any
     bone meshes ``bone1``, ``bone2``."""
-    from ..mesh import load_mesh
-
     meshes = {}
     for k in (1, 2):
         meshes[f"mesh{k}"], meshes[f"labels{k}"] = _load_part(getattr(section, f"mesh{k}"), section.scale)
         bone = getattr(section, f"bone{k}")
-        meshes[f"bone{k}"] = None if bone is None else load_mesh(bone, scale=section.scale)
+        meshes[f"bone{k}"] = None if bone is None else _load_part(bone, section.scale)[0]
     return meshes
 
 
@@ -254,7 +259,7 @@ def cast_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
     """The :class:`~dea_opt.mesh.SpringCast` of :func:`springs_from_mesh_section` (its layer labelled)."""
     import dataclasses
 
-    from ..mesh import cast_springs
+    from ..sweep import spring_cache
 
     options = {}
     for k in (1, 2):
@@ -268,7 +273,8 @@ def cast_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
         pose = np.array(section.pose, dtype=float)
     if pose is not None:
         options["pose"] = np.asarray(pose, dtype=float)
-    cast = cast_springs(meshes["mesh1"], meshes["mesh2"], labels=meshes.get("labels1"), **options)
+    # Through a sweep's cache when one is active: each distinct geometry and pose cast once.
+    cast = spring_cache.cast(meshes["mesh1"], meshes["mesh2"], labels=meshes.get("labels1"), **options)
     labels2 = meshes.get("labels2")
     if labels2 is None:
         return cast

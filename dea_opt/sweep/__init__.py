@@ -166,10 +166,15 @@ def _client(scheduler, workers):
             raise InputError(f"cannot reach the Dask scheduler at {scheduler!r}: {exc}") from None
     import logging
 
+    import dask
+
     # dashboard_address=":0": the scheduler's HTTP server on a free port, so that two sweeps
-    # (or a sweep and a notebook) never fight over port 8787.
-    cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                           silence_logs=logging.ERROR)
+    # (or a sweep and a notebook) never fight over port 8787. MALLOC_TRIM_THRESHOLD_ unset:
+    # Dask's default (64 kB) fixes glibc's thresholds, so that every array of a few hundred
+    # kB is mapped and unmapped afresh; a case of the knee took 1.6 times as long.
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
+                               silence_logs=logging.ERROR)
     return Client(cluster), cluster
 
 
@@ -181,9 +186,26 @@ def _check(workers, method) -> str | None:
     return check_method_name(method.strip().lower() if isinstance(method, str) else method, "method (--method)")
 
 
+def check_outputs(outputs) -> tuple | None:
+    """``--outputs`` as a tuple of ``[output].formats`` names (None: the scenario's own)."""
+    from ..loadpath.result import FORMATS
+
+    if outputs is None:
+        return None
+    if isinstance(outputs, str):
+        outputs = [] if outputs.strip().lower() == "none" else [p.strip().lower() for p in outputs.split(",")]
+    if not isinstance(outputs, (list, tuple)) or not all(isinstance(p, str) for p in outputs):
+        raise InputError(f"outputs must be a list of {', '.join(FORMATS)} (or 'none'), got {outputs!r}")
+    unknown = [p for p in outputs if p not in FORMATS]
+    if unknown:
+        raise InputError(f"outputs (--outputs) must be among {', '.join(FORMATS)} (or 'none'), got "
+                         f"{', '.join(map(repr, unknown))}")
+    return tuple(dict.fromkeys(outputs))
+
+
 def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = None, workers: int = 2,
               method: str | None = None, retry_failed: bool = False, progress: bool = False,
-              on_row=None, on_report=None, log: bool = True) -> SweepResult:
+              on_row=None, on_report=None, log: bool = True, outputs=None) -> SweepResult:
     """Run every case of the ``--set`` product whose row is missing or stale.
 
     Parameters
@@ -202,6 +224,10 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
         Worker processes of the LocalCluster (one thread each).
     method : str, optional
         Overrides ``[solve].method`` (part of each case's content key).
+    outputs : sequence of str or str, optional
+        The files each case writes into its folder, any of csv, json, vtk, png (a list, or
+        ``"csv,json"``; ``"none"`` or an empty list: only the row and the case's manifest);
+        default the scenario's ``[output].formats``. Part of each case's content key.
     retry_failed : bool
         Recompute the cases whose row says ``error`` or ``failed``; the new row replaces it.
     progress : bool
@@ -226,6 +252,7 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
     from tqdm.auto import tqdm
 
     method = _check(workers, method)
+    outputs = check_outputs(outputs)
     cases = make_cases(sets)
     if not cases:
         raise InputError("a sweep needs at least one --set KEY=VALUES")
@@ -236,7 +263,7 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
     keys = {}
     for case in cases:  # every case must be a valid scenario before anything starts
         keys[case.id] = content_key(parse_case(scenario_path, text, case.overrides), sha, case.overrides, method,
-                                    hashes)
+                                    hashes, outputs)
     out = Path(output_dir).expanduser().resolve() if output_dir is not None else base.output_dir() / "sweep"
     if out.exists() and not out.is_dir():
         raise InputError(f"the sweep's output folder {out} is a file")
@@ -262,8 +289,8 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
                          skipped=skipped, recomputed=recomputed)
     if todo and scheduler != "synchronous":
         _require_dask()
-    tasks = [CaseTask(str(out), str(scenario_path), text, sha, case.id, case.overrides, method, retry_failed)
-             for case in todo]
+    tasks = [CaseTask(str(out), str(scenario_path), text, sha, case.id, case.overrides, method, retry_failed,
+                      outputs=outputs) for case in todo]
     with routed_to_log(out / LOG_NAME) if log else contextlib.nullcontext() as logfile:
         for case_key, reason in recomputed.items():
             line = f"case {case_key}: {reason}; recomputing"

@@ -14,8 +14,8 @@ from pathlib import Path
 from ..errors import DeaError, InputError, ScenarioError
 from ..scenario import parse_scenario, parse_set
 from ..status import RunStatus
-from . import journal
-from .keys import ContentKey, content_key
+from . import journal, spring_cache
+from .keys import ContentKey, FileHashes, content_key
 
 __all__ = [
     "RETRIED",
@@ -30,6 +30,13 @@ __all__ = [
     "work",
     "work_claimed",
 ]
+
+#: The input files' hashes, computed once per (path, size, modification time) in this process:
+#: a worker hashes the meshes of its first case only.
+_HASHES = FileHashes()
+
+#: Where a sweep's workers share their spring casts (:mod:`dea_opt.sweep.spring_cache`).
+SPRING_CACHE = ".sweep/springs"
 
 #: Every status a case's row can have: a run's (:class:`~dea_opt.status.RunStatus`: ``ok``,
 #: ``outside_validity`` (exit 3 of ``dea-opt run``), ``certificate_failed``, ``load_not_supported``
@@ -88,8 +95,15 @@ def parse_case(scenario_path: Path, text: str, overrides: dict):
                           overrides=overrides)
 
 
+def with_outputs(scenario, outputs):
+    """``scenario`` writing ``outputs`` (a list of ``[output].formats``; None: its own)."""
+    if outputs is None:
+        return scenario
+    return scenario.model_copy(update={"output": scenario.output.model_copy(update={"formats": list(outputs)})})
+
+
 def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None, *, text: str | None = None,
-             key: ContentKey | None = None) -> dict:
+             key: ContentKey | None = None, outputs=None) -> dict:
     """Run one case and write its outputs into ``case_dir``; never raises.
 
     Parameters
@@ -104,6 +118,9 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
         text it hashed, so the row is computed from exactly what its key says.
     key : ContentKey, optional
         The case's content key (default: computed here).
+    outputs : sequence of str, optional
+        The files the case writes (``[output].formats``: csv, json, vtk, png); default the
+        scenario's own.
 
     Returns
     -------
@@ -129,7 +146,8 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
         else:
             sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
         scenario = parse_case(path, text, overrides)
-        columns = (key or content_key(scenario, sha, overrides, method)).columns()
+        columns = (key or content_key(scenario, sha, overrides, method, _HASHES, outputs)).columns()
+        scenario = with_outputs(scenario, outputs)
         # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
         outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False, force=True)
         row |= {"status": str(outcome.status), "exit_code": outcome.exit_code, "message": outcome.message,
@@ -163,6 +181,7 @@ class CaseTask:
     method: str | None = None
     retry_failed: bool = False
     wait: bool = False
+    outputs: tuple | None = None
 
 
 def work(task: CaseTask) -> dict:
@@ -174,7 +193,8 @@ def work(task: CaseTask) -> dict:
     with journal.claim(task.out, task.case_id, wait=task.wait) as held:
         if not held:
             return {"outcome": "busy", "case_id": task.case_id}
-        return work_claimed(task)
+        with spring_cache.active(Path(task.out) / SPRING_CACHE):
+            return work_claimed(task)
 
 
 def _accepted(record: dict, retry_failed: bool) -> bool:
@@ -194,7 +214,7 @@ def work_claimed(task: CaseTask) -> dict:
     path = Path(task.scenario_path)
     try:
         key = content_key(parse_case(path, task.scenario_text, task.overrides), task.scenario_sha256, task.overrides,
-                          task.method)
+                          task.method, _HASHES, task.outputs)
     except DeaError:
         key = None  # run_case records the error
     previous = journal.read_case_record(out, task.case_id)
@@ -204,7 +224,8 @@ def work_claimed(task: CaseTask) -> dict:
             pointer = journal.append(out, record)
             journal.write_case_record(out, task.case_id, record, int(previous.get("runs", 1)), pointer)
         return {"outcome": "adopted", "row": record}
-    row = run_case(path, task.overrides, out / "cases" / task.case_id, task.method, text=task.scenario_text, key=key)
+    row = run_case(path, task.overrides, out / "cases" / task.case_id, task.method, text=task.scenario_text, key=key,
+                   outputs=task.outputs)
     pointer = journal.append(out, row)
     record = json.loads(journal.line_of(row))
     journal.write_case_record(out, task.case_id, record, int(previous.get("runs", 0)) + 1, pointer)

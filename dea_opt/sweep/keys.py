@@ -101,6 +101,8 @@ class ContentKey:
         The sweep's ``--method`` (None: the scenario's ``[solve].method``).
     version : str
         The dea-opt version.
+    outputs : str or None
+        The sweep's ``--outputs`` as ``"csv,json"`` (None: the scenario's ``[output].formats``).
     """
 
     scenario: str
@@ -108,23 +110,28 @@ class ContentKey:
     overrides: str
     method: str | None
     version: str
+    outputs: str | None = None
 
     @property
     def digest(self) -> str:
-        """16 hex characters of the SHA-256 of all the fields."""
-        text = json.dumps([self.scenario, [[k, h] for k, _, h in self.inputs], self.overrides, self.method,
-                           self.version], separators=(",", ":"))
-        return hashlib.sha256(text.encode()).hexdigest()[:16]
+        """16 hex characters of the SHA-256 of all the fields (``outputs`` only when given, so
+        that rows computed before the option existed keep their key)."""
+        fields = [self.scenario, [[k, h] for k, _, h in self.inputs], self.overrides, self.method, self.version]
+        if self.outputs is not None:
+            fields.append(self.outputs)
+        return hashlib.sha256(json.dumps(fields, separators=(",", ":")).encode()).hexdigest()[:16]
 
     def columns(self) -> dict:
-        """The fields a row keeps: ``key``, ``scenario_sha256``, ``dea_opt_version``, ``method_option``
-        and ``inputs`` (``{key path: [file name, SHA-256]}``; the journal keeps it, sweep.csv does not)."""
+        """The fields a row keeps: ``key``, ``scenario_sha256``, ``dea_opt_version``, ``method_option``,
+        ``outputs_option`` and ``inputs`` (``{key path: [file name, SHA-256]}``; the journal keeps
+        it, sweep.csv does not)."""
         return {"key": self.digest, "scenario_sha256": self.scenario, "dea_opt_version": self.version,
-                "method_option": self.method, "inputs": {k: [name, h] for k, name, h in self.inputs}}
+                "method_option": self.method, "outputs_option": self.outputs,
+                "inputs": {k: [name, h] for k, name, h in self.inputs}}
 
 
 def content_key(scenario, scenario_sha256: str, overrides: dict, method: str | None = None,
-                hashes: FileHashes | None = None) -> ContentKey:
+                hashes: FileHashes | None = None, outputs=None) -> ContentKey:
     """The :class:`ContentKey` of a loaded ``scenario`` (overrides already applied).
 
     Parameters
@@ -139,12 +146,14 @@ def content_key(scenario, scenario_sha256: str, overrides: dict, method: str | N
         The sweep's ``--method``.
     hashes : FileHashes, optional
         A cache shared by the cases of one sweep.
+    outputs : sequence of str, optional
+        The sweep's ``--outputs``.
     """
     hashes = hashes or FileHashes()
     inputs = tuple(sorted((where, path.name, hashes(path)) for where, path in input_files(scenario).items()))
     return ContentKey(scenario=scenario_sha256, inputs=inputs,
                       overrides=json.dumps(overrides, sort_keys=True, separators=(",", ":")),
-                      method=method, version=__version__)
+                      method=method, version=__version__, outputs=None if outputs is None else ",".join(outputs))
 
 
 def stale_reason(record: dict, key: ContentKey) -> str | None:
@@ -170,6 +179,10 @@ def stale_reason(record: dict, key: ContentKey) -> str | None:
             reasons.append(f"it now reads {where} ({now[where][0]})")
         elif then_hash != now[where][1]:
             reasons.append(f"the input file {where} ({now[where][0]}) changed since its row was computed")
+    if record.get("outputs_option") != key.outputs:
+        was, now_outputs = record.get("outputs_option"), key.outputs
+        reasons.append(f"it wrote the outputs {was or '(the scenario default)'}, now "
+                       f"{now_outputs or '(the scenario default)'}")
     if record.get("method_option") != key.method:
         was, now_method = record.get("method_option"), key.method
         reasons.append(f"it was solved with --method {was or '(the scenario default)'}, now "
