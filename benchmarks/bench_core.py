@@ -54,8 +54,9 @@ def _warm_imports(method: str) -> None:
 def make_problem(problem: str, n: int, law: str = "linear"):
     """The benchmark problem ``problem`` at about ``n`` springs under ``law`` ("linear" or
     "cubic": :class:`~dea_opt.CubicLaw` with the linear law's ``H`` and ``beta = 0.3``)."""
-    import dea_opt as dea
     from common import PROBLEMS
+
+    import dea_opt as dea
 
     p = PROBLEMS[problem](n)
     if law == "cubic":
@@ -86,8 +87,9 @@ def one(problem: str, method: str, n: int, options: dict | None = None, law: str
 def _one(problem, method, n, options, law, repeats, budget) -> dict:
     import os
 
-    import dea_opt as dea
     from common import best_of, peak_rss_mb, rss_now_mb, timed
+
+    import dea_opt as dea
 
     label = method
     method, defaults = METHODS.get(method, (method, {}))

@@ -61,6 +61,7 @@ def one(pair: str, faces: float, engine: str, repeats: int = 3, budget: float = 
 
 def _one(pair, faces, engine, repeats, budget) -> dict:
     from common import peak_rss_mb
+
     from dea_opt.mesh import springs_from_meshes
 
     # Warm the imports and the engine's one-time set-up on a small pair.

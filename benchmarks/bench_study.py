@@ -29,9 +29,9 @@ def one(problem: str, n: int, methods=("newton", "qp"), blas_threads: int | None
     import time
 
     import numpy as np
-
     from bench_core import make_problem
     from common import blas_limit, peak_rss_mb
+
     from dea_opt.study import run_study
 
     with blas_limit(blas_threads):

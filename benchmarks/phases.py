@@ -54,8 +54,9 @@ def _profile(fn, top: int = 25):
 
 
 def newton(args):
-    import dea_opt as dea
     from bench_core import make_problem
+
+    import dea_opt as dea
 
     dea.solve(make_problem(args.problem, 200, args.law), "newton")  # warm imports
     p = make_problem(args.problem, int(args.n), args.law)
@@ -82,6 +83,7 @@ def qp(args):
 
     print_table(rows, bench_qp.COLUMNS)
     from bench_core import make_problem
+
     from dea_opt.formulations.qp import QPModel
 
     p = make_problem(args.problem, int(args.n))
@@ -117,6 +119,7 @@ def nlp(args):
 
 def mesh(args):
     import bench_mesh
+
     from dea_opt.mesh import springs_from_meshes
 
     small = bench_mesh.make_pair(args.pair, 2000)
@@ -128,8 +131,9 @@ def mesh(args):
 
 
 def gait(args):
-    import dea_opt as dea
     from bench_path import hip, load_hip_gait
+
+    import dea_opt as dea
 
     loads = load_hip_gait()
     dea.solve_path(hip(500), loads.iloc[:3], method="newton", keep_solutions=False)

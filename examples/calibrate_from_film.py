@@ -40,10 +40,9 @@ import numpy as np
 import pandas as pd
 
 import dea_opt
-from dea_opt.sensitivity import PressureMap, calibrate
 from dea_opt.geometry import socket_layer
 from dea_opt.io import write_atomic
-from dea_opt.sensitivity import monte_carlo, propagate
+from dea_opt.sensitivity import PressureMap, calibrate, monte_carlo, propagate
 
 NAME = "calibrate_from_film"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME

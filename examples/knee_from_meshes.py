@@ -50,8 +50,8 @@ import pandas as pd
 
 import dea_opt
 from dea_opt import io as dio
-from dea_opt.mesh import concatenate_meshes, load_mesh, springs_from_meshes
 from dea_opt.anatomy import regional_statistics, split_by_axis
+from dea_opt.mesh import concatenate_meshes, load_mesh, springs_from_meshes
 
 NAME = "knee_from_meshes"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME

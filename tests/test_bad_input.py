@@ -6,11 +6,10 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import METHODS
 
 import dea_opt as d
 from dea_opt.geometry import socket_layer, sphere_on_bed_layer
-
-from conftest import METHODS
 
 N = 4
 GOOD = dict(points=np.zeros((N, 3)), normals=np.tile([0, 0, 1.0], (N, 1)), areas=1.0, thickness=2.0)

@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
+from conftest import METHODS, solve_quietly
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer
-
-from conftest import METHODS, solve_quietly
 
 REF = (0.0, 0.0, 0.0)
 FORCE, MOMENT = (0.0, 0.0, -500.0), (0.0, -2500.0, 800.0)
@@ -82,7 +83,7 @@ def test_problem_is_immutable_and_copies(layer):
     p = d.ContactProblem(layer, d.LinearLaw(1.0), force=FORCE)
     q = p.with_load(force=(0, 0, -1.0))
     assert p.body2.force == FORCE and q.body2.force == (0.0, 0.0, -1.0)
-    with pytest.raises(Exception):
+    with pytest.raises(dataclasses.FrozenInstanceError):
         p.law = d.LinearLaw(2.0)
     with pytest.raises(ValueError):
         layer.points[0, 0] = 1.0

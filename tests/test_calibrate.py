@@ -8,9 +8,6 @@ import warnings
 import numpy as np
 import pytest
 from conftest import KNEE
-from scipy.special import log_ndtr
-
-import dea_opt as d
 from dea_opt.calibrate import (
     FILMS,
     ContactData,
@@ -21,6 +18,9 @@ from dea_opt.calibrate import (
     apply_parameters,
     calibrate,
 )
+from scipy.special import log_ndtr
+
+import dea_opt as d
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")

@@ -211,7 +211,7 @@ def test_shape_analysis_matches_eq2(validity):
     for beta, v in result["shape"].items():
         assert v["deviation_at_claim"] == pytest.approx(H * -0.3 / eq2(-0.3, beta) - 1, rel=1e-10)
         for level, strain in v["departure"].items():
-            expected = brentq(lambda s: (1 - H * s / -eq2(-s, beta)) - level, 1e-6, 0.9, xtol=1e-14)
+            expected = brentq(lambda s, beta=beta, level=level: (1 - H * s / -eq2(-s, beta)) - level, 1e-6, 0.9, xtol=1e-14)
             assert strain == pytest.approx(expected, abs=1e-9)
         assert v["departure"][0.05] < v["departure"][0.10] < 0.3
     assert result["shape"][0.05]["deviation_at_claim"] == pytest.approx(-0.1848, abs=1e-4)
@@ -230,7 +230,7 @@ def test_departure_strains_monotone(validity):
         # The linear model overstates the strain it reaches under the same load.
         assert row.strain_approx_5 >= row.strain_ref_5 - 1e-12
     # Stiffer Eq. (2) (beta 0.6) departs earlier from the linear law.
-    for geometry, rows in linear.groupby("geometry"):
+    for _geometry, rows in linear.groupby("geometry"):
         b = rows.set_index("beta")
         assert b.loc[0.6, "strain_ref_5"] < b.loc[0.05, "strain_ref_5"]
 

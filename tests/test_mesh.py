@@ -17,7 +17,8 @@ import pytest
 import trimesh
 
 import dea_opt as d
-from dea_opt import geometry, mesh as M
+from dea_opt import geometry
+from dea_opt import mesh as M
 
 METHODS = ("newton", "qp", "nlp")
 TIGHT = {"newton": {}, "qp": {"tol": 1e-10}, "nlp": {"tol": 1e-12}}
@@ -378,7 +379,7 @@ def _height_above(points, sphere):
 
 
 def test_sphere_gaps_are_the_tessellated_distance(sphere_levels):
-    for layer, bed, sphere in sphere_levels[:2]:
+    for layer, _bed, sphere in sphere_levels[:2]:
         assert np.allclose(layer.normals, [0, 0, 1])
         np.testing.assert_allclose(layer.gap, _height_above(layer.points, sphere), rtol=0, atol=1e-9)
         np.testing.assert_allclose(layer.thickness, H_BED, rtol=1e-6)  # through the bed

@@ -16,11 +16,11 @@ import meshio
 import numpy as np
 import pandas as pd
 import pytest
+from dea_opt.regions import label_by_axis
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer
 from dea_opt.loadpath import REGION_COLUMNS, TABLE_COLUMNS, solve_path
-from dea_opt.regions import label_by_axis
 
 H = 10.0
 LOADS = np.array([

@@ -43,13 +43,12 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
+from conftest import TIGHT
 from hypothesis import HealthCheck, Phase, assume, given, note, settings
 from hypothesis import strategies as st
 from scipy.optimize import linprog
 
 import dea_opt as d
-
-from conftest import TIGHT
 
 # --- hypothesis profiles ------------------------------------------------------------------
 

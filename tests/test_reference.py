@@ -7,17 +7,16 @@ each solution and the agreement test compares them pairwise.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pytest
+from conftest import METHODS, applies, solve_quietly
 from scipy.integrate import quad
 from scipy.optimize import brentq
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
-
-from conftest import METHODS, applies, solve_quietly
 
 R, H_BED = 25.0, 2.0  # sphere radius and bed thickness (mm)
 P, B, L = 500.0, 40.0, 10.0  # plate load (N) and size (mm)
@@ -52,12 +51,12 @@ CASES = {
 }
 
 
-@lru_cache(maxsize=None)
+@cache
 def problem(case):
     return CASES[case]()
 
 
-@lru_cache(maxsize=None)
+@cache
 def solution(case, method):
     return solve_quietly(problem(case), method)
 
@@ -102,7 +101,8 @@ def _quadrature(force, law):
 
     def carried(approach):
         a = math.sqrt(2 * R * approach - approach**2)
-        strain = lambda rho: (R - math.sqrt(R * R - rho * rho) - approach) / H_BED
+        def strain(rho):
+            return (R - math.sqrt(R * R - rho * rho) - approach) / H_BED
         return quad(lambda rho: -law.stress(np.array([strain(rho)]))[0] * 2 * math.pi * rho, 0, a,
                     epsabs=1e-13, epsrel=1e-12, limit=200)[0]
 

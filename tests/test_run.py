@@ -14,15 +14,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import KNEE
+from dea_opt.law_registry import Range
 from typer.testing import CliRunner
 
 import dea_opt as d
-from conftest import KNEE
 from dea_opt.cli import app
 from dea_opt.geometry import plate_layer
 from dea_opt.io.publish import read_manifest
 from dea_opt.laws import LAWS, Law, register_law
-from dea_opt.law_registry import Range
 from dea_opt.scenario import parse_scenario, schema_text
 from dea_opt.status import RunStatus
 
@@ -343,7 +343,7 @@ def test_library_warnings_go_to_the_log_and_dea_opts_own_to_one_line(tmp_path, m
     original = scenario_package.build_problem_cast
 
     def noisy(scenario, *args, **kwargs):
-        warnings.warn("a library's deprecation", DeprecationWarning)  # raised here: not dea-opt's
+        warnings.warn("a library's deprecation", DeprecationWarning, stacklevel=2)  # raised here: not dea-opt's
         logging.getLogger("cvxpy").warning("a solver's chatter")
         _warn_dropped(np.array([1.0, np.nan]), np.ones(2), np.array([True, False]), None, 1.0)  # dea-opt's own
         return original(scenario, *args, **kwargs)
@@ -401,7 +401,7 @@ def test_a_library_warning_outside_a_run_is_one_line(tmp_path, monkeypatch):
     original = scenario_package.load_scenario
 
     def noisy(*args, **kwargs):  # before the run starts: no output folder to log into yet
-        warnings.warn("a library's future change", FutureWarning)
+        warnings.warn("a library's future change", FutureWarning, stacklevel=2)
         return original(*args, **kwargs)
 
     monkeypatch.setattr(scenario_package, "load_scenario", noisy)

@@ -18,12 +18,11 @@ from contextlib import contextmanager
 
 import numpy as np
 import pytest
+from conftest import TIGHT, method_law_pairs
 from scipy.optimize import brentq
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer, socket_layer
-
-from conftest import TIGHT, method_law_pairs
 
 METHODS = ("newton", "qp", "nlp", "auto")
 #: A linear and a nonlinear law, each with every method that takes it.
@@ -68,7 +67,8 @@ def reference_at(lever):
 
 def strain_for_pressure(law, p):
     """The compressive strain ``eps > 0`` with ``-sigma(-eps) = p`` (a 1-D root)."""
-    f = lambda e: -law.stress(np.array([-e]))[0] - p
+    def f(e):
+        return -law.stress(np.array([-e]))[0] - p
     hi = 0.999999 if law.bounded_strain else 10.0
     return brentq(f, 0.0, hi, xtol=1e-300, rtol=1e-15)
 

@@ -7,8 +7,8 @@ import json
 
 import numpy as np
 import pytest
-
 from conftest import KNEE
+
 from dea_opt.geometry import plate_meshes
 from dea_opt.io.tables import read_springs, write_springs
 from dea_opt.mesh import springs_from_meshes

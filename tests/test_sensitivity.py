@@ -8,10 +8,10 @@ import warnings
 
 import numpy as np
 import pytest
+from dea_opt.parametric import nlp_sensitivities
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
-from dea_opt.parametric import nlp_sensitivities
 from dea_opt.sensitivity import sensitivities
 
 LAWS = (d.LinearLaw(0.6), d.AteshianLaw(0.6, 0.3), d.CubicLaw(0.6, 0.3), d.PolynomialLaw(0.6, 0.3, 5),

@@ -202,8 +202,9 @@ def test_a_former_private_path_is_mapped_in_the_graph():
 
 
 def test_path_is_loadpath():
-    import dea_opt.loadpath
     import dea_opt.path
+
+    import dea_opt.loadpath
 
     for name in dea_opt.path.__all__:
         assert getattr(dea_opt.path, name) is getattr(dea_opt.loadpath, name)

@@ -17,13 +17,12 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import KNEE
 from scipy.spatial.transform import Rotation
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer
 from dea_opt.validity import DEFAULT_LIMITS, Check, Validity, ValidityLimits, assess, rotation_gap_error
-
-from conftest import KNEE
 
 NAMES = ("strain", "rotation", "gap_error", "extent", "layer_area", "thickness", "peak_pressure",
          "dropped_springs")

@@ -192,8 +192,8 @@ def test_a_billion_frames_is_a_named_size_error_with_the_estimate(tmp_path):
 
 
 def test_the_mesh_memory_guard_is_a_size_limit_error():
-    from dea_opt.geometry import hip_meshes
     from dea_opt._checks.memory import check_memory
+    from dea_opt.geometry import hip_meshes
 
     with pytest.raises(SizeLimitError) as info:
         hip_meshes(step=0.01)
@@ -236,6 +236,7 @@ def test_the_readme_documents_the_sweep_statuses():
 
 def test_hip_regions_label_the_dome_and_the_walls():
     from dea_opt.demo import hip_regions
+
     from dea_opt.geometry import socket_layer
 
     layer = socket_layer(25.0, 3.0, 80.0, 16, 36)

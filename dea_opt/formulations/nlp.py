@@ -15,6 +15,7 @@ Both are built with vectorized MX (``A @ x`` is one node), without ``expand``.
 from __future__ import annotations
 
 import time
+from typing import Any
 
 import numpy as np
 
@@ -92,7 +93,7 @@ class NLPModel:
         # energy divided by E0: IPOPT's tolerances then mean the same for every unit.
         self.scale = sc = scaling(system, law.modulus)
         k, n, s0 = sc.n_dofs, system.n_springs, sc.strain_scale
-        self._warm = None
+        self._warm: dict[str, Any] | None = None
         self._solved = False
         self.trivial = k == 0  # nothing resisted: no model (IPOPT must not see an empty one)
         if self.trivial:

@@ -242,7 +242,7 @@ class QPModel:
         self.scale = sc = scaling(system, law.H)
         self.trivial = sc.n_dofs == 0  # nothing resisted: no model (a solver must not see an empty one)
         self.compiled = False
-        self.backend = None
+        self.backend: _Clarabel | _Cvxpy | None = None
         if not self.trivial:
             require_finite("the QP's data", sc.volume, sc.AT, system.e0)
             if self.solver == DIRECT:
@@ -264,6 +264,7 @@ class QPModel:
         require_finite("the load", scaled)
         start = time.perf_counter()
         try:
+            assert self.backend is not None  # a system with resisted dofs has one
             xi, lam, native, iterations, solver_time = self.backend.solve(scaled)
         except (InputError, SolverError, KeyboardInterrupt, SystemExit):
             raise

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
@@ -66,6 +67,7 @@ class MapGeometry:
         if self.raster or self.on == "points":
             used = self.samples
         else:
+            assert self.faces is not None  # a map on faces has them
             used = self.xy[np.unique(self.faces)]
         return used.min(axis=0), used.max(axis=0)
 
@@ -241,8 +243,9 @@ def draw_regions(ax, geometry: MapGeometry, labels) -> None:
     names = np.unique(labels)
     if len(names) < 2:
         return
-    style = {"colors": "w", "linewidths": 1.2, "linestyles": "--"}
+    style: dict[str, Any] = {"colors": "w", "linewidths": 1.2, "linestyles": "--"}
     raster = geometry.raster or geometry.triangles is None
+    triangles = geometry.triangles if geometry.triangles is not None else np.empty((0, 3), dtype=np.int64)
     if raster:
         flat, shape, low, pixel = _pixels(geometry)
         x = low[0] + (np.arange(shape[1]) + 0.5) * pixel
@@ -253,7 +256,7 @@ def draw_regions(ax, geometry: MapGeometry, labels) -> None:
         majority = votes.argmax(axis=1).reshape(shape)
         present = _fill(np.zeros(shape), votes.sum(axis=1).reshape(shape) > 0)[1]
     elif geometry.on == "faces":
-        outline = {tuple(e) for e in boundary_edges(geometry.triangles).tolist()}
+        outline = {tuple(e) for e in boundary_edges(triangles).tolist()}
     else:
         tri = Triangulation(geometry.xy[:, 0], geometry.xy[:, 1], geometry.triangles)
     for name in names:
@@ -265,7 +268,7 @@ def draw_regions(ax, geometry: MapGeometry, labels) -> None:
                 ax.contour(x, y, inside, levels=[0.5], **style)
         elif geometry.on == "faces":
             # the edges of the region's outline that are not the outline of the whole layer
-            edges = [e for e in boundary_edges(geometry.triangles[mask]).tolist() if tuple(e) not in outline]
+            edges = [e for e in boundary_edges(triangles[mask]).tolist() if tuple(e) not in outline]
             if edges:
                 ax.add_collection(LineCollection(geometry.xy[np.array(edges)], **style))
         else:

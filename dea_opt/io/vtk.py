@@ -10,6 +10,7 @@ from __future__ import annotations
 import base64
 import math
 from pathlib import Path
+from typing import Any, Literal
 
 import numpy as np
 
@@ -17,11 +18,10 @@ from .._checks.dependencies import require
 from ..errors import InputError
 from .atomic import file_path, write_atomic
 from .surface import SurfaceData, contact_surface
-from .vtkxml import VTK_TYPES, read_appended, write_vtk_xml
+from .vtkxml import NUMPY_TYPES, read_appended, write_vtk_xml
 
 __all__ = ["VTK_EXTENSIONS", "read_vtk", "to_vtk", "vtk_differences", "write_surface"]
 
-_NUMPY_TYPES = {v: k for k, v in VTK_TYPES.items()}
 #: The extensions :func:`to_vtk` writes: VTK XML UnstructuredGrid and PolyData.
 VTK_EXTENSIONS = (".vtu", ".vtp")
 
@@ -79,10 +79,10 @@ def write_surface(surface: SurfaceData, path, *, binary: bool = True, compress: 
 
 
 def _read_data_array(element, header_dtype, byte_order, appended=None) -> np.ndarray:
-    vtk_type = element.get("type")
-    if vtk_type not in _NUMPY_TYPES:
+    vtk_type = element.get("type", "")
+    if vtk_type not in NUMPY_TYPES:
         raise InputError(f"read_vtk: unsupported DataArray type {vtk_type!r}")
-    dtype = _NUMPY_TYPES[vtk_type].newbyteorder(byte_order)
+    dtype = NUMPY_TYPES[vtk_type].newbyteorder(byte_order)
     text = (element.text or "").strip()
     fmt = element.get("format", "ascii")
     if fmt == "appended" and appended is not None:
@@ -117,8 +117,8 @@ def _read_vtp(path: Path) -> SurfaceData:
         raise InputError(f"path: {str(path)!r} is not VTK XML PolyData")
     if root.get("compressor"):
         raise InputError(f"read_vtk reads uncompressed .vtp files, {str(path)!r} is compressed")
-    header = np.dtype(_NUMPY_TYPES[root.get("header_type", "UInt32")])
-    order = "<" if root.get("byte_order", "LittleEndian") == "LittleEndian" else ">"
+    header = NUMPY_TYPES[root.get("header_type", "UInt32")]
+    order: Literal["<", ">"] = "<" if root.get("byte_order", "LittleEndian") == "LittleEndian" else ">"
     header = header.newbyteorder(order)
     piece = root.find("PolyData/Piece")
     if piece is None or piece.find("Points/DataArray") is None:
@@ -195,7 +195,8 @@ def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
     """
     expected = contact_surface(solution, cells=cells)
     found = read_vtk(path)
-    pairs = {"points": (expected.points, found.points), "cells": (expected.cells, found.cells)}
+    pairs: dict[str, tuple[Any, Any]] = {"points": (expected.points, found.points),
+                                         "cells": (expected.cells, found.cells)}
     for name, value in expected.spring_data.items():
         pairs[name] = (value, found.spring_data.get(name))
     out = {}

@@ -18,6 +18,7 @@ import base64
 import html
 import re
 import zlib
+from typing import Any, Literal
 
 import numpy as np
 
@@ -28,13 +29,14 @@ __all__ = ["ENCODINGS", "VTK_TYPES", "quoteattr", "read_appended", "write_vtk_xm
 #: The encodings :func:`write_vtk_xml` writes.
 ENCODINGS = ("raw", "zlib", "ascii")
 
-VTK_TYPES = {
+VTK_TYPES: dict[np.dtype, str] = {
     np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32",
     np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32", np.dtype(np.int16): "Int16",
     np.dtype(np.int8): "Int8", np.dtype(np.uint64): "UInt64", np.dtype(np.uint32): "UInt32",
     np.dtype(np.uint16): "UInt16", np.dtype(np.uint8): "UInt8",
 }
-_NUMPY_TYPES = {v: k for k, v in VTK_TYPES.items()}
+#: The NumPy dtype of each VTK DataArray type.
+NUMPY_TYPES: dict[str, np.dtype] = {v: k for k, v in VTK_TYPES.items()}
 #: VTK cell type numbers (UnstructuredGrid) by meshio's names.
 _CELL_TYPES = {"vertex": 1, "triangle": 5, "quad": 9}
 _BLOCK = 1 << 20  # bytes per compressed block
@@ -134,9 +136,9 @@ def _write_array(handle, name: str, values, fmt: str, indent: str, offset: int |
         header = np.array([len(blocks), size, last, *map(len, blocks)], dtype="<u8")
         handle.write(base64.b64encode(header.tobytes()))
         stream = _Base64(handle)
-        for k in range(len(blocks)):
-            stream.write(blocks[k])
-            blocks[k] = None
+        blocks.reverse()
+        while blocks:  # each block freed once written
+            stream.write(blocks.pop())
         stream.close()
     else:
         stream = _Base64(handle)
@@ -185,7 +187,7 @@ def write_vtk_xml(path, surface, *, binary: bool = True, polydata: bool = False,
     elif _CELL_TYPES.get(surface.cell_type) is None:
         raise InputError(f"cannot write cells of type {surface.cell_type!r} to .vtu")
     # Every array in the order it is written: (section, name, values).
-    arrays = [("PointData", name, np.asarray(value)) for name, value in surface.point_data.items()]
+    arrays: list[tuple[str, str, Any]] = [("PointData", name, np.asarray(value)) for name, value in surface.point_data.items()]
     arrays += [("CellData", name, np.asarray(value)) for name, value in surface.cell_data.items()]
     arrays += [("Points", "Points", np.asarray(surface.points, dtype=np.float64)),
                (block, "connectivity", cells), (block, "offsets", _Ramp(n_cells, per_cell, np.int64))]
@@ -266,19 +268,24 @@ def read_appended(path) -> tuple:
         raise InputError(f"path: {str(path)!r} is not a VTK XML file ({exc})") from None
     if root.get("compressor"):
         raise InputError(f"read_appended reads uncompressed appended data, {str(path)!r} is compressed")
-    order = "<" if root.get("byte_order", "LittleEndian") == "LittleEndian" else ">"
-    header = np.dtype(_NUMPY_TYPES[root.get("header_type", "UInt32")]).newbyteorder(order)
+    order: Literal["<", ">"] = "<" if root.get("byte_order", "LittleEndian") == "LittleEndian" else ">"
+    header = NUMPY_TYPES[root.get("header_type", "UInt32")].newbyteorder(order)
     start, arrays = found.end(), {}
     for element in root.iter("DataArray"):
         if element.get("format") != "appended":
             continue
-        if element.get("type") not in _NUMPY_TYPES:
+        vtk_type = element.get("type", "")
+        if vtk_type not in NUMPY_TYPES:
             raise InputError(f"path: {str(path)!r} has a DataArray of type {element.get('type')!r}, which dea-opt "
                              f"does not read")
-        offset = int(element.get("offset"))
+        offset_text = element.get("offset", "")
+        if not offset_text.isdigit():
+            raise InputError(f"path: {str(path)!r} has a DataArray {element.get('Name')!r} without a valid offset "
+                             f"(found {offset_text!r})")
+        offset = int(offset_text)
         at = start + offset
         n_bytes = int(np.frombuffer(data, header, count=1, offset=at)[0]) if at + header.itemsize <= tail else tail
-        dtype = _NUMPY_TYPES[element.get("type")].newbyteorder(order)
+        dtype = NUMPY_TYPES[vtk_type].newbyteorder(order)
         if at + header.itemsize + n_bytes > tail:
             raise InputError(f"path: {str(path)!r} is truncated: array {element.get('Name')!r} runs past its data")
         values = np.frombuffer(data, dtype, count=n_bytes // dtype.itemsize, offset=at + header.itemsize)

@@ -9,9 +9,9 @@ Units: ``H`` in MPa, stress and energy density in MPa (= N/mm^2 = mJ/mm^3).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import typing
-import dataclasses
 from dataclasses import dataclass
 
 import numpy as np

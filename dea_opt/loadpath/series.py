@@ -13,7 +13,7 @@ from dataclasses import replace
 from pathlib import Path
 
 from ..io.atomic import write_data
-from ..io.surface import layer_surface, spring_fields
+from ..io.surface import SurfaceData, layer_surface, spring_fields
 from ..io.vtk import write_surface
 from ..io.vtkxml import quoteattr
 
@@ -36,7 +36,8 @@ class FrameSeries:
         self.digits = max(4, len(str(max(int(n_frames) - 1, 0))))
         self.files: list[Path] = []
         self.times: list[float] = []
-        self._layer = self._surface = None
+        self._layer = None
+        self._surface: SurfaceData | None = None
 
     def write(self, k: int, t: float, layer, solution=None) -> Path:
         """Frame ``k`` at time ``t`` (s): ``solution``'s fields on ``layer``, or NaN (None)."""
@@ -45,6 +46,7 @@ class FrameSeries:
             # The surface and the layer's own fields (gap, normals, labels, ...) are the same in
             # every frame on one layer: made once (the labels' codes sort every label).
             self._layer, self._surface = layer, layer_surface(layer, fields)
+        assert self._surface is not None  # made just above for a new layer
         surface = replace(self._surface, cell_data=fields) if self._surface.cell_data else \
             replace(self._surface, point_data=fields)
         path = write_surface(surface, self.folder / f"frame_{k:0{self.digits}d}.vtu")

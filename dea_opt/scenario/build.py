@@ -199,9 +199,11 @@ def pose_caster(scenario):
     regions = getattr(scenario, "regions", None)
     if isinstance(section, MeshGeometry):
         meshes = load_meshes(section)
-        cast = lambda pose: cast_from_mesh_section(section, meshes, pose)
+        def cast(pose):
+            return cast_from_mesh_section(section, meshes, pose)
     elif isinstance(section, GeneratorGeometry) and hasattr(built := _from_generator(section), "mesh1"):
-        cast = lambda pose: _cast_of(built, section.function, pose)
+        def cast(pose):
+            return _cast_of(built, section.function, pose)
     else:
         return None
     if regions is None:

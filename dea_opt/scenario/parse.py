@@ -13,8 +13,8 @@ import os
 import re
 import tomllib
 from collections.abc import Mapping
-from typing import Any
 from pathlib import Path
+from typing import Any
 
 from pydantic import BaseModel, ValidationError
 
