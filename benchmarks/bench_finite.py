@@ -119,7 +119,7 @@ def gait_case(frames: int = 101) -> dict:
     from common import peak_rss_mb
 
     import dea_opt as dea
-    from dea_opt.formulations._finite_geometry import pose_matrix
+    from dea_opt.formulations.finite import pose_matrix
 
     missing = _missing()
     if missing:

@@ -390,9 +390,9 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
     if problem.kinematics == "finite":
-        from .formulations import finite
+        from .largemotion import solve as solve_finite
 
-        return finite.solve(problem, method, certificate_tol=certificate_tol, strict=strict,
+        return solve_finite(problem, method, certificate_tol=certificate_tol, strict=strict,
                             load_checks=(_check_unresisted, _check_cone), **options)
     with single_threaded_blas():
         return _solve(problem, method, certificate_tol, strict, options)

@@ -15,6 +15,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import dea_opt as d
+from dea_opt import largemotion
 from dea_opt.formulations import _finite_geometry as G
 from dea_opt.formulations._finite_system import FiniteSystem
 from dea_opt.formulations.finite import Targets
@@ -427,7 +428,7 @@ def test_bad_options_frames_and_starts_are_named():
     skew = np.eye(4)
     skew[0, 1] = 0.5
     with pytest.raises(d.InputError, match="frame is not rigid"):
-        d.formulations.finite.solve(problem, frame=skew)
+        largemotion.solve(problem, frame=skew)
     with pytest.raises(d.InputError, match="prescribed motion"):
         d.solve(d.ContactProblem(layer, d.LinearLaw(H), body1=d.Body(free=(), prescribed={"uz": 0.1}),
                                  kinematics="finite"))

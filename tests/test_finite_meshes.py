@@ -23,8 +23,8 @@ from dea_opt.formulations._finite_geometry import (
     evaluate,
     rotation,
 )
-from dea_opt.formulations._finite_recast import off_face
 from dea_opt.geometry import hip_meshes
+from dea_opt.mesh import off_face
 
 KNEE = Path(__file__).resolve().parents[2] / "shared" / "data" / "knee"
 FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
@@ -171,7 +171,7 @@ def test_the_knee_re_cast_afresh_at_the_solved_pose_carries_the_load(knee, knee_
     print(f"fresh cast: force {force.round(3)} N, moment {moment.round(2)} N mm (radius {radius:.1f} mm)")
     # the free directions carry the load; the held ones the solution's reactions
     assert abs(force[2] - LOAD) <= 2e-3 * LOAD
-    J = d.formulations._finite_geometry.left_jacobian(solution.u[9:12])
+    J = d.formulations.finite.left_jacobian(solution.u[9:12])
     assert np.abs((J.T @ (moment + np.array([0.0, VARUS, 0.0])))[:2]).max() <= 1e-2 * LOAD * radius
     assert np.linalg.norm(force - solution.contact_force) <= 2e-3 * LOAD
     assert np.linalg.norm(moment - solution.contact_moment) <= 1e-2 * LOAD * radius

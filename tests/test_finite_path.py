@@ -16,8 +16,8 @@ import numpy as np
 import pytest
 
 import dea_opt as d
-from dea_opt import formulations
-from dea_opt.formulations._finite_geometry import pose_matrix
+from dea_opt import formulations, largemotion
+from dea_opt.formulations.finite import FiniteSystem, pose_matrix
 from dea_opt.geometry import knee_meshes, plate_layer
 
 H, THICK, SIDE = 10.0, 10.0, 6.0
@@ -103,7 +103,7 @@ def test_a_gait_with_prescribed_flexion_finds_the_free_dofs_on_top_of_each_pose(
         push = (solution.pressure * layer.areas)[:, None] * layer.normals
         centre = np.asarray(gait["problem"].body2.reference) + solution.u[6:9]
         moment = np.cross(layer.points - centre, push).sum(axis=0) + gait["loads"][k, 3:]
-        J = d.formulations._finite_geometry.left_jacobian(solution.u[9:12])
+        J = d.formulations.finite.left_jacobian(solution.u[9:12])
         assert abs(push.sum(axis=0)[2] + gait["loads"][k, 2]) <= 1e-8 * abs(gait["loads"][k, 2])
         assert abs((J.T @ moment)[1]) <= 1e-8 * abs(gait["loads"][k, 2]) * 20.0
     # the springs follow the flexing femur: the set changes from frame to frame
@@ -114,7 +114,7 @@ def test_each_gait_frame_is_the_answer_of_a_cold_solve_at_its_pose(gait):
     result = gait["result"]
     for k in (3, 6):
         frame = gait["problem"].with_load(force=gait["loads"][k, :3], moment=gait["loads"][k, 3:])
-        alone = quiet(d.formulations.finite.solve, frame, "auto", frame=gait["poses"][k])
+        alone = quiet(largemotion.solve, frame, "auto", frame=gait["poses"][k])
         path = result.solutions[k]
         assert alone.success
         assert abs(alone.u[8] - path.u[8]) <= 1e-4 * abs(path.u[8])
@@ -135,12 +135,19 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
     # the small kinematics' names stand for the finite formulations
     assert quiet(d.solve, loaded, "newton").method == "finite"
     assert quiet(d.solve, loaded, "nlp").method == "finite_nlp"
-    with pytest.raises(d.InputError, match="the finite formulation solves a ContactProblem"):
-        formulations.get("finite").Model(d.ContactProblem(layer, law))
-    model = formulations.get("finite_nlp").Model(loaded, form="reduced")
-    first = model.solve()
-    again = model.solve(d.Load(force=(0, 0, -60.0), moment=(0, 30.0, 0)))
-    assert first.success and again.success and again.method == "finite_nlp" and again.u[8] < first.u[8]
+    # the formulations see arrays: a FiniteSystem, never a problem
+    with pytest.raises(d.InputError, match="the finite formulation solves a FiniteSystem"):
+        formulations.get("finite").Model(d.ContactProblem(layer, law), law)
+    system = largemotion.driver.build_system(loaded, largemotion.driver.resolve_targets(loaded)[0])
+    assert isinstance(system, FiniteSystem)
+    certified = quiet(d.solve, loaded)
+    for name in ("finite", "finite_nlp"):
+        model = formulations.get(name).Model(system, law, **({"form": "reduced"} if name == "finite_nlp" else {}))
+        first = model.solve()
+        again = model.solve(((0, 0, -60.0), (0, 30.0, 0)))
+        # the raw answers: uz, ry free; more load, deeper; the first is dea_opt.solve's answer
+        assert first.success and again.success and again.u_free[0] < first.u_free[0]
+        assert np.abs(first.u_free - certified.u[[8, 10]]).max() <= 1e-6 * np.abs(certified.u).max()
 
 
 def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):

@@ -145,6 +145,41 @@ def test_each_allowed_front_is_real_and_only_a_call_time_import(front):
     assert _cycle([edge for edge in EDGES if edge not in CALL_TIME_FRONTS - {front}]) is not None
 
 
+#: What the formulations never see (the guide: "Dependencies point one way: formulations code sees
+#: arrays and a law, never meshes or files"): meshes, files, scenarios, load paths, problems,
+#: layers, solutions, and the code that builds their arrays from those.
+NEVER_SEEN_BY_FORMULATIONS = ("dea_opt.mesh", "dea_opt.io", "dea_opt.scenario", "dea_opt.loadpath", "dea_opt.path",
+                              "dea_opt.problem", "dea_opt.layer", "dea_opt.solution", "dea_opt.largemotion",
+                              "dea_opt.solver")
+#: What they may import besides each other: errors, statuses, input checks, tolerances, laws and
+#: the kinematics' array helpers, and the loader of optional dependencies.
+SEEN_BY_FORMULATIONS = ("dea_opt.errors", "dea_opt.status", "dea_opt._validate", "dea_opt._tolerances",
+                        "dea_opt.laws", "dea_opt.law_registry", "dea_opt.kinematics", "dea_opt._optional")
+
+
+def _within(module: str, package: str) -> bool:
+    return module == package or module.startswith(package + ".")
+
+
+def test_formulations_see_arrays_and_a_law_only():
+    """No module under dea_opt/formulations/ imports, at module level or inside a function, from
+    the packages that know meshes, files, problems or solutions."""
+    imported = {(a, b) for a, b in EDGES if _within(a, "dea_opt.formulations")}
+    assert imported, "the graph sees no import of the formulations"
+    forbidden = sorted((a, b) for a, b in imported if any(_within(b, p) for p in NEVER_SEEN_BY_FORMULATIONS))
+    assert not forbidden, f"formulations import what they must not see: {forbidden}"
+    other = sorted((a, b) for a, b in imported
+                   if not _within(b, "dea_opt.formulations") and b not in SEEN_BY_FORMULATIONS)
+    assert not other, f"formulations import beyond arrays, laws and errors: {other}"
+
+
+def test_the_rule_of_the_formulations_would_see_a_function_level_import(tmp_path):
+    source = "def f():\n    from ..mesh.springs import cast_springs\n    import dea_opt.io\n"
+    visitor = _Imports("dea_opt.formulations.example", False)
+    visitor.visit(ast.parse(source))
+    assert set(visitor.found) == {("dea_opt.mesh.springs", False), ("dea_opt.io", False)}
+
+
 @pytest.mark.parametrize("name", sorted(MODULES))
 def test_modules_are_small(name):
     lines = MODULES[name].read_text(encoding="utf-8").count("\n")

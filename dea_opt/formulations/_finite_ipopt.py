@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import InputError
 from ._finite_geometry import FACING
 from ._finite_newton import InnerResult
-from ._finite_solution import generalized
+from ._finite_system import generalized
 from .nlp import _casadi
 
 _TERMS = 16  # Taylor terms of the rotation's coefficients: exact to rounding below 120 degrees

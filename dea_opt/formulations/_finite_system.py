@@ -179,6 +179,13 @@ class State:
         return (A * weights) @ A.T
 
 
+def generalized(state) -> np.ndarray:
+    """Each spring's force direction on body 2's six coordinates, ``blockdiag(I, J)^T a_i`` (6, N)."""
+    A = state.force_rows()
+    A[3:] = state.J.T @ A[3:]
+    return A
+
+
 def _rows(gaps, rows, centre) -> np.ndarray:
     m, hit, along = gaps.m[rows], gaps.hit[rows], gaps.along[rows]
     scale = 1.0 / along

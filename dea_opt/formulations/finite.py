@@ -1,40 +1,63 @@
 """Finite kinematics by Newton: the registry's entry ``"finite"`` (exact rotation, gaps at the current pose).
 
-Written math: ``formulations/finite.md``. ``ContactProblem(..., kinematics="finite")`` is solved
-by :func:`solve` (``dea_opt.solve`` sends it there): body 2's coordinates are its reference's
-translation and its rotation vector taken as an exact rotation (``u[6:12]``); each spring pushes
-body 2 along its own direction with the force the law gives at its gap to its target at that
-pose (the tangent plane of a face of mesh 2, or a plane or sphere given by :class:`Targets`);
-Newton with the consistent tangent solves the equilibrium of the free coordinates
-(:mod:`~dea_opt.formulations._finite_newton`), springs cast from meshes follow body 2
-(:mod:`~dea_opt.formulations._finite_recast`), and the answer is certified at the solved pose
-(:mod:`~dea_opt.formulations._finite_solution`). The independent cross-check by IPOPT is
+Written math: ``formulations/finite.md``. Arrays in, a raw answer out, like every formulation:
+a :class:`FiniteSystem` holds the springs (points, normals, areas, thickness), each spring's
+target on body 2 as a plane or a sphere (:class:`Targets`), body 2's reference point, its free
+and prescribed coordinates (translation of the reference and rotation vector, ``u[6:12]``, taken
+as an exact rotation) and the load; :func:`solve` finds the equilibrium of the free coordinates
+by Newton with the consistent tangent (:mod:`~dea_opt.formulations._finite_newton`) for those
+targets and returns an :class:`InnerResult` (``u_free``, the springs' state at the answer, the
+solver's status), which ``dea_opt`` certifies. The gap of each spring is the one to its target
+at the current pose (:mod:`~dea_opt.formulations._finite_geometry`); forces, residual and
+tangent are :mod:`~dea_opt.formulations._finite_system`'s.
+
+What knows meshes, problems and poses lives outside this package: :mod:`dea_opt.largemotion`
+builds the arrays from a ``ContactProblem(..., kinematics="finite")``, alternates solve and
+re-cast of springs cast from meshes, and certifies the answer at the solved pose
+(``dea_opt.solve`` sends a finite problem there). The independent cross-check by IPOPT is
 :mod:`~dea_opt.formulations.finite_nlp`; the QP is a small-kinematics method only.
 """
 
 from __future__ import annotations
 
-from ._finite_driver import ALIASES, plan, solve
-from ._finite_geometry import Targets
-from ._finite_solution import FiniteSolution
+import numpy as np
+
+from ..status import Status
+from ._finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
+from ._finite_newton import InnerResult
+from ._finite_system import FiniteSystem, State, generalized
 from ._options import Capabilities, Option
+from .energy import SpringSystem, modulus_scale, resistance, start_vector
 
 __all__ = [
     "ALIASES",
     "CAPABILITIES",
     "OPTIONS",
     "RECAST_OPTIONS",
+    "SHARED",
     "FiniteModel",
-    "FiniteSolution",
+    "FiniteSystem",
+    "InnerResult",
     "Model",
+    "State",
     "Targets",
-    "plan",
+    "evaluate",
+    "generalized",
+    "left_jacobian",
+    "pose_matrix",
+    "rotation",
+    "scale",
+    "small_system",
     "solve",
+    "status_of",
 ]
 
 PAGE = "formulations/finite.md"
 
-#: The re-casting options of both finite formulations (formulations/finite.md, "Re-casting").
+#: For a finite problem the small kinematics' method names stand for the finite formulations.
+ALIASES = {"newton": "finite", "nlp": "finite_nlp"}
+#: The re-casting options of both finite formulations (formulations/finite.md, "Re-casting"):
+#: declared here so that the registry checks them, used by :mod:`dea_opt.largemotion`.
 RECAST_OPTIONS = (
     Option("recast", bool, True, "keep springs cast from meshes (targets= a SpringCast) up to date as body 2 moves"),
     Option("recast_shift", float, 0.01, "mm a spring's hit may move before its thickness is measured again",
@@ -43,6 +66,8 @@ RECAST_OPTIONS = (
            range=(0, float("inf"))),
     Option("max_recasts", int, 10, "updates of the springs after converged solves, at most", range=(0, None)),
 )
+#: The re-casting options both finite formulations declare: under ``auto`` they go to both.
+SHARED = tuple(option.name for option in RECAST_OPTIONS)
 #: The options of :func:`solve` with ``method="finite"``.
 OPTIONS = (
     Option("xtol", float, 1e-12, "relative step that counts as converged once the contact set is unchanged",
@@ -58,40 +83,130 @@ CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",),
                             checks_load_first=False)
 EXTRA_OPTIONS = None
 VARIANT = None
+_NEWTON = ("xtol", "gtol", "max_iter", "extended_start")
+
+
+def scale(T1, load, system: FiniteSystem, law) -> tuple[np.ndarray, float]:
+    """``(T, E0)``: the scaled directions ``T = T1 s`` of the small kinematics' scaling (see
+    ``formulations/finite.md``, "Newton") and the energy scale ``E0 = s^2``, ``s`` the larger of the load's size ``|T1^T load|`` and
+    the overlap of the springs' exact gaps at ``system.base``.
+
+    Parameters
+    ----------
+    T1 : ndarray (m, k)
+        The resisted directions, K0-orthonormal at unit scale (``SpringSystem.resistance.basis``).
+    load : ndarray (m,)
+        The load on the free coordinates (N, N mm).
+    """
+    s_load = float(np.linalg.norm(T1.T @ load)) if np.size(load) else 0.0
+    e0 = system.state(system.base, law).eps
+    overlap = np.minimum(np.where(np.isfinite(e0), e0, 0.0), 0.0)
+    volume = system.areas * system.thickness * modulus_scale(law.modulus)
+    s = max(s_load, float(np.linalg.norm(np.sqrt(volume) * overlap)))
+    if not (s > 0.0 and np.isfinite(s)):
+        s = 1.0
+    return T1 * s, s * s
+
+
+def small_system(system: FiniteSystem, law) -> SpringSystem:
+    """The small kinematics' :class:`~dea_opt.formulations.energy.SpringSystem` of ``system`` at
+    ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
+    strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
+    a rotation), with its resisted directions decided."""
+    state = system.state(system.base, law)
+    free = system.free
+    AT = np.ascontiguousarray(generalized(state)[free] / system.thickness)
+    volume = system.areas * system.thickness
+    radius = float(np.sqrt(np.mean(np.sum((system.points - system.reference) ** 2, axis=1)))) if len(system) else 1.0
+    lengths = np.where(free < 3, 1.0, max(radius, 1e-12))
+    factor = np.asarray(np.linalg.qr((AT * np.sqrt(volume)).T, mode="r")) if AT.size else np.zeros((0, len(free)))
+    e0 = np.where(np.isfinite(state.eps), state.eps, 1e300)
+    small = SpringSystem(AT, e0, volume, state.load6[free], lengths, factor,
+                         float(np.sum(system.areas / system.thickness)))
+    small.__dict__["resistance"] = resistance(small)
+    return small
+
+
+def status_of(native: str, success: bool, system: FiniteSystem, state) -> Status:
+    """The answer's :class:`~dea_opt.status.Status`: the solver's, in dea-opt's vocabulary, with the
+    statuses every method gives the same situation (no load: ``unloaded`` or ``preloaded``) and
+    ``inaccurate`` for a convergence the certificate rejects."""
+    try:
+        status = Status(native)
+    except ValueError:
+        status = Status.SOLVER_ERROR
+    if status is Status.CONVERGED and success and not (system.force.any() or system.moment.any()):
+        return Status.PRELOADED if (state.eps < 0).any() else Status.UNLOADED
+    if status is Status.CONVERGED and not success:
+        return Status.INACCURATE
+    return status
+
+
+def solve(system: FiniteSystem, law, T, energy_scale: float, *, x0=None, cold=None, **options) -> InnerResult:
+    """The equilibrium of ``system``'s free coordinates for its targets, by Newton.
+
+    Parameters
+    ----------
+    system : FiniteSystem
+    law : Law
+    T : ndarray (m, k)
+        The scaled directions (:func:`scale`): ``x = x0 + T xi``.
+    energy_scale : float
+        ``E0`` (N mm).
+    x0 : array_like (m,), optional
+        The start (mm, rad); zero by default.
+    cold : bool, optional
+        ``x0`` is no warm start (the first iteration may take the extended range); by default,
+        whether ``x0`` was given.
+    **options
+        :data:`OPTIONS` (the re-casting ones are :mod:`dea_opt.largemotion`'s and ignored here).
+    """
+    from . import _finite_newton
+
+    x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
+    cold = x0 is None if cold is None else cold
+    if not len(system.free):
+        state = system.state(system.base, law)
+        return InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
+    defaults = {option.name: option.default for option in OPTIONS}
+    chosen = {k: options.get(k, defaults[k]) for k in _NEWTON}
+    return _finite_newton.solve(system, law, T, energy_scale, x0=x, cold=cold, **chosen)
 
 
 class FiniteModel:
-    """A finite-kinematics problem, re-solvable for new loads, warm-started from its last answer.
+    """A :class:`FiniteSystem` and a law, re-solvable for new loads, warm-started from its last answer.
 
-    The finite formulations solve a :class:`~dea_opt.problem.ContactProblem` (its targets, body
-    2's reference, the re-casting of its springs), not a small
-    :class:`~dea_opt.formulations.energy.SpringSystem`: ``FiniteModel(problem, **options)``;
-    ``solve(load=None, *, x0=None, frame=None)`` returns a certified
-    :class:`FiniteSolution` (``load`` a :class:`~dea_opt.problem.Load` on body 2).
+    ``Model(system, law, **options)`` as for every formulation (the system is a
+    :class:`FiniteSystem`, built from a ``ContactProblem(..., kinematics="finite")`` by
+    :mod:`dea_opt.largemotion`); ``solve(load=None, *, x0=None)`` returns the raw
+    :class:`InnerResult` for the load ``(F, M)`` on body 2 (N, N mm; the system's own by
+    default), scaled by :func:`small_system` at its base.
     """
 
     method = "finite"
+    run = staticmethod(solve)  # the formulation's solve on the arrays (before the method of that name)
 
-    def __init__(self, problem, law=None, **options):
+    def __init__(self, system, law, **options):
         from ..errors import InputError
-        from ..problem import ContactProblem
 
-        if not isinstance(problem, ContactProblem) or problem.kinematics != "finite":
-            raise InputError(f"the {self.method} formulation solves a ContactProblem with kinematics='finite' (built "
-                             f"by dea_opt.solve), not {type(problem).__name__}")
-        self.problem = problem if law is None else problem.with_law(law)
-        self.options = options
+        if not isinstance(system, FiniteSystem):
+            raise InputError(f"the {self.method} formulation solves a FiniteSystem (the arrays of a problem with "
+                             f"kinematics='finite'; dea_opt.solve builds them from a ContactProblem), not "
+                             f"{type(system).__name__}")
+        self.system, self.law, self.options = system, law, options
         self.build_time = 0.0
-        self._x, self._tracker = None, None
+        self._x = None
 
-    def solve(self, load=None, *, x0=None, frame=None) -> FiniteSolution:
-        problem = self.problem if load is None else self.problem.with_load(load)
-        start = self._x if x0 is None else x0
-        solution = solve(problem, self.method, strict=False, frame=frame, tracker=self._tracker, x0=start,
-                         **self.options)
-        if solution.success:
-            self._x, self._tracker = solution.u[problem.free_indices], solution.tracker
-        return solution
+    def solve(self, load=None, *, x0=None) -> InnerResult:
+        system = self.system if load is None else self.system.with_load(*load)
+        small = small_system(system, self.law)
+        T, E0 = scale(small.resistance.basis(self.law.modulus), small.load, system, self.law)
+        start = start_vector(small, x0)
+        start = self._x if start is None else start
+        result = type(self).run(system, self.law, T, E0, x0=start, **self.options)
+        if result.success:
+            self._x = result.u_free
+        return result
 
 
 Model = FiniteModel

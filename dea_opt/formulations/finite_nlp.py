@@ -1,19 +1,22 @@
 """Finite kinematics by IPOPT: the registry's entry ``"finite_nlp"``, the independent cross-check.
 
-Written math: ``formulations/finite_nlp.md``. The same finite-kinematics problem as
-:mod:`~dea_opt.formulations.finite` (exact rotation, gaps at the current pose, forces along the
-springs), solved by IPOPT on a conservative surrogate re-centred at each outer iteration, built in
-CasADi with its own derivatives (:mod:`~dea_opt.formulations._finite_ipopt`); the springs are
-constrained to compression and their forces are the multipliers. Newton and IPOPT agree to 1e-6
-on every test problem (``tests/test_finite.py``).
+Written math: ``formulations/finite_nlp.md``. The same arrays as
+:mod:`~dea_opt.formulations.finite` (a :class:`~dea_opt.formulations.finite.FiniteSystem`: springs,
+targets, body 2's coordinates, the load; exact rotation, gaps at the current pose, forces along
+the springs), solved by IPOPT on a conservative surrogate re-centred at each outer iteration,
+built in CasADi with its own derivatives (:mod:`~dea_opt.formulations._finite_ipopt`); the
+springs are constrained to compression and their forces are the multipliers. Newton and IPOPT
+agree to 1e-6 on every test problem (``tests/test_finite.py``).
 """
 
 from __future__ import annotations
 
-from ._options import Capabilities, Option, Variant
-from .finite import RECAST_OPTIONS, FiniteModel
+import numpy as np
 
-__all__ = ["CAPABILITIES", "OPTIONS", "Model"]
+from ._options import Capabilities, Option, Variant
+from .finite import RECAST_OPTIONS, FiniteModel, InnerResult
+
+__all__ = ["CAPABILITIES", "OPTIONS", "Model", "solve"]
 
 PAGE = "formulations/finite_nlp.md"
 
@@ -32,9 +35,28 @@ OPTIONS = (
 CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",), duals=True, checks_load_first=True)
 EXTRA_OPTIONS = None
 VARIANT = Variant("form", {"constrained": "IPOPT-finite", "reduced": "IPOPT-finite-reduced"})
+_IPOPT = ("form", "tol", "outer_tol", "max_outer", "max_iter", "ipopt_options")
+
+
+def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, **options) -> InnerResult:
+    """The equilibrium of ``system``'s free coordinates for its targets, by IPOPT.
+
+    As :func:`dea_opt.formulations.finite.solve` (``cold`` is ignored: IPOPT has no extended
+    start); ``options`` are :data:`OPTIONS` (the re-casting ones are ignored here). The springs'
+    stresses IPOPT reports (its multipliers) are ``info["stress"]``.
+    """
+    from . import _finite_ipopt
+
+    x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
+    if not len(system.free):
+        state = system.state(system.base, law)
+        return InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
+    defaults = {option.name: option.default for option in OPTIONS}
+    return _finite_ipopt.solve(system, law, T, energy_scale, x0=x, **{k: options.get(k, defaults[k]) for k in _IPOPT})
 
 
 class Model(FiniteModel):
     """:class:`~dea_opt.formulations.finite.FiniteModel` solved by IPOPT."""
 
     method = "finite_nlp"
+    run = staticmethod(solve)

@@ -1,6 +1,6 @@
 """The frames of a load path with finite kinematics: each warm-started from the previous pose.
 
-Written math: ``formulations/finite.md``. Every frame is a :func:`dea_opt.formulations.finite.solve`
+Written math: ``formulations/finite.md``. Every frame is a :func:`dea_opt.largemotion.solve`
 started from the previous frame's free coordinates and its re-cast springs; with prescribed poses
 (the gait set-up: flexion from the kinematics, the rest found) each frame's pose of body 2's mesh
 is the zero of its free coordinates.
@@ -25,23 +25,23 @@ class FiniteStepper:
 
     def __init__(self, method: str, options: dict, certificate_tol: float):
         self.method = method  # checked by the finite solve
-        self.options = dict(options)  # checked by the finite solve (dea_opt.formulations.finite.plan)
+        self.options = dict(options)  # checked by the finite solve (dea_opt.largemotion.plan)
         self.certificate_tol = certificate_tol
         self.x: np.ndarray | None = None
         self.tracker: object = None
         self.pose: np.ndarray | None = None
 
     def solve(self, problem: ContactProblem, new_geometry: bool, setup: float = 0.0) -> Solution:
-        from ..formulations import finite
+        from ..largemotion import solve as solve_finite
         from ..solver import _check_cone, _check_unresisted
 
         start = time.perf_counter()
-        solution = finite.solve(problem, self.method, certificate_tol=self.certificate_tol, strict=False,
+        solution = solve_finite(problem, self.method, certificate_tol=self.certificate_tol, strict=False,
                                 frame=self.pose, tracker=self.tracker, load_checks=(_check_unresisted, _check_cone),
                                 x0=self.x, **self.options)
         if not solution.success and self.x is not None:
             # The previous frame's pose may be a poor start (a jump in the load): start cold.
-            solution = finite.solve(problem, self.method, certificate_tol=self.certificate_tol, strict=False,
+            solution = solve_finite(problem, self.method, certificate_tol=self.certificate_tol, strict=False,
                                     frame=self.pose, load_checks=(_check_unresisted, _check_cone), **self.options)
         object.__setattr__(solution, "build_time", solution.build_time + setup)
         if solution.success:

@@ -29,11 +29,13 @@ The modules: :mod:`~dea_opt.mesh.readers` (file formats; the legacy-VTK parser i
 :mod:`~dea_opt.mesh.legacy_vtk`; :mod:`~dea_opt.mesh.sniff`, what a file holds),
 :mod:`~dea_opt.mesh.repair`, :mod:`~dea_opt.mesh.budget` (memory guards),
 :mod:`~dea_opt.mesh.raycast` (grid and Embree), :mod:`~dea_opt.mesh.springs` (springs from two
-meshes, poses, the window's drops), :mod:`~dea_opt.mesh.recast` and
-:mod:`~dea_opt.mesh.both_ways`.
+meshes, poses, the window's drops), :mod:`~dea_opt.mesh.recast`, :mod:`~dea_opt.mesh.facecast` (casting chosen faces at a
+pose, and whether hits left their faces: what keeps the springs of a finite-kinematics solve up
+to date) and :mod:`~dea_opt.mesh.both_ways`.
 """
 
 from .both_ways import TwoWaySprings, springs_both_ways
+from .facecast import FaceCast, Mesh1, cast_faces, off_face
 from .raycast import ENGINES, surface_thickness
 from .readers import LOADERS, as_mesh, concatenate_meshes, load_mesh
 from .recast import (
@@ -66,15 +68,19 @@ __all__ = [
     "MAX_GAP",
     "MAX_OVERLAP",
     "Dropped",
+    "FaceCast",
+    "Mesh1",
     "Recast",
     "SpringCast",
     "TwoWaySprings",
     "as_mesh",
     "body_pose",
+    "cast_faces",
     "cast_springs",
     "check_pose",
     "concatenate_meshes",
     "load_mesh",
+    "off_face",
     "recast",
     "recast_at_solution",
     "relative_pose",

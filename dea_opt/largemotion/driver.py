@@ -1,14 +1,13 @@
 """Finite kinematics, the solve: targets, the equilibrium by Newton or IPOPT, re-casting, the certificate.
 
 Written math: ``formulations/finite.md``. :func:`solve` is what ``dea_opt.solve`` runs for a
-``ContactProblem(..., kinematics="finite")`` (the registry's entries are
-:mod:`~dea_opt.formulations.finite`, Newton, and :mod:`~dea_opt.formulations.finite_nlp`, IPOPT):
-it resolves each spring's target, builds the arrays of
-:class:`~dea_opt.formulations._finite_system.FiniteSystem`, solves the equilibrium of the free
-coordinates (:mod:`~dea_opt.formulations._finite_newton` or
-:mod:`~dea_opt.formulations._finite_ipopt`), keeps springs cast from meshes up to date as body 2
-moves (:mod:`~dea_opt.formulations._finite_recast`) and certifies the answer at the solved pose
-(:mod:`~dea_opt.formulations._finite_solution`).
+``ContactProblem(..., kinematics="finite")``: it resolves each spring's target, builds the arrays
+of a :class:`~dea_opt.formulations.finite.FiniteSystem`, has the registry's formulation solve the
+equilibrium of the free coordinates (:mod:`~dea_opt.formulations.finite`, Newton, or
+:mod:`~dea_opt.formulations.finite_nlp`, IPOPT: arrays in, a raw answer out), keeps springs cast
+from meshes up to date as body 2 moves (:mod:`~dea_opt.largemotion.tracker`), solving again
+while a loaded spring changed, and certifies the answer at the solved pose
+(:mod:`~dea_opt.largemotion.solution`).
 """
 
 from __future__ import annotations
@@ -19,30 +18,31 @@ from dataclasses import replace
 
 import numpy as np
 
+from .. import formulations
 from ..errors import InputError, SolverError, ValidityWarning
+from ..formulations.energy import SpringSystem, single_threaded_blas, start_vector
+from ..formulations.finite import (
+    ALIASES,
+    SHARED,
+    FiniteSystem,
+    Targets,
+    evaluate,
+    scale,
+    status_of,
+)
 from ..kinematics import DOFS
-from ..status import Status
-from . import _finite_newton
-from ._finite_geometry import Targets, evaluate
-from ._finite_recast import MeshTracker
-from ._finite_solution import FiniteSolution, certificate
-from ._finite_system import FiniteSystem
-from .energy import SpringSystem, modulus_scale, single_threaded_blas, start_vector
+from ..mesh import SpringCast, check_pose
+from .solution import FiniteSolution, certificate
+from .tracker import MeshTracker
 
-__all__ = ["ALIASES", "plan", "solve"]
+__all__ = ["plan", "solve"]
 
-#: For a finite problem the small kinematics' method names stand for the finite formulations.
-ALIASES = {"newton": "finite", "nlp": "finite_nlp"}
-#: The re-casting options both finite formulations declare: under ``auto`` they go to both.
-SHARED = ("recast", "recast_shift", "full_shift", "max_recasts")
 _GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
 
 
 def resolve_targets(problem) -> tuple[Targets, object]:
     """``(targets, cast)``: the springs' targets at zero displacement, and the SpringCast to re-cast
     from (None without meshes). Checked to reproduce the layer's gaps."""
-    from ..mesh.springs import SpringCast
-
     layer, given = problem.layer, problem.targets
     cast = None
     if given is None:
@@ -96,15 +96,8 @@ def scaled_directions(problem, system, law) -> tuple[np.ndarray, float, SpringSy
     from the resistance of the problem's small system at zero displacement (held directions left
     out), sized by the larger of the load and the overlap of the current springs' exact gaps."""
     small = problem.system()
-    T1 = small.resistance.basis(law.modulus)
-    s_load = float(np.linalg.norm(T1.T @ small.load)) if small.load.size else 0.0
-    e0 = system.state(system.base, law).eps
-    overlap = np.minimum(np.where(np.isfinite(e0), e0, 0.0), 0.0)
-    volume = system.areas * system.thickness * modulus_scale(law.modulus)
-    s = max(s_load, float(np.linalg.norm(np.sqrt(volume) * overlap)))
-    if not (s > 0.0 and np.isfinite(s)):
-        s = 1.0
-    return T1 * s, s * s, small
+    T, E0 = scale(small.resistance.basis(law.modulus), small.load, system, law)
+    return T, E0, small
 
 
 def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
@@ -116,8 +109,8 @@ def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
     (``qp``: a small-kinematics method). Options are checked by the registry; under ``auto``
     each goes to the first formulation that declares it, the re-casting ones to both.
     """
-    from . import check_options, check_takes, names, takes
-    from . import options as declared
+    from ..formulations import check_options, check_takes, names, takes
+    from ..formulations import options as declared
 
     name = ALIASES.get(method, method) if isinstance(method, str) else method
     options = dict(options)
@@ -198,8 +191,6 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
 
 
 def _check_frame(frame) -> np.ndarray:
-    from ..mesh.springs import check_pose
-
     return check_pose(frame, "frame")
 
 
@@ -259,31 +250,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
 
 
 def _inner(method, system, law, T, E0, x, cold, opts):
-    if not len(system.free):
-        state = system.state(system.base, law)
-        return _finite_newton.InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
-    if method == "finite_nlp":
-        from . import _finite_ipopt
-
-        keys = ("form", "tol", "outer_tol", "max_outer", "max_iter", "ipopt_options")
-        return _finite_ipopt.solve(system, law, T, E0, x0=x, **{k: opts[k] for k in keys})
-    keys = ("xtol", "gtol", "max_iter", "extended_start")
-    return _finite_newton.solve(system, law, T, E0, x0=x, cold=cold, **{k: opts[k] for k in keys})
-
-
-def _status(native: str, success: bool, system, state) -> Status:
-    """The answer's :class:`~dea_opt.status.Status`: the solver's, in dea-opt's vocabulary, with the
-    statuses every method gives the same situation (no load: ``unloaded`` or ``preloaded``) and
-    ``inaccurate`` for a convergence the certificate rejects."""
-    try:
-        status = Status(native)
-    except ValueError:
-        status = Status.SOLVER_ERROR
-    if status is Status.CONVERGED and success and not (system.force.any() or system.moment.any()):
-        return Status.PRELOADED if (state.eps < 0).any() else Status.UNLOADED
-    if status is Status.CONVERGED and not success:
-        return Status.INACCURATE
-    return status
+    """The registry's formulation ``method`` on the arrays: its raw answer for these targets."""
+    return formulations.get(method).solve(system, law, T, E0, x0=x, cold=cold, **opts)
 
 
 def _solution(problem, system, law, inner, method, tracker, certificate_tol, build, solve_time, history):
@@ -311,7 +279,7 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
     info = {k: v for k, v in inner.info.items() if k != "stress"}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite",
                 residual_history=history)
-    status = _status(inner.status, success, system, state)
+    status = status_of(inner.status, success, system, state)
     if tracker is not None:
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
     dropped = None if tracker is None else tracker.counts["dropped"]

@@ -1,4 +1,4 @@
-"""Finite kinematics, results: the solution at the solved pose and its certificate there.
+"""Finite kinematics, the answer: the solution at the solved pose and its certificate there.
 
 Written math: ``formulations/finite.md`` ("Certificate in the deformed configuration"). The
 certificate is the one of :func:`dea_opt.solution.certify`, with every quantity taken at the
@@ -14,9 +14,10 @@ from functools import cached_property
 
 import numpy as np
 
+from ..formulations.energy import SpringSystem
+from ..formulations.finite import generalized, left_jacobian, pose_matrix
 from ..kinematics import DOF_NAMES
 from ..solution import Solution, certify
-from .energy import SpringSystem
 
 
 class _Deformed:
@@ -30,13 +31,6 @@ class _Deformed:
 
     def strain(self, u) -> np.ndarray:
         return self._eps
-
-
-def generalized(state) -> np.ndarray:
-    """Each spring's force direction on body 2's six coordinates, ``blockdiag(I, J)^T a_i`` (6, N)."""
-    A = state.force_rows()
-    A[3:] = state.J.T @ A[3:]
-    return A
 
 
 def certificate(state, law, layer, lengths, stiffness, u, reported_stress, strain_at_zero, tolerance):
@@ -83,7 +77,7 @@ class FiniteSolution(Solution):
 
     ``problem.layer`` holds the springs of the solved pose (after any re-casts); ``strain`` is
     each spring's gap at that pose over its thickness. ``targets`` are the springs' targets
-    (:class:`~dea_opt.formulations._finite_geometry.Targets`); ``info`` counts the re-casts and
+    (:class:`~dea_opt.formulations.finite.Targets`); ``info`` counts the re-casts and
     the springs they gained, lost and dropped (``info["recast"]``); ``tracker`` is the re-casting
     state a load path's next frame continues from.
     """
@@ -97,8 +91,6 @@ class FiniteSolution(Solution):
         """Body 2's mesh pose in body 1's frame (4x4): the exact motion of ``u`` composed with the pose
         the springs' targets were cast at; ``SpringLayer.from_meshes(..., pose=solution.pose)``
         casts the springs afresh there."""
-        from ._finite_geometry import pose_matrix
-
         frame = np.eye(4) if self.targets is None else self.targets.frame
         return pose_matrix(self.u[6:], self.problem.body2.reference) @ frame
 
@@ -112,8 +104,6 @@ class FiniteSolution(Solution):
     def reactions(self) -> dict:
         """Generalized force the supports apply at every coordinate that is not free (N, N mm): body 1's
         six about its reference, body 2's on its translation and rotation vector at the solved pose."""
-        from ._finite_geometry import left_jacobian
-
         problem, layer = self.problem, self.problem.layer
         f = -self.pressure * layer.areas
         c1 = np.asarray(problem.body1.reference)

@@ -1,11 +1,12 @@
-"""Finite kinematics, casting some faces: the rules of a cast on a chosen set of faces of mesh 1.
+"""Casting some faces of mesh 1: the rules of a cast on a chosen set of faces, at any pose.
 
 Written math: ``formulations/finite.md`` ("Re-casting"). The same decisions as
 :func:`dea_opt.mesh.cast_springs` (the nearest face of mesh 2 facing the ray inside the window
 ``-allowed <= gap <= max_gap``, within ``max_angle`` of facing, rejected behind mesh 1's own far
-side, thickness measured through each cartilage) for the faces of mesh 1 the re-casting of a
-finite solve asks about, so that a solve costs rays in proportion to what moved. What lies
-behind each face of mesh 1 does not depend on the pose and is measured once per face.
+side, thickness measured through each cartilage) for the faces of mesh 1 a caller asks about
+(the springs of a finite-kinematics solve that follow body 2, :mod:`dea_opt.largemotion`), so
+that keeping springs up to date costs rays in proportion to what moved. What lies behind each
+face of mesh 1 does not depend on the pose and is measured once per face.
 """
 
 from __future__ import annotations
@@ -15,10 +16,10 @@ import math
 import numpy as np
 
 from .._checks.thresholds import ANGLE_SLACK
-from ..mesh.raycast import _caster, _first_per_ray, _self_epsilon
-from ..mesh.springs import LOST_REASONS, _outcomes, _thickness
+from .raycast import _caster, _first_per_ray, _self_epsilon
+from .springs import LOST_REASONS, _outcomes, _thickness
 
-__all__ = ["FaceCast", "Mesh1", "cast_faces"]
+__all__ = ["FaceCast", "Mesh1", "cast_faces", "off_face"]
 
 _SPRING = -1
 
@@ -170,3 +171,26 @@ def cast_faces(cast, pose, faces, allowed, mesh1: Mesh1) -> FaceCast:
         bad = ~(np.isfinite(total) & (total > 0))
         outcome[sel[bad]] = LOST_REASONS.index("thickness")
     return FaceCast(cast, faces, outcome, q, m, faces2, gap, h1, h2)
+
+
+def off_face(hits, valid, faces, transform, mesh2, tolerance: float = 1e-9) -> np.ndarray:
+    """Which hits left the face of mesh 2 their target plane belongs to (bool, (N,)).
+
+    ``hits`` (N, 3, world frame) are taken back to mesh 2's own frame by ``transform`` (its
+    pose, 4x4) and their barycentric coordinates in faces ``faces`` (N,) computed; a coordinate
+    below ``-tolerance`` puts a hit outside. Springs whose ray misses its plane (``~valid``)
+    count as off.
+    """
+    R, shift = transform[:3, :3], transform[:3, 3]
+    own = (np.nan_to_num(hits) - shift) @ R
+    tri = np.asarray(mesh2.triangles)[faces]
+    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    w = own - a
+    d11, d12, d22 = (np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2))
+    w1, w2 = np.einsum("ij,ij->i", w, e1), np.einsum("ij,ij->i", w, e2)
+    det = d11 * d22 - d12 * d12
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b1 = (d22 * w1 - d12 * w2) / det
+        b2 = (d11 * w2 - d12 * w1) / det
+    inside = (b1 >= -tolerance) & (b2 >= -tolerance) & (b1 + b2 <= 1 + tolerance)
+    return ~(inside & valid)

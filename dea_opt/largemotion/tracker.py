@@ -25,32 +25,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._finite_geometry import Targets
+from ..formulations.finite import Targets
+from ..mesh import Mesh1, cast_faces, off_face, recast
 
-__all__ = ["MeshTracker", "off_face"]
-
-
-def off_face(hits, valid, faces, transform, mesh2, tolerance: float = 1e-9) -> np.ndarray:
-    """Which hits left the face of mesh 2 their target plane belongs to (bool, (N,)).
-
-    ``hits`` (N, 3, world frame) are taken back to mesh 2's own frame by ``transform`` (its
-    pose, 4x4) and their barycentric coordinates in faces ``faces`` (N,) computed; a coordinate
-    below ``-tolerance`` puts a hit outside. Springs whose ray misses its plane (``~valid``)
-    count as off.
-    """
-    R, shift = transform[:3, :3], transform[:3, 3]
-    own = (np.nan_to_num(hits) - shift) @ R
-    tri = np.asarray(mesh2.triangles)[faces]
-    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    w = own - a
-    d11, d12, d22 = (np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2))
-    w1, w2 = np.einsum("ij,ij->i", w, e1), np.einsum("ij,ij->i", w, e2)
-    det = d11 * d22 - d12 * d12
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b1 = (d22 * w1 - d12 * w2) / det
-        b2 = (d11 * w2 - d12 * w1) / det
-    inside = (b1 >= -tolerance) & (b2 >= -tolerance) & (b1 + b2 <= 1 + tolerance)
-    return ~(inside & valid)
+__all__ = ["MeshTracker"]
 
 
 class _Springs:
@@ -110,8 +88,6 @@ class MeshTracker:
         self.cast = cast
         self.frame = np.asarray(cast.pose, dtype=float)
         self.recast_shift, self.full_shift, self.thickness_tol = recast_shift, full_shift, thickness_tol
-        from ._finite_cast import Mesh1
-
         self.mesh1 = Mesh1.of(cast)
         self._take(cast)
         self._first_layer = cast.layer
@@ -128,7 +104,7 @@ class MeshTracker:
     def begin(self, frame=None) -> None:
         """Start counting a solve's events; ``frame`` (4x4) is mesh 2's pose at zero displacement
         from now on (a load path's prescribed pose), else it is kept."""
-        from ..mesh.springs import check_pose
+        from ..mesh import check_pose
 
         if frame is not None:
             self.frame = np.asarray(check_pose(frame, "frame"), dtype=float)
@@ -207,8 +183,6 @@ class MeshTracker:
     def update(self, system, state):
         """After a converged solve: the system with its springs brought up to date at the solved pose,
         or None when nothing changed."""
-        from ._finite_cast import cast_faces
-
         pose = system.transform(state.y)
         if self._moved(pose, self.full) > self.full_shift:
             return self._recast_all(system, state, pose)
@@ -278,8 +252,6 @@ class MeshTracker:
         return Update(new_system, after, resolve)
 
     def _recast_all(self, system, state, pose):
-        from ..mesh import recast
-
         new = recast(self.cast, pose)
         self.counts["recasts"] += 1
         self.counts["left_face"] += int(off_face(state.gaps.hit, state.gaps.valid, self.springs.faces2, pose,
