@@ -242,12 +242,13 @@ def solve(system, law, T, energy_scale, *, x0, form="constrained", tol=1e-14, ou
             break
         converged = float(np.linalg.norm(step)) <= outer_tol
         candidates = [x_new] if converged else [x_new, anderson.next(x, x_new)]
-        best = None
+        best: tuple | None = None
         for candidate in candidates:
             trial = system.state(system.coordinates(candidate), law)
             value = _scaled_residual(trial, T, energy_scale)
             if best is None or value < best[0]:
                 best = (value, candidate, trial)
+        assert best is not None  # candidates is never empty
         residual, x, state = best
         history.append(residual)
         if converged and residual <= max(outer_tol, 1e-9):

@@ -191,7 +191,8 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
 
 
 def _check_frame(frame) -> np.ndarray:
-    return check_pose(frame, "frame")
+    checked = check_pose(frame, "frame")
+    return np.eye(4) if checked is None else checked
 
 
 def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_checks) -> FiniteSolution:

@@ -15,7 +15,7 @@ from functools import cached_property
 import numpy as np
 
 from ..formulations.energy import SpringSystem
-from ..formulations.finite import generalized, left_jacobian, pose_matrix
+from ..formulations.finite import Targets, generalized, left_jacobian, pose_matrix
 from ..kinematics import DOF_NAMES
 from ..solution import Solution, certify
 
@@ -82,7 +82,7 @@ class FiniteSolution(Solution):
     state a load path's next frame continues from.
     """
 
-    targets: object = None
+    targets: Targets | None = None
     dropped: int | None = None
     tracker: object = field(default=None, repr=False)
 
