@@ -35,9 +35,27 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-COLUMNS = ["problem", "n_springs", "n_dofs", "iterations", "tangents", "tangent_springs", "slopes", "energies",
-           "newton_s", "newton_bytes", "newton_GBs", "copy_GBs", "stream_copy_GBs", "read_GBs", "fraction", "moved_GBs",
-           "fraction_moved", "success", "status"]
+COLUMNS = [
+    "problem",
+    "n_springs",
+    "n_dofs",
+    "iterations",
+    "tangents",
+    "tangent_springs",
+    "slopes",
+    "energies",
+    "newton_s",
+    "newton_bytes",
+    "newton_GBs",
+    "copy_GBs",
+    "stream_copy_GBs",
+    "read_GBs",
+    "fraction",
+    "moved_GBs",
+    "fraction_moved",
+    "success",
+    "status",
+]
 
 
 def copy_bandwidth(megabytes: int = 512, repeats: int = 5) -> tuple[float, float]:
@@ -166,14 +184,27 @@ def measure(problem: str = "box", n: int = 1_000_000, repeats: int = 5) -> dict:
     total = bytes_read(system.n_springs, system.n_dofs, k, counts)
     written = bytes_written(system.n_springs, system.n_dofs, k, counts)
     best = min(times)
-    return {"problem": problem, "n_springs": system.n_springs, "n_dofs": system.n_dofs,
-            "iterations": counts["iterations"], "tangents": len(counts["tangent_springs"]),
-            "tangent_springs": " ".join(map(str, counts["tangent_springs"])), "slopes": counts["slopes"],
-            "energies": counts["energies"], "newton_s": best, "newton_bytes": total, "newton_GBs": total / best / 1e9,
-            "copy_GBs": copy / 1e9, "stream_copy_GBs": 2 * copy / 1e9, "read_GBs": read / 1e9,
-            "fraction": total / best / copy, "moved_GBs": (total + written) / best / 1e9,
-            "fraction_moved": (total + written) / best / (2 * copy),
-            "success": bool(result.success), "status": str(result.status)}
+    return {
+        "problem": problem,
+        "n_springs": system.n_springs,
+        "n_dofs": system.n_dofs,
+        "iterations": counts["iterations"],
+        "tangents": len(counts["tangent_springs"]),
+        "tangent_springs": " ".join(map(str, counts["tangent_springs"])),
+        "slopes": counts["slopes"],
+        "energies": counts["energies"],
+        "newton_s": best,
+        "newton_bytes": total,
+        "newton_GBs": total / best / 1e9,
+        "copy_GBs": copy / 1e9,
+        "stream_copy_GBs": 2 * copy / 1e9,
+        "read_GBs": read / 1e9,
+        "fraction": total / best / copy,
+        "moved_GBs": (total + written) / best / 1e9,
+        "fraction_moved": (total + written) / best / (2 * copy),
+        "success": bool(result.success),
+        "status": str(result.status),
+    }
 
 
 def run(problem: str = "box", n: int = 1_000_000, timeout: float = 900.0, isolate: bool = True) -> dict:

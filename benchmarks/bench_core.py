@@ -22,9 +22,28 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-COLUMNS = ["problem", "law", "method", "n_springs", "n_dofs", "build_s", "solve_s", "solve_first_s", "total_s",
-           "total_first_s", "repeats", "iterations", "solver_time_s", "base_rss_mb", "peak_rss_mb", "success",
-           "certificate", "status", "blas_threads", "load_1m"]
+COLUMNS = [
+    "problem",
+    "law",
+    "method",
+    "n_springs",
+    "n_dofs",
+    "build_s",
+    "solve_s",
+    "solve_first_s",
+    "total_s",
+    "total_first_s",
+    "repeats",
+    "iterations",
+    "solver_time_s",
+    "base_rss_mb",
+    "peak_rss_mb",
+    "success",
+    "certificate",
+    "status",
+    "blas_threads",
+    "load_1m",
+]
 
 #: Method labels of the benchmark -> (dea_opt method, options).
 METHODS = {
@@ -66,8 +85,16 @@ def make_problem(problem: str, n: int, law: str = "linear"):
     return p
 
 
-def one(problem: str, method: str, n: int, options: dict | None = None, law: str = "linear", repeats: int = 5,
-        budget: float = 3.0, blas_threads: int | None = None) -> dict:
+def one(
+    problem: str,
+    method: str,
+    n: int,
+    options: dict | None = None,
+    law: str = "linear",
+    repeats: int = 5,
+    budget: float = 3.0,
+    blas_threads: int | None = None,
+) -> dict:
     """Build and solve one case in this process; return its row.
 
     ``build_s``: the problem, its spring system and the formulation's model; ``solve_s``:
@@ -102,29 +129,56 @@ def _one(problem, method, n, options, law, repeats, budget) -> dict:
     system, sys_time = timed(p.system)
     first = timed(dea.solve, p, method, strict=False, **options)
     peak = peak_rss_mb()
-    solutions, totals = best_of(lambda: dea.solve(p, method, strict=False, **options), repeats=repeats,
-                                budget=budget, first=first)
+    solutions, totals = best_of(
+        lambda: dea.solve(p, method, strict=False, **options), repeats=repeats, budget=budget, first=first
+    )
     s0 = solutions[0]
     best = min(range(len(totals)), key=totals.__getitem__)
     name, worst = s0.certificate.worst()
     return {
-        "load_1m": os.getloadavg()[0], "problem": problem, "law": law, "method": label, "n_springs": len(p.layer), "n_dofs": system.n_dofs,
+        "load_1m": os.getloadavg()[0],
+        "problem": problem,
+        "law": law,
+        "method": label,
+        "n_springs": len(p.layer),
+        "n_dofs": system.n_dofs,
         "build_s": build + sys_time + s0.build_time,
-        "solve_s": min(s.solve_time for s in solutions), "solve_first_s": s0.solve_time,
-        "total_s": totals[best], "total_first_s": totals[0], "repeats": len(totals),
-        "iterations": s0.iterations, "solver_time_s": s0.info.get("solver_time", float("nan")),
-        "base_rss_mb": base_rss, "peak_rss_mb": peak, "success": all(s.success for s in solutions),
-        "certificate": f"{name}={worst:.1e}", "status": s0.status,
+        "solve_s": min(s.solve_time for s in solutions),
+        "solve_first_s": s0.solve_time,
+        "total_s": totals[best],
+        "total_first_s": totals[0],
+        "repeats": len(totals),
+        "iterations": s0.iterations,
+        "solver_time_s": s0.info.get("solver_time", float("nan")),
+        "base_rss_mb": base_rss,
+        "peak_rss_mb": peak,
+        "success": all(s.success for s in solutions),
+        "certificate": f"{name}={worst:.1e}",
+        "status": s0.status,
     }
 
 
-def run_case(problem: str, method: str, n: int, options: dict | None = None, timeout: float = 600.0,
-             law: str = "linear", isolate: bool = True, blas_threads: int | None = None) -> dict:
+def run_case(
+    problem: str,
+    method: str,
+    n: int,
+    options: dict | None = None,
+    timeout: float = 600.0,
+    law: str = "linear",
+    isolate: bool = True,
+    blas_threads: int | None = None,
+) -> dict:
     """:func:`one` in a fresh subprocess (``isolate``), or in this process."""
     from common import run_isolated
 
-    kwargs = {"problem": problem, "method": method, "n": int(n), "options": options or {}, "law": law,
-              "blas_threads": blas_threads}
+    kwargs = {
+        "problem": problem,
+        "method": method,
+        "n": int(n),
+        "options": options or {},
+        "law": law,
+        "blas_threads": blas_threads,
+    }
     if not isolate:
         try:
             return one(**kwargs)

@@ -33,9 +33,27 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 KNEE = HERE.parents[1] / "shared" / "data" / "knee"
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
-COLUMNS = ["case", "n_springs", "small_s", "small_first_s", "small_recast_s", "finite_s", "finite_first_s", "ratio",
-           "rotation_deg", "small_rotation_deg", "updates", "frames", "wall_s", "per_frame_s", "small_path_s",
-           "success", "status", "peak_rss_mb", "load_1m"]
+COLUMNS = [
+    "case",
+    "n_springs",
+    "small_s",
+    "small_first_s",
+    "small_recast_s",
+    "finite_s",
+    "finite_first_s",
+    "ratio",
+    "rotation_deg",
+    "small_rotation_deg",
+    "updates",
+    "frames",
+    "wall_s",
+    "per_frame_s",
+    "small_path_s",
+    "success",
+    "status",
+    "peak_rss_mb",
+    "load_1m",
+]
 
 
 def knee():
@@ -89,24 +107,33 @@ def solve_case(repeats: int = 5) -> dict:
         return times, out
 
     small_times, small = timed(lambda: dea.ContactProblem(cast.layer, law, **kw))
-    recast_times, _ = timed(lambda: dea.ContactProblem(cast.layer, law, **kw), after=lambda s: recast_at_solution(s, cast))
+    recast_times, _ = timed(
+        lambda: dea.ContactProblem(cast.layer, law, **kw), after=lambda s: recast_at_solution(s, cast)
+    )
     finite_times, finite = timed(lambda: dea.ContactProblem(cast.layer, law, kinematics="finite", targets=cast, **kw))
     return {
-        "case": "knee 1000 N, uz rx ry", "n_springs": len(cast.layer), "small_s": min(small_times),
-        "small_first_s": small_times[0], "small_recast_s": min(recast_times), "finite_s": min(finite_times),
-        "finite_first_s": finite_times[0], "ratio": min(finite_times) / min(small_times),
+        "case": "knee 1000 N, uz rx ry",
+        "n_springs": len(cast.layer),
+        "small_s": min(small_times),
+        "small_first_s": small_times[0],
+        "small_recast_s": min(recast_times),
+        "finite_s": min(finite_times),
+        "finite_first_s": finite_times[0],
+        "ratio": min(finite_times) / min(small_times),
         "rotation_deg": float(np.degrees(np.linalg.norm(finite.u[9:12]))),
         "small_rotation_deg": float(np.degrees(np.linalg.norm(small.u[9:12]))),
         "updates": finite.info["recast"]["updates"] + finite.info["recast"]["recasts"],
-        "success": bool(small.success and finite.success), "status": str(finite.status),
-        "peak_rss_mb": peak_rss_mb(), "load_1m": os.getloadavg()[0],
+        "success": bool(small.success and finite.success),
+        "status": str(finite.status),
+        "peak_rss_mb": peak_rss_mb(),
+        "load_1m": os.getloadavg()[0],
     }
 
 
 def gait_loads(frames: int) -> tuple[np.ndarray, np.ndarray]:
     """``(loads (T, 6), flexion (T,) rad)`` of the synthetic knee gait."""
     phase = np.linspace(0.0, 1.0, frames)
-    fz = -(300 + 700 * np.exp(-((phase - 0.15) / 0.08) ** 2) + 600 * np.exp(-((phase - 0.5) / 0.08) ** 2))
+    fz = -(300 + 700 * np.exp(-(((phase - 0.15) / 0.08) ** 2)) + 600 * np.exp(-(((phase - 0.5) / 0.08) ** 2)))
     loads = np.zeros((frames, 6))
     loads[:, 2], loads[:, 4] = fz, 400 * np.sin(2 * np.pi * phase)
     return loads, np.radians(10.0) * np.sin(np.pi * phase) ** 2
@@ -129,8 +156,9 @@ def gait_case(frames: int = 101) -> dict:
     axis = np.asarray(reference) + np.array([0.0, 0.0, 25.0])
     poses = np.array([pose_matrix([0, 0, 0, f, 0, 0], axis) for f in flexion])
     law = dea.LinearLaw(10.0)
-    problem = dea.ContactProblem(cast.layer, law, reference=reference, free=("uz", "ry"), kinematics="finite",
-                                 targets=cast)
+    problem = dea.ContactProblem(
+        cast.layer, law, reference=reference, free=("uz", "ry"), kinematics="finite", targets=cast
+    )
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -143,10 +171,16 @@ def gait_case(frames: int = 101) -> dict:
         dea.solve_path(small, loads, keep_solutions=False)
     table = result.table
     return {
-        "case": f"knee gait {frames} frames", "n_springs": int(table["n_springs"].median()), "frames": frames,
-        "wall_s": wall, "per_frame_s": wall / frames, "small_path_s": time.perf_counter() - start,
-        "success": bool(table["success"].all()), "status": ", ".join(sorted(set(map(str, table["status"])))),
-        "peak_rss_mb": peak_rss_mb(), "load_1m": os.getloadavg()[0],
+        "case": f"knee gait {frames} frames",
+        "n_springs": int(table["n_springs"].median()),
+        "frames": frames,
+        "wall_s": wall,
+        "per_frame_s": wall / frames,
+        "small_path_s": time.perf_counter() - start,
+        "success": bool(table["success"].all()),
+        "status": ", ".join(sorted(set(map(str, table["status"])))),
+        "peak_rss_mb": peak_rss_mb(),
+        "load_1m": os.getloadavg()[0],
     }
 
 

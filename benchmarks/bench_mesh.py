@@ -27,8 +27,22 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-COLUMNS = ["pair", "engine", "target_faces", "faces1", "faces2", "n_springs", "mesh_build_s", "cold_s",
-           "cold_first_s", "warm_s", "repeats", "peak_rss_mb", "success", "status"]
+COLUMNS = [
+    "pair",
+    "engine",
+    "target_faces",
+    "faces1",
+    "faces2",
+    "n_springs",
+    "mesh_build_s",
+    "cold_s",
+    "cold_first_s",
+    "warm_s",
+    "repeats",
+    "peak_rss_mb",
+    "success",
+    "status",
+]
 
 #: Faces of each pair's meshes at its default resolution, and how they scale with it.
 _HIP_FACES = (10160, 16800)  # at step = 3 deg; faces ~ step^-2
@@ -50,8 +64,9 @@ def make_pair(pair: str, faces: float):
     raise ValueError(f"pair must be 'hip' or 'sphere_on_bed', got {pair!r}")
 
 
-def one(pair: str, faces: float, engine: str, repeats: int = 3, budget: float = 30.0,
-        blas_threads: int | None = None) -> dict:
+def one(
+    pair: str, faces: float, engine: str, repeats: int = 3, budget: float = 30.0, blas_threads: int | None = None
+) -> dict:
     """Time springs_from_meshes on ``pair`` at about ``faces`` faces with ``engine``."""
     from common import blas_limit
 
@@ -83,15 +98,26 @@ def _one(pair, faces, engine, repeats, budget) -> dict:
     springs_from_meshes(m1, m2, engine=engine, **meshes.options)
     warm = time.perf_counter() - start
     return {
-        "pair": pair, "engine": engine, "target_faces": int(faces), "faces1": len(meshes.mesh1.faces),
-        "faces2": len(meshes.mesh2.faces), "n_springs": len(layer), "mesh_build_s": mesh_build,
-        "cold_s": min(cold), "cold_first_s": cold[0], "warm_s": warm, "repeats": len(cold),
-        "peak_rss_mb": peak_rss_mb(), "success": True, "status": "ok",
+        "pair": pair,
+        "engine": engine,
+        "target_faces": int(faces),
+        "faces1": len(meshes.mesh1.faces),
+        "faces2": len(meshes.mesh2.faces),
+        "n_springs": len(layer),
+        "mesh_build_s": mesh_build,
+        "cold_s": min(cold),
+        "cold_first_s": cold[0],
+        "warm_s": warm,
+        "repeats": len(cold),
+        "peak_rss_mb": peak_rss_mb(),
+        "success": True,
+        "status": "ok",
     }
 
 
-def run(pair: str, faces: float, engine: str, timeout: float = 600.0, isolate: bool = True,
-        blas_threads: int | None = None) -> dict:
+def run(
+    pair: str, faces: float, engine: str, timeout: float = 600.0, isolate: bool = True, blas_threads: int | None = None
+) -> dict:
     from common import run_isolated
 
     kwargs = {"pair": pair, "faces": float(faces), "engine": engine, "blas_threads": blas_threads}

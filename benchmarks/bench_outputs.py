@@ -109,8 +109,14 @@ print(json.dumps({"solve": solve, "write": write, "frames": len(result), "n": le
 def child(command, cwd=None) -> tuple[dict | None, float, float, str]:
     """Run ``command``; return (its JSON line or None, wall time s, peak RSS MB, stderr tail)."""
     start = time.perf_counter()
-    process = subprocess.Popen(command, cwd=cwd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                               env={**os.environ, "MPLBACKEND": "Agg"})
+    process = subprocess.Popen(
+        command,
+        cwd=cwd,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+        env={**os.environ, "MPLBACKEND": "Agg"},
+    )
     # wait4 gives this child's own peak RSS (ru_maxrss of RUSAGE_CHILDREN is the largest of all)
     _, status, usage = os.wait4(process.pid, 0)
     wall = time.perf_counter() - start
@@ -142,25 +148,42 @@ def bench_run(n: float, work: Path) -> list[dict]:
     return [
         {"what": "solve alone (newton)", "size": nx * ny, "time_s": ref["solve"], "peak_rss_mb": None},
         {"what": "to_vtk alone", "size": nx * ny, "time_s": ref["vtk"], "peak_rss_mb": None},
-        {"what": "build + solve + to_vtk (one process)", "size": nx * ny, "time_s": ref_wall,
-         "peak_rss_mb": ref_peak},
-        {"what": "dea-opt run, default outputs", "size": nx * ny, "time_s": wall, "peak_rss_mb": peak,
-         "files_mb": sum(sizes.values()) / 1e6, "reference_s": ref["solve"] + ref["vtk"]},
+        {"what": "build + solve + to_vtk (one process)", "size": nx * ny, "time_s": ref_wall, "peak_rss_mb": ref_peak},
+        {
+            "what": "dea-opt run, default outputs",
+            "size": nx * ny,
+            "time_s": wall,
+            "peak_rss_mb": peak,
+            "files_mb": sum(sizes.values()) / 1e6,
+            "reference_s": ref["solve"] + ref["vtk"],
+        },
     ]
 
 
 def bench_path(frames: float, work: Path, keep_too: bool) -> list[dict]:
     frames = int(frames)
     rows = []
-    for mode in (("stream", "keep") if keep_too else ("stream",)):
+    for mode in ("stream", "keep") if keep_too else ("stream",):
         out = work / f"path_{mode}"
         result, wall, peak, err = child([sys.executable, "-c", PATH, str(frames), mode, str(out)])
         if result is None:
             raise RuntimeError(f"the path ({mode}) failed:\n{err}")
-        what = ("solve_path streamed (series=, nothing kept) + write" if mode == "stream"
-                else "solve_path keeping every solution + write (no series)")
-        rows.append({"what": what, "size": result["frames"], "time_s": wall, "peak_rss_mb": peak,
-                     "solve_s": result["solve"], "write_s": result["write"], "failed": result["failed"]})
+        what = (
+            "solve_path streamed (series=, nothing kept) + write"
+            if mode == "stream"
+            else "solve_path keeping every solution + write (no series)"
+        )
+        rows.append(
+            {
+                "what": what,
+                "size": result["frames"],
+                "time_s": wall,
+                "peak_rss_mb": peak,
+                "solve_s": result["solve"],
+                "write_s": result["write"],
+                "failed": result["failed"],
+            }
+        )
     return rows
 
 
@@ -168,16 +191,33 @@ def targets(run_rows, path_rows) -> list[dict]:
     out = []
     for row in run_rows:
         if row["what"].startswith("dea-opt run"):
-            out.append({"what": f"dea-opt run, {row['size']:.0e} springs: peak RSS", "target": "< 4 GB",
-                        "measured": f"{row['peak_rss_mb'] / 1024:.2f} GB", "met": row["peak_rss_mb"] < 4096})
+            out.append(
+                {
+                    "what": f"dea-opt run, {row['size']:.0e} springs: peak RSS",
+                    "target": "< 4 GB",
+                    "measured": f"{row['peak_rss_mb'] / 1024:.2f} GB",
+                    "met": row["peak_rss_mb"] < 4096,
+                }
+            )
             ratio = row["time_s"] / row["reference_s"]
-            out.append({"what": f"dea-opt run, {row['size']:.0e} springs: time / (solve + VTK)", "target": "<= 3",
-                        "measured": f"{ratio:.2f} ({row['time_s']:.1f} s / {row['reference_s']:.1f} s)",
-                        "met": ratio <= 3.0})
+            out.append(
+                {
+                    "what": f"dea-opt run, {row['size']:.0e} springs: time / (solve + VTK)",
+                    "target": "<= 3",
+                    "measured": f"{ratio:.2f} ({row['time_s']:.1f} s / {row['reference_s']:.1f} s)",
+                    "met": ratio <= 3.0,
+                }
+            )
     for row in path_rows:
         if row["what"].startswith("solve_path streamed"):
-            out.append({"what": f"load path, {row['size']} frames with exposure: peak RSS", "target": "< 1 GB",
-                        "measured": f"{row['peak_rss_mb'] / 1024:.2f} GB", "met": row["peak_rss_mb"] < 1024})
+            out.append(
+                {
+                    "what": f"load path, {row['size']} frames with exposure: peak RSS",
+                    "target": "< 1 GB",
+                    "measured": f"{row['peak_rss_mb'] / 1024:.2f} GB",
+                    "met": row["peak_rss_mb"] < 1024,
+                }
+            )
     return out
 
 

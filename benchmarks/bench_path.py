@@ -35,8 +35,7 @@ def hip(n_springs: int) -> dea.ContactProblem:
     return dea.ContactProblem(layer, dea.LinearLaw(10.0), free=("ux", "uy", "uz"))
 
 
-def run(method: str, problem, loads, options: dict | None = None, label: str | None = None,
-        repeats: int = 1) -> dict:
+def run(method: str, problem, loads, options: dict | None = None, label: str | None = None, repeats: int = 1) -> dict:
     """The whole path with ``method`` (``options`` for the formulation); ``wall_s`` is the best
     of ``repeats`` runs, ``wall_first_s`` the first."""
     options = ({"tol": 1e-12} if method == "qp" else {}) if options is None else options
@@ -50,11 +49,19 @@ def run(method: str, problem, loads, options: dict | None = None, label: str | N
     wall = min(walls)
     table = result.table
     first = table["solve_time"].iloc[0] + table["build_time"].iloc[0]
-    row = {"method": label or method, "n_springs": len(problem.layer), "frames": len(table), "wall_s": wall,
-           "wall_first_s": walls[0], "repeats": len(walls),
-           "solve_s": table["solve_time"].sum(), "first_frame_s": first,
-           "later_frame_mean_s": table["solve_time"].iloc[1:].mean(), "iterations": int(table["iterations"].sum()),
-           "success": result.success}
+    row = {
+        "method": label or method,
+        "n_springs": len(problem.layer),
+        "frames": len(table),
+        "wall_s": wall,
+        "wall_first_s": walls[0],
+        "repeats": len(walls),
+        "solve_s": table["solve_time"].sum(),
+        "first_frame_s": first,
+        "later_frame_mean_s": table["solve_time"].iloc[1:].mean(),
+        "iterations": int(table["iterations"].sum()),
+        "success": result.success,
+    }
     if method == "qp":
         # Clarabel's own time per frame, from a fresh path with the solutions kept.
         kept = dea.solve_path(problem, loads.iloc[:11], method="qp", **options)
@@ -73,8 +80,9 @@ PATH_METHODS = {
 }
 
 
-def one(label: str, n_springs: int, frames: int | None = None, repeats: int = 3,
-        blas_threads: int | None = None) -> dict:
+def one(
+    label: str, n_springs: int, frames: int | None = None, repeats: int = 3, blas_threads: int | None = None
+) -> dict:
     """One method's gait path at about ``n_springs`` (the first ``frames`` frames, default all),
     for a fresh subprocess (``benchmarks/run.py``). Imports are warmed on a 3-frame path first.
     ``blas_threads`` caps the BLAS thread pools (default: as the machine has them)."""
@@ -103,8 +111,10 @@ def main():
     args = parser.parse_args()
     problem = hip(int(args.springs))
     loads = load_hip_gait()
-    rows = [run(PATH_METHODS[m][0], problem, loads, PATH_METHODS[m][1], m) if m in PATH_METHODS
-            else run(m, problem, loads) for m in args.methods]
+    rows = [
+        run(PATH_METHODS[m][0], problem, loads, PATH_METHODS[m][1], m) if m in PATH_METHODS else run(m, problem, loads)
+        for m in args.methods
+    ]
     columns = list(dict.fromkeys(k for row in rows for k in row))
     (HERE / "results").mkdir(exist_ok=True)
     with open(HERE / "results" / "path.csv", "w", newline="") as handle:

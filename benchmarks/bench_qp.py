@@ -36,9 +36,28 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-COLUMNS = ["problem", "n_springs", "n_dofs", "call", "qp_s", "qp_build_s", "direct_s", "ratio", "clarabel_s",
-           "iterations", "direct_iterations", "dea_solve_s", "dea_solve_ratio", "variables", "rows", "nnz_G",
-           "repeats", "success", "status", "peak_rss_mb"]
+COLUMNS = [
+    "problem",
+    "n_springs",
+    "n_dofs",
+    "call",
+    "qp_s",
+    "qp_build_s",
+    "direct_s",
+    "ratio",
+    "clarabel_s",
+    "iterations",
+    "direct_iterations",
+    "dea_solve_s",
+    "dea_solve_ratio",
+    "variables",
+    "rows",
+    "nnz_G",
+    "repeats",
+    "success",
+    "status",
+    "peak_rss_mb",
+]
 
 #: New loads of the re-solves, as multiples of the problem's own load.
 FACTORS = (1.25, 0.8, 1.1)
@@ -68,8 +87,14 @@ def minimal_qp(system, law, tol):
     return P, q, G, b, [clarabel.NonnegativeConeT(2 * n)], settings, sc
 
 
-def overhead(problem: str, n: int, resolves: int = len(FACTORS), repeats: int = 3, budget: float = 40.0,
-             blas_threads: int | None = None) -> list[dict]:
+def overhead(
+    problem: str,
+    n: int,
+    resolves: int = len(FACTORS),
+    repeats: int = 3,
+    budget: float = 40.0,
+    blas_threads: int | None = None,
+) -> list[dict]:
     """The first solve and ``resolves`` re-solves, qp against the direct call; one row per call."""
     from common import blas_limit
 
@@ -129,8 +154,12 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
             row = best[i]
             if elapsed < row["qp_s"]:
                 row.update(qp_s=elapsed, qp_build_s=build if i == 0 else 0.0)
-            row.update(iterations=result.iterations, clarabel_s=float(result.info.get("solver_time", np.nan)),
-                       success=bool(result.success), status=str(result.status))
+            row.update(
+                iterations=result.iterations,
+                clarabel_s=float(result.info.get("solver_time", np.nan)),
+                success=bool(result.success),
+                status=str(result.status),
+            )
         done += 1
     whole_s = np.inf
     for _ in range(2 if best[0]["direct_s"] < budget / 8 else 1):
@@ -139,19 +168,30 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
         whole_s = min(whole_s, time.perf_counter() - start)
     rows = []
     for i, row in sorted(best.items()):
-        rows.append({
-            "problem": problem, "n_springs": system.n_springs, "n_dofs": k,
-            "call": "first" if i == 0 else f"re-solve {i}", **row, "ratio": row["qp_s"] / row["direct_s"],
-            "dea_solve_s": whole_s if i == 0 else np.nan,
-            "dea_solve_ratio": whole_s / row["direct_s"] if i == 0 else np.nan,
-            "variables": G.shape[1], "rows": G.shape[0], "nnz_G": G.nnz, "repeats": done,
-            "success": row["success"] and whole.success, "peak_rss_mb": peak_rss_mb(),
-        })
+        rows.append(
+            {
+                "problem": problem,
+                "n_springs": system.n_springs,
+                "n_dofs": k,
+                "call": "first" if i == 0 else f"re-solve {i}",
+                **row,
+                "ratio": row["qp_s"] / row["direct_s"],
+                "dea_solve_s": whole_s if i == 0 else np.nan,
+                "dea_solve_ratio": whole_s / row["direct_s"] if i == 0 else np.nan,
+                "variables": G.shape[1],
+                "rows": G.shape[0],
+                "nnz_G": G.nnz,
+                "repeats": done,
+                "success": row["success"] and whole.success,
+                "peak_rss_mb": peak_rss_mb(),
+            }
+        )
     return rows
 
 
-def run(problem: str, n: int, timeout: float = 900.0, isolate: bool = True,
-        blas_threads: int | None = None) -> list[dict]:
+def run(
+    problem: str, n: int, timeout: float = 900.0, isolate: bool = True, blas_threads: int | None = None
+) -> list[dict]:
     from common import run_isolated
 
     kwargs = {"problem": problem, "n": int(n), "blas_threads": blas_threads}

@@ -40,14 +40,48 @@ HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
 KNEE = HERE.parent.parent / "shared" / "data" / "knee"
-COLUMNS = ["case", "frames", "n_springs", "cli_s", "cli_first_s", "inproc_s", "limit_s", "ratio", "python_s",
-           "import_s", "build_s", "path_s", "outputs_csv_s", "outputs_json_s", "outputs_vtk_s", "outputs_png_s",
-           "exit_code", "imports", "not_imported", "repeats", "status", "success"]
+COLUMNS = [
+    "case",
+    "frames",
+    "n_springs",
+    "cli_s",
+    "cli_first_s",
+    "inproc_s",
+    "limit_s",
+    "ratio",
+    "python_s",
+    "import_s",
+    "build_s",
+    "path_s",
+    "outputs_csv_s",
+    "outputs_json_s",
+    "outputs_vtk_s",
+    "outputs_png_s",
+    "exit_code",
+    "imports",
+    "not_imported",
+    "repeats",
+    "status",
+    "success",
+]
 #: Packages a run must not import (the knee's run uses Newton, no QP, NLP or cluster).
 UNUSED = ("cvxpy", "casadi", "dask", "distributed")
 #: Packages whose import time is reported.
-WATCHED = ("dea_opt", "numpy", "scipy", "pandas", "matplotlib", "trimesh", "embreex", "meshio", "typer", "pydantic",
-           "PIL", "tqdm", *UNUSED)
+WATCHED = (
+    "dea_opt",
+    "numpy",
+    "scipy",
+    "pandas",
+    "matplotlib",
+    "trimesh",
+    "embreex",
+    "meshio",
+    "typer",
+    "pydantic",
+    "PIL",
+    "tqdm",
+    *UNUSED,
+)
 
 
 def stance(frames: int = 51) -> str:
@@ -104,12 +138,19 @@ def inprocess(scenario: str) -> dict:
     data = read_load_path(loaded.load_path)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = dea.solve_path(problem, data.load_objects(), data.poses, times=data.times, keep_solutions=False,
-                                keep_pressures=False)
+        result = dea.solve_path(
+            problem, data.load_objects(), data.poses, times=data.times, keep_solutions=False, keep_pressures=False
+        )
     done = time.perf_counter()
-    row = {"inproc_s": done - start, "import_s": imported - start, "build_s": built - imported,
-           "path_s": done - built, "frames": len(result), "n_springs": len(problem.layer),
-           "success": bool(result.success)}
+    row = {
+        "inproc_s": done - start,
+        "import_s": imported - start,
+        "build_s": built - imported,
+        "path_s": done - built,
+        "frames": len(result),
+        "n_springs": len(problem.layer),
+        "success": bool(result.success),
+    }
     with warnings.catch_warnings(), tempfile.TemporaryDirectory() as tmp:
         warnings.simplefilter("ignore")
         kept = dea.solve_path(problem, data.load_objects(), data.poses, times=data.times)
@@ -122,8 +163,11 @@ def inprocess(scenario: str) -> dict:
 
 def _cli_command(scenario: Path, out: Path, python_flags=()) -> list:
     script = Path(sys.executable).with_name("dea-opt")
-    entry = [str(script)] if script.exists() and not python_flags else \
-        [sys.executable, *python_flags, "-c", "import sys; from dea_opt.cli import main; sys.exit(main())"]
+    entry = (
+        [str(script)]
+        if script.exists() and not python_flags
+        else [sys.executable, *python_flags, "-c", "import sys; from dea_opt.cli import main; sys.exit(main())"]
+    )
     return [*entry, "run", str(scenario), "--output", str(out), "--quiet", "--force"]
 
 
@@ -161,16 +205,21 @@ def run_case(repeats: int = 3, frames: int = 51, timeout: float = 900.0) -> dict
         folder = Path(tmp)
         scenario = write_scenario(folder, frames)
         out = folder / "out"
-        code = (f"import json, sys; sys.path.insert(0, {str(HERE)!r}); from bench_run import inprocess; "
-                f"print('ROW', json.dumps(inprocess({str(scenario)!r})))")
+        code = (
+            f"import json, sys; sys.path.insert(0, {str(HERE)!r}); from bench_run import inprocess; "
+            f"print('ROW', json.dumps(inprocess({str(scenario)!r})))"
+        )
         cli, inproc, python, first, rows, exit_code = [], [], [], None, [], None
         _timed([sys.executable, "-c", "import dea_opt.cli, dea_opt.run, dea_opt.scenario"], folder)  # the cache
         for _ in range(repeats):
             wall, done = _timed(_cli_command(scenario, out), folder)
             exit_code = done.returncode
             if exit_code not in (0, 3):
-                return {"case": "knee", "status": f"dea-opt run exited {exit_code}: {done.stderr[-300:]}",
-                        "success": False}
+                return {
+                    "case": "knee",
+                    "status": f"dea-opt run exited {exit_code}: {done.stderr[-300:]}",
+                    "success": False,
+                }
             first = wall if first is None else first
             cli.append(wall)
             _, done = _timed([sys.executable, "-c", code], folder)
@@ -182,8 +231,16 @@ def run_case(repeats: int = 3, frames: int = 51, timeout: float = 900.0) -> dict
             python.append(_timed([sys.executable, "-c", "pass"], folder)[0])
         imports = imports_of_run(scenario, out)
     best = min(rows, key=lambda r: r["inproc_s"])
-    row = {"case": "knee", **best, "cli_s": min(cli), "cli_first_s": first, "inproc_s": min(inproc),
-           "python_s": min(python), "repeats": repeats, "exit_code": exit_code}
+    row = {
+        "case": "knee",
+        **best,
+        "cli_s": min(cli),
+        "cli_first_s": first,
+        "inproc_s": min(inproc),
+        "python_s": min(python),
+        "repeats": repeats,
+        "exit_code": exit_code,
+    }
     row["limit_s"] = 1.5 * row["inproc_s"] + 1.0
     row["ratio"] = (row["cli_s"] - 1.0) / row["inproc_s"]
     row["imports"] = "; ".join(f"{k} {v:.2f} s" for k, v in sorted(imports.items(), key=lambda kv: -kv[1]))

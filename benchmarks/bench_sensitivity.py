@@ -26,8 +26,23 @@ KNEE = HERE.parents[1] / "shared" / "data" / "knee"
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 #: The 10 parameters: the law's two, the thickness scale, the six load components, a prescribed dof.
 WRT = ("H", "beta", "thickness_scale", "Fx", "Fy", "Fz", "Mx", "My", "Mz", "body1.uz")
-COLUMNS = ["case", "n_springs", "n_parameters", "newton_s", "newton_formulation_s", "sensitivities_s", "ratio",
-           "calibration_s", "solves", "H", "beta", "success", "status", "peak_rss_mb", "load_1m"]
+COLUMNS = [
+    "case",
+    "n_springs",
+    "n_parameters",
+    "newton_s",
+    "newton_formulation_s",
+    "sensitivities_s",
+    "ratio",
+    "calibration_s",
+    "solves",
+    "H",
+    "beta",
+    "success",
+    "status",
+    "peak_rss_mb",
+    "load_1m",
+]
 
 
 def sensitivity_case(n_springs: float = 1e5, repeats: int = 5) -> dict:
@@ -60,10 +75,19 @@ def sensitivity_case(n_springs: float = 1e5, repeats: int = 5) -> dict:
         sens = sensitivities(solution, WRT)
         times.append(time.perf_counter() - start)
     ok = bool(solution.success and np.isfinite(sens.u["Fz"]).all())
-    return {"case": "box, Ateshian", "n_springs": len(problem.layer), "n_parameters": len(WRT),
-            "newton_s": min(walls), "newton_formulation_s": min(inner), "sensitivities_s": min(times),
-            "ratio": min(times) / min(walls), "success": ok, "status": "ok" if ok else "failed",
-            "peak_rss_mb": peak_rss_mb(), "load_1m": os.getloadavg()[0]}
+    return {
+        "case": "box, Ateshian",
+        "n_springs": len(problem.layer),
+        "n_parameters": len(WRT),
+        "newton_s": min(walls),
+        "newton_formulation_s": min(inner),
+        "sensitivities_s": min(times),
+        "ratio": min(times) / min(walls),
+        "success": ok,
+        "status": "ok" if ok else "failed",
+        "peak_rss_mb": peak_rss_mb(),
+        "load_1m": os.getloadavg()[0],
+    }
 
 
 def calibration_case(seed: int = 0) -> dict:
@@ -84,8 +108,9 @@ def calibration_case(seed: int = 0) -> dict:
     tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
     layer = M.springs_from_meshes(tibia, femur, labels=labels, max_gap=2.0)
     centre = 0.5 * sum((m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral))
-    problem = dea.ContactProblem(layer, dea.AteshianLaw(5.0, 0.6), force=(0.0, 0.0, -1000.0), reference=tuple(centre),
-                                 free=("uz", "ry"))
+    problem = dea.ContactProblem(
+        layer, dea.AteshianLaw(5.0, 0.6), force=(0.0, 0.0, -1000.0), reference=tuple(centre), free=("uz", "ry")
+    )
     truth = dea.solve(problem, "newton")
     rng = np.random.default_rng(seed)
     reading = np.maximum(truth.pressure * (1 + 0.05 * rng.standard_normal(len(layer))), 0.0)
@@ -95,9 +120,19 @@ def calibration_case(seed: int = 0) -> dict:
     start = time.perf_counter()
     fit = calibrate(start_problem, data, ("H", "beta"))
     wall = time.perf_counter() - start
-    return {"case": "knee calibration", "n_springs": len(layer), "n_parameters": 2, "calibration_s": wall,
-            "solves": fit.nfev, "H": fit.values["H"], "beta": fit.values["beta"], "success": bool(fit.success),
-            "status": fit.message, "peak_rss_mb": peak_rss_mb(), "load_1m": os.getloadavg()[0]}
+    return {
+        "case": "knee calibration",
+        "n_springs": len(layer),
+        "n_parameters": 2,
+        "calibration_s": wall,
+        "solves": fit.nfev,
+        "H": fit.values["H"],
+        "beta": fit.values["beta"],
+        "success": bool(fit.success),
+        "status": fit.message,
+        "peak_rss_mb": peak_rss_mb(),
+        "load_1m": os.getloadavg()[0],
+    }
 
 
 def main(argv=None):

@@ -20,8 +20,22 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-COLUMNS = ["problem", "n_springs", "method", "solver", "success", "status", "iterations", "total_time",
-           "solver_time", "relative_time", "worst_residual", "d_pressure", "study_wall_s", "peak_rss_mb"]
+COLUMNS = [
+    "problem",
+    "n_springs",
+    "method",
+    "solver",
+    "success",
+    "status",
+    "iterations",
+    "total_time",
+    "solver_time",
+    "relative_time",
+    "worst_residual",
+    "d_pressure",
+    "study_wall_s",
+    "peak_rss_mb",
+]
 
 
 def one(problem: str, n: int, methods=("newton", "qp"), blas_threads: int | None = None) -> list[dict]:
@@ -44,8 +58,13 @@ def one(problem: str, n: int, methods=("newton", "qp"), blas_threads: int | None
     relative = {(r["method"], r["solver"]): r["relative_time"] for _, r in summary.iterrows()}
     rows = []
     for _, r in table.iterrows():
-        row = {"problem": problem, "n_springs": len(p.layer), "study_wall_s": wall, "peak_rss_mb": peak_rss_mb(),
-               "relative_time": relative.get((r["method"], r["solver"]), np.nan)}
+        row = {
+            "problem": problem,
+            "n_springs": len(p.layer),
+            "study_wall_s": wall,
+            "peak_rss_mb": peak_rss_mb(),
+            "relative_time": relative.get((r["method"], r["solver"]), np.nan),
+        }
         for c in COLUMNS:
             if c in r.index:
                 value = r[c]

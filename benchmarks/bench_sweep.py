@@ -40,9 +40,26 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-COLUMNS = ["case", "cases", "workers", "frames", "n_springs", "sweep_s", "limit_s", "ratio", "case_solve_s",
-           "case_path_s", "parallel_case_s", "ratio_machine", "case_wall_mean_s", "dask_overhead_per_case_s",
-           "cast_entries", "statuses", "status", "success"]
+COLUMNS = [
+    "case",
+    "cases",
+    "workers",
+    "frames",
+    "n_springs",
+    "sweep_s",
+    "limit_s",
+    "ratio",
+    "case_solve_s",
+    "case_path_s",
+    "parallel_case_s",
+    "ratio_machine",
+    "case_wall_mean_s",
+    "dask_overhead_per_case_s",
+    "cast_entries",
+    "statuses",
+    "status",
+    "success",
+]
 
 
 def _values(cases: int) -> str:
@@ -71,15 +88,28 @@ def case_solve(scenario: str, cases: int = 8) -> dict:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             start = time.perf_counter()
-            result = dea.solve_path(case, loads, data.poses, method=method, times=data.times, body=data.body,
-                                    keep_solutions=False, keep_pressures=False, **options)
+            result = dea.solve_path(
+                case,
+                loads,
+                data.poses,
+                method=method,
+                times=data.times,
+                body=data.body,
+                keep_solutions=False,
+                keep_pressures=False,
+                **options,
+            )
             solved = time.perf_counter()
             peak_recast(result, loads, data.body, lambda k: cast, method, options, loaded.solve.certificate_tol)
             done = time.perf_counter()
         whole.append(done - start)
         path.append(solved - start)
-    return {"case_solve_s": float(np.median(whole[1:])), "case_path_s": float(np.median(path[1:])),
-            "frames": len(result), "n_springs": len(problem.layer)}
+    return {
+        "case_solve_s": float(np.median(whole[1:])),
+        "case_path_s": float(np.median(path[1:])),
+        "frames": len(result),
+        "n_springs": len(problem.layer),
+    }
 
 
 def concurrent_case_solve(scenario: str, workers: int, timeout: float) -> float:
@@ -91,13 +121,19 @@ def concurrent_case_solve(scenario: str, workers: int, timeout: float) -> float:
 
     with tempfile.TemporaryDirectory() as tmp:
         go = Path(tmp) / "go"
-        code = (f"import json, sys, time; from pathlib import Path; sys.path.insert(0, {str(HERE)!r}); "
-                f"from bench_sweep import case_solve; print('ready', flush=True)\n"
-                f"while not Path({str(go)!r}).exists(): time.sleep(0.001)\n"
-                f"print('ROW', json.dumps(case_solve({scenario!r})), flush=True)")
+        code = (
+            f"import json, sys, time; from pathlib import Path; sys.path.insert(0, {str(HERE)!r}); "
+            f"from bench_sweep import case_solve; print('ready', flush=True)\n"
+            f"while not Path({str(go)!r}).exists(): time.sleep(0.001)\n"
+            f"print('ROW', json.dumps(case_solve({scenario!r})), flush=True)"
+        )
         env = {**os.environ, "OMP_NUM_THREADS": "1", "OPENBLAS_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
-        processes = [subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                                      text=True, env=env) for _ in range(workers)]
+        processes = [
+            subprocess.Popen(
+                [sys.executable, "-c", code], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env
+            )
+            for _ in range(workers)
+        ]
         for process in processes:
             process.stdout.readline()
         go.touch()
@@ -119,11 +155,15 @@ def sweep(scenario: str, out: str, cases: int, workers: int) -> dict:
     wall = time.perf_counter() - start
     table = result.table
     own = float(table["wall_time"].sum())
-    return {"sweep_s": wall, "case_wall_mean_s": own / len(table), "rows": len(table),
-            "dask_overhead_per_case_s": (wall * workers - own) / len(table),
-            "statuses": ", ".join(f"{k} {v}" for k, v in table["status"].value_counts().items()),
-            "cast_entries": len(list((Path(out) / SPRING_CACHE).glob("*.npz"))),
-            "all_ok": bool((table["status"] == "ok").all())}
+    return {
+        "sweep_s": wall,
+        "case_wall_mean_s": own / len(table),
+        "rows": len(table),
+        "dask_overhead_per_case_s": (wall * workers - own) / len(table),
+        "statuses": ", ".join(f"{k} {v}" for k, v in table["status"].value_counts().items()),
+        "cast_entries": len(list((Path(out) / SPRING_CACHE).glob("*.npz"))),
+        "all_ok": bool((table["status"] == "ok").all()),
+    }
 
 
 def run_case(cases: int = 200, workers: int = 2, timeout: float = 1800.0) -> dict:
@@ -140,8 +180,12 @@ def run_case(cases: int = 200, workers: int = 2, timeout: float = 1800.0) -> dic
         if "case_solve_s" not in base:
             return {**row, **base}
         base["parallel_case_s"] = concurrent_case_solve(scenario, workers, timeout)
-        swept = run_isolated("bench_sweep", "sweep", {"scenario": scenario, "out": str(Path(tmp) / "sweep"),
-                                                      "cases": cases, "workers": workers}, timeout)
+        swept = run_isolated(
+            "bench_sweep",
+            "sweep",
+            {"scenario": scenario, "out": str(Path(tmp) / "sweep"), "cases": cases, "workers": workers},
+            timeout,
+        )
     if "sweep_s" not in swept:
         return {**row, **base, **swept}
     row |= base | swept

@@ -28,8 +28,9 @@ def plate_problem(n: int) -> dea.ContactProblem:
     nx = max(int(round(np.sqrt(4 * n))), 4)
     ny = max(n // nx, 1)
     layer = plate_layer(40.0, 10.0, nx, ny, thickness=2.0)
-    return dea.ContactProblem(layer, dea.LinearLaw(10.0), load=dea.Load((0, 0, -500.0), point=(8.0, 2.0, 0)),
-                              free=("uz", "rx", "ry"))
+    return dea.ContactProblem(
+        layer, dea.LinearLaw(10.0), load=dea.Load((0, 0, -500.0), point=(8.0, 2.0, 0)), free=("uz", "rx", "ry")
+    )
 
 
 def sphere_problem(n: int, law=None) -> dea.ContactProblem:
@@ -37,8 +38,9 @@ def sphere_problem(n: int, law=None) -> dea.ContactProblem:
     sectors = max(int(np.sqrt(n / 2)), 4)
     rings = max(n // sectors, 2)
     layer = sphere_on_bed_layer(radius=25.0, thickness=2.0, extent=7.0, n_rings=rings, n_sectors=sectors)
-    return dea.ContactProblem(layer, law or dea.LinearLaw(0.6), force=(0, 0, -10.0), reference=(0, 0, 25.0),
-                              free=("uz",))
+    return dea.ContactProblem(
+        layer, law or dea.LinearLaw(0.6), force=(0, 0, -10.0), reference=(0, 0, 25.0), free=("uz",)
+    )
 
 
 def box_layer(n: int, half=(10.0, 8.0, 6.0), gap: float = 0.02) -> SpringLayer:
@@ -75,8 +77,9 @@ def box_layer(n: int, half=(10.0, 8.0, 6.0), gap: float = 0.02) -> SpringLayer:
 def box_problem(n: int, law=None) -> dea.ContactProblem:
     """A box in a box-shaped socket, 6 free dofs, a load with all six components."""
     layer = box_layer(n)
-    return dea.ContactProblem(layer, law or dea.LinearLaw(10.0), force=(300.0, -200.0, -500.0),
-                              moment=(400.0, 300.0, -250.0), free=dea.DOFS)
+    return dea.ContactProblem(
+        layer, law or dea.LinearLaw(10.0), force=(300.0, -200.0, -500.0), moment=(400.0, 300.0, -250.0), free=dea.DOFS
+    )
 
 
 PROBLEMS = {"plate": plate_problem, "sphere": sphere_problem, "box": box_problem}
@@ -130,10 +133,12 @@ def _git_state() -> str:
 
     root = Path(__file__).resolve().parent.parent
     try:
-        head = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True,
-                              timeout=10).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "dea_opt"], cwd=root, capture_output=True,
-                               text=True, timeout=10).stdout.strip()
+        head = subprocess.run(
+            ["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
+        dirty = subprocess.run(
+            ["git", "status", "--porcelain", "--", "dea_opt"], cwd=root, capture_output=True, text=True, timeout=10
+        ).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         return "unknown"
     if not head:
@@ -150,10 +155,15 @@ def blas_info() -> list[str]:
         from threadpoolctl import threadpool_info
     except ImportError:
         blas = numpy.show_config(mode="dicts").get("Build Dependencies", {}).get("blas", {})
-        return [f"threadpoolctl not installed (pip install threadpoolctl); numpy built with "
-                f"{blas.get('name', '?')} {blas.get('version', '')}"]
-    return [f"{i.get('user_api')}: {i.get('internal_api')} {i.get('version', '')} kernel={i.get('architecture', '?')} "
-            f"threads={i.get('num_threads')} ({Path(i.get('filepath', '')).name})" for i in threadpool_info()]
+        return [
+            f"threadpoolctl not installed (pip install threadpoolctl); numpy built with "
+            f"{blas.get('name', '?')} {blas.get('version', '')}"
+        ]
+    return [
+        f"{i.get('user_api')}: {i.get('internal_api')} {i.get('version', '')} kernel={i.get('architecture', '?')} "
+        f"threads={i.get('num_threads')} ({Path(i.get('filepath', '')).name})"
+        for i in threadpool_info()
+    ]
 
 
 def header(title: str) -> str:
@@ -169,8 +179,11 @@ def header(title: str) -> str:
             versions.append(f"{name} {version(name)}")
         except Exception:  # noqa: BLE001 - a missing package is just not listed
             pass
-    env = {k: os.environ[k] for k in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE", "OPENBLAS_NUM_THREADS",
-                                      "OMP_NUM_THREADS", "MKL_NUM_THREADS") if k in os.environ}
+    env = {
+        k: os.environ[k]
+        for k in ("OPENBLAS_CORETYPE", "OPENBLAS_L2_SIZE", "OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS")
+        if k in os.environ
+    }
     lines = [
         f"# {title}",
         f"# date: {_dt.datetime.now().isoformat(timespec='seconds')}",
@@ -251,20 +264,22 @@ def run_isolated(module: str, func: str, kwargs: dict, timeout: float) -> dict:
     import sys
 
     here = str(Path(__file__).resolve().parent)
-    code = (f"import json, sys; sys.path.insert(0, {here!r}); from {module} import {func}; "
-            f"print('ROW', json.dumps({func}(**json.loads(sys.argv[1]))), flush=True)")
+    code = (
+        f"import json, sys; sys.path.insert(0, {here!r}); from {module} import {func}; "
+        f"print('ROW', json.dumps({func}(**json.loads(sys.argv[1]))), flush=True)"
+    )
     start = time.perf_counter()
     try:
-        out = subprocess.run([sys.executable, "-c", code, json.dumps(kwargs)], capture_output=True, text=True,
-                             timeout=timeout)
+        out = subprocess.run(
+            [sys.executable, "-c", code, json.dumps(kwargs)], capture_output=True, text=True, timeout=timeout
+        )
     except subprocess.TimeoutExpired:
         return {"status": f"timeout>{timeout:g}s", "success": False, "wall_s": time.perf_counter() - start}
     for line in out.stdout.splitlines():
         if line.startswith("ROW "):
             return json.loads(line[4:])
     err = (out.stderr.strip() or out.stdout.strip() or f"exit code {out.returncode}").splitlines()
-    return {"status": "error: " + " | ".join(err[-3:])[-300:], "success": False,
-            "wall_s": time.perf_counter() - start}
+    return {"status": "error: " + " | ".join(err[-3:])[-300:], "success": False, "wall_s": time.perf_counter() - start}
 
 
 def blas_limit(threads: int | None):

@@ -47,7 +47,7 @@ def _profile(fn, top: int = 25):
         stats = pstats.Stats(profiler, stream=buffer)
         stats.sort_stats(key).print_stats(top)
         text = buffer.getvalue().replace(str(Path(sys.prefix)), "<venv>").replace(str(HERE.parent) + "/", "")
-        body = text[text.find("   ncalls"):]
+        body = text[text.find("   ncalls") :]
         print(f"--- top {top} by {title} (wall {wall:.3f} s under the profiler) ---")
         print(body.rstrip())
     return out, wall
@@ -62,17 +62,23 @@ def newton(args):
     p = make_problem(args.problem, int(args.n), args.law)
     start = time.perf_counter()
     system = p.system()
-    print(f"problem {args.problem}, {len(p.layer)} springs, {system.n_dofs} free dofs; geometry and system "
-          f"{time.perf_counter() - start:.3f} s")
+    print(
+        f"problem {args.problem}, {len(p.layer)} springs, {system.n_dofs} free dofs; geometry and system "
+        f"{time.perf_counter() - start:.3f} s"
+    )
     for k in range(2):
         start = time.perf_counter()
         s = dea.solve(p, "newton", strict=False)
-        print(f"dea.solve #{k + 1}: {time.perf_counter() - start:.3f} s (Newton's own solve_time {s.solve_time:.3f} s); "
-              f"{s.iterations} iterations, {s.info.get('line_evaluations')} line-search evaluations")
+        print(
+            f"dea.solve #{k + 1}: {time.perf_counter() - start:.3f} s (Newton's own solve_time {s.solve_time:.3f} s); "
+            f"{s.iterations} iterations, {s.info.get('line_evaluations')} line-search evaluations"
+        )
     s, _ = _profile(lambda: dea.solve(p, "newton", strict=False))
     nbytes = system.AT.nbytes + system.e0.nbytes + system.volume.nbytes
-    print(f"spring data of the system: {nbytes / 1e6:.0f} MB (AT {system.AT.shape}, e0, volume); "
-          f"iterations {s.iterations}, line-search evaluations {s.info.get('line_evaluations')}")
+    print(
+        f"spring data of the system: {nbytes / 1e6:.0f} MB (AT {system.AT.shape}, e0, volume); "
+        f"iterations {s.iterations}, line-search evaluations {s.info.get('line_evaluations')}"
+    )
 
 
 def qp(args):
@@ -101,16 +107,18 @@ def nlp(args):
     """IPOPT's timing statistics: run the solve in a child so that IPOPT's C output is caught."""
     import subprocess
 
-    code = (f"import sys, time, warnings; sys.path.insert(0, {str(HERE)!r}); "
-            "from bench_core import make_problem, _warm_imports; _warm_imports('nlp'); "
-            "from dea_opt.formulations.nlp import NLPModel; "
-            f"p = make_problem({args.problem!r}, {int(args.n)}, {args.law!r}); s = p.system(); "
-            "t = time.perf_counter(); "
-            f"m = NLPModel(s, p.law, form={args.form!r}, ipopt_options={{'print_timing_statistics': 'yes', "
-            "'print_level': 3}); b = time.perf_counter() - t; "
-            "t = time.perf_counter(); r = m.solve(); w = time.perf_counter() - t; "
-            "print(f'NLPModel build {b:.3f} s; solve call {w:.3f} s; iterations {r.iterations}; {r.status}', "
-            "flush=True)")
+    code = (
+        f"import sys, time, warnings; sys.path.insert(0, {str(HERE)!r}); "
+        "from bench_core import make_problem, _warm_imports; _warm_imports('nlp'); "
+        "from dea_opt.formulations.nlp import NLPModel; "
+        f"p = make_problem({args.problem!r}, {int(args.n)}, {args.law!r}); s = p.system(); "
+        "t = time.perf_counter(); "
+        f"m = NLPModel(s, p.law, form={args.form!r}, ipopt_options={{'print_timing_statistics': 'yes', "
+        "'print_level': 3}); b = time.perf_counter() - t; "
+        "t = time.perf_counter(); r = m.solve(); w = time.perf_counter() - t; "
+        "print(f'NLPModel build {b:.3f} s; solve call {w:.3f} s; iterations {r.iterations}; {r.status}', "
+        "flush=True)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=args.timeout)
     text = out.stdout + out.stderr
     keep = [line for line in text.splitlines() if line.strip() and not line.startswith("*")]
@@ -126,8 +134,9 @@ def mesh(args):
     springs_from_meshes(small.mesh1, small.mesh2, engine=args.engine, **small.options)
     pair = bench_mesh.make_pair(args.pair, args.faces)
     print(f"{args.pair}: {len(pair.mesh1.faces)} + {len(pair.mesh2.faces)} faces, engine {args.engine}")
-    _profile(lambda: springs_from_meshes(pair.mesh1.copy(), pair.mesh2.copy(), engine=args.engine,
-                                         **pair.options), top=30)
+    _profile(
+        lambda: springs_from_meshes(pair.mesh1.copy(), pair.mesh2.copy(), engine=args.engine, **pair.options), top=30
+    )
 
 
 def gait(args):
@@ -142,8 +151,10 @@ def gait(args):
     result = dea.solve_path(problem, loads, method="newton", keep_solutions=False)
     wall = time.perf_counter() - start
     table = result.table
-    print(f"gait: {len(problem.layer)} springs, {len(table)} frames: {wall:.3f} s in all; Newton's own solve time "
-          f"{table['solve_time'].sum():.3f} s, {int(table['iterations'].sum())} iterations")
+    print(
+        f"gait: {len(problem.layer)} springs, {len(table)} frames: {wall:.3f} s in all; Newton's own solve time "
+        f"{table['solve_time'].sum():.3f} s, {int(table['iterations'].sum())} iterations"
+    )
     _profile(lambda: dea.solve_path(problem, loads, method="newton", keep_solutions=False), top=30)
 
 

@@ -70,12 +70,27 @@ from sections import (  # noqa: E402
 )
 from speed_sections import target  # noqa: E402
 
-SECTIONS = ("core", "cubic", "qp", "mesh", "gait", "study", "threads", "sensitivity", "finite", "run", "sweep",
-            "bandwidth")
+SECTIONS = (
+    "core",
+    "cubic",
+    "qp",
+    "mesh",
+    "gait",
+    "study",
+    "threads",
+    "sensitivity",
+    "finite",
+    "run",
+    "sweep",
+    "bandwidth",
+)
 
 FULL = {
-    "core": {"problems": ["plate", "sphere", "box"], "sizes": [1e3, 1e4, 1e5, 1e6],
-             "methods": ["newton", "qp", "nlp-c", "nlp-r"]},
+    "core": {
+        "problems": ["plate", "sphere", "box"],
+        "sizes": [1e3, 1e4, 1e5, 1e6],
+        "methods": ["newton", "qp", "nlp-c", "nlp-r"],
+    },
     # Largest size per method in the default run; --full lifts the caps. qp on the box (the
     # 6-dof case of the targets) runs at 1e6 all the same, for the growth target (~1.5 min, ~4 GB).
     "caps": {"qp": 1e5, "nlp-c": 1e5},
@@ -109,16 +124,49 @@ QUICK = {
     "bandwidth": {"problem": "box", "springs": 1e5},
 }
 
-CORE_COLUMNS = ["problem", "law", "method", "n_springs", "n_dofs", "build_s", "solve_s", "solve_first_s", "total_s",
-                "total_first_s", "repeats", "iterations", "solver_time_s", "peak_rss_mb", "success", "certificate",
-                "status", "load_1m"]
-GAIT_COLUMNS = ["method", "n_springs", "frames", "wall_s", "wall_first_s", "repeats", "solve_s", "first_frame_s",
-                "later_frame_mean_s", "iterations", "overhead_ratio", "peak_rss_mb", "success", "blas_threads",
-                "load_1m", "status"]
+CORE_COLUMNS = [
+    "problem",
+    "law",
+    "method",
+    "n_springs",
+    "n_dofs",
+    "build_s",
+    "solve_s",
+    "solve_first_s",
+    "total_s",
+    "total_first_s",
+    "repeats",
+    "iterations",
+    "solver_time_s",
+    "peak_rss_mb",
+    "success",
+    "certificate",
+    "status",
+    "load_1m",
+]
+GAIT_COLUMNS = [
+    "method",
+    "n_springs",
+    "frames",
+    "wall_s",
+    "wall_first_s",
+    "repeats",
+    "solve_s",
+    "first_frame_s",
+    "later_frame_mean_s",
+    "iterations",
+    "overhead_ratio",
+    "peak_rss_mb",
+    "success",
+    "blas_threads",
+    "load_1m",
+    "status",
+]
 TARGET_COLUMNS = ["what", "target", "measured", "met", "detail"]
 
 
 # --- targets -------------------------------------------------------------------------------
+
 
 def _find(rows, **match):
     for r in rows or []:
@@ -157,30 +205,56 @@ def targets(results) -> list[dict]:
 
     def one_thread(n, problem="box"):
         t = _near(threads, n, problem=problem, method="newton")
-        return (f"; BLAS at 1 thread: solve {t['solve_s']:.3g} s, whole dea.solve {t['total_s']:.3g} s"
-                if t and "solve_s" in t else "")
+        return (
+            f"; BLAS at 1 thread: solve {t['solve_s']:.3g} s, whole dea.solve {t['total_s']:.3g} s"
+            if t and "solve_s" in t
+            else ""
+        )
 
     r = _near(core, 1e6, problem="box", method="newton")
     if r and "solve_s" in r:
-        out.append(target("Newton, 1e6 springs, 6 free dofs (box): solve", "<= 0.5 s", r["solve_s"],
-                           lambda v: v <= 0.5, f"first call {r['solve_first_s']:.3g} s; whole dea.solve "
-                           f"{r['total_s']:.3g} s (first {r['total_first_s']:.3g} s); {r['iterations']} iterations"
-                           + one_thread(1e6)))
-        out.append(target("Newton, 1e6 springs, 6 free dofs (box): peak RSS", "<= 1.5 GB", r["peak_rss_mb"] / 1024,
-                           lambda v: v <= 1.5, f"RSS before building {r['base_rss_mb']:.0f} MB",
-                           fmt=lambda v: f"{v:.2f} GB"))
+        out.append(
+            target(
+                "Newton, 1e6 springs, 6 free dofs (box): solve",
+                "<= 0.5 s",
+                r["solve_s"],
+                lambda v: v <= 0.5,
+                f"first call {r['solve_first_s']:.3g} s; whole dea.solve "
+                f"{r['total_s']:.3g} s (first {r['total_first_s']:.3g} s); {r['iterations']} iterations"
+                + one_thread(1e6),
+            )
+        )
+        out.append(
+            target(
+                "Newton, 1e6 springs, 6 free dofs (box): peak RSS",
+                "<= 1.5 GB",
+                r["peak_rss_mb"] / 1024,
+                lambda v: v <= 1.5,
+                f"RSS before building {r['base_rss_mb']:.0f} MB",
+                fmt=lambda v: f"{v:.2f} GB",
+            )
+        )
     else:
-        out.append(target("Newton, 1e6 springs, 6 free dofs (box)", "<= 0.5 s, <= 1.5 GB", None, None,
-                           (r or {}).get("status", "")))
+        out.append(
+            target(
+                "Newton, 1e6 springs, 6 free dofs (box)", "<= 0.5 s, <= 1.5 GB", None, None, (r or {}).get("status", "")
+            )
+        )
     # 2. Newton vs qp at 1e5.
     for problem in ("plate", "sphere", "box"):
         rn, rq = _near(core, 1e5, problem=problem, method="newton"), _near(core, 1e5, problem=problem, method="qp")
         if rn and rq and "total_s" in rn and "total_s" in rq:
-            out.append(target(f"Newton vs qp, 1e5 springs ({problem}): qp time / Newton time", ">= 50x",
-                               rq["total_s"] / rn["total_s"], lambda v: v >= 50,
-                               f"whole dea.solve: qp {rq['total_s']:.3g} s, Newton {rn['total_s']:.3g} s; "
-                               f"solve only: {rq['solve_s'] / rn['solve_s']:.0f}x" + _ratio_one_thread(threads, rq, problem),
-                               fmt=lambda v: f"{v:.1f}x"))
+            out.append(
+                target(
+                    f"Newton vs qp, 1e5 springs ({problem}): qp time / Newton time",
+                    ">= 50x",
+                    rq["total_s"] / rn["total_s"],
+                    lambda v: v >= 50,
+                    f"whole dea.solve: qp {rq['total_s']:.3g} s, Newton {rn['total_s']:.3g} s; "
+                    f"solve only: {rq['solve_s'] / rn['solve_s']:.0f}x" + _ratio_one_thread(threads, rq, problem),
+                    fmt=lambda v: f"{v:.1f}x",
+                )
+            )
         elif core is not None:
             out.append(target(f"Newton vs qp, 1e5 springs ({problem})", ">= 50x", None, None))
     # 3. qp against a direct Clarabel call (and the other rows of issue 15): speed_sections.py.
@@ -191,10 +265,20 @@ def targets(results) -> list[dict]:
             if r is None and cubic is None:
                 continue
             ok = r is not None and "total_s" in r
-            out.append(target(f"{label}, 1e5 springs, cubic law ({problem})", f"<= {limit:g} s",
-                               r["total_s"] if ok else None, lambda v, lim=limit: v <= lim,
-                               (f"build {r['build_s']:.3g} s, IPOPT {r['solve_s']:.3g} s, {r['iterations']} "
-                                f"iterations, {r['status']}") if ok else (r or {}).get("status", "")))
+            out.append(
+                target(
+                    f"{label}, 1e5 springs, cubic law ({problem})",
+                    f"<= {limit:g} s",
+                    r["total_s"] if ok else None,
+                    lambda v, lim=limit: v <= lim,
+                    (
+                        f"build {r['build_s']:.3g} s, IPOPT {r['solve_s']:.3g} s, {r['iterations']} "
+                        f"iterations, {r['status']}"
+                    )
+                    if ok
+                    else (r or {}).get("status", ""),
+                )
+            )
     # 6. Springs from meshes.
     mesh = results.get("mesh")
     for r in mesh or []:
@@ -203,12 +287,20 @@ def targets(results) -> list[dict]:
             # The issue's target is with Embree; the grid caster (the fallback without
             # embreex) is reported for information, as the issue asks.
             embree = r["engine"] == "embree"
-            out.append(target(f"springs from two 1e5-face meshes ({r['pair']}, {r['engine']})",
-                               "<= 2 s" if embree else "(fallback: reported)",
-                               r["cold_s"] if ok else None, (lambda v: v <= 2.0) if embree else (lambda v: True),
-                               (f"{r['faces1']} + {r['faces2']} faces -> {r['n_springs']} springs; first "
-                                f"{r['cold_first_s']:.3g} s; warm (cached meshes) {r['warm_s']:.3g} s")
-                               if ok else r.get("status", "")))
+            out.append(
+                target(
+                    f"springs from two 1e5-face meshes ({r['pair']}, {r['engine']})",
+                    "<= 2 s" if embree else "(fallback: reported)",
+                    r["cold_s"] if ok else None,
+                    (lambda v: v <= 2.0) if embree else (lambda v: True),
+                    (
+                        f"{r['faces1']} + {r['faces2']} faces -> {r['n_springs']} springs; first "
+                        f"{r['cold_first_s']:.3g} s; warm (cached meshes) {r['warm_s']:.3g} s"
+                    )
+                    if ok
+                    else r.get("status", ""),
+                )
+            )
     if mesh is not None and not any(r.get("target_faces") == 100000 for r in mesh):
         out.append(target("springs from two 1e5-face meshes", "<= 2 s", None, None, "sizes below 1e5 (quick)"))
     # 7. Gait.
@@ -217,70 +309,148 @@ def targets(results) -> list[dict]:
         r = _find(gait, method="newton")
         full = r is not None and r.get("frames") == 101 and abs(r.get("n_springs", 0) - 2e4) <= 2e3
         ok = r is not None and "wall_s" in r and full
-        out.append(target("101-frame gait, 2e4 springs, Newton warm-started (whole path)", "<= 2 s",
-                           r["wall_s"] if ok else None, lambda v: v <= 2.0,
-                           (f"first run {r['wall_first_s']:.3g} s; Newton's own solve time {r['solve_s']:.3g} s; "
-                            f"{r['iterations']} iterations" + _gait_one_thread(threads_gait)) if ok
-                           else "not the full gait (quick)"))
+        out.append(
+            target(
+                "101-frame gait, 2e4 springs, Newton warm-started (whole path)",
+                "<= 2 s",
+                r["wall_s"] if ok else None,
+                lambda v: v <= 2.0,
+                (
+                    f"first run {r['wall_first_s']:.3g} s; Newton's own solve time {r['solve_s']:.3g} s; "
+                    f"{r['iterations']} iterations" + _gait_one_thread(threads_gait)
+                )
+                if ok
+                else "not the full gait (quick)",
+            )
+        )
     # 8. Growth.
     for method in ("newton", "qp"):
         for problem in ("plate", "sphere", "box"):
             if core is None:
                 continue
-            pts = sorted((r["n_springs"], r["solve_s"], r["total_s"]) for r in core
-                         if r.get("problem") == problem and r.get("method") == method and "solve_s" in r
-                         and 0.9e4 <= r["n_springs"] <= 1.1e6)
+            pts = sorted(
+                (r["n_springs"], r["solve_s"], r["total_s"])
+                for r in core
+                if r.get("problem") == problem
+                and r.get("method") == method
+                and "solve_s" in r
+                and 0.9e4 <= r["n_springs"] <= 1.1e6
+            )
             if len(pts) < 2:
-                out.append(target(f"growth: {method} ({problem}), log-log slope of time vs N", "0.9 - 1.2", None,
-                                   None, "fewer than two sizes in [1e4, 1e6]"))
+                out.append(
+                    target(
+                        f"growth: {method} ({problem}), log-log slope of time vs N",
+                        "0.9 - 1.2",
+                        None,
+                        None,
+                        "fewer than two sizes in [1e4, 1e6]",
+                    )
+                )
                 continue
             slope = loglog_slope([p[0] for p in pts], [p[1] for p in pts])
             total = loglog_slope([p[0] for p in pts], [p[2] for p in pts])
-            out.append(target(f"growth: {method} ({problem}), log-log slope of solve time vs N", "0.9 - 1.2",
-                               slope, lambda v: 0.9 <= v <= 1.2,
-                               f"N = {', '.join(f'{p[0]:.0e}' for p in pts)}: solve "
-                               + ", ".join(f"{p[1]:.3g}" for p in pts) + f" s; whole dea.solve slope {total:.2f}",
-                               fmt=lambda v: f"{v:.2f}"))
+            out.append(
+                target(
+                    f"growth: {method} ({problem}), log-log slope of solve time vs N",
+                    "0.9 - 1.2",
+                    slope,
+                    lambda v: 0.9 <= v <= 1.2,
+                    f"N = {', '.join(f'{p[0]:.0e}' for p in pts)}: solve "
+                    + ", ".join(f"{p[1]:.3g}" for p in pts)
+                    + f" s; whole dea.solve slope {total:.2f}",
+                    fmt=lambda v: f"{v:.2f}",
+                )
+            )
     # 9. Sensitivities and calibration.
     sens = results.get("sensitivity")
     if sens is not None:
         r = _near(sens, 1e5, case="box, Ateshian")
-        out.append(target("sensitivities of all outputs to 10 parameters, 1e5 springs (box): time / Newton solve",
-                           "< 3", r["ratio"] if r and "ratio" in r else None, lambda v: v < 3,
-                           (f"sensitivities {r['sensitivities_s']:.3g} s; whole dea.solve {r['newton_s']:.3g} s "
-                            f"(Newton's own {r['newton_formulation_s']:.3g} s)") if r and "ratio" in r
-                           else "sizes below 1e5 (quick)", fmt=lambda v: f"{v:.2f}x"))
+        out.append(
+            target(
+                "sensitivities of all outputs to 10 parameters, 1e5 springs (box): time / Newton solve",
+                "< 3",
+                r["ratio"] if r and "ratio" in r else None,
+                lambda v: v < 3,
+                (
+                    f"sensitivities {r['sensitivities_s']:.3g} s; whole dea.solve {r['newton_s']:.3g} s "
+                    f"(Newton's own {r['newton_formulation_s']:.3g} s)"
+                )
+                if r and "ratio" in r
+                else "sizes below 1e5 (quick)",
+                fmt=lambda v: f"{v:.2f}x",
+            )
+        )
         r = _find(sens, case="knee calibration")
         ok = r is not None and "calibration_s" in r
-        out.append(target("calibration of H and beta on the real knee (film, start 2x off)", "< 2 s",
-                           r["calibration_s"] if ok else None, lambda v: v < 2.0,
-                           (f"{r['solves']} solves; H {r['H']:.4g} MPa (true 5), beta {r['beta']:.4g} (true 0.6)")
-                           if ok else (r or {}).get("status", "not run (quick)")))
+        out.append(
+            target(
+                "calibration of H and beta on the real knee (film, start 2x off)",
+                "< 2 s",
+                r["calibration_s"] if ok else None,
+                lambda v: v < 2.0,
+                (f"{r['solves']} solves; H {r['H']:.4g} MPa (true 5), beta {r['beta']:.4g} (true 0.6)")
+                if ok
+                else (r or {}).get("status", "not run (quick)"),
+            )
+        )
     # 10. Finite kinematics on the real knee.
     finite = results.get("finite")
     if finite is not None:
         r = _find(finite, case="knee 1000 N, uz rx ry")
         ok = r is not None and "ratio" in r
-        out.append(target("knee, 1000 N, uz rx ry free: finite / small kinematics, whole dea.solve (re-casts "
-                           "included)", "<= 5x", r["ratio"] if ok else None, lambda v: v <= 5.0,
-                           (f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} "
-                            f"deg), small {r['small_s']:.3g} s; small + its validation re-cast "
-                            f"{r['small_recast_s']:.3g} s ({r['finite_s'] / r['small_recast_s']:.2f}x)") if ok
-                           else (r or {}).get("status", "not run"), fmt=lambda v: f"{v:.1f}x"))
+        out.append(
+            target(
+                "knee, 1000 N, uz rx ry free: finite / small kinematics, whole dea.solve (re-casts included)",
+                "<= 5x",
+                r["ratio"] if ok else None,
+                lambda v: v <= 5.0,
+                (
+                    f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} "
+                    f"deg), small {r['small_s']:.3g} s; small + its validation re-cast "
+                    f"{r['small_recast_s']:.3g} s ({r['finite_s'] / r['small_recast_s']:.2f}x)"
+                )
+                if ok
+                else (r or {}).get("status", "not run"),
+                fmt=lambda v: f"{v:.1f}x",
+            )
+        )
         r = next((row for row in finite if str(row.get("case", "")).startswith("knee gait")), None)
         ok = r is not None and "wall_s" in r and r.get("frames") == 101
-        out.append(target("101-frame knee gait, finite kinematics (flexion prescribed, uz ry found)", "< 10 s",
-                           r["wall_s"] if ok else None, lambda v: v < 10.0,
-                           (f"{r['per_frame_s'] * 1e3:.0f} ms a frame; the small kinematics' path without poses "
-                            f"{r['small_path_s']:.3g} s") if ok else (r or {}).get("status", "not run (quick)")))
+        out.append(
+            target(
+                "101-frame knee gait, finite kinematics (flexion prescribed, uz ry found)",
+                "< 10 s",
+                r["wall_s"] if ok else None,
+                lambda v: v < 10.0,
+                (
+                    f"{r['per_frame_s'] * 1e3:.0f} ms a frame; the small kinematics' path without poses "
+                    f"{r['small_path_s']:.3g} s"
+                )
+                if ok
+                else (r or {}).get("status", "not run (quick)"),
+            )
+        )
     # The same growth with Newton's BLAS at one thread (information: no target of its own).
-    pts = sorted((r["n_springs"], r["solve_s"]) for r in threads or [] if r.get("method") == "newton"
-                 and r.get("problem") == "box" and "solve_s" in r and 0.9e4 <= r["n_springs"] <= 1.1e6)
+    pts = sorted(
+        (r["n_springs"], r["solve_s"])
+        for r in threads or []
+        if r.get("method") == "newton"
+        and r.get("problem") == "box"
+        and "solve_s" in r
+        and 0.9e4 <= r["n_springs"] <= 1.1e6
+    )
     if len(pts) >= 2:
         slope = loglog_slope([p[0] for p in pts], [p[1] for p in pts])
-        out.append(target("growth: newton (box), BLAS at 1 thread (information)", "0.9 - 1.2", slope,
-                           lambda v: 0.9 <= v <= 1.2, f"N = {', '.join(f'{p[0]:.0e}' for p in pts)}: solve "
-                           + ", ".join(f"{p[1]:.3g}" for p in pts) + " s", fmt=lambda v: f"{v:.2f}"))
+        out.append(
+            target(
+                "growth: newton (box), BLAS at 1 thread (information)",
+                "0.9 - 1.2",
+                slope,
+                lambda v: 0.9 <= v <= 1.2,
+                f"N = {', '.join(f'{p[0]:.0e}' for p in pts)}: solve " + ", ".join(f"{p[1]:.3g}" for p in pts) + " s",
+                fmt=lambda v: f"{v:.2f}",
+            )
+        )
     out += speed_sections.targets_issue15(results)
     return out
 
@@ -296,16 +466,22 @@ def markdown(rows, preamble: str = "") -> str:
 
 # --- main ----------------------------------------------------------------------------------
 
+
 def main(argv=None) -> int:
     parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--quick", action="store_true", help="small sizes only, in this process (seconds)")
-    parser.add_argument("--only", nargs="+", choices=SECTIONS, metavar="NAME",
-                        help=f"run only these sections: {', '.join(SECTIONS)}")
+    parser.add_argument(
+        "--only", nargs="+", choices=SECTIONS, metavar="NAME", help=f"run only these sections: {', '.join(SECTIONS)}"
+    )
     parser.add_argument("--out", type=Path, default=HERE / "results", help="folder for the CSVs and run.txt")
     parser.add_argument("--full", action="store_true", help="lift the size caps (qp and nlp-c at 1e6, nlp-c gait)")
     parser.add_argument("--timeout", type=float, default=900.0, help="seconds per case (default 900)")
-    parser.add_argument("--blas-threads", type=int, default=None,
-                        help="cap the BLAS thread pools in every case (default: the machine's default)")
+    parser.add_argument(
+        "--blas-threads",
+        type=int,
+        default=None,
+        help="cap the BLAS thread pools in every case (default: the machine's default)",
+    )
     args = parser.parse_args(argv)
     cfg = QUICK if args.quick else FULL
     sections = [s for s in SECTIONS if s in (args.only or SECTIONS)]
@@ -315,8 +491,10 @@ def main(argv=None) -> int:
     preamble = header("dea-opt speed benchmark" + (" (--quick: small sizes, in-process)" if args.quick else ""))
     for line in preamble.rstrip("\n").splitlines():
         say(line)
-    say(f"# sections: {', '.join(sections)}; every heavy case in a fresh subprocess: {not args.quick}; "
-        f"BLAS threads: {args.blas_threads or 'default'}")
+    say(
+        f"# sections: {', '.join(sections)}; every heavy case in a fresh subprocess: {not args.quick}; "
+        f"BLAS threads: {args.blas_threads or 'default'}"
+    )
     notes, results = [], {}
     out = args.out
 
@@ -348,8 +526,10 @@ def main(argv=None) -> int:
         say.table(rows, bench_mesh.COLUMNS)
         save("mesh", rows, bench_mesh.COLUMNS)
     if "gait" in sections:
-        say(f"\n## gait: {cfg['gait']['frames'] or 101}-frame hip gait at {cfg['gait']['springs']:.0e} springs, "
-            f"warm-started")
+        say(
+            f"\n## gait: {cfg['gait']['frames'] or 101}-frame hip gait at {cfg['gait']['springs']:.0e} springs, "
+            f"warm-started"
+        )
         rows = section_gait(cfg, args, say, notes)
         results["gait"] = rows
         say.table(rows, GAIT_COLUMNS)
@@ -378,24 +558,31 @@ def main(argv=None) -> int:
         save("sensitivity", rows, bench_sensitivity.COLUMNS)
 
     if "finite" in sections:
-        say(f"\n## finite: the real knee with finite kinematics (one solve against the small kinematics, and a "
-            f"{cfg['finite']['frames']}-frame gait)")
-        rows = bench_finite.run(cfg["finite"]["frames"], args.timeout, isolate=not args.quick,
-                                repeats=cfg["finite"]["repeats"])
+        say(
+            f"\n## finite: the real knee with finite kinematics (one solve against the small kinematics, and a "
+            f"{cfg['finite']['frames']}-frame gait)"
+        )
+        rows = bench_finite.run(
+            cfg["finite"]["frames"], args.timeout, isolate=not args.quick, repeats=cfg["finite"]["repeats"]
+        )
         results["finite"] = rows
         say.table(rows, bench_finite.COLUMNS)
         save("finite", rows, bench_finite.COLUMNS)
 
     if "run" in sections:
-        say(f"\n## run: dea-opt run of the real knee, {cfg['run']['frames']} frames, every default output, against "
-            f"the same work in-process")
+        say(
+            f"\n## run: dea-opt run of the real knee, {cfg['run']['frames']} frames, every default output, against "
+            f"the same work in-process"
+        )
         rows = speed_sections.section_run(cfg, args, say)
         results["run"] = rows
         say.table(rows, bench_run.COLUMNS)
         save("run", rows, bench_run.COLUMNS)
     if "sweep" in sections:
-        say(f"\n## sweep: {cfg['sweep']['cases']} knee cases on {cfg['sweep']['workers']} local Dask workers, "
-            f"against one case's in-process solve")
+        say(
+            f"\n## sweep: {cfg['sweep']['cases']} knee cases on {cfg['sweep']['workers']} local Dask workers, "
+            f"against one case's in-process solve"
+        )
         rows = speed_sections.section_sweep(cfg, args, say)
         results["sweep"] = rows
         say.table(rows, bench_sweep.COLUMNS)
@@ -411,12 +598,16 @@ def main(argv=None) -> int:
     say("\n## TARGETS" + (" (--quick: sizes below the targets' are 'not run')" if args.quick else ""))
     say.table(rows, TARGET_COLUMNS)
     missed = [r for r in rows if r["met"] == "NO"]
-    say(f"\n{sum(r['met'] == 'yes' for r in rows)} met, {len(missed)} missed, "
-        f"{sum(r['met'] == '-' for r in rows)} not run")
+    say(
+        f"\n{sum(r['met'] == 'yes' for r in rows)} met, {len(missed)} missed, "
+        f"{sum(r['met'] == '-' for r in rows)} not run"
+    )
     for note in dict.fromkeys(notes):
         say(f"note: {note}")
-    say(f"# load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
-        f"wall time {time.perf_counter() - say.start:.0f} s")
+    say(
+        f"# load average at the end: {' '.join(f'{x:.2f}' for x in os.getloadavg())}; "
+        f"wall time {time.perf_counter() - say.start:.0f} s"
+    )
     save("targets", rows, TARGET_COLUMNS)
     out.mkdir(parents=True, exist_ok=True)
     (out / "targets.md").write_text(markdown(rows, preamble))

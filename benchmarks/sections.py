@@ -8,8 +8,15 @@ import bench_mesh
 import bench_qp
 import bench_study
 
-__all__ = ["section_core", "section_gait", "section_mesh", "section_qp", "section_sensitivity", "section_study",
-           "section_threads"]
+__all__ = [
+    "section_core",
+    "section_gait",
+    "section_mesh",
+    "section_qp",
+    "section_sensitivity",
+    "section_study",
+    "section_threads",
+]
 
 
 def section_core(cfg, args, say, notes, law="linear", name="core"):
@@ -18,13 +25,27 @@ def section_core(cfg, args, say, notes, law="linear", name="core"):
         for n in cfg[name]["sizes"]:
             for method in cfg[name]["methods"]:
                 cap = cfg["caps"].get(method)
-                if cap is not None and n > cap and not args.full \
-                        and (problem, method, n) not in cfg.get("uncapped", []):
-                    notes.append(f"{name}: {method} at N={n:.0e} skipped by default for {problem} (size cap "
-                                 f"{cap:.0e}); run with --full to include it")
+                if (
+                    cap is not None
+                    and n > cap
+                    and not args.full
+                    and (problem, method, n) not in cfg.get("uncapped", [])
+                ):
+                    notes.append(
+                        f"{name}: {method} at N={n:.0e} skipped by default for {problem} (size cap "
+                        f"{cap:.0e}); run with --full to include it"
+                    )
                     continue
-                row = bench_core.run_case(problem, method, int(n), {}, args.timeout, law=law, isolate=not args.quick,
-                                          blas_threads=args.blas_threads)
+                row = bench_core.run_case(
+                    problem,
+                    method,
+                    int(n),
+                    {},
+                    args.timeout,
+                    law=law,
+                    isolate=not args.quick,
+                    blas_threads=args.blas_threads,
+                )
                 rows.append(row)
                 say.progress(f"{name} {problem} {method} N={int(n)}", row, "total_s")
     return rows
@@ -45,8 +66,9 @@ def section_mesh(cfg, args, say):
     for faces in cfg["mesh"]["faces"]:
         for pair in cfg["mesh"]["pairs"]:
             for engine in cfg["mesh"]["engines"]:
-                row = bench_mesh.run(pair, faces, engine, args.timeout, isolate=not args.quick,
-                                     blas_threads=args.blas_threads)
+                row = bench_mesh.run(
+                    pair, faces, engine, args.timeout, isolate=not args.quick, blas_threads=args.blas_threads
+                )
                 rows.append(row)
                 say.progress(f"mesh {pair} {faces:.0e} faces {engine}", row, "cold_s")
     return rows
@@ -85,8 +107,9 @@ def section_gait(cfg, args, say, notes):
 def section_study(cfg, args, say):
     rows = []
     for n in cfg["study"]["sizes"]:
-        out = bench_study.run(cfg["study"]["problem"], n, args.timeout, isolate=not args.quick,
-                              blas_threads=args.blas_threads)
+        out = bench_study.run(
+            cfg["study"]["problem"], n, args.timeout, isolate=not args.quick, blas_threads=args.blas_threads
+        )
         rows += out
         say.progress(f"study {cfg['study']['problem']} N={int(n)}", out[0], "study_wall_s")
     return rows
@@ -127,8 +150,9 @@ def section_sensitivity(cfg, args, say):
         else:
             row = run_isolated("bench_sensitivity", func, kwargs, args.timeout)
         rows.append(row)
-        say.progress(f"sensitivity {row.get('case', func)}", row, "sensitivities_s" if "sensitivities_s" in row
-                     else "calibration_s")
+        say.progress(
+            f"sensitivity {row.get('case', func)}",
+            row,
+            "sensitivities_s" if "sensitivities_s" in row else "calibration_s",
+        )
     return rows
-
-

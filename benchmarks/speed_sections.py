@@ -24,8 +24,7 @@ def target(what, goal, value, ok, detail="", fmt=fmt_s) -> dict:
     """A TARGETS row: ``met`` is ``yes`` / ``NO`` by ``ok(value)``, ``-`` when not measured."""
     if value is None or (isinstance(value, float) and value != value):
         return {"what": what, "target": goal, "measured": "not run", "met": "-", "detail": detail}
-    return {"what": what, "target": goal, "measured": fmt(value), "met": "yes" if ok(value) else "NO",
-            "detail": detail}
+    return {"what": what, "target": goal, "measured": fmt(value), "met": "yes" if ok(value) else "NO", "detail": detail}
 
 
 def _decade(n) -> int:
@@ -65,8 +64,12 @@ def section_sweep(cfg, args, say) -> list[dict]:
 
 
 def section_bandwidth(cfg, args, say) -> list[dict]:
-    row = _quick_or_isolated("bench_bandwidth", "measure", {"problem": cfg["bandwidth"]["problem"],
-                                                            "n": int(cfg["bandwidth"]["springs"])}, args)
+    row = _quick_or_isolated(
+        "bench_bandwidth",
+        "measure",
+        {"problem": cfg["bandwidth"]["problem"], "n": int(cfg["bandwidth"]["springs"])},
+        args,
+    )
     row = {"problem": cfg["bandwidth"]["problem"], **row}
     say.progress(f"bandwidth {row['problem']} N={cfg['bandwidth']['springs']:.0e}", row, "fraction")
     return [row]
@@ -80,8 +83,11 @@ def _qp_rows(qp) -> list[dict]:
     for first, label in ((True, "first solve"), (False, "re-solve with a new load")):
         sizes = sorted({r["n_springs"] for r in rows if r["n_springs"] >= 9e3}) or [None]
         for n in sizes:
-            what = f"qp / a direct Clarabel call on the minimal QP, {label}, N = {n:.0e}" if n else \
-                f"qp / a direct Clarabel call, {label}, N >= 1e4"
+            what = (
+                f"qp / a direct Clarabel call on the minimal QP, {label}, N = {n:.0e}"
+                if n
+                else f"qp / a direct Clarabel call, {label}, N >= 1e4"
+            )
             per = {}
             for r in rows:
                 if r["n_springs"] == n and (r["call"] == "first") == first:
@@ -94,12 +100,14 @@ def _qp_rows(qp) -> list[dict]:
             if first:
                 whole = [r for r in rows if r["n_springs"] == n and r["call"] == "first" and "dea_solve_ratio" in r]
                 detail += "; whole dea.solve (system, cone test, certificate) / direct: " + ", ".join(
-                    f"{r['problem']} {r['dea_solve_ratio']:.2f}" for r in whole)
+                    f"{r['problem']} {r['dea_solve_ratio']:.2f}" for r in whole
+                )
                 detail += "; Clarabel saw " + ", ".join(f"{r['problem']} {r['rows']} x {r['variables']}" for r in whole)
             else:
                 detail = "median of the re-solves: " + detail
-            out.append(target(what, "<= 1.1x", max(worst.values()), lambda v: v <= 1.1, detail,
-                              fmt=lambda v: f"{v:.3f}x"))
+            out.append(
+                target(what, "<= 1.1x", max(worst.values()), lambda v: v <= 1.1, detail, fmt=lambda v: f"{v:.3f}x")
+            )
     return out
 
 
@@ -112,38 +120,67 @@ def targets_issue15(results) -> list[dict]:
         ok = "cli_s" in r and r.get("frames") == 51
         if "cli_s" in r and not ok:
             r = {**r, "status": f"{r.get('frames')} frames, not 51 (quick)"}
-        out.append(target("dea-opt run, real knee, 51 frames, every default output: wall time", "<= 1.5 x in-process "
-                          "+ 1 s", r["cli_s"] if ok else None, lambda v, r=r: v <= r["limit_s"],
-                          (f"in-process {r['inproc_s']:.3g} s (import {r['import_s']:.2f}, meshes and springs "
-                           f"{r['build_s']:.2f}, solve_path {r['path_s']:.2f}), limit {r['limit_s']:.3g} s, "
-                           f"(wall - 1 s) / in-process = {r['ratio']:.2f}; outputs alone: png {r['outputs_png_s']:.2f} "
-                           f"s, vtk {r['outputs_vtk_s']:.2f} s, csv {r['outputs_csv_s']:.3f} s, json "
-                           f"{r['outputs_json_s']:.3f} s; imports: {r['imports']}; not imported: {r['not_imported']}")
-                          if ok else r.get("status", "")))
+        out.append(
+            target(
+                "dea-opt run, real knee, 51 frames, every default output: wall time",
+                "<= 1.5 x in-process + 1 s",
+                r["cli_s"] if ok else None,
+                lambda v, r=r: v <= r["limit_s"],
+                (
+                    f"in-process {r['inproc_s']:.3g} s (import {r['import_s']:.2f}, meshes and springs "
+                    f"{r['build_s']:.2f}, solve_path {r['path_s']:.2f}), limit {r['limit_s']:.3g} s, "
+                    f"(wall - 1 s) / in-process = {r['ratio']:.2f}; outputs alone: png {r['outputs_png_s']:.2f} "
+                    f"s, vtk {r['outputs_vtk_s']:.2f} s, csv {r['outputs_csv_s']:.3f} s, json "
+                    f"{r['outputs_json_s']:.3f} s; imports: {r['imports']}; not imported: {r['not_imported']}"
+                )
+                if ok
+                else r.get("status", ""),
+            )
+        )
     for r in results.get("sweep") or []:
         ok = "sweep_s" in r and r.get("cases", 0) >= 200
         if "sweep_s" in r and not ok:
             r = {**r, "status": f"{r.get('cases')} cases, not 200 (quick)"}
-        what = (f"sweep of {r.get('cases')} knee cases (51 frames, csv/json) on {r.get('workers')} local workers: "
-                f"wall time")
-        out.append(target(what, "<= 1.5 x cases x case solve / workers", r["sweep_s"] if ok else None,
-                          lambda v, r=r: v <= r["limit_s"],
-                          (f"one case's in-process solve {r['case_solve_s']:.3g} s (solve_path {r['case_path_s']:.3g} "
-                           f"s), limit {r['limit_s']:.3g} s, ratio {r['ratio']:.2f}; {r['workers']} cases side by side "
-                           f"here took {r['parallel_case_s']:.3g} s each (against that: {r['ratio_machine']:.2f}); "
-                           f"Dask's overhead per case {r['dask_overhead_per_case_s']:.3f} s; a case's own wall time "
-                           f"{r['case_wall_mean_s']:.3g} s; {r['cast_entries']} spring cast(s) for {r['cases']} cases")
-                          if ok else r.get("status", "")))
+        what = (
+            f"sweep of {r.get('cases')} knee cases (51 frames, csv/json) on {r.get('workers')} local workers: wall time"
+        )
+        out.append(
+            target(
+                what,
+                "<= 1.5 x cases x case solve / workers",
+                r["sweep_s"] if ok else None,
+                lambda v, r=r: v <= r["limit_s"],
+                (
+                    f"one case's in-process solve {r['case_solve_s']:.3g} s (solve_path {r['case_path_s']:.3g} "
+                    f"s), limit {r['limit_s']:.3g} s, ratio {r['ratio']:.2f}; {r['workers']} cases side by side "
+                    f"here took {r['parallel_case_s']:.3g} s each (against that: {r['ratio_machine']:.2f}); "
+                    f"Dask's overhead per case {r['dask_overhead_per_case_s']:.3f} s; a case's own wall time "
+                    f"{r['case_wall_mean_s']:.3g} s; {r['cast_entries']} spring cast(s) for {r['cases']} cases"
+                )
+                if ok
+                else r.get("status", ""),
+            )
+        )
     for r in results.get("bandwidth") or []:
         ok = "fraction" in r and r.get("n_springs", 0) >= 9e5
         if "fraction" in r and not ok:
             r = {**r, "status": "below 1e6 springs (quick)"}
-        out.append(target(f"Newton at {r.get('n_springs', 0):.0e} springs ({r.get('problem')}): bytes its kernels read "
-                          f"per second / copy bandwidth", ">= 50 %", r["fraction"] if ok else None,
-                          lambda v: v >= 0.5,
-                          (f"{r['newton_GBs']:.3g} GB/s read ({r['newton_bytes'] / 1e9:.3g} GB in {r['newton_s']:.3g} s, "
-                           f"{r['iterations']} iterations, {r['slopes']} line evaluations); copy reads {r['copy_GBs']:.3g}"
-                           f" GB/s; in STREAM's units (read + written) {r['moved_GBs']:.3g} of {r['stream_copy_GBs']:.3g} "
-                           f"GB/s = {r['fraction_moved']:.0%}; a pure read (sum) {r['read_GBs']:.3g} GB/s")
-                          if ok else r.get("status", ""), fmt=lambda v: f"{v:.0%}"))
+        out.append(
+            target(
+                f"Newton at {r.get('n_springs', 0):.0e} springs ({r.get('problem')}): bytes its kernels read "
+                f"per second / copy bandwidth",
+                ">= 50 %",
+                r["fraction"] if ok else None,
+                lambda v: v >= 0.5,
+                (
+                    f"{r['newton_GBs']:.3g} GB/s read ({r['newton_bytes'] / 1e9:.3g} GB in {r['newton_s']:.3g} s, "
+                    f"{r['iterations']} iterations, {r['slopes']} line evaluations); copy reads {r['copy_GBs']:.3g}"
+                    f" GB/s; in STREAM's units (read + written) {r['moved_GBs']:.3g} of {r['stream_copy_GBs']:.3g} "
+                    f"GB/s = {r['fraction_moved']:.0%}; a pure read (sum) {r['read_GBs']:.3g} GB/s"
+                )
+                if ok
+                else r.get("status", ""),
+                fmt=lambda v: f"{v:.0%}",
+            )
+        )
     return out

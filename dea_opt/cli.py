@@ -62,8 +62,13 @@ def _warn(messages) -> None:
 def _crash_log(exc: BaseException) -> Path | None:
     """Write the traceback of an unexpected failure to a file of its own; its path, or None."""
     try:
-        with tempfile.NamedTemporaryFile("w", prefix=f"dea-opt-crash-{time.strftime('%Y%m%d-%H%M%S')}-",
-                                         suffix=".log", delete=False, encoding="utf-8") as handle:
+        with tempfile.NamedTemporaryFile(
+            "w",
+            prefix=f"dea-opt-crash-{time.strftime('%Y%m%d-%H%M%S')}-",
+            suffix=".log",
+            delete=False,
+            encoding="utf-8",
+        ) as handle:
             handle.write(f"dea-opt {' '.join(sys.argv[1:])}\n")
             handle.write("".join(traceback.format_exception(exc)))
             return Path(handle.name)
@@ -103,8 +108,10 @@ def _reported(command):
         except Exception as exc:  # noqa: BLE001 - a bug of dea-opt's: say so, keep the traceback off the terminal
             log = _crash_log(exc)
             where = f"; the traceback is in {log}" if log else ""
-            _fail(f"unexpected internal error ({type(exc).__name__}: {exc}): this is a bug in dea-opt, please report "
-                  f"it with the scenario{where}")
+            _fail(
+                f"unexpected internal error ({type(exc).__name__}: {exc}): this is a bug in dea-opt, please report "
+                f"it with the scenario{where}"
+            )
 
     return wrapper
 
@@ -122,8 +129,9 @@ def _overrides(sets: list[str] | None) -> dict:
     for text in sets or []:
         key, values = parse_set(text)
         if len(values) != 1:
-            raise ScenarioError(f"--set {key} takes one value here (several values are for dea-opt sweep), got "
-                                f"{len(values)}")
+            raise ScenarioError(
+                f"--set {key} takes one value here (several values are for dea-opt sweep), got {len(values)}"
+            )
         overrides[key] = values[0]
     return overrides
 
@@ -149,17 +157,34 @@ def _report_outcome(outcome, quiet: bool = False) -> None:
         raise typer.Exit(outcome.exit_code)
 
 
-ScenarioArg = Annotated[Path, typer.Argument(help="The scenario TOML file (see: dea-opt schema).",
-                                             show_default=False)]
-OutputOpt = Annotated[Path | None, typer.Option("--output", "-o", help="Output folder (default: the "
-                                                   "scenario's [output].directory).", show_default=False)]
-MethodOpt = Annotated[str | None, typer.Option("--method", "-m", help="auto, or a registered formulation "
-                                                  "(default: the scenario's [solve].method; dea-opt schema lists "
-                                                  "them).", show_default=False)]
-SetOpt = Annotated[list[str] | None, typer.Option("--set", help="Override a scenario value, e.g. "
-                                                     "--set law.H=0.45 (repeatable).", show_default=False)]
-ForceOpt = Annotated[bool, typer.Option("--force", help="Write into the output folder even if it holds files dea-opt "
-                                        "did not write (files named like the outputs are replaced).")]
+ScenarioArg = Annotated[Path, typer.Argument(help="The scenario TOML file (see: dea-opt schema).", show_default=False)]
+OutputOpt = Annotated[
+    Path | None,
+    typer.Option(
+        "--output", "-o", help="Output folder (default: the scenario's [output].directory).", show_default=False
+    ),
+]
+MethodOpt = Annotated[
+    str | None,
+    typer.Option(
+        "--method",
+        "-m",
+        help="auto, or a registered formulation (default: the scenario's [solve].method; dea-opt schema lists them).",
+        show_default=False,
+    ),
+]
+SetOpt = Annotated[
+    list[str] | None,
+    typer.Option("--set", help="Override a scenario value, e.g. --set law.H=0.45 (repeatable).", show_default=False),
+]
+ForceOpt = Annotated[
+    bool,
+    typer.Option(
+        "--force",
+        help="Write into the output folder even if it holds files dea-opt "
+        "did not write (files named like the outputs are replaced).",
+    ),
+]
 
 
 def _version_callback(value: bool) -> None:
@@ -171,8 +196,11 @@ def _version_callback(value: bool) -> None:
 
 
 @app.callback()
-def _main(version: Annotated[bool, typer.Option("--version", callback=_version_callback, is_eager=True,
-                                                help="Print the version and exit.")] = False) -> None:
+def _main(
+    version: Annotated[
+        bool, typer.Option("--version", callback=_version_callback, is_eager=True, help="Print the version and exit.")
+    ] = False,
+) -> None:
     """Discrete element analysis of cartilage contact: scenario files in, certified results out.
 
     Exit codes: 0 ok; 1 an answer failed its certificate; 2 bad input (one paragraph on
@@ -183,12 +211,23 @@ def _main(version: Annotated[bool, typer.Option("--version", callback=_version_c
 
 @app.command()
 @_reported
-def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = None, set_: SetOpt = None,
-        quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors and warnings.")] = False,
-        force: ForceOpt = False,
-        stop_on_error: Annotated[bool, typer.Option("--stop-on-error", help="A load path stops at its first frame "
-                                                    "without a certified answer (exit 2, nothing published) instead "
-                                                    "of recording it and going on.")] = False):
+def run(
+    scenario: ScenarioArg,
+    output: OutputOpt = None,
+    method: MethodOpt = None,
+    set_: SetOpt = None,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but errors and warnings.")] = False,
+    force: ForceOpt = False,
+    stop_on_error: Annotated[
+        bool,
+        typer.Option(
+            "--stop-on-error",
+            help="A load path stops at its first frame "
+            "without a certified answer (exit 2, nothing published) instead "
+            "of recording it and going on.",
+        ),
+    ] = False,
+):
     """Solve a scenario (one load or a load path) and publish its outputs into one folder.
 
     A static load writes contact.vtu, contact.csv, contact.json and contact.png; a load
@@ -201,8 +240,7 @@ def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = Non
     from .scenario import load_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
-    outcome = run_scenario(loaded, output, method=method, progress=not quiet, force=force,
-                           stop_on_error=stop_on_error)
+    outcome = run_scenario(loaded, output, method=method, progress=not quiet, force=force, stop_on_error=stop_on_error)
     _report_outcome(outcome, quiet)
 
 
@@ -210,22 +248,46 @@ def run(scenario: ScenarioArg, output: OutputOpt = None, method: MethodOpt = Non
 @_reported
 def compare(
     scenario: ScenarioArg,
-    methods: Annotated[str | None, typer.Option(help="Comma-separated registered formulations (default: "
-                                                   "[solve].methods, else every one that solves the problem).",
-                                                   show_default=False)] = None,
-    solvers: Annotated[str | None, typer.Option(help="QP solvers for qp, e.g. CLARABEL,OSQP,SCS,PIQP (default: "
-                                                   "[solve].solvers, cut to those installed).",
-                                                   show_default=False)] = None,
-    accuracy: Annotated[str | None, typer.Option(help="low | default | high, or several comma-separated "
-                                                    "(default: [solve].accuracy).", show_default=False)] = None,
-    repeat: Annotated[int | None, typer.Option(help="Runs per combination (default: [solve].repeat).",
-                                                  show_default=False)] = None,
-    frame: Annotated[int | None, typer.Option(help="For a load path: the frame to compare on (default: the "
-                                                 "largest force).", show_default=False)] = None,
-    nlp_forms: Annotated[str, typer.Option(help="NLP forms for nlp, comma-separated: constrained,reduced.")]
-    = "constrained",
-    output: Annotated[Path | None, typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
-                                                   "[output].directory>/compare).", show_default=False)] = None,
+    methods: Annotated[
+        str | None,
+        typer.Option(
+            help="Comma-separated registered formulations (default: "
+            "[solve].methods, else every one that solves the problem).",
+            show_default=False,
+        ),
+    ] = None,
+    solvers: Annotated[
+        str | None,
+        typer.Option(
+            help="QP solvers for qp, e.g. CLARABEL,OSQP,SCS,PIQP (default: [solve].solvers, cut to those installed).",
+            show_default=False,
+        ),
+    ] = None,
+    accuracy: Annotated[
+        str | None,
+        typer.Option(
+            help="low | default | high, or several comma-separated (default: [solve].accuracy).", show_default=False
+        ),
+    ] = None,
+    repeat: Annotated[
+        int | None, typer.Option(help="Runs per combination (default: [solve].repeat).", show_default=False)
+    ] = None,
+    frame: Annotated[
+        int | None,
+        typer.Option(help="For a load path: the frame to compare on (default: the largest force).", show_default=False),
+    ] = None,
+    nlp_forms: Annotated[
+        str, typer.Option(help="NLP forms for nlp, comma-separated: constrained,reduced.")
+    ] = "constrained",
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Output folder (default: <the scenario's [output].directory>/compare).",
+            show_default=False,
+        ),
+    ] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
 ):
@@ -246,10 +308,15 @@ def compare(
     section = loaded.solve
     with captured() as messages, output_run(folder, force=force, info=run_info(loaded, "compare")) as publication:
         # The default list is cut to the installed solvers by run_study; a list given is checked.
-        result = run_study(problem, methods=_split(methods) or section.methods,
-                           solvers=_split(solvers) or section.solvers, accuracy=_split(accuracy) or section.accuracy,
-                           repeat=section.repeat if repeat is None else repeat, nlp_forms=_split(nlp_forms),
-                           progress=True)
+        result = run_study(
+            problem,
+            methods=_split(methods) or section.methods,
+            solvers=_split(solvers) or section.solvers,
+            accuracy=_split(accuracy) or section.accuracy,
+            repeat=section.repeat if repeat is None else repeat,
+            nlp_forms=_split(nlp_forms),
+            progress=True,
+        )
         files = result.to_csv(publication.folder)
         messages.collect()
         log = messages.log_text(f"dea-opt compare of {loaded.source or loaded.title}")
@@ -262,8 +329,10 @@ def compare(
     _warn(messages.own)
     typer.echo(result.format_table())
     typer.echo("")
-    typer.echo("Summary (success needs the certificate; time: shifted geometric mean, shift 10 ms, failures "
-               "count as 10 s; relative to the fastest):")
+    typer.echo(
+        "Summary (success needs the certificate; time: shifted geometric mean, shift 10 ms, failures "
+        "count as 10 s; relative to the fastest):"
+    )
     typer.echo(result.format_summary())
     for note in result.skipped:
         typer.echo(f"(skipped: {note})")
@@ -282,8 +351,9 @@ def _compare_problem(loaded, frame):
         return problem
     data = read_load_path(loaded.load_path)
     if data.poses is not None:
-        raise InputError("compare on a load path with poses is not supported; compare one pose as a static "
-                         "[load] scenario")
+        raise InputError(
+            "compare on a load path with poses is not supported; compare one pose as a static [load] scenario"
+        )
     import numpy as np
 
     k = int(np.argmax(np.linalg.norm(data.loads[:, :3], axis=1))) if frame is None else frame
@@ -296,23 +366,44 @@ def _compare_problem(loaded, frame):
 @_reported
 def sweep(
     scenario: ScenarioArg,
-    set_: Annotated[list[str], typer.Option("--set", help="KEY=V1,V2,... e.g. --set law.H=0.3,0.45,0.6 "
-                                            "(repeatable; the cases are the Cartesian product).",
-                                            show_default=False)],
-    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address (default: a LocalCluster); "
-                                                     "'synchronous' runs here, one case at a time.",
-                                                     show_default=False)] = None,
+    set_: Annotated[
+        list[str],
+        typer.Option(
+            "--set",
+            help="KEY=V1,V2,... e.g. --set law.H=0.3,0.45,0.6 (repeatable; the cases are the Cartesian product).",
+            show_default=False,
+        ),
+    ],
+    scheduler: Annotated[
+        str | None,
+        typer.Option(
+            help="Dask scheduler address (default: a LocalCluster); 'synchronous' runs here, one case at a time.",
+            show_default=False,
+        ),
+    ] = None,
     workers: Annotated[int, typer.Option(help="Worker processes of the LocalCluster.")] = 2,
-    output: Annotated[Path | None, typer.Option("--output", "-o", help="Folder of sweep.csv, sweep.jsonl, "
-                                                   "sweep.log and cases/ (default: <scenario output>/sweep).",
-                                                   show_default=False)] = None,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Folder of sweep.csv, sweep.jsonl, sweep.log and cases/ (default: <scenario output>/sweep).",
+            show_default=False,
+        ),
+    ] = None,
     method: MethodOpt = None,
-    retry_failed: Annotated[bool, typer.Option(help="Recompute the cases recorded as error or failed (their "
-                                               "rows are replaced).")] = False,
+    retry_failed: Annotated[
+        bool, typer.Option(help="Recompute the cases recorded as error or failed (their rows are replaced).")
+    ] = False,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Print nothing but the final summary.")] = False,
-    outputs: Annotated[str | None, typer.Option(help="The files each case writes, comma-separated: csv, json, "
-                                                   "vtk, png, or none (default: the scenario's [output].formats).",
-                                                   show_default=False)] = None,
+    outputs: Annotated[
+        str | None,
+        typer.Option(
+            help="The files each case writes, comma-separated: csv, json, "
+            "vtk, png, or none (default: the scenario's [output].formats).",
+            show_default=False,
+        ),
+    ] = None,
 ):
     """Run the Cartesian product of --set values, each case a Dask task.
 
@@ -337,20 +428,37 @@ def sweep(
     def report(line: str) -> None:
         tqdm.write(line, file=sys.stdout)
 
-    result = run_sweep(scenario, set_, output, scheduler=scheduler, workers=workers, method=method,
-                       retry_failed=retry_failed, progress=live, on_report=report if live else None, outputs=outputs)
+    result = run_sweep(
+        scenario,
+        set_,
+        output,
+        scheduler=scheduler,
+        workers=workers,
+        method=method,
+        retry_failed=retry_failed,
+        progress=live,
+        on_report=report if live else None,
+        outputs=outputs,
+    )
     adopted = f", {len(result.adopted)} finished by another sweep meanwhile" if result.adopted else ""
-    typer.echo(f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished{adopted}; results: "
-               f"{result.results_path}")
+    typer.echo(
+        f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished{adopted}; results: "
+        f"{result.results_path}"
+    )
     for reason, count in Counter(result.recomputed.values()).items():
         typer.echo(f"  recomputed {count} case(s): {reason}")
     if result.failed:
-        typer.echo(f"dea-opt: {len(result.failed)} case(s) did not finish cleanly: {', '.join(result.failed)} "
-                   f"(see the status and message columns of {result.results_path})", err=True)
+        typer.echo(
+            f"dea-opt: {len(result.failed)} case(s) did not finish cleanly: {', '.join(result.failed)} "
+            f"(see the status and message columns of {result.results_path})",
+            err=True,
+        )
     if result.outside_validity:
-        typer.echo(f"dea-opt: {len(result.outside_validity)} case(s) solved outside validity: "
-                   f"{', '.join(result.outside_validity)} (see the validity_failed column of {result.results_path})",
-                   err=True)
+        typer.echo(
+            f"dea-opt: {len(result.outside_validity)} case(s) solved outside validity: "
+            f"{', '.join(result.outside_validity)} (see the validity_failed column of {result.results_path})",
+            err=True,
+        )
     if result.exit_code:
         raise typer.Exit(result.exit_code)
 
@@ -358,14 +466,17 @@ def sweep(
 @app.command()
 @_reported
 def demo(
-    output: Annotated[Path | None, typer.Option("--output", "-o", help="Output folder.",
-                                                   show_default="./dea-opt-demo")] = None,
-    frames: Annotated[int | None, typer.Option(help="Resample the 101-frame gait cycle to N frames.",
-                                                  show_default=False, min=2)] = None,
+    output: Annotated[
+        Path | None, typer.Option("--output", "-o", help="Output folder.", show_default="./dea-opt-demo")
+    ] = None,
+    frames: Annotated[
+        int | None, typer.Option(help="Resample the 101-frame gait cycle to N frames.", show_default=False, min=2)
+    ] = None,
     coarse: Annotated[bool, typer.Option(help="A coarse socket and 11 frames: a few seconds.")] = False,
     method: MethodOpt = None,
-    compare_: Annotated[bool, typer.Option("--compare/--no-compare", help="Solve and print the gait-peak "
-                                           "comparison table first.")] = True,
+    compare_: Annotated[
+        bool, typer.Option("--compare/--no-compare", help="Solve and print the gait-peak comparison table first.")
+    ] = True,
     force: ForceOpt = False,
 ):
     """The embedded default: a hip under a synthetic 101-frame walking cycle.
@@ -380,8 +491,16 @@ def demo(
     """
     from .run.demo import run_demo
 
-    outcome = run_demo(output, frames=frames, coarse=coarse, method=method, compare=compare_, progress=True,
-                       echo=typer.echo, force=force)
+    outcome = run_demo(
+        output,
+        frames=frames,
+        coarse=coarse,
+        method=method,
+        compare=compare_,
+        progress=True,
+        echo=typer.echo,
+        force=force,
+    )
     _warn(outcome.warnings)
     if outcome.exit_code:
         raise typer.Exit(outcome.exit_code)
@@ -391,18 +510,41 @@ def demo(
 @_reported
 def calibrate(
     scenario: ScenarioArg,
-    data: Annotated[Path, typer.Option("--data", help="Pressure map CSV with columns x, y, z, p (mm, MPa), in "
-                                       "the springs' frame.", show_default=False)],
-    parameters: Annotated[str | None, typer.Option(help="Parameters to fit, e.g. H,beta (default: the law's; "
-                                                      "also thickness_scale, Fx..Mz).", show_default=False)] = None,
-    film: Annotated[str | None, typer.Option(help="The film's range: LLLW, LLW, LW, MS, HS or LOWER,UPPER in "
-                                                "MPa (readings at its limits are censored).",
-                                                show_default=False)] = None,
+    data: Annotated[
+        Path,
+        typer.Option(
+            "--data",
+            help="Pressure map CSV with columns x, y, z, p (mm, MPa), in the springs' frame.",
+            show_default=False,
+        ),
+    ],
+    parameters: Annotated[
+        str | None,
+        typer.Option(
+            help="Parameters to fit, e.g. H,beta (default: the law's; also thickness_scale, Fx..Mz).",
+            show_default=False,
+        ),
+    ] = None,
+    film: Annotated[
+        str | None,
+        typer.Option(
+            help="The film's range: LLLW, LLW, LW, MS, HS or LOWER,UPPER in MPa (readings at its limits are censored).",
+            show_default=False,
+        ),
+    ] = None,
     noise: Annotated[float, typer.Option(help="Relative noise of a reading.")] = 0.05,
-    max_distance: Annotated[float | None, typer.Option(help="Drop points farther than this from every spring "
-                                                          "(mm).", show_default=False)] = None,
-    output: Annotated[Path | None, typer.Option("--output", "-o", help="Output folder (default: <the scenario's "
-                                                   "[output].directory>/calibration).", show_default=False)] = None,
+    max_distance: Annotated[
+        float | None, typer.Option(help="Drop points farther than this from every spring (mm).", show_default=False)
+    ] = None,
+    output: Annotated[
+        Path | None,
+        typer.Option(
+            "--output",
+            "-o",
+            help="Output folder (default: <the scenario's [output].directory>/calibration).",
+            show_default=False,
+        ),
+    ] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
 ):
@@ -428,19 +570,34 @@ def calibrate(
     folder = check_output_folder(output if output is not None else loaded.output_dir() / "calibration", force)
     info = {**run_info(loaded, "calibrate"), "data": str(data)}
     with captured() as messages, output_run(folder, force=force, info=info) as publication:
-        fit, files = calibrate_scenario(loaded, data, publication.folder, parameters=_split(parameters),
-                                        film=film_value, noise=noise, max_distance=max_distance)
+        fit, files = calibrate_scenario(
+            loaded,
+            data,
+            publication.folder,
+            parameters=_split(parameters),
+            film=film_value,
+            noise=noise,
+            max_distance=max_distance,
+        )
         messages.collect()
-        publication.publish(status=RunStatus.OK if fit.success else RunStatus.NOT_CONVERGED,
-                            exit_code=EXIT_OK if fit.success else RunStatus.NOT_CONVERGED.exit_code)
+        publication.publish(
+            status=RunStatus.OK if fit.success else RunStatus.NOT_CONVERGED,
+            exit_code=EXIT_OK if fit.success else RunStatus.NOT_CONVERGED.exit_code,
+        )
     _warn(messages.own)
     typer.echo(f"{'parameter':>16s} {'start':>12s} {'fitted':>12s} {'std error':>12s}")
     for name in fit.parameters:
         typer.echo(f"{name:>16s} {fit.start[name]:12.6g} {fit.values[name]:12.6g} {fit.standard_errors[name]:12.3g}")
     if len(fit.parameters) > 1:
-        typer.echo("correlation: " + "; ".join(f"{a}-{b} {fit.correlation[i, j]:+.3f}"
-                                               for i, a in enumerate(fit.parameters)
-                                               for j, b in enumerate(fit.parameters) if j > i))
+        typer.echo(
+            "correlation: "
+            + "; ".join(
+                f"{a}-{b} {fit.correlation[i, j]:+.3f}"
+                for i, a in enumerate(fit.parameters)
+                for j, b in enumerate(fit.parameters)
+                if j > i
+            )
+        )
     typer.echo(f"{int(fit.residuals.size)} points, cost {fit.cost:.6g}, {fit.nfev} solves: {fit.message}")
     for name, path in files.items():
         typer.echo(f"  {name:9s} {path}")

@@ -33,8 +33,20 @@ HIP_GAIT_CSV = Path(__file__).with_name("data") / "hip_gait.csv"
 # Resultant in body weights at per cent of the cycle: heel strike at 0, first peak (2.4 BW)
 # at 16 %, valley at 30 %, second peak at 50 %, toe-off near 62 %, swing after.
 _MAGNITUDE = (
-    (0, 0.35), (5, 0.95), (10, 1.95), (16, 2.40), (23, 2.00), (30, 1.70), (38, 1.80),
-    (50, 2.30), (56, 1.75), (62, 0.75), (68, 0.30), (80, 0.22), (90, 0.28), (100, 0.35),
+    (0, 0.35),
+    (5, 0.95),
+    (10, 1.95),
+    (16, 2.40),
+    (23, 2.00),
+    (30, 1.70),
+    (38, 1.80),
+    (50, 2.30),
+    (56, 1.75),
+    (62, 0.75),
+    (68, 0.30),
+    (80, 0.22),
+    (90, 0.28),
+    (100, 0.35),
 )
 # Medial tilt from the socket axis (degrees): about 20 in stance, smaller in swing.
 _FRONTAL = ((0, 14.0), (10, 19.0), (16, 20.0), (50, 20.0), (62, 16.0), (75, 10.0), (90, 11.0), (100, 14.0))
@@ -83,27 +95,39 @@ def hip_gait_load(n_frames: int = 101, body_weight: float = BODY_WEIGHT, cycle_t
 
     n_frames = positive_integer("n_frames", n_frames)
     # Seven columns and about as many temporaries of one float each per frame.
-    check_memory(16 * 8.0 * n_frames, f"a hip gait load of n_frames = {n_frames}",
-                 "ask for fewer frames (101 resolve the cycle; 1000 are plenty)")
+    check_memory(
+        16 * 8.0 * n_frames,
+        f"a hip gait load of n_frames = {n_frames}",
+        "ask for fewer frames (101 resolve the cycle; 1000 are plenty)",
+    )
     percent = np.linspace(0.0, 100.0, n_frames)
     magnitude = body_weight * _curve(_MAGNITUDE, percent)
     frontal = np.radians(_curve(_FRONTAL, percent))
     sagittal = np.radians(_curve(_SAGITTAL, percent))
-    force = magnitude[:, None] * np.column_stack([
-        np.sin(frontal) * np.cos(sagittal),
-        np.sin(sagittal),
-        -np.cos(frontal) * np.cos(sagittal),
-    ])
+    force = magnitude[:, None] * np.column_stack(
+        [
+            np.sin(frontal) * np.cos(sagittal),
+            np.sin(sagittal),
+            -np.cos(frontal) * np.cos(sagittal),
+        ]
+    )
     zeros = np.zeros_like(percent)
-    return pd.DataFrame({
-        "time": percent / 100.0 * cycle_time,
-        "Fx": force[:, 0], "Fy": force[:, 1], "Fz": force[:, 2],
-        "Mx": zeros, "My": zeros, "Mz": zeros,
-    })
+    return pd.DataFrame(
+        {
+            "time": percent / 100.0 * cycle_time,
+            "Fx": force[:, 0],
+            "Fy": force[:, 1],
+            "Fz": force[:, 2],
+            "Mx": zeros,
+            "My": zeros,
+            "Mz": zeros,
+        }
+    )
 
 
-def write_hip_gait_csv(path=HIP_GAIT_CSV, n_frames: int = 101, body_weight: float = BODY_WEIGHT,
-                       cycle_time: float = CYCLE_TIME) -> Path:
+def write_hip_gait_csv(
+    path=HIP_GAIT_CSV, n_frames: int = 101, body_weight: float = BODY_WEIGHT, cycle_time: float = CYCLE_TIME
+) -> Path:
     """Write :func:`hip_gait_load` as CSV with its provenance header (atomically)."""
     from .io import write_data
 

@@ -35,8 +35,12 @@ def _check_springs(what: str, n: int) -> None:
 
 def _check_faces(what: str, n_faces: int) -> None:
     """Generated meshes of ``n_faces`` faces in all must fit in memory (checked before building)."""
-    check_memory(BYTES_PER_GENERATED_FACE * n_faces, f"{what} ({format_count(n_faces)} faces)",
-                 "use a larger step or fewer cells (a joint's cartilage needs 10^4-10^5 faces)", share=PEAK_SHARE)
+    check_memory(
+        BYTES_PER_GENERATED_FACE * n_faces,
+        f"{what} ({format_count(n_faces)} faces)",
+        "use a larger step or fewer cells (a joint's cartilage needs 10^4-10^5 faces)",
+        share=PEAK_SHARE,
+    )
 
 
 def _step(step) -> float:
@@ -56,8 +60,9 @@ def _shell_grid(coverage: float, fossa: float, notch: float, step: float) -> tup
     return n_polar, n_azimuth, 4 * n_polar * n_azimuth + 4 * (n_polar + n_azimuth)
 
 
-def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: int = 10,
-                thickness: float = 2.0) -> SpringLayer:
+def plate_layer(
+    length: float = 40.0, width: float = 10.0, nx: int = 400, ny: int = 10, thickness: float = 2.0
+) -> SpringLayer:
     """A rigid plate on a flat bonded layer: an ``nx`` x ``ny`` grid in the plane z = 0.
 
     Springs sit at the cell centres, normals +z (body 1 below, body 2 above), x along the
@@ -72,12 +77,14 @@ def plate_layer(length: float = 40.0, width: float = 10.0, nx: int = 400, ny: in
     points = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
     normals = np.tile([0.0, 0.0, 1.0], (X.size, 1))
     n = len(points)
-    return SpringLayer(points, normals, np.full(n, dx * dy), as_float_array("thickness", thickness, (n,),
-                                                                           allow_scalar_for=n))
+    return SpringLayer(
+        points, normals, np.full(n, dx * dy), as_float_array("thickness", thickness, (n,), allow_scalar_for=n)
+    )
 
 
-def sphere_on_bed_layer(radius: float = 25.0, thickness: float = 2.0, extent: float = 8.0,
-                        n_rings: int = 200, n_sectors: int = 128) -> SpringLayer:
+def sphere_on_bed_layer(
+    radius: float = 25.0, thickness: float = 2.0, extent: float = 8.0, n_rings: int = 200, n_sectors: int = 128
+) -> SpringLayer:
     """A rigid sphere of ``radius`` touching a flat bed at the origin, springs on the bed.
 
     Polar cells out to radius ``extent`` (mm) with exact ring areas; each spring's gap is the
@@ -102,8 +109,14 @@ def sphere_on_bed_layer(radius: float = 25.0, thickness: float = 2.0, extent: fl
     return SpringLayer(points, normals, areas, as_float_array("thickness", thickness, (n,), allow_scalar_for=n), gap)
 
 
-def socket_layer(radius: float = 25.0, thickness: float = 2.0, coverage: float = 90.0,
-                 n_rings: int = 90, n_sectors: int = 180, gap: float = 0.0) -> SpringLayer:
+def socket_layer(
+    radius: float = 25.0,
+    thickness: float = 2.0,
+    coverage: float = 90.0,
+    n_rings: int = 90,
+    n_sectors: int = 180,
+    gap: float = 0.0,
+) -> SpringLayer:
     """A ball in a spherical socket: springs on the socket, a cap of half-angle ``coverage``.
 
     The socket opens upward (+z) around the ball's centre at the origin; its pole is at
@@ -120,20 +133,23 @@ def socket_layer(radius: float = 25.0, thickness: float = 2.0, coverage: float =
     polar = np.arccos(0.5 * (np.cos(t0) + np.cos(t1)))  # the angle that halves the patch
     phi = 2 * np.pi * (np.arange(n_sectors) + 0.5) / n_sectors
     P, F = np.meshgrid(polar, phi, indexing="ij")
-    direction = np.column_stack([
-        (np.sin(P) * np.cos(F)).ravel(), (np.sin(P) * np.sin(F)).ravel(), (-np.cos(P)).ravel()
-    ])
+    direction = np.column_stack(
+        [(np.sin(P) * np.cos(F)).ravel(), (np.sin(P) * np.sin(F)).ravel(), (-np.cos(P)).ravel()]
+    )
     n = len(direction)
-    return SpringLayer(radius * direction, -direction, np.repeat(area, n_sectors),
-                       as_float_array("thickness", thickness, (n,), allow_scalar_for=n),
-                       as_float_array("gap", gap, (n,), allow_scalar_for=n))
+    return SpringLayer(
+        radius * direction,
+        -direction,
+        np.repeat(area, n_sectors),
+        as_float_array("thickness", thickness, (n,), allow_scalar_for=n),
+        as_float_array("gap", gap, (n,), allow_scalar_for=n),
+    )
 
 
 # --------------------------------------------------------------------------------------------
 # Mesh builders: closed cartilage volumes as triangle surfaces, and pairs of them
 # --------------------------------------------------------------------------------------------
-def _closed_volume(articular: np.ndarray, base: np.ndarray, mask: np.ndarray | None = None,
-                   periodic: bool = False):
+def _closed_volume(articular: np.ndarray, base: np.ndarray, mask: np.ndarray | None = None, periodic: bool = False):
     """A closed triangle surface around the layer between two grids of points.
 
     Parameters
@@ -186,20 +202,20 @@ def _closed_volume(articular: np.ndarray, base: np.ndarray, mask: np.ndarray | N
     # walls away from the centre of their cell.
     corner = vertices[faces]
     normal = np.cross(corner[:, 1] - corner[:, 0], corner[:, 2] - corner[:, 0])
-    lift = (articular.reshape(-1, 3) - base.reshape(-1, 3))
+    lift = articular.reshape(-1, 3) - base.reshape(-1, 3)
     n_top = len(top)
     want = np.empty_like(normal)
     want[:n_top] = lift[top].mean(axis=1)
-    want[n_top:2 * n_top] = -lift[top].mean(axis=1)
+    want[n_top : 2 * n_top] = -lift[top].mean(axis=1)
     cell_centre = articular.reshape(-1, 3)[np.column_stack([a, b, c, d])].mean(axis=1)
     centres = []
     for di, dj in ((-1, 0), (1, 0), (0, -1), (0, 1)):
         edge = ~neighbour(di, dj)
         centres += [cell_centre[edge]] * 2
-    wall_faces = faces[2 * n_top:]
+    wall_faces = faces[2 * n_top :]
     if len(wall_faces):
         mid = vertices[wall_faces].mean(axis=1)
-        want[2 * n_top:] = mid - np.vstack(centres)
+        want[2 * n_top :] = mid - np.vstack(centres)
     wrong = np.einsum("ij,ij->i", normal, want) < 0
     faces[wrong] = faces[wrong][:, ::-1]
     mesh = trimesh.Trimesh(vertices, faces, process=True)  # merges pole vertices
@@ -208,8 +224,17 @@ def _closed_volume(articular: np.ndarray, base: np.ndarray, mask: np.ndarray | N
     return mesh
 
 
-def slab_mesh(length: float = 40.0, width: float = 40.0, thickness: float = 2.0, nx: int = 40,
-              ny: int = 40, *, center=(0.0, 0.0), top: float = 0.0, facing: str = "up"):
+def slab_mesh(
+    length: float = 40.0,
+    width: float = 40.0,
+    thickness: float = 2.0,
+    nx: int = 40,
+    ny: int = 40,
+    *,
+    center=(0.0, 0.0),
+    top: float = 0.0,
+    facing: str = "up",
+):
     """A closed flat cartilage slab: the articular face at ``z = top``, the bone face behind it.
 
     Parameters
@@ -253,9 +278,18 @@ def _frame(axis) -> np.ndarray:
     return np.array([e1, np.cross(axis, e1), axis])
 
 
-def spherical_shell_mesh(radius: float = 25.0, thickness: float = 2.0, coverage: float = 90.0, *,
-                         center=(0.0, 0.0, 0.0), axis=(0.0, 0.0, -1.0), articular: str = "outer",
-                         fossa: float = 0.0, notch: float = 0.0, step: float = 3.0):
+def spherical_shell_mesh(
+    radius: float = 25.0,
+    thickness: float = 2.0,
+    coverage: float = 90.0,
+    *,
+    center=(0.0, 0.0, 0.0),
+    axis=(0.0, 0.0, -1.0),
+    articular: str = "outer",
+    fossa: float = 0.0,
+    notch: float = 0.0,
+    step: float = 3.0,
+):
     """A closed cartilage layer on a sphere: a cap, or a lunate (horseshoe) with a fossa and notch.
 
     The articular skin is the sphere of ``radius`` about ``center``; the bone skin lies
@@ -288,8 +322,14 @@ def spherical_shell_mesh(radius: float = 25.0, thickness: float = 2.0, coverage:
     """
     if articular not in ("outer", "inner"):
         raise InputError(f"articular must be 'outer' or 'inner', got {articular!r}")
-    for name, value in (("radius", radius), ("thickness", thickness), ("coverage", coverage),
-                        ("fossa", fossa), ("notch", notch), ("step", step)):
+    for name, value in (
+        ("radius", radius),
+        ("thickness", thickness),
+        ("coverage", coverage),
+        ("fossa", fossa),
+        ("notch", notch),
+        ("step", step),
+    ):
         number_in_range(name, value)
     if not 0 < thickness < radius or not radius > 0:
         raise InputError(f"need 0 < thickness < radius, got thickness={thickness}, radius={radius}")
@@ -368,12 +408,17 @@ class MeshPair:
         return ContactProblem(self.layer(**options), law, body1=body1, body2=body2)
 
     def __repr__(self) -> str:
-        return (f"MeshPair({self.name!r}, mesh1={len(self.mesh1.faces)} faces, "
-                f"mesh2={len(self.mesh2.faces)} faces)")
+        return f"MeshPair({self.name!r}, mesh1={len(self.mesh1.faces)} faces, mesh2={len(self.mesh2.faces)} faces)"
 
 
-def plate_meshes(length: float = 40.0, width: float = 10.0, thickness: float = 2.0, nx: int = 80,
-                 ny: int = 20, plate_thickness: float = 5.0) -> MeshPair:
+def plate_meshes(
+    length: float = 40.0,
+    width: float = 10.0,
+    thickness: float = 2.0,
+    nx: int = 80,
+    ny: int = 20,
+    plate_thickness: float = 5.0,
+) -> MeshPair:
     """A rigid plate on a flat cartilage slab, touching at ``z = 0`` (the core plate test).
 
     Mesh 1 is the slab (``length`` x ``width``, ``thickness`` thick, articular face up at
@@ -384,13 +429,20 @@ def plate_meshes(length: float = 40.0, width: float = 10.0, thickness: float = 2
     _check_faces(f"plate_meshes(nx={nx}, ny={ny})", 2 * _slab_faces(nx, ny))
     slab = slab_mesh(length, width, thickness, nx, ny)
     plate = slab_mesh(length, width, plate_thickness, nx, ny, top=0.0, facing="down")
-    return MeshPair("plate", slab, plate, (0.0, 0.0, -thickness), (0.0, 0.0, 0.0),
-                    {"thickness2": 0.0},
-                    {"length": length, "width": width, "thickness": thickness})
+    return MeshPair(
+        "plate",
+        slab,
+        plate,
+        (0.0, 0.0, -thickness),
+        (0.0, 0.0, 0.0),
+        {"thickness2": 0.0},
+        {"length": length, "width": width, "thickness": thickness},
+    )
 
 
-def sphere_on_bed_meshes(radius: float = 25.0, thickness: float = 2.0, extent: float = 8.0,
-                         n_bed: int = 32, step: float = 2.0) -> MeshPair:
+def sphere_on_bed_meshes(
+    radius: float = 25.0, thickness: float = 2.0, extent: float = 8.0, n_bed: int = 32, step: float = 2.0
+) -> MeshPair:
     """A rigid sphere touching a flat cartilage bed at the origin (the core sphere-on-bed test).
 
     Mesh 1 is a square bed ``2 extent`` wide with ``n_bed`` cells a side, articular face up
@@ -404,19 +456,35 @@ def sphere_on_bed_meshes(radius: float = 25.0, thickness: float = 2.0, extent: f
         raise InputError(f"extent * sqrt(2) must be smaller than radius={radius}, got extent={extent}")
     n_bed, step = positive_integer("n_bed", n_bed), _step(step)
     reach = np.degrees(np.arcsin(extent * np.sqrt(2) / radius)) + 2 * step
-    _check_faces(f"sphere_on_bed_meshes(n_bed={n_bed}, step={step:g})",
-                 _slab_faces(n_bed, n_bed) + _shell_grid(min(reach, 90.0), 0.0, 0.0, step)[2])
+    _check_faces(
+        f"sphere_on_bed_meshes(n_bed={n_bed}, step={step:g})",
+        _slab_faces(n_bed, n_bed) + _shell_grid(min(reach, 90.0), 0.0, 0.0, step)[2],
+    )
     bed = slab_mesh(2 * extent, 2 * extent, thickness, n_bed, n_bed)
-    cap = spherical_shell_mesh(radius, radius / 4, min(reach, 90.0), center=(0.0, 0.0, radius),
-                               axis=(0.0, 0.0, -1.0), step=step)
-    return MeshPair("sphere_on_bed", bed, cap, (0.0, 0.0, -thickness), (0.0, 0.0, radius),
-                    {"thickness2": 0.0},
-                    {"radius": radius, "thickness": thickness, "extent": extent})
+    cap = spherical_shell_mesh(
+        radius, radius / 4, min(reach, 90.0), center=(0.0, 0.0, radius), axis=(0.0, 0.0, -1.0), step=step
+    )
+    return MeshPair(
+        "sphere_on_bed",
+        bed,
+        cap,
+        (0.0, 0.0, -thickness),
+        (0.0, 0.0, radius),
+        {"thickness2": 0.0},
+        {"radius": radius, "thickness": thickness, "extent": extent},
+    )
 
 
-def hip_meshes(head_radius: float = 24.0, socket_radius: float = 24.5, head_thickness: float = 1.5,
-               socket_thickness: float = 2.0, coverage: float = 85.0, fossa: float = 25.0,
-               notch: float = 60.0, step: float = 3.0) -> MeshPair:
+def hip_meshes(
+    head_radius: float = 24.0,
+    socket_radius: float = 24.5,
+    head_thickness: float = 1.5,
+    socket_thickness: float = 2.0,
+    coverage: float = 85.0,
+    fossa: float = 25.0,
+    notch: float = 60.0,
+    step: float = 3.0,
+) -> MeshPair:
     """A hip: a lunate acetabular cartilage (body 1) around a femoral head cartilage (body 2).
 
     The socket opens upward (+z) about the origin, its pole at ``(0, 0, -socket_radius)``:
@@ -430,22 +498,39 @@ def hip_meshes(head_radius: float = 24.0, socket_radius: float = 24.5, head_thic
     if not 0 < head_radius < socket_radius:
         raise InputError(f"need 0 < head_radius < socket_radius, got {head_radius}, {socket_radius}")
     step = _step(step)
-    _check_faces(f"hip_meshes(step={step:g})",
-                 _shell_grid(coverage, fossa, notch, step)[2] + _shell_grid(min(coverage + 20.0, 180.0), 0.0, 0.0, step)[2])
-    socket = spherical_shell_mesh(socket_radius, socket_thickness, coverage, articular="inner",
-                                  fossa=fossa, notch=notch, step=step)
+    _check_faces(
+        f"hip_meshes(step={step:g})",
+        _shell_grid(coverage, fossa, notch, step)[2] + _shell_grid(min(coverage + 20.0, 180.0), 0.0, 0.0, step)[2],
+    )
+    socket = spherical_shell_mesh(
+        socket_radius, socket_thickness, coverage, articular="inner", fossa=fossa, notch=notch, step=step
+    )
     head_centre = (0.0, 0.0, head_radius - socket_radius)
-    head = spherical_shell_mesh(head_radius, head_thickness, min(coverage + 20.0, 180.0),
-                                center=head_centre, articular="outer", step=step)
-    info = {"head_radius": head_radius, "socket_radius": socket_radius,
-            "head_thickness": head_thickness, "socket_thickness": socket_thickness,
-            "coverage": coverage, "fossa": fossa, "notch": notch}
+    head = spherical_shell_mesh(
+        head_radius, head_thickness, min(coverage + 20.0, 180.0), center=head_centre, articular="outer", step=step
+    )
+    info = {
+        "head_radius": head_radius,
+        "socket_radius": socket_radius,
+        "head_thickness": head_thickness,
+        "socket_thickness": socket_thickness,
+        "coverage": coverage,
+        "fossa": fossa,
+        "notch": notch,
+    }
     return MeshPair("hip", socket, head, (0.0, 0.0, 0.0), head_centre, {}, info)
 
 
-def knee_meshes(condyle_radius=(32.0, 28.0), spacing: float = 40.0, femoral_thickness: float = 2.0,
-                tibial_thickness: float = 3.0, plateau: float = 24.0, n_plateau: int = 48,
-                step: float = 2.0, coverage: float = 25.0) -> MeshPair:
+def knee_meshes(
+    condyle_radius=(32.0, 28.0),
+    spacing: float = 40.0,
+    femoral_thickness: float = 2.0,
+    tibial_thickness: float = 3.0,
+    plateau: float = 24.0,
+    n_plateau: int = 48,
+    step: float = 2.0,
+    coverage: float = 25.0,
+) -> MeshPair:
     """A knee-like pair: two femoral condyle cartilage caps (body 2) on a tibial plateau (body 1).
 
     The plateau is two closed flat slabs ``plateau`` mm square, ``tibial_thickness`` thick,
@@ -460,21 +545,28 @@ def knee_meshes(condyle_radius=(32.0, 28.0), spacing: float = 40.0, femoral_thic
     r_med, r_lat = condyle_radius
     half = spacing / 2
     if plateau >= spacing:
-        raise InputError(f"plateau must be narrower than spacing={spacing} so the slabs stay apart, "
-                         f"got {plateau}")
+        raise InputError(f"plateau must be narrower than spacing={spacing} so the slabs stay apart, got {plateau}")
     n_plateau, step = positive_integer("n_plateau", n_plateau), _step(step)
-    _check_faces(f"knee_meshes(n_plateau={n_plateau}, step={step:g})",
-                 2 * _slab_faces(n_plateau, n_plateau) + 2 * _shell_grid(coverage, 0.0, 0.0, step)[2])
+    _check_faces(
+        f"knee_meshes(n_plateau={n_plateau}, step={step:g})",
+        2 * _slab_faces(n_plateau, n_plateau) + 2 * _shell_grid(coverage, 0.0, 0.0, step)[2],
+    )
     medial = slab_mesh(plateau, plateau, tibial_thickness, n_plateau, n_plateau, center=(half, 0.0))
     lateral = slab_mesh(plateau, plateau, tibial_thickness, n_plateau, n_plateau, center=(-half, 0.0))
     tibia = _concatenate([medial, lateral])
     labels = np.repeat(np.array(["medial", "lateral"]), [len(medial.faces), len(lateral.faces)])
-    condyles = [spherical_shell_mesh(r, femoral_thickness, coverage, center=(x, 0.0, r),
-                                     axis=(0.0, 0.0, -1.0), step=step)
-                for x, r in ((half, r_med), (-half, r_lat))]
+    condyles = [
+        spherical_shell_mesh(r, femoral_thickness, coverage, center=(x, 0.0, r), axis=(0.0, 0.0, -1.0), step=step)
+        for x, r in ((half, r_med), (-half, r_lat))
+    ]
     femur = _concatenate(condyles)
     reference2 = (0.0, 0.0, max(r_med, r_lat))
-    info = {"condyle_radius": (r_med, r_lat), "spacing": spacing,
-            "femoral_thickness": femoral_thickness, "tibial_thickness": tibial_thickness}
-    return MeshPair("knee", tibia, femur, (0.0, 0.0, -tibial_thickness), reference2,
-                    {"labels": labels, "max_gap": 3.0}, info)
+    info = {
+        "condyle_radius": (r_med, r_lat),
+        "spacing": spacing,
+        "femoral_thickness": femoral_thickness,
+        "tibial_thickness": tibial_thickness,
+    }
+    return MeshPair(
+        "knee", tibia, femur, (0.0, 0.0, -tibial_thickness), reference2, {"labels": labels, "max_gap": 3.0}, info
+    )

@@ -110,8 +110,7 @@ class SpringLayer:
             face = np.asarray(self.source_face)
             if face.shape != (n,) or not np.issubdtype(face.dtype, np.integer):
                 raise InputError(
-                    f"source_face must be integers of shape ({n},), got shape {face.shape} "
-                    f"and dtype {face.dtype}"
+                    f"source_face must be integers of shape ({n},), got shape {face.shape} and dtype {face.dtype}"
                 )
             set_(self, "source_face", _readonly(face.copy()))
         if self.surface is not None:
@@ -136,8 +135,10 @@ class SpringLayer:
             return
         if not all(given):
             missing = [name for name, g in zip(_TARGETS, given) if not g]
-            raise InputError(f"target_points, target_normals and target_faces are given together or not "
-                             f"at all; missing {', '.join(missing)}")
+            raise InputError(
+                f"target_points, target_normals and target_faces are given together or not "
+                f"at all; missing {', '.join(missing)}"
+            )
         points = as_float_array("target_points", self.target_points, (n, 3))
         check_range("target_points", points, "mm")
         normals = as_float_array("target_normals", self.target_normals, (n, 3))
@@ -147,8 +148,9 @@ class SpringLayer:
             raise InputError(f"target_normals must be unit vectors, got length {length[i]:.6g} at index {i}")
         faces = np.asarray(self.target_faces)
         if faces.shape != (n,) or not np.issubdtype(faces.dtype, np.integer) or (n and faces.min() < 0):
-            raise InputError(f"target_faces must be integers >= 0 of shape ({n},), got shape {faces.shape} "
-                             f"and dtype {faces.dtype}")
+            raise InputError(
+                f"target_faces must be integers >= 0 of shape ({n},), got shape {faces.shape} and dtype {faces.dtype}"
+            )
         set_ = object.__setattr__
         set_(self, "target_points", _readonly(points))
         # rows already unit to rounding are kept bit for bit, so that subsets are exact
@@ -175,8 +177,10 @@ class SpringLayer:
             if index.shape != (n,):
                 raise InputError(f"a boolean index must have shape ({n},), got {index.shape}")
         elif not np.issubdtype(index.dtype, np.integer) or index.ndim != 1:
-            raise InputError(f"index must be a boolean mask ({n},) or 1-D integer indices, got "
-                             f"dtype {index.dtype} and shape {index.shape}")
+            raise InputError(
+                f"index must be a boolean mask ({n},) or 1-D integer indices, got "
+                f"dtype {index.dtype} and shape {index.shape}"
+            )
         elif len(index) and (index.min() < -n or index.max() >= n):
             raise InputError(f"indices must lie in [{-n}, {n - 1}], got [{index.min()}, {index.max()}]")
 
@@ -184,10 +188,17 @@ class SpringLayer:
             return None if arr is None else np.asarray(arr)[index]
 
         return SpringLayer(
-            self.points[index], self.normals[index], self.areas[index], self.thickness[index],
-            self.gap[index], source_face=take(self.source_face), surface=self.surface,
-            labels=take(self.labels), target_points=take(self.target_points),
-            target_normals=take(self.target_normals), target_faces=take(self.target_faces),
+            self.points[index],
+            self.normals[index],
+            self.areas[index],
+            self.thickness[index],
+            self.gap[index],
+            source_face=take(self.source_face),
+            surface=self.surface,
+            labels=take(self.labels),
+            target_points=take(self.target_points),
+            target_normals=take(self.target_normals),
+            target_faces=take(self.target_faces),
         )
 
     @staticmethod
@@ -230,8 +241,15 @@ class SpringLayer:
         if any(v is None for v in targets.values()):
             targets = {}
         return SpringLayer(
-            stack("points"), stack("normals"), stack("areas"), stack("thickness"), stack("gap"),
-            source_face=source_face, surface=surface, labels=spring_labels, **targets,
+            stack("points"),
+            stack("normals"),
+            stack("areas"),
+            stack("thickness"),
+            stack("gap"),
+            source_face=source_face,
+            surface=surface,
+            labels=spring_labels,
+            **targets,
         )
 
     def __len__(self) -> int:

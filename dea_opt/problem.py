@@ -187,8 +187,7 @@ class ContactProblem:
         if shorthand:
             if body2 is not _FREE:
                 raise InputError(
-                    "give either body2=Body(...) or the shorthand force/moment/reference/free/"
-                    "load, not both"
+                    "give either body2=Body(...) or the shorthand force/moment/reference/free/load, not both"
                 )
             body2 = Body(
                 reference=(0.0, 0.0, 0.0) if reference is None else reference,
@@ -269,10 +268,18 @@ class ContactProblem:
     def system(self) -> SpringSystem:
         """The reduced problem over the free dofs, for the formulations."""
         AT, e0, volume = self._geometry
-        lengths = np.concatenate([np.ones(3), np.full(3, self.layer_radius[0]),
-                                  np.ones(3), np.full(3, self.layer_radius[1])])
-        system = SpringSystem(AT, e0, volume, self.load_vector[self.free_indices], lengths[self.free_indices],
-                              self._factor, self._stiffness)
+        lengths = np.concatenate(
+            [np.ones(3), np.full(3, self.layer_radius[0]), np.ones(3), np.full(3, self.layer_radius[1])]
+        )
+        system = SpringSystem(
+            AT,
+            e0,
+            volume,
+            self.load_vector[self.free_indices],
+            lengths[self.free_indices],
+            self._factor,
+            self._stiffness,
+        )
         # Which directions the springs resist depends on the geometry only: decided once per
         # geometry and shared by every load (the cache is copied by with_load).
         if "_resistance" not in self.__dict__:
@@ -364,8 +371,16 @@ class ContactProblem:
 
 #: Cached properties that depend on the layer, the references and the free and prescribed
 #: dofs only, never on the loads.
-_GEOMETRY_CACHE = ("normal_operator", "free_indices", "prescribed_u", "_geometry", "layer_radius", "_factor",
-                   "_stiffness", "_resistance")
+_GEOMETRY_CACHE = (
+    "normal_operator",
+    "free_indices",
+    "prescribed_u",
+    "_geometry",
+    "layer_radius",
+    "_factor",
+    "_stiffness",
+    "_resistance",
+)
 
 
 KINEMATICS = ("small", "finite")
@@ -378,14 +393,18 @@ def _check_kinematics(kinematics, targets) -> None:
     if targets is None:
         return
     if kinematics != "finite":
-        raise InputError("targets are for kinematics='finite' (the small kinematics of Eq. 9-11 use the layer's "
-                         "gaps only): pass kinematics='finite' or leave targets out")
+        raise InputError(
+            "targets are for kinematics='finite' (the small kinematics of Eq. 9-11 use the layer's "
+            "gaps only): pass kinematics='finite' or leave targets out"
+        )
     from .formulations._finite_geometry import Targets
     from .mesh.springs import SpringCast
 
     if not isinstance(targets, (Targets, SpringCast)):
-        raise InputError(f"targets must be a dea_opt.formulations.finite.Targets, a dea_opt.mesh.SpringCast or None, "
-                         f"got {type(targets).__name__}")
+        raise InputError(
+            f"targets must be a dea_opt.formulations.finite.Targets, a dea_opt.mesh.SpringCast or None, "
+            f"got {type(targets).__name__}"
+        )
 
 
 def _check_load_scale(load: np.ndarray) -> None:
@@ -395,7 +414,8 @@ def _check_load_scale(load: np.ndarray) -> None:
     if 0.0 < top < SMALLEST:
         raise InputError(
             f"the load's largest component is {top:g} (N or N mm): a nonzero load must reach at least "
-            f"{SMALLEST:g} in some component (it sets the scale the problem is solved in); use 0 for no load")
+            f"{SMALLEST:g} in some component (it sets the scale the problem is solved in); use 0 for no load"
+        )
 
 
 def _body_key(body) -> str:

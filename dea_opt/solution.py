@@ -345,8 +345,7 @@ class Solution:
             return self.assessed_validity
         return assess(self.problem, self.u, self.strain, self.pressure)
 
-    def with_validity(self, validity: Validity | None = None, *, dropped: int | None = None,
-                      limits=None) -> Solution:
+    def with_validity(self, validity: Validity | None = None, *, dropped: int | None = None, limits=None) -> Solution:
         """A copy of this solution whose :attr:`validity` is ``validity``, or is assessed with
         ``dropped`` and ``limits`` (this solution is frozen and stays as it is).
 
@@ -375,8 +374,14 @@ class Solution:
             if dropped is not None or limits is not None:
                 raise InputError("give validity, or dropped and limits to assess it, not both")
         else:
-            validity = assess(self.problem, self.u, self.strain, self.pressure,
-                              limits=DEFAULT_LIMITS if limits is None else limits, dropped=dropped)
+            validity = assess(
+                self.problem,
+                self.u,
+                self.strain,
+                self.pressure,
+                limits=DEFAULT_LIMITS if limits is None else limits,
+                dropped=dropped,
+            )
         return replace(self, info=dict(self.info), assessed_validity=validity)
 
     @property

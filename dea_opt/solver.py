@@ -98,12 +98,16 @@ def _check_unresisted(problem: ContactProblem, system) -> None:
         reason = f"no spring resists any of the free dofs {tuple(names)}"
         if not system.n_springs:
             reason += " (the layer has no springs)"
-        message = (f"{reason}, so the load along them cannot be carried: {_describe_direction(problem, names, part)}. "
-                   f"Fix these dofs, remove this load, or add springs that resist them.")
+        message = (
+            f"{reason}, so the load along them cannot be carried: {_describe_direction(problem, names, part)}. "
+            f"Fix these dofs, remove this load, or add springs that resist them."
+        )
     else:
-        message = (f"no spring resists part of this load: {_describe_direction(problem, names, part)} "
-                   f"({fraction:.3g} of the load) acts along a direction the springs cannot push back on "
-                   f"({'; '.join(res.describe(names))}). Fix that dof, remove that part of the load, or add springs.")
+        message = (
+            f"no spring resists part of this load: {_describe_direction(problem, names, part)} "
+            f"({fraction:.3g} of the load) acts along a direction the springs cannot push back on "
+            f"({'; '.join(res.describe(names))}). Fix that dof, remove that part of the load, or add springs."
+        )
     raise LoadNotSupportedError(message, direction=dict(zip(names, part.tolist())))
 
 
@@ -136,10 +140,14 @@ def _check_cone(problem: ContactProblem, system) -> None:
     names = list(problem.free_names)
     unbalanced = D * (Q @ remainder)
     carried = system.load - unbalanced
-    radii = {f"{D[j]:.4g} mm about {names[j].split('.')[0]}'s reference point": None
-             for j in range(len(names)) if names[j].split(".")[1][0] == "r"}
-    measure = (f"moments counted over the layer's radius, {', '.join(radii)}, as the certificate does"
-               if radii else "in N")
+    radii = {
+        f"{D[j]:.4g} mm about {names[j].split('.')[0]}'s reference point": None
+        for j in range(len(names))
+        if names[j].split(".")[1][0] == "r"
+    }
+    measure = (
+        f"moments counted over the layer's radius, {', '.join(radii)}, as the certificate does" if radii else "in N"
+    )
     raise LoadNotSupportedError(
         f"compression-only springs cannot carry this load: {_cone_cause(problem, names, system.load, D, Q, columns)}. "
         f"Smallest unbalanced part ({measure}): {_describe_direction(problem, names, unbalanced)}, "
@@ -177,8 +185,10 @@ def _cone_cause(problem, names, load, D, Q, columns) -> str:
         rhs = Q.T @ (force_only / D)
         residual = _cone_residual(columns, rhs)
         if residual is not None and residual[1] <= _CONE_TOL * float(np.linalg.norm(rhs)):
-            return ("its force could be carried, but its moment is more than the springs can balance with that force "
-                    "(the lever arms of the contact are too short)")
+            return (
+                "its force could be carried, but its moment is more than the springs can balance with that force "
+                "(the lever arms of the contact are too short)"
+            )
     return "it pulls the bodies apart, or loads a direction no spring can push back on"
 
 
@@ -226,16 +236,18 @@ def formulation_plan(method: str, law, options: dict) -> list[tuple[str, dict, o
             accepted = sorted(set().union(*declared.values()) | {"x0"})
             raise InputError(f"method 'auto' takes the options {accepted}, got unknown option {key!r}")
         parts[home][key] = value
-    return [(name, formulations.check_options(name, parts[name]), x0 if i == 0 else None)
-            for i, name in enumerate(chain)]
+    return [
+        (name, formulations.check_options(name, parts[name]), x0 if i == 0 else None) for i, name in enumerate(chain)
+    ]
 
 
 def _run(problem: ContactProblem, name: str, certificate_tol: float, options: dict, x0=None) -> Solution:
     start = time.perf_counter()
     system = problem.system()
     build = time.perf_counter() - start
-    result = formulation_result(problem, system, name, lambda: formulations.build(name, system, problem.law,
-                                                                                    **options), x0=x0)
+    result = formulation_result(
+        problem, system, name, lambda: formulations.build(name, system, problem.law, **options), x0=x0
+    )
     return certified_solution(problem, result, name, certificate_tol, build + result.build_time)
 
 
@@ -261,8 +273,13 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
     law = problem.law
     if system.n_dofs == 0:
         return formulations.FormulationResult(
-            u_free=np.zeros(0), stress=law.stress(np.minimum(system.e0, 0.0)), success=True,
-            status=Status.NO_FREE_DOFS, message="every dof is fixed or prescribed", info={"native_status": None})
+            u_free=np.zeros(0),
+            stress=law.stress(np.minimum(system.e0, 0.0)),
+            success=True,
+            status=Status.NO_FREE_DOFS,
+            message="every dof is fixed or prescribed",
+            info={"native_status": None},
+        )
     # Every method: a load along a direction no spring resists is never "solved" (the same
     # test as the scaling and the certificate).
     if system.load.any():
@@ -279,8 +296,10 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
         result = formulations.solve(default, system, law)
         if result.success:
             result.status = Status.PRELOADED
-            result.message = (f"no load: only the initial overlap compresses springs; the bodies move until the "
-                              f"springs balance each other ({default}'s answer, for every method)")
+            result.message = (
+                f"no load: only the initial overlap compresses springs; the bodies move until the "
+                f"springs balance each other ({default}'s answer, for every method)"
+            )
         result.info["solved_by"] = default
         return result
     if check_cone is None:
@@ -305,8 +324,9 @@ def _status(result) -> tuple[Status, object]:
         return Status.SOLVER_ERROR, result.status
 
 
-def certified_solution(problem: ContactProblem, result, method: str, certificate_tol: float = 1e-6,
-                       build_time: float = 0.0) -> Solution:
+def certified_solution(
+    problem: ContactProblem, result, method: str, certificate_tol: float = 1e-6, build_time: float = 0.0
+) -> Solution:
     """Turn a formulation's raw :class:`~dea_opt.formulations.FormulationResult` into a
     :class:`Solution` with dea_opt's own certificate (``success`` only if it passes).
 
@@ -350,15 +370,25 @@ def certified_solution(problem: ContactProblem, result, method: str, certificate
         if status != Status.HELD:
             message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
     return Solution(
-        problem=problem, u=u, strain=strain, pressure=pressure, method=method, success=success,
-        status=status, message=message, iterations=result.iterations,
-        build_time=build_time, solve_time=result.solve_time,
-        certificate=certificate, info=info,
+        problem=problem,
+        u=u,
+        strain=strain,
+        pressure=pressure,
+        method=method,
+        success=success,
+        status=status,
+        message=message,
+        iterations=result.iterations,
+        build_time=build_time,
+        solve_time=result.solve_time,
+        certificate=certificate,
+        info=info,
     )
 
 
-def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: float = 1e-6,
-          strict: bool = True, **options) -> Solution:
+def solve(
+    problem: ContactProblem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, **options
+) -> Solution:
     """Find the equilibrium of ``problem`` and certify it.
 
     Parameters
@@ -392,8 +422,14 @@ def solve(problem: ContactProblem, method: str = "auto", *, certificate_tol: flo
     if problem.kinematics == "finite":
         from .largemotion import solve as solve_finite
 
-        return solve_finite(problem, method, certificate_tol=certificate_tol, strict=strict,
-                            load_checks=(_check_unresisted, _check_cone), **options)
+        return solve_finite(
+            problem,
+            method,
+            certificate_tol=certificate_tol,
+            strict=strict,
+            load_checks=(_check_unresisted, _check_cone),
+            **options,
+        )
     with single_threaded_blas():
         return _solve(problem, method, certificate_tol, strict, options)
 
@@ -410,8 +446,9 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
         if not solution.success and len(plan) > 1:
             _raise_if_unsupported(problem)
             fallback, fallback_options, _ = plan[1]
-            reason = (f"{name} ended with status {solution.status!r} and certificate residual "
-                      f"{solution.certificate.worst()}")
+            reason = (
+                f"{name} ended with status {solution.status!r} and certificate residual {solution.certificate.worst()}"
+            )
             solution = _run(problem, fallback, certificate_tol, fallback_options)
             solution.info["fallback"] = reason
         solution.info.setdefault("fallback", None)
@@ -424,7 +461,9 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
             f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
             f"certificate residual {worst} = {value:.3g} > {certificate_tol:g}. Try method='auto', a tighter "
             f"solver tolerance, or check the problem for loads no spring resists.",
-            status=solution.status, solution=solution, native_status=solution.info.get("native_status"),
+            status=solution.status,
+            solution=solution,
+            native_status=solution.info.get("native_status"),
         )
     if solution.success:
         _warn_validity(solution)
@@ -462,7 +501,7 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
     du = dp = 0.0
     items = list(solutions.values())
     for i, a in enumerate(items):
-        for b in items[i + 1:]:
+        for b in items[i + 1 :]:
             su = max(np.abs(a.u).max(), np.abs(b.u).max(), 1e-300)
             sp = max(a.peak_pressure, b.peak_pressure, 1e-300)
             du = max(du, float(np.abs(a.u - b.u).max() / su))

@@ -74,31 +74,31 @@ class Status(StrEnum):
 
 _DESCRIPTIONS = {
     Status.CONVERGED: "the solver converged; for a Solution, its answer passed dea-opt's certificate (also where "
-                      "the solver doubted it: info['native_status'] keeps its word)",
+    "the solver doubted it: info['native_status'] keeps its word)",
     Status.NO_FREE_DOFS: "every dof is fixed or prescribed: no solver runs, u is as prescribed",
     Status.HELD: "no spring resists any free dof and no load acts along them: every free dof is held at zero "
-                 "motion, no solver runs",
+    "motion, no solver runs",
     Status.UNLOADED: "no load and no overlap: nothing moves and no spring carries anything, no solver runs",
     Status.PRELOADED: "no load, but springs overlap (a press fit): the equilibrium of the overlap alone by the "
-                      "default formulation (Newton), the same answer for every method",
+    "default formulation (Newton), the same answer for every method",
     Status.INACCURATE: "the solver stopped at an answer it doubts (Clarabel's AlmostSolved, cvxpy's "
-                       "optimal_inaccurate, IPOPT's acceptable level), or claimed one that fails dea-opt's certificate",
+    "optimal_inaccurate, IPOPT's acceptable level), or claimed one that fails dea-opt's certificate",
     Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence",
     Status.LINE_SEARCH_FAILED: "no step along the search direction decreased the energy enough (Newton's line "
-                               "search, IPOPT's failed restoration)",
+    "search, IPOPT's failed restoration)",
     Status.STALLED: "no descent direction, or a search direction too small to make progress",
     Status.CRUSHED: "springs reach a strain of -1 (crushed through their thickness) before the load is carried: "
-                    "the load is beyond what the layer can bear",
+    "the load is beyond what the layer can bear",
     Status.INFEASIBLE: "the solver found its problem infeasible",
     Status.UNBOUNDED: "the solver found its problem unbounded (its iterates diverged)",
     Status.NON_FINITE: "a NaN or an infinity: in the data bound for compiled code (never passed on) or from the law",
     Status.SOLVER_ERROR: "the solver failed or raised without an answer",
     Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a load path's frame or a study's row "
-                          "whose solve raised LoadNotSupportedError",
+    "whose solve raised LoadNotSupportedError",
     Status.POSE_ERROR: "the springs could not be cast at a load path frame's pose (none there, or a pose the mesh "
-                       "check refuses)",
+    "check refuses)",
     Status.INVALID_INPUT: "an argument or option was rejected before anything was solved: a study's row whose solve "
-                          "raised InputError",
+    "raised InputError",
 }
 
 #: The statuses of an answer a solver (or no solver) produced as intended.
@@ -143,7 +143,8 @@ class RunStatus(StrEnum):
     def of_frame(cls, status) -> RunStatus:
         """The run status a failed answer (or frame) of :class:`Status` ``status`` gives its run."""
         return {Status.NOT_SUPPORTED: cls.LOAD_NOT_SUPPORTED, Status.POSE_ERROR: cls.POSE_ERROR}.get(
-            status, cls.CERTIFICATE_FAILED)
+            status, cls.CERTIFICATE_FAILED
+        )
 
     @classmethod
     def of_run(cls, success: bool, valid: bool | None, failures=()) -> RunStatus:
@@ -162,14 +163,14 @@ class RunStatus(StrEnum):
 _RUN_DESCRIPTIONS = {
     RunStatus.OK: "every answer passed its certificate and lies inside its model's validity",
     RunStatus.OUTSIDE_VALIDITY: "every answer passed its certificate, but one lies outside its model's validity "
-                                "(exit 0 with [solve] allow_outside_validity)",
+    "(exit 0 with [solve] allow_outside_validity)",
     RunStatus.CERTIFICATE_FAILED: "an answer (a load path: a frame) has no certificate: the solver's answer failed "
-                                  "it, or the solver gave up without one",
+    "it, or the solver gave up without one",
     RunStatus.LOAD_NOT_SUPPORTED: "every frame without a certificate has a load the springs cannot carry "
-                                  "(frame status load_not_supported)",
+    "(frame status load_not_supported)",
     RunStatus.POSE_ERROR: "the frames without a certificate are frames whose springs could not be cast at their pose "
-                          "(or loads the springs cannot carry)",
+    "(or loads the springs cannot carry)",
     RunStatus.NOT_CONVERGED: "a calibration's least squares did not converge",
     RunStatus.ERROR: "the run could not be done (a sweep's case: its message says why); at the command line, bad "
-                     "input is one paragraph and no outputs",
+    "input is one paragraph and no outputs",
 }

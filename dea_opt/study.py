@@ -96,8 +96,10 @@ def _check_names(methods, solvers, accuracy):
             solvers = [s for s in DEFAULT_SOLVERS if s in installed]
         bad = [s for s in solvers if s not in installed]
         if bad:
-            raise InputError(f"solver {', '.join(bad)} is not available to cvxpy here; installed QP solvers: "
-                             f"{', '.join(installed)} (pip install dea-opt[solvers] adds OSQP, SCS and PIQP)")
+            raise InputError(
+                f"solver {', '.join(bad)} is not available to cvxpy here; installed QP solvers: "
+                f"{', '.join(installed)} (pip install dea-opt[solvers] adds OSQP, SCS and PIQP)"
+            )
         if not solvers:
             raise InputError(f"solvers is empty: name at least one QP solver for method {by_solver[0]}")
     return methods, solvers, list(accuracy)
@@ -110,8 +112,10 @@ def _check_forms(methods, nlp_forms) -> list:
         if option is not None and option.name == "form":
             bad = [f for f in nlp_forms if f not in option.accepted()]
             if bad or not nlp_forms:
-                raise InputError(f"nlp_forms must be taken from {', '.join(option.accepted())}, got "
-                                 f"{', '.join(map(str, bad)) or 'none'}")
+                raise InputError(
+                    f"nlp_forms must be taken from {', '.join(option.accepted())}, got "
+                    f"{', '.join(map(str, bad)) or 'none'}"
+                )
     return list(nlp_forms)
 
 
@@ -156,21 +160,38 @@ def _difference(solution, reference) -> tuple[float, float]:
 def _run_one(problem, accuracy, method, solver, variant_options, repeat, reference) -> dict:
     from .solver import solve
 
-    row = {"accuracy": accuracy.name, "method": method, "solver": solver, "repeat": repeat,
-           "check_tol": accuracy.check_tol, "solver_tol": accuracy.solver_tol}
+    row = {
+        "accuracy": accuracy.name,
+        "method": method,
+        "solver": solver,
+        "repeat": repeat,
+        "check_tol": accuracy.check_tol,
+        "solver_tol": accuracy.solver_tol,
+    }
     start = time.perf_counter()
     try:
         import warnings
 
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # validity warnings belong to the problem, not to the solver
-            solution = solve(problem, method, certificate_tol=accuracy.check_tol, strict=False,
-                             **_options(method, variant_options, accuracy))
+            solution = solve(
+                problem,
+                method,
+                certificate_tol=accuracy.check_tol,
+                strict=False,
+                **_options(method, variant_options, accuracy),
+            )
     except DeaError as exc:
         elapsed = time.perf_counter() - start
-        return row | {"success": False, "solver_success": False, "certified": False, "agrees": False,
-                      "status": Status.of_error(exc), "message": str(exc).splitlines()[0][:200],
-                      "total_time": elapsed}
+        return row | {
+            "success": False,
+            "solver_success": False,
+            "certified": False,
+            "agrees": False,
+            "status": Status.of_error(exc),
+            "message": str(exc).splitlines()[0][:200],
+            "total_time": elapsed,
+        }
     certificate = solution.certificate
     dp, du = _difference(solution, reference)
     agrees = bool(max(dp, du) <= accuracy.check_tol) if reference is not None else float("nan")
@@ -178,17 +199,28 @@ def _run_one(problem, accuracy, method, solver, variant_options, repeat, referen
     worst_name, worst = certificate.worst()
     success = bool(solver_success and certificate.passed and (reference is None or agrees))
     return row | {
-        "success": success, "solver_success": solver_success, "certified": certificate.passed,
-        "agrees": agrees, "status": solution.status, "message": _verdict(solution, agrees, accuracy, dp, du),
-        "build_time": solution.build_time, "solve_time": solution.solve_time,
+        "success": success,
+        "solver_success": solver_success,
+        "certified": certificate.passed,
+        "agrees": agrees,
+        "status": solution.status,
+        "message": _verdict(solution, agrees, accuracy, dp, du),
+        "build_time": solution.build_time,
+        "solve_time": solution.solve_time,
         "total_time": solution.build_time + solution.solve_time,
         "solver_time": solution.info.get("solver_time", float("nan")),
         "iterations": solution.iterations,
-        "equilibrium": certificate.equilibrium, "tension": certificate.tension,
-        "complementarity": certificate.complementarity, "consistency": certificate.consistency,
-        "energy": certificate.energy, "worst_residual": worst, "worst_name": worst_name,
-        "peak_pressure": solution.peak_pressure, "contact_area": solution.contact_area,
-        "d_pressure": dp, "d_displacement": du,
+        "equilibrium": certificate.equilibrium,
+        "tension": certificate.tension,
+        "complementarity": certificate.complementarity,
+        "consistency": certificate.consistency,
+        "energy": certificate.energy,
+        "worst_residual": worst,
+        "worst_name": worst_name,
+        "peak_pressure": solution.peak_pressure,
+        "contact_area": solution.contact_area,
+        "d_pressure": dp,
+        "d_displacement": du,
     }
 
 
@@ -243,14 +275,28 @@ class StudyResult:
         directory = Path(directory)
         return {
             name: write_data(directory / file, frame.to_csv(index=False, lineterminator="\n"))
-            for name, file, frame in (("table", "compare.csv", self.table),
-                                      ("summary", "compare_summary.csv", self.summary))
+            for name, file, frame in (
+                ("table", "compare.csv", self.table),
+                ("summary", "compare_summary.csv", self.summary),
+            )
         }
 
     def format_table(self) -> str:
         """The runs as aligned text (the columns a reader looks at first)."""
-        columns = ["accuracy", "method", "solver", "repeat", "success", "status", "iterations", "total_time",
-                   "worst_residual", "d_pressure", "d_displacement", "message"]
+        columns = [
+            "accuracy",
+            "method",
+            "solver",
+            "repeat",
+            "success",
+            "status",
+            "iterations",
+            "total_time",
+            "worst_residual",
+            "d_pressure",
+            "d_displacement",
+            "message",
+        ]
         table = self.table[[c for c in columns if c in self.table]]
         return table.to_string(index=False, float_format=lambda v: f"{v:.3g}")
 
@@ -266,13 +312,18 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
     for (accuracy, method, solver), group in table.groupby(["accuracy", "method", "solver"], sort=False):
         success = group["success"].astype(bool)
         times = np.where(success, group["total_time"].astype(float), time_limit)
-        rows.append({
-            "accuracy": accuracy, "method": method, "solver": solver, "runs": len(group),
-            "success_rate": 100.0 * success.mean(),
-            "shifted_gm_time": shifted_geometric_mean(times, shift),
-            "worst_residual": float(group.get("worst_residual", pd.Series([math.nan])).max()),
-            "max_d_pressure": float(group.get("d_pressure", pd.Series([math.nan])).max()),
-        })
+        rows.append(
+            {
+                "accuracy": accuracy,
+                "method": method,
+                "solver": solver,
+                "runs": len(group),
+                "success_rate": 100.0 * success.mean(),
+                "shifted_gm_time": shifted_geometric_mean(times, shift),
+                "worst_residual": float(group.get("worst_residual", pd.Series([math.nan])).max()),
+                "max_d_pressure": float(group.get("d_pressure", pd.Series([math.nan])).max()),
+            }
+        )
     summary = pd.DataFrame(rows)
     if len(summary):
         fastest = summary.groupby("accuracy")["shifted_gm_time"].transform("min")
@@ -280,9 +331,17 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
     return summary
 
 
-def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default",),
-              repeat: int = 1, *, nlp_forms=("constrained",), time_limit: float = TIME_LIMIT,
-              progress: bool = False) -> StudyResult:
+def run_study(
+    problem,
+    methods=None,
+    solvers=DEFAULT_SOLVERS,
+    accuracy=("default",),
+    repeat: int = 1,
+    *,
+    nlp_forms=("constrained",),
+    time_limit: float = TIME_LIMIT,
+    progress: bool = False,
+) -> StudyResult:
     """Solve ``problem`` with every method x solver x accuracy setting, ``repeat`` times each.
 
     Parameters
@@ -332,8 +391,9 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
     if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
         raise InputError(f"repeat must be a positive integer, got {repeat!r}")
     if methods is None:
-        methods = [name for name in formulations.names()
-                   if formulations.why_not(name, problem.law, problem.kinematics) is None]
+        methods = [
+            name for name in formulations.names() if formulations.why_not(name, problem.law, problem.kinematics) is None
+        ]
     methods, solvers, accuracy = _check_names(methods, solvers, accuracy)
     check_load_supported(problem)
     import warnings
@@ -345,8 +405,9 @@ def run_study(problem, methods=None, solvers=DEFAULT_SOLVERS, accuracy=("default
     forms = _check_forms(methods, nlp_forms)
     cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms, problem.kinematics)
     rows = []
-    for acc, method, label, options, r in tqdm(cases, desc="compare", unit="run", leave=False,
-                                                 disable=None if progress else True):
+    for acc, method, label, options, r in tqdm(
+        cases, desc="compare", unit="run", leave=False, disable=None if progress else True
+    ):
         rows.append(_run_one(problem, acc, method, label, options, r, reference))
     table = pd.DataFrame(rows)
     return StudyResult(table=table, summary=summarize(table, time_limit), reference=reference, skipped=skipped)

@@ -61,8 +61,7 @@ def knee_problem(law) -> dea_opt.ContactProblem:
     tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
     layer = M.springs_from_meshes(tibia, femur, labels=labels, max_gap=2.0)
     centre = 0.5 * sum((m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral))
-    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -1000.0), reference=tuple(centre),
-                                  free=("uz", "ry"))
+    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -1000.0), reference=tuple(centre), free=("uz", "ry"))
 
 
 def hip_problem(law, coarse: bool = False) -> dea_opt.ContactProblem:
@@ -82,8 +81,9 @@ def film_reading(solution, seed: int = 0) -> pd.DataFrame:
     return pd.DataFrame({"x": points[:, 0], "y": points[:, 1], "z": points[:, 2], "p": pressure})
 
 
-def run(geometry: str = "auto", out=DEFAULT_OUT, coarse: bool = False, draws: int = 200, workers: int = 0,
-        seed: int = 0) -> dict:
+def run(
+    geometry: str = "auto", out=DEFAULT_OUT, coarse: bool = False, draws: int = 200, workers: int = 0, seed: int = 0
+) -> dict:
     """Make the film, fit it, propagate the uncertainty; returns the summary that is also written."""
     out = Path(out)
     truth_law = dea_opt.AteshianLaw(**TRUE)
@@ -115,25 +115,42 @@ def run(geometry: str = "auto", out=DEFAULT_OUT, coarse: bool = False, draws: in
     finally:
         if client is not None:
             client.close()
-    counts = {state: int((data.state == code).sum()) for state, code in (("below", -1), ("within", 0),
-                                                                         ("saturated", 1))}
+    counts = {
+        state: int((data.state == code).sum()) for state, code in (("below", -1), ("within", 0), ("saturated", 1))
+    }
     summary = {
-        "geometry": geometry, "springs": len(problem.layer), "true": TRUE, "film": FILM, "noise": NOISE,
-        "readings": counts, "fit": fit.summary(), "fit_time": fit_time,
-        "uncertainty": {"std": std, "first_order": first.output_std, "monte_carlo": mc.std,
-                        "monte_carlo_mean": mc.mean, "draws": len(mc.samples), "failed_draws": mc.n_failed},
+        "geometry": geometry,
+        "springs": len(problem.layer),
+        "true": TRUE,
+        "film": FILM,
+        "noise": NOISE,
+        "readings": counts,
+        "fit": fit.summary(),
+        "fit_time": fit_time,
+        "uncertainty": {
+            "std": std,
+            "first_order": first.output_std,
+            "monte_carlo": mc.std,
+            "monte_carlo_mean": mc.mean,
+            "draws": len(mc.samples),
+            "failed_draws": mc.n_failed,
+        },
     }
     write_atomic(out / "calibration.json", lambda tmp: tmp.write_text(json.dumps(summary, indent=2, default=float)))
     table = fit.residual_map()
     write_atomic(out / "residuals.csv", lambda tmp: table.to_csv(tmp, index=False))
     text = ", ".join(f"{k} = {fit.values[k]:.4g} ± {fit.standard_errors[k]:.2g} (true {TRUE[k]:g})" for k in TRUE)
-    fit.plot(out / "calibration.png", title=f"{geometry}: {len(problem.layer)} springs, {FILM} film, 5 % noise, "
-                                            f"start 2x off: {text}")
+    fit.plot(
+        out / "calibration.png",
+        title=f"{geometry}: {len(problem.layer)} springs, {FILM} film, 5 % noise, start 2x off: {text}",
+    )
     print(f"{geometry}: {len(problem.layer)} springs; film readings {counts}")
     for name in fit.parameters:
-        print(f"  {name:5s} start {fit.start[name]:8.4g}  fitted {fit.values[name]:8.4g} ± "
-              f"{fit.standard_errors[name]:.2g}  (true {TRUE[name]:g}, error "
-              f"{100 * (fit.values[name] / TRUE[name] - 1):+.2f} %)")
+        print(
+            f"  {name:5s} start {fit.start[name]:8.4g}  fitted {fit.values[name]:8.4g} ± "
+            f"{fit.standard_errors[name]:.2g}  (true {TRUE[name]:g}, error "
+            f"{100 * (fit.values[name] / TRUE[name] - 1):+.2f} %)"
+        )
     print(f"  correlation H-beta {fit.correlation[0, 1]:+.3f}; {fit.nfev} solves in {fit_time:.2f} s")
     print("  5 % uncertainty in H and beta:   first order    Monte Carlo")
     for key in ("peak_pressure", "contact_area", "cop_x", "cop_y"):
@@ -143,10 +160,15 @@ def run(geometry: str = "auto", out=DEFAULT_OUT, coarse: bool = False, draws: in
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--geometry", choices=("auto", "knee", "hip"), default="auto",
-                        help="the real knee (default when ../shared/data/knee exists) or the hip socket")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "--geometry",
+        choices=("auto", "knee", "hip"),
+        default="auto",
+        help="the real knee (default when ../shared/data/knee exists) or the hip socket",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help="output folder")
     parser.add_argument("--coarse", action="store_true", help="a coarse hip and 24 draws (the tests)")
     parser.add_argument("--draws", type=int, default=200, help="Monte Carlo draws (default 200)")

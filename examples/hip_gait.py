@@ -58,19 +58,29 @@ THRESHOLD = 1.0  # MPa, the pressure the exposure's "time above" counts from
 
 
 # --- the model --------------------------------------------------------------------------
-def hip_problem(H: float = H_DEFAULT, *, radius: float = HIP["radius"], thickness: float = HIP["thickness"],
-                coverage: float = HIP["coverage"], gap: float = HIP["gap"], n_rings: int = 45,
-                n_sectors: int = 120, law: dea_opt.Law | None = None) -> dea_opt.ContactProblem:
+def hip_problem(
+    H: float = H_DEFAULT,
+    *,
+    radius: float = HIP["radius"],
+    thickness: float = HIP["thickness"],
+    coverage: float = HIP["coverage"],
+    gap: float = HIP["gap"],
+    n_rings: int = 45,
+    n_sectors: int = 120,
+    law: dea_opt.Law | None = None,
+) -> dea_opt.ContactProblem:
     """The head in its socket; the load is set frame by frame by :func:`dea_opt.solve_path`.
 
     The socket opens toward +z around the head's centre at the origin (its pole at
     ``(0, 0, -radius)``), springs on the socket point to the centre; the head may translate,
     not rotate (a frictionless ball carries no moment about its centre).
     """
-    layer = socket_layer(radius=radius, thickness=thickness, coverage=coverage, n_rings=n_rings,
-                         n_sectors=n_sectors, gap=gap)
-    return dea_opt.ContactProblem(layer, law or dea_opt.LinearLaw(H), reference=(0.0, 0.0, 0.0),
-                                  free=("ux", "uy", "uz"))
+    layer = socket_layer(
+        radius=radius, thickness=thickness, coverage=coverage, n_rings=n_rings, n_sectors=n_sectors, gap=gap
+    )
+    return dea_opt.ContactProblem(
+        layer, law or dea_opt.LinearLaw(H), reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz")
+    )
 
 
 def gait_loads(n_frames: int = 101) -> pd.DataFrame:
@@ -80,8 +90,14 @@ def gait_loads(n_frames: int = 101) -> pd.DataFrame:
 
 
 # --- the closed form --------------------------------------------------------------------
-def ball_in_socket(force: float, *, H: float = H_DEFAULT, radius: float = HIP["radius"],
-                   thickness: float = HIP["thickness"], gap: float = HIP["gap"]) -> dict:
+def ball_in_socket(
+    force: float,
+    *,
+    H: float = H_DEFAULT,
+    radius: float = HIP["radius"],
+    thickness: float = HIP["thickness"],
+    gap: float = HIP["gap"],
+) -> dict:
     """A rigid ball pushed by ``force`` (N) into a linear layer on a socket that surrounds it.
 
     The ball moves by ``d`` along the load; the spring at angle ``theta`` from the load
@@ -118,9 +134,12 @@ def ball_in_socket(force: float, *, H: float = H_DEFAULT, radius: float = HIP["r
             hi *= 2.0
         d = brentq(lambda x: carried(x) - force, gap, hi, xtol=1e-15, rtol=1e-14)
     c0 = gap / d
-    return {"approach": d, "peak_pressure": H * (d - gap) / thickness,
-            "contact_area": 2.0 * np.pi * radius**2 * (1.0 - c0),
-            "half_angle": float(np.degrees(np.arccos(c0)))}
+    return {
+        "approach": d,
+        "peak_pressure": H * (d - gap) / thickness,
+        "contact_area": 2.0 * np.pi * radius**2 * (1.0 - c0),
+        "half_angle": float(np.degrees(np.arccos(c0))),
+    }
 
 
 def closed_form_table(result, H: float = H_DEFAULT, coverage: float = HIP["coverage"]) -> pd.DataFrame:
@@ -148,14 +167,23 @@ def closed_form_table(result, H: float = H_DEFAULT, coverage: float = HIP["cover
         direction = load / force
         cf = ball_in_socket(force, H=H, radius=radius, thickness=thickness, gap=gap)
         tilt = float(np.degrees(np.arccos(-direction[2])))
-        rows.append({
-            "frame": k, "time": float(result.times[k]), "force_N": force, "tilt_deg": tilt,
-            "half_angle_deg": cf["half_angle"], "inside_rim": tilt + cf["half_angle"] <= coverage,
-            "at_rim": bool(solution.in_contact[rim].any()),
-            "peak_pressure": solution.peak_pressure, "cf_peak_pressure": cf["peak_pressure"],
-            "contact_area": solution.contact_area, "cf_contact_area": cf["contact_area"],
-            "approach": float(solution.u[6:9] @ direction), "cf_approach": cf["approach"],
-        })
+        rows.append(
+            {
+                "frame": k,
+                "time": float(result.times[k]),
+                "force_N": force,
+                "tilt_deg": tilt,
+                "half_angle_deg": cf["half_angle"],
+                "inside_rim": tilt + cf["half_angle"] <= coverage,
+                "at_rim": bool(solution.in_contact[rim].any()),
+                "peak_pressure": solution.peak_pressure,
+                "cf_peak_pressure": cf["peak_pressure"],
+                "contact_area": solution.contact_area,
+                "cf_contact_area": cf["contact_area"],
+                "approach": float(solution.u[6:9] @ direction),
+                "cf_approach": cf["approach"],
+            }
+        )
     table = pd.DataFrame(rows)
     for key, column in (("peak", "peak_pressure"), ("area", "contact_area"), ("approach", "approach")):
         table[f"dev_{key}"] = table[column] / table[f"cf_{column}"] - 1.0
@@ -163,8 +191,14 @@ def closed_form_table(result, H: float = H_DEFAULT, coverage: float = HIP["cover
 
 
 # --- the script -------------------------------------------------------------------------
-def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, method: str = "auto",
-        series: bool = True, threshold: float = THRESHOLD) -> dict:
+def run(
+    out=DEFAULT_OUT,
+    coarse: bool = False,
+    H: float = H_DEFAULT,
+    method: str = "auto",
+    series: bool = True,
+    threshold: float = THRESHOLD,
+) -> dict:
     """Walk the cycle, compare with the closed form, and write every output into ``out``.
 
     Returns
@@ -182,12 +216,20 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, method: str
     closed = closed_form_table(path, H, HIP["coverage"])
     # solve_path's own writers: the table, the ParaView series, the exposure and both plots.
     formats = ("csv", "json", "vtk", "png") if series else ("csv", "json", "png")
-    files = path.write(out, formats, extra_summary={"example": "examples/hip_gait.py", "coarse": coarse,
-                                                    "H_MPa": H, **HIP, **mesh})
-    files["closed_form"] = write_atomic(out / "closed_form.csv",
-                                        lambda tmp: tmp.write_text(closed.to_csv(index=False), encoding="utf-8"))
-    return {"problem": problem, "loads": loads, "path": path, "summary": path.summary(),
-            "closed_form": closed, "files": files}
+    files = path.write(
+        out, formats, extra_summary={"example": "examples/hip_gait.py", "coarse": coarse, "H_MPa": H, **HIP, **mesh}
+    )
+    files["closed_form"] = write_atomic(
+        out / "closed_form.csv", lambda tmp: tmp.write_text(closed.to_csv(index=False), encoding="utf-8")
+    )
+    return {
+        "problem": problem,
+        "loads": loads,
+        "path": path,
+        "summary": path.summary(),
+        "closed_form": closed,
+        "files": files,
+    }
 
 
 def report(result: dict) -> str:
@@ -211,23 +253,32 @@ def report(result: dict) -> str:
         f"solving: {s['solve_time_total']:.2f} s, {s['iterations_mean']:.1f} solver iterations a frame",
     ]
     if len(inside):
-        lines.append(f"closed form (ball in a surrounding socket) at the {len(inside)} frames whose contact stays "
-                     f"inside the rim: peak within {100 * inside['dev_peak'].abs().max():.2f} %, area within "
-                     f"{100 * inside['dev_area'].abs().max():.2f} %, approach within "
-                     f"{100 * inside['dev_approach'].abs().max():.2f} %")
-    lines.append(f"{len(closed) - len(inside)} frames press the contact against the rim: "
-                 "there the socket's edge, not the closed form, shapes it")
+        lines.append(
+            f"closed form (ball in a surrounding socket) at the {len(inside)} frames whose contact stays "
+            f"inside the rim: peak within {100 * inside['dev_peak'].abs().max():.2f} %, area within "
+            f"{100 * inside['dev_area'].abs().max():.2f} %, approach within "
+            f"{100 * inside['dev_approach'].abs().max():.2f} %"
+        )
+    lines.append(
+        f"{len(closed) - len(inside)} frames press the contact against the rim: "
+        "there the socket's edge, not the closed form, shapes it"
+    )
     return "\n".join(lines)
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
     parser.add_argument("--coarse", action="store_true", help="432 springs and 21 frames (the tests use it)")
     parser.add_argument("--H", type=float, default=H_DEFAULT, help="spring modulus in MPa (default 10)")
-    parser.add_argument("--method", default="auto", choices=dea_opt.METHODS,
-                        help="solver for every frame (default auto: warm-started Newton)")
+    parser.add_argument(
+        "--method",
+        default="auto",
+        choices=dea_opt.METHODS,
+        help="solver for every frame (default auto: warm-started Newton)",
+    )
     parser.add_argument("--no-series", action="store_true", help="skip the ParaView series (.pvd and .vtu files)")
     return parser.parse_args(argv)
 

@@ -56,8 +56,11 @@ from dea_opt.mesh import concatenate_meshes, load_mesh, springs_from_meshes
 NAME = "knee_from_meshes"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME
 DEFAULT_KNEE = Path(__file__).resolve().parents[2] / "shared" / "data" / "knee"
-FILES = {"femur": "femoral_cartilage.stl", "medial": "medial_tibial_cartilage.stl",
-         "lateral": "lateral_tibial_cartilage.stl"}
+FILES = {
+    "femur": "femoral_cartilage.stl",
+    "medial": "medial_tibial_cartilage.stl",
+    "lateral": "lateral_tibial_cartilage.stl",
+}
 
 H_DEFAULT = 10.0  # MPa
 LOAD = 1000.0  # N, about 1.4 body weights: a stance-phase axial load
@@ -69,8 +72,12 @@ MEDIAL_SIDE = "+x"  # where the medial compartment lies when only one tibia mesh
 # --- reading the meshes -----------------------------------------------------------------
 def _role(path: Path) -> str | None:
     name = path.name.lower()
-    for role, keys in (("femur", ("fem",)), ("medial", ("medial", "med_")), ("lateral", ("lateral", "lat_")),
-                       ("tibia", ("tib",))):
+    for role, keys in (
+        ("femur", ("fem",)),
+        ("medial", ("medial", "med_")),
+        ("lateral", ("lateral", "lat_")),
+        ("tibia", ("tib",)),
+    ):
         if any(k in name for k in keys):
             return role
     return None
@@ -102,14 +109,18 @@ def find_meshes(paths=()) -> dict:
     if missing:
         raise FileNotFoundError(f"no such mesh file or knee directory: {', '.join(missing)}")
     if len(paths) not in (2, 3):
-        raise ValueError(f"give a knee directory, or 2 (femur, tibia) or 3 (femur, medial, lateral) mesh "
-                         f"files; got {len(paths)} paths")
+        raise ValueError(
+            f"give a knee directory, or 2 (femur, tibia) or 3 (femur, medial, lateral) mesh "
+            f"files; got {len(paths)} paths"
+        )
     roles = [_role(p) for p in paths]
     wanted = ("femur", "medial", "lateral") if len(paths) == 3 else ("femur", "tibia")
     known = [r for r in roles if r is not None]
     if len(set(known)) != len(known) or not set(known) <= set(wanted):
-        raise ValueError(f"cannot tell the meshes apart by name ({', '.join(p.name for p in paths)}); "
-                         f"name them {'/'.join(wanted)} or give them in that order")
+        raise ValueError(
+            f"cannot tell the meshes apart by name ({', '.join(p.name for p in paths)}); "
+            f"name them {'/'.join(wanted)} or give them in that order"
+        )
     # Names recognised take their role; the others take the roles left, in order.
     left = iter([w for w in wanted if w not in known])
     return {(r or next(left)): p for r, p in zip(roles, paths)}
@@ -143,8 +154,7 @@ def knee_layer(meshes: dict, max_gap: float = MAX_GAP):
 
 def knee_problem(layer, reference, law, load: float = LOAD) -> dea_opt.ContactProblem:
     """The femur pushed along -z with ``load`` (N) at ``reference``, free in ``uz`` and ``ry``."""
-    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -float(load)), reference=reference,
-                                  free=("uz", "ry"))
+    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -float(load)), reference=reference, free=("uz", "ry"))
 
 
 def knee_laws(H: float = H_DEFAULT, betas=BETAS[0]) -> dict:
@@ -189,15 +199,22 @@ def comparison_table(solutions: dict, medial_side: str = MEDIAL_SIDE) -> pd.Data
     rows = []
     for name, s in solutions.items():
         parts = compartments(s, medial_side)
-        rows.append({
-            "law": name, "peak_pressure": s.peak_pressure, "mean_pressure": s.mean_pressure,
-            "contact_area": s.contact_area,
-            **{f"{side}_share": parts[side].share for side in ("medial", "lateral")},
-            **{f"{side}_peak": parts[side].peak_pressure for side in ("medial", "lateral")},
-            **{f"{side}_area": parts[side].contact_area for side in ("medial", "lateral")},
-            "uz": float(s.u[8]), "ry_deg": float(np.degrees(s.u[10])), "max_strain": s.max_compressive_strain,
-            "iterations": s.iterations, "solve_time": s.solve_time,
-        })
+        rows.append(
+            {
+                "law": name,
+                "peak_pressure": s.peak_pressure,
+                "mean_pressure": s.mean_pressure,
+                "contact_area": s.contact_area,
+                **{f"{side}_share": parts[side].share for side in ("medial", "lateral")},
+                **{f"{side}_peak": parts[side].peak_pressure for side in ("medial", "lateral")},
+                **{f"{side}_area": parts[side].contact_area for side in ("medial", "lateral")},
+                "uz": float(s.u[8]),
+                "ry_deg": float(np.degrees(s.u[10])),
+                "max_strain": s.max_compressive_strain,
+                "iterations": s.iterations,
+                "solve_time": s.solve_time,
+            }
+        )
     table = pd.DataFrame(rows)
     linear = table.iloc[0] if "linear" not in set(table["law"]) else table.set_index("law").loc["linear"]
     table["dev_peak"] = table["peak_pressure"] / linear["peak_pressure"] - 1.0
@@ -208,15 +225,20 @@ def comparison_table(solutions: dict, medial_side: str = MEDIAL_SIDE) -> pd.Data
 
 def summary_markdown(table: pd.DataFrame, *, n_springs: int, load: float, H: float, files: dict) -> str:
     """The comparison as Markdown; every number comes from ``table``."""
-    lines = [f"# Knee: {n_springs} springs, {load:g} N along -z, H = {H:g} MPa", "",
-             "| law | peak [MPa] | contact area [mm^2] | medial / lateral share | peak medial / lateral [MPa] "
-             "| max strain | peak vs linear | area vs linear | medial share vs linear |",
-             "|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        f"# Knee: {n_springs} springs, {load:g} N along -z, H = {H:g} MPa",
+        "",
+        "| law | peak [MPa] | contact area [mm^2] | medial / lateral share | peak medial / lateral [MPa] "
+        "| max strain | peak vs linear | area vs linear | medial share vs linear |",
+        "|---|---|---|---|---|---|---|---|---|",
+    ]
     for r in table.itertuples(index=False):
-        lines.append(f"| {r.law} | {r.peak_pressure:.3f} | {r.contact_area:.1f} | "
-                     f"{100 * r.medial_share:.1f} % / {100 * r.lateral_share:.1f} % | "
-                     f"{r.medial_peak:.3f} / {r.lateral_peak:.3f} | {r.max_strain:.3f} | {100 * r.dev_peak:+.2f} % | "
-                     f"{100 * r.dev_area:+.2f} % | {r.d_medial_share:+.2f} points |")
+        lines.append(
+            f"| {r.law} | {r.peak_pressure:.3f} | {r.contact_area:.1f} | "
+            f"{100 * r.medial_share:.1f} % / {100 * r.lateral_share:.1f} % | "
+            f"{r.medial_peak:.3f} / {r.lateral_peak:.3f} | {r.max_strain:.3f} | {100 * r.dev_peak:+.2f} % | "
+            f"{100 * r.dev_area:+.2f} % | {r.d_medial_share:+.2f} points |"
+        )
     lines += ["", "Meshes: " + ", ".join(f"{role} `{path}`" for role, path in files.items()), ""]
     return "\n".join(lines)
 
@@ -234,8 +256,16 @@ def _write_text(path: Path, text: str) -> Path:
     return dio.write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
-def run(paths=(), out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, betas=None,
-        load: float = LOAD, max_gap: float = MAX_GAP, medial_side: str = MEDIAL_SIDE) -> dict:
+def run(
+    paths=(),
+    out=DEFAULT_OUT,
+    coarse: bool = False,
+    H: float = H_DEFAULT,
+    betas=None,
+    load: float = LOAD,
+    max_gap: float = MAX_GAP,
+    medial_side: str = MEDIAL_SIDE,
+) -> dict:
     """Build the knee, solve it with each law, and write the maps and tables into ``out``.
 
     Returns
@@ -260,32 +290,49 @@ def run(paths=(), out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, b
         files[f"{name}_csv"] = dio.to_csv(s, out / f"knee_{name}.csv")
         files[f"{name}_json"] = dio.to_json(s, out / f"knee_{name}.json", regions=regions)
         share = compartments(s, medial_side)
-        title = (f"{s.problem.law.describe()}: peak {s.peak_pressure:.3g} MPa, area {s.contact_area:.0f} mm$^2$,\n"
-                 f"medial ({_side_on_map(s, share)}) {100 * share['medial'].share:.1f} % / lateral "
-                 f"{100 * share['lateral'].share:.1f} % of the normal force")
-        files[f"{name}_png"] = dio.plot_pressure(s, out / f"knee_pressure_{name}.png", vmax=top, title=title,
-                                                 dpi=100, figsize=(6.4, 4.6))
+        title = (
+            f"{s.problem.law.describe()}: peak {s.peak_pressure:.3g} MPa, area {s.contact_area:.0f} mm$^2$,\n"
+            f"medial ({_side_on_map(s, share)}) {100 * share['medial'].share:.1f} % / lateral "
+            f"{100 * share['lateral'].share:.1f} % of the normal force"
+        )
+        files[f"{name}_png"] = dio.plot_pressure(
+            s, out / f"knee_pressure_{name}.png", vmax=top, title=title, dpi=100, figsize=(6.4, 4.6)
+        )
     markdown = summary_markdown(table, n_springs=len(layer), load=load, H=H, files=meshes)
     files["comparison"] = _write_text(out / "knee_comparison.csv", table.to_csv(index=False))
     files["summary"] = _write_text(out / "knee_summary.md", markdown)
-    return {"meshes": meshes, "problem": problem, "solutions": solutions, "table": table,
-            "markdown": markdown, "files": files}
+    return {
+        "meshes": meshes,
+        "problem": problem,
+        "solutions": solutions,
+        "table": table,
+        "markdown": markdown,
+        "files": files,
+    }
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("paths", nargs="*", type=Path,
-                        help=f"a knee directory, or femur + medial + lateral (or femur + tibia) mesh files "
-                             f"(default {DEFAULT_KNEE})")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument(
+        "paths",
+        nargs="*",
+        type=Path,
+        help=f"a knee directory, or femur + medial + lateral (or femur + tibia) mesh files (default {DEFAULT_KNEE})",
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
     parser.add_argument("--coarse", action="store_true", help="only beta = 0.05 besides the linear law (the tests)")
     parser.add_argument("--H", type=float, default=H_DEFAULT, help="modulus of every law in MPa (default 10)")
     parser.add_argument("--betas", type=float, nargs="+", help="Ateshian betas (default 0.05 0.6)")
     parser.add_argument("--load", type=float, default=LOAD, help="axial load on the femur in N (default 1000)")
     parser.add_argument("--max-gap", type=float, default=MAX_GAP, help="largest gap that gets a spring, mm")
-    parser.add_argument("--medial-side", choices=("+x", "-x"), default=MEDIAL_SIDE,
-                        help="side of the medial compartment when one tibia mesh is given (default +x)")
+    parser.add_argument(
+        "--medial-side",
+        choices=("+x", "-x"),
+        default=MEDIAL_SIDE,
+        help="side of the medial compartment when one tibia mesh is given (default +x)",
+    )
     return parser.parse_args(argv)
 
 
@@ -294,8 +341,16 @@ def main(argv=None) -> dict:
     args = parse_args(argv)
     start = time.perf_counter()
     try:
-        result = run(args.paths, args.out, coarse=args.coarse, H=args.H, betas=args.betas, load=args.load,
-                     max_gap=args.max_gap, medial_side=args.medial_side)
+        result = run(
+            args.paths,
+            args.out,
+            coarse=args.coarse,
+            H=args.H,
+            betas=args.betas,
+            load=args.load,
+            max_gap=args.max_gap,
+            medial_side=args.medial_side,
+        )
     except (FileNotFoundError, ValueError) as exc:  # dea_opt's InputError is a ValueError too
         print(f"knee_from_meshes: {exc}", file=sys.stderr)
         raise SystemExit(2) from None

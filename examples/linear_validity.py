@@ -164,8 +164,9 @@ def sphere_linear_force(approach, H: float, radius: float, thickness: float):
 
 def sphere_linear_approach(force: float, H: float, radius: float, thickness: float) -> float:
     """Inverse of :func:`sphere_linear_force` (mm) on ``0 <= d <= R``."""
-    return float(brentq(lambda d: sphere_linear_force(d, H, radius, thickness) - force, 0.0, radius,
-                        xtol=1e-15, rtol=1e-14))
+    return float(
+        brentq(lambda d: sphere_linear_force(d, H, radius, thickness) - force, 0.0, radius, xtol=1e-15, rtol=1e-14)
+    )
 
 
 def sphere_linear_peak(approach, H: float, thickness: float):
@@ -173,35 +174,46 @@ def sphere_linear_peak(approach, H: float, thickness: float):
     return H * np.asarray(approach, dtype=float) / thickness
 
 
-def sphere_loads(H: float, n: int, strains=SPHERE_STRAINS, radius=SPHERE["radius"],
-                 thickness=SPHERE["thickness"]) -> np.ndarray:
+def sphere_loads(
+    H: float, n: int, strains=SPHERE_STRAINS, radius=SPHERE["radius"], thickness=SPHERE["thickness"]
+) -> np.ndarray:
     """Loads (N) at which the linear sphere reaches peak strains geometric over ``strains``."""
     peak_strain = np.geomspace(*strains, n)
     return sphere_linear_force(peak_strain * thickness, H, radius, thickness)
 
 
 # --- problems ---------------------------------------------------------------------------
-def sphere_problem(law, *, radius=SPHERE["radius"], thickness=SPHERE["thickness"],
-                   extent=SPHERE["extent"], n_rings=160, n_sectors=32) -> dea_opt.ContactProblem:
+def sphere_problem(
+    law, *, radius=SPHERE["radius"], thickness=SPHERE["thickness"], extent=SPHERE["extent"], n_rings=160, n_sectors=32
+) -> dea_opt.ContactProblem:
     """Rigid sphere (body 2, free in uz) on a bonded layer, pushed down by a unit load."""
-    layer = sphere_on_bed_layer(radius=radius, thickness=thickness, extent=extent,
-                                n_rings=n_rings, n_sectors=n_sectors)
-    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -1.0), reference=(0.0, 0.0, radius),
-                                  free=("uz",))
+    layer = sphere_on_bed_layer(radius=radius, thickness=thickness, extent=extent, n_rings=n_rings, n_sectors=n_sectors)
+    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -1.0), reference=(0.0, 0.0, radius), free=("uz",))
 
 
-def hip_problem(law, *, radius=HIP["radius"], thickness=HIP["thickness"], coverage=HIP["coverage"],
-                tilt_deg=HIP["tilt_deg"], gap=HIP["gap"], n_rings=45, n_sectors=90) -> dea_opt.ContactProblem:
+def hip_problem(
+    law,
+    *,
+    radius=HIP["radius"],
+    thickness=HIP["thickness"],
+    coverage=HIP["coverage"],
+    tilt_deg=HIP["tilt_deg"],
+    gap=HIP["gap"],
+    n_rings=45,
+    n_sectors=90,
+) -> dea_opt.ContactProblem:
     """Femoral head (body 2, free to translate) in a socket, unit load ``tilt_deg`` off vertical.
 
     The socket is a spherical cap of half-angle ``coverage`` (degrees) opening upward around
     the head's centre at the origin; the load points down and tilts toward +x.
     """
-    layer = socket_layer(radius=radius, thickness=thickness, coverage=coverage, n_rings=n_rings,
-                         n_sectors=n_sectors, gap=gap)
+    layer = socket_layer(
+        radius=radius, thickness=thickness, coverage=coverage, n_rings=n_rings, n_sectors=n_sectors, gap=gap
+    )
     t = np.radians(tilt_deg)
-    return dea_opt.ContactProblem(layer, law, force=(np.sin(t), 0.0, -np.cos(t)),
-                                  reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz"))
+    return dea_opt.ContactProblem(
+        layer, law, force=(np.sin(t), 0.0, -np.cos(t)), reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz")
+    )
 
 
 # --- the knee, when the mesh tools exist ------------------------------------------------
@@ -209,6 +221,7 @@ def find_mesh_builder():
     """``dea_opt.mesh.springs_from_meshes`` or ``dea_opt.SpringLayer.from_meshes``; None if absent."""
     try:
         from dea_opt.mesh import springs_from_meshes  # noqa: PLC0415 - optional, newer dea-opt
+
         return springs_from_meshes
     except ImportError:
         return getattr(dea_opt.SpringLayer, "from_meshes", None)
@@ -218,15 +231,16 @@ def concatenate_layers(layers: dict) -> dea_opt.SpringLayer:
     """One layer from several ``{label: SpringLayer}``, each spring labelled with its key."""
     parts = list(layers.values())
     return dea_opt.SpringLayer(
-        np.vstack([p.points for p in parts]), np.vstack([p.normals for p in parts]),
-        np.concatenate([p.areas for p in parts]), np.concatenate([p.thickness for p in parts]),
+        np.vstack([p.points for p in parts]),
+        np.vstack([p.normals for p in parts]),
+        np.concatenate([p.areas for p in parts]),
+        np.concatenate([p.thickness for p in parts]),
         np.concatenate([p.gap for p in parts]),
         labels=np.concatenate([np.full(len(p), label) for label, p in layers.items()]),
     )
 
 
-def knee_problem(law, data_dir=DEFAULT_KNEE, builder=None,
-                 max_gap: float = KNEE_MAX_GAP) -> dea_opt.ContactProblem:
+def knee_problem(law, data_dir=DEFAULT_KNEE, builder=None, max_gap: float = KNEE_MAX_GAP) -> dea_opt.ContactProblem:
     """Femoral cartilage (body 2) on the medial and lateral tibial cartilage (body 1).
 
     Springs are cast from each tibial plateau to the femur with
@@ -240,22 +254,36 @@ def knee_problem(law, data_dir=DEFAULT_KNEE, builder=None,
         raise RuntimeError("this dea-opt has no mesh-to-springs builder")
     data_dir = Path(data_dir)
     femur = data_dir / "femoral_cartilage.stl"
-    layer = concatenate_layers({
-        side: builder(str(data_dir / f"{side}_tibial_cartilage.stl"), str(femur), max_gap=max_gap)
-        for side in ("medial", "lateral")})
+    layer = concatenate_layers(
+        {
+            side: builder(str(data_dir / f"{side}_tibial_cartilage.stl"), str(femur), max_gap=max_gap)
+            for side in ("medial", "lateral")
+        }
+    )
     centre = layer.areas @ layer.points / layer.areas.sum()
-    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -1.0), reference=tuple(centre),
-                                  free=("uz", "ry"))
+    return dea_opt.ContactProblem(layer, law, force=(0.0, 0.0, -1.0), reference=tuple(centre), free=("uz", "ry"))
 
 
 # --- the sweep --------------------------------------------------------------------------
-SWEEP_COLUMNS = ["geometry", "law", "family", "beta", "load_N", "peak_pressure_MPa",
-                 "mean_pressure_MPa", "contact_area_mm2", "approach_mm", "max_strain",
-                 "iterations", "solve_time_s"]
+SWEEP_COLUMNS = [
+    "geometry",
+    "law",
+    "family",
+    "beta",
+    "load_N",
+    "peak_pressure_MPa",
+    "mean_pressure_MPa",
+    "contact_area_mm2",
+    "approach_mm",
+    "max_strain",
+    "iterations",
+    "solve_time_s",
+]
 
 
-def load_sweep(problem: dea_opt.ContactProblem, laws: dict, loads, *, geometry: str = "problem",
-               check=None) -> pd.DataFrame:
+def load_sweep(
+    problem: dea_opt.ContactProblem, laws: dict, loads, *, geometry: str = "problem", check=None
+) -> pd.DataFrame:
     """Solve ``problem`` for every law and load magnitude (load control).
 
     Parameters
@@ -293,13 +321,22 @@ def load_sweep(problem: dea_opt.ContactProblem, laws: dict, loads, *, geometry: 
             if check is not None:
                 check(s)
             x0 = s.u[base.free_indices]
-            rows.append({
-                "geometry": geometry, "law": name, "family": family, "beta": beta,
-                "load_N": float(load), "peak_pressure_MPa": s.peak_pressure,
-                "mean_pressure_MPa": s.mean_pressure, "contact_area_mm2": s.contact_area,
-                "approach_mm": float(s.u[6:9] @ direction), "max_strain": s.max_compressive_strain,
-                "iterations": s.iterations, "solve_time_s": s.solve_time,
-            })
+            rows.append(
+                {
+                    "geometry": geometry,
+                    "law": name,
+                    "family": family,
+                    "beta": beta,
+                    "load_N": float(load),
+                    "peak_pressure_MPa": s.peak_pressure,
+                    "mean_pressure_MPa": s.mean_pressure,
+                    "contact_area_mm2": s.contact_area,
+                    "approach_mm": float(s.u[6:9] @ direction),
+                    "max_strain": s.max_compressive_strain,
+                    "iterations": s.iterations,
+                    "solve_time_s": s.solve_time,
+                }
+            )
     return pd.DataFrame(rows, columns=SWEEP_COLUMNS)
 
 
@@ -308,9 +345,11 @@ def sphere_edge_check(n_sectors: int):
 
     Beyond it the bed has no springs, so the answer would be that of a truncated bed.
     """
+
     def check(solution):
         if solution.in_contact[-n_sectors:].any():
             raise RuntimeError("contact reached the edge of the bed: raise `extent` or lower the loads")
+
     return check
 
 
@@ -320,11 +359,15 @@ def window_check(max_gap: float, margin: float = 0.05):
 
     Farther surface points have no spring, so such an answer misses contact.
     """
+
     def check(solution):
         gap = solution.problem.layer.gap[solution.in_contact]
         if gap.size and gap.max() > (1.0 - margin) * max_gap:
-            raise RuntimeError(f"contact reached springs with gap {gap.max():.3g} mm, at the edge of "
-                               f"the max_gap = {max_gap:g} mm window: raise max_gap or lower the loads")
+            raise RuntimeError(
+                f"contact reached springs with gap {gap.max():.3g} mm, at the edge of "
+                f"the max_gap = {max_gap:g} mm window: raise max_gap or lower the loads"
+            )
+
     return check
 
 
@@ -341,8 +384,9 @@ def relative_to(frame: pd.DataFrame, approx: str, reference: str, quantity: str)
     return a[quantity].to_numpy() / r[quantity].to_numpy() - 1.0
 
 
-def departure(frame: pd.DataFrame, approx: str, reference: str, level: float,
-              quantity: str = "peak_pressure_MPa") -> dict | None:
+def departure(
+    frame: pd.DataFrame, approx: str, reference: str, level: float, quantity: str = "peak_pressure_MPa"
+) -> dict | None:
     """Where ``|q_approx / q_ref - 1|`` first reaches ``level`` along the sweep (interpolated).
 
     Returns
@@ -368,13 +412,16 @@ def departure(frame: pd.DataFrame, approx: str, reference: str, level: float,
     def lerp(values):
         return float(values[k - 1] + t * (values[k] - values[k - 1]))
 
-    return {"load_N": float(np.exp(lerp(np.log(loads)))),
-            "strain_reference": lerp(r["max_strain"].to_numpy()),
-            "strain_approx": lerp(a["max_strain"].to_numpy())}
+    return {
+        "load_N": float(np.exp(lerp(np.log(loads)))),
+        "strain_reference": lerp(r["max_strain"].to_numpy()),
+        "strain_approx": lerp(a["max_strain"].to_numpy()),
+    }
 
 
-def deviation_at_strain(frame: pd.DataFrame, approx: str, reference: str, strain: float,
-                        quantity: str = "peak_pressure_MPa") -> float | None:
+def deviation_at_strain(
+    frame: pd.DataFrame, approx: str, reference: str, strain: float, quantity: str = "peak_pressure_MPa"
+) -> float | None:
     """Deviation of ``quantity`` where the reference solution's largest strain is ``strain``."""
     r = _law_rows(frame, reference)
     s = r["max_strain"].to_numpy()
@@ -415,12 +462,19 @@ def pressure_analysis(frames: dict, betas=BETAS, levels=LEVELS, claim_strain=CLA
                 if approx not in names or reference not in names:
                     continue
                 ref_rows = _law_rows(frame, reference)
-                row = {"geometry": geometry, "approximation": approx.split("_")[0], "beta": b,
-                       "max_strain_reached": float(ref_rows["max_strain"].max()),
-                       "max_load_N": float(ref_rows["load_N"].max()),
-                       "load_N_at_claim": load_at_strain(ref_rows, claim_strain)}
-                for quantity, key in (("peak_pressure_MPa", "peak"), ("contact_area_mm2", "area"),
-                                      ("approach_mm", "approach")):
+                row = {
+                    "geometry": geometry,
+                    "approximation": approx.split("_")[0],
+                    "beta": b,
+                    "max_strain_reached": float(ref_rows["max_strain"].max()),
+                    "max_load_N": float(ref_rows["load_N"].max()),
+                    "load_N_at_claim": load_at_strain(ref_rows, claim_strain),
+                }
+                for quantity, key in (
+                    ("peak_pressure_MPa", "peak"),
+                    ("contact_area_mm2", "area"),
+                    ("approach_mm", "approach"),
+                ):
                     value = deviation_at_strain(frame, approx, reference, claim_strain, quantity)
                     row[f"dev_{key}_at_claim"] = np.nan if value is None else value
                 for level in levels:
@@ -430,10 +484,20 @@ def pressure_analysis(frames: dict, betas=BETAS, levels=LEVELS, claim_strain=CLA
                     row[f"strain_approx_{tag}"] = found.get("strain_approx", np.nan)
                     row[f"load_N_{tag}"] = found.get("load_N", np.nan)
                 rows.append(row)
-    columns = ["geometry", "approximation", "beta", "max_strain_reached", "max_load_N", "load_N_at_claim",
-               "dev_peak_at_claim", "dev_area_at_claim", "dev_approach_at_claim"]
-    columns += [f"{key}_{round(100 * level):d}" for level in levels
-                for key in ("strain_ref", "strain_approx", "load_N")]
+    columns = [
+        "geometry",
+        "approximation",
+        "beta",
+        "max_strain_reached",
+        "max_load_N",
+        "load_N_at_claim",
+        "dev_peak_at_claim",
+        "dev_area_at_claim",
+        "dev_approach_at_claim",
+    ]
+    columns += [
+        f"{key}_{round(100 * level):d}" for level in levels for key in ("strain_ref", "strain_approx", "load_N")
+    ]
     return pd.DataFrame(rows, columns=columns)  # the columns stay even when nothing was swept
 
 
@@ -470,8 +534,9 @@ def verdicts(shape: dict, pressure: pd.DataFrame, levels=LEVELS, claim_strain=CL
         for geometry, rows in linear.groupby("geometry", sort=False):
             strains = rows[f"strain_ref_{tag}"].to_numpy()
             reached = rows["max_strain_reached"].to_numpy()
-            ok = np.where(np.isfinite(strains), np.round(strains, 3) >= claim_strain,
-                          np.round(reached, 3) >= claim_strain)
+            ok = np.where(
+                np.isfinite(strains), np.round(strains, 3) >= claim_strain, np.round(reached, 3) >= claim_strain
+            )
             per_geometry[geometry] = bool(ok.all())
         holding = [g for g, ok in per_geometry.items() if ok]
         pressure_all = bool(per_geometry) and len(holding) == len(per_geometry)
@@ -489,8 +554,7 @@ def verdicts(shape: dict, pressure: pd.DataFrame, levels=LEVELS, claim_strain=CL
     return out
 
 
-def summary_markdown(H: float, shape: dict, pressure: pd.DataFrame, verdict: dict, *,
-                     coarse: bool, notes=()) -> str:
+def summary_markdown(H: float, shape: dict, pressure: pd.DataFrame, verdict: dict, *, coarse: bool, notes=()) -> str:
     """The Markdown summary; every number in it comes from the arguments."""
     claim = f"{100 * CLAIM_STRAIN:.0f} %"
     lines = [
@@ -507,9 +571,11 @@ def summary_markdown(H: float, shape: dict, pressure: pd.DataFrame, verdict: dic
         "|---|---|---|---|---|---|",
     ]
     for b, v in shape.items():
-        lines.append(f"| {b:g} | {_pct(v['deviation_at_claim'])} | {_strain(v['departure'][0.05])} | "
-                     f"{_strain(v['departure'][0.10])} | {v['best_modulus_ratio']:.3f} H | "
-                     f"{100 * v['best_worst_error']:.2f} % |")
+        lines.append(
+            f"| {b:g} | {_pct(v['deviation_at_claim'])} | {_strain(v['departure'][0.05])} | "
+            f"{_strain(v['departure'][0.10])} | {v['best_modulus_ratio']:.3f} H | "
+            f"{100 * v['best_worst_error']:.2f} % |"
+        )
     lines += [
         "",
         "## 2. Peak pressure under a load: linear solve against the Eq. (2) solve",
@@ -527,38 +593,65 @@ def summary_markdown(H: float, shape: dict, pressure: pd.DataFrame, verdict: dic
     for row in linear.itertuples(index=False):
         cells = []
         for tag in ("5", "10"):
-            s, sa, load = (getattr(row, f"strain_ref_{tag}"), getattr(row, f"strain_approx_{tag}"),
-                           getattr(row, f"load_N_{tag}"))
+            s, sa, load = (
+                getattr(row, f"strain_ref_{tag}"),
+                getattr(row, f"strain_approx_{tag}"),
+                getattr(row, f"load_N_{tag}"),
+            )
             cells.append("not reached" if not np.isfinite(s) else f"{s:.3f} [{sa:.3f}] / {load:.4g} N")
         load = "not reached" if not np.isfinite(row.load_N_at_claim) else f"{row.load_N_at_claim:.4g} N"
-        lines.append(f"| {row.geometry} | {row.beta:g} | up to {row.max_strain_reached:.3f} at "
-                     f"{row.max_load_N:.4g} N | {load} | "
-                     f"{_pct(row.dev_peak_at_claim)} | {_pct(row.dev_area_at_claim)} | "
-                     f"{cells[0]} | {cells[1]} |")
+        lines.append(
+            f"| {row.geometry} | {row.beta:g} | up to {row.max_strain_reached:.3f} at "
+            f"{row.max_load_N:.4g} N | {load} | "
+            f"{_pct(row.dev_peak_at_claim)} | {_pct(row.dev_area_at_claim)} | "
+            f"{cells[0]} | {cells[1]} |"
+        )
     higher = pressure[pressure["approximation"] != "linear"]
     if len(higher):
-        lines += ["", f"Truncated series under load, peak deviation at {claim} strain: " + "; ".join(
-            f"{r.approximation} beta {r.beta:g} on {r.geometry} {_pct(r.dev_peak_at_claim)}"
-            for r in higher.itertuples(index=False)) + "."]
-    lines += ["", "## Verdict", "",
-              f"The claim holds at a tolerance if the linear law stays within it up to {claim} strain.", ""]
+        lines += [
+            "",
+            f"Truncated series under load, peak deviation at {claim} strain: "
+            + "; ".join(
+                f"{r.approximation} beta {r.beta:g} on {r.geometry} {_pct(r.dev_peak_at_claim)}"
+                for r in higher.itertuples(index=False)
+            )
+            + ".",
+        ]
+    lines += [
+        "",
+        "## Verdict",
+        "",
+        f"The claim holds at a tolerance if the linear law stays within it up to {claim} strain.",
+        "",
+    ]
     for level, v in verdict.items():
         pct = f"{100 * level:.0f} %"
         tag = f"{round(100 * level):d}"
-        shape_words = ", ".join(f"beta {b:g}: within {pct} up to strain {_strain(s['departure'][level])}"
-                                for b, s in shape.items())
+        shape_words = ", ".join(
+            f"beta {b:g}: within {pct} up to strain {_strain(s['departure'][level])}" for b, s in shape.items()
+        )
         press_words = []
         for r in linear.itertuples(index=False):
             reached = getattr(r, f"strain_ref_{tag}")
             press_words.append(
-                f"{r.geometry} beta {r.beta:g}: within {pct} up to strain {reached:.3f}" if np.isfinite(reached)
+                f"{r.geometry} beta {r.beta:g}: within {pct} up to strain {reached:.3f}"
+                if np.isfinite(reached)
                 else f"{r.geometry} beta {r.beta:g}: within {pct} over the whole sweep, to strain "
-                     f"{r.max_strain_reached:.3f}")
-        pressure_words = (", ".join(f"{'holds' if ok else 'fails'} on {g}" for g, ok in v["pressure"].items())
-                          + f" ({'; '.join(press_words)})") if v["pressure"] else "was not tested (no geometry swept)"
-        lines.append(f"- **{pct} tolerance**: the {claim} claim holds for **{v['holds_for']}**. "
-                     f"Shape {'holds' if v['shape'] else 'fails'} ({shape_words}); "
-                     f"pressure under load {pressure_words}.")
+                f"{r.max_strain_reached:.3f}"
+            )
+        pressure_words = (
+            (
+                ", ".join(f"{'holds' if ok else 'fails'} on {g}" for g, ok in v["pressure"].items())
+                + f" ({'; '.join(press_words)})"
+            )
+            if v["pressure"]
+            else "was not tested (no geometry swept)"
+        )
+        lines.append(
+            f"- **{pct} tolerance**: the {claim} claim holds for **{v['holds_for']}**. "
+            f"Shape {'holds' if v['shape'] else 'fails'} ({shape_words}); "
+            f"pressure under load {pressure_words}."
+        )
     for note in notes:
         lines += ["", note]
     return "\n".join(lines) + "\n"
@@ -568,8 +661,11 @@ def summary_markdown(H: float, shape: dict, pressure: pd.DataFrame, verdict: dic
 _FAMILY_COLOUR = {"linear": "k", "ateshian": "tab:blue", "cubic": "tab:orange", "order5": "tab:green"}
 _BETA_STYLE = {0.05: "-", 0.6: "--"}
 _BETA_COLOUR = {0.05: "tab:blue", 0.6: "tab:red"}
-_PANELS = (("peak_pressure_MPa", "peak pressure [MPa]"), ("contact_area_mm2", "contact area [mm^2]"),
-           ("approach_mm", "approach [mm]"))
+_PANELS = (
+    ("peak_pressure_MPa", "peak pressure [MPa]"),
+    ("contact_area_mm2", "contact area [mm^2]"),
+    ("approach_mm", "approach [mm]"),
+)
 
 
 def plot_sweep(frame: pd.DataFrame, title: str, betas=BETAS):
@@ -579,9 +675,12 @@ def plot_sweep(frame: pd.DataFrame, title: str, betas=BETAS):
     for name in dict.fromkeys(frame["law"]):
         rows = _law_rows(frame, name)
         family, beta = rows.loc[0, "family"], rows.loc[0, "beta"]
-        style = dict(color=_FAMILY_COLOUR.get(family, "0.4"),
-                     ls="-" if beta is None or pd.isna(beta) else _BETA_STYLE.get(beta, ":"), lw=1.4,
-                     label=name)
+        style = dict(
+            color=_FAMILY_COLOUR.get(family, "0.4"),
+            ls="-" if beta is None or pd.isna(beta) else _BETA_STYLE.get(beta, ":"),
+            lw=1.4,
+            label=name,
+        )
         for j, (column, label) in enumerate(_PANELS):
             axes[0, j].plot(rows["load_N"], rows[column], **style)
             axes[0, j].set(xscale="log", xlabel="load [N]", ylabel=label)
@@ -594,11 +693,22 @@ def plot_sweep(frame: pd.DataFrame, title: str, betas=BETAS):
         reference = f"ateshian_b{b:g}"
         r = _law_rows(frame, reference)
         dev = relative_to(frame, "linear", reference, "peak_pressure_MPa")
-        dx.plot(r["max_strain"], 100 * np.abs(dev), "-", color=_BETA_COLOUR.get(b), marker=".",
-                label=f"peak pressure under load, beta {b:g}")
+        dx.plot(
+            r["max_strain"],
+            100 * np.abs(dev),
+            "-",
+            color=_BETA_COLOUR.get(b),
+            marker=".",
+            label=f"peak pressure under load, beta {b:g}",
+        )
         s = np.linspace(1e-3, strain_max, 200)
-        dx.plot(s, 100 * np.abs(law_deviation(1.0, b, -s)), ":", color=_BETA_COLOUR.get(b),
-                label=f"stress at equal strain, beta {b:g}")
+        dx.plot(
+            s,
+            100 * np.abs(law_deviation(1.0, b, -s)),
+            ":",
+            color=_BETA_COLOUR.get(b),
+            label=f"stress at equal strain, beta {b:g}",
+        )
         for level in LEVELS:  # the interpolated departures the summary reports
             found = departure(frame, "linear", reference, level)
             if found is not None:
@@ -606,8 +716,13 @@ def plot_sweep(frame: pd.DataFrame, title: str, betas=BETAS):
     for level in LEVELS:
         dx.axhline(100 * level, color="0.7", lw=0.8)
     dx.axvline(CLAIM_STRAIN, color="0.5", lw=0.8, ls="--")
-    dx.set(xlim=(0, strain_max), ylim=(0, 40), xlabel="largest compressive strain of Eq. (2)",
-           ylabel="|linear - Eq. 2| / Eq. 2 [%]", title="linear law against Eq. (2)")
+    dx.set(
+        xlim=(0, strain_max),
+        ylim=(0, 40),
+        xlabel="largest compressive strain of Eq. (2)",
+        ylabel="|linear - Eq. 2| / Eq. 2 [%]",
+        title="linear law against Eq. (2)",
+    )
     dx.legend(fontsize=7)
     fig.suptitle(title)
     fig.tight_layout()
@@ -635,16 +750,25 @@ def _knee_case(law, knee_dir):
         return None, f"Knee skipped: no knee data at {knee_dir}."
     builder = find_mesh_builder()
     if builder is None:
-        return None, (f"Knee skipped: {knee_dir} exists but this dea-opt has neither "
-                      "dea_opt.mesh.springs_from_meshes nor SpringLayer.from_meshes.")
+        return None, (
+            f"Knee skipped: {knee_dir} exists but this dea-opt has neither "
+            "dea_opt.mesh.springs_from_meshes nor SpringLayer.from_meshes."
+        )
     try:
         return knee_problem(law, knee_dir, builder), None
     except Exception as exc:  # noqa: BLE001 - an optional part must not stop the study
         return None, f"Knee skipped: building its springs failed ({type(exc).__name__}: {exc})."
 
 
-def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, geometries=GEOMETRIES,
-        knee_dir=DEFAULT_KNEE, extra_problems=None, verbose: bool = True) -> dict:
+def run(
+    out=DEFAULT_OUT,
+    coarse: bool = False,
+    H: float = H_DEFAULT,
+    geometries=GEOMETRIES,
+    knee_dir=DEFAULT_KNEE,
+    extra_problems=None,
+    verbose: bool = True,
+) -> dict:
     """Sweep the geometries, analyse, and write the pictures, tables and summary.
 
     Parameters
@@ -684,8 +808,11 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, geometries=
     cases, notes = {}, []
     if "sphere" in geometries:
         mesh = SPHERE_MESH[level]
-        cases["sphere"] = (sphere_problem(laws["linear"], **mesh), sphere_loads(H, n),
-                           sphere_edge_check(mesh["n_sectors"]))
+        cases["sphere"] = (
+            sphere_problem(laws["linear"], **mesh),
+            sphere_loads(H, n),
+            sphere_edge_check(mesh["n_sectors"]),
+        )
     if "hip" in geometries:
         cases["hip"] = (hip_problem(laws["linear"], **HIP_MESH[level]), np.geomspace(*HIP_LOADS, n), None)
     if "knee" in geometries:
@@ -693,8 +820,7 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, geometries=
         if knee is None:
             notes.append(note)
         else:
-            cases["knee"] = (knee, np.geomspace(*KNEE_LOADS, KNEE_N_LOADS[level]),
-                             window_check(KNEE_MAX_GAP))
+            cases["knee"] = (knee, np.geomspace(*KNEE_LOADS, KNEE_N_LOADS[level]), window_check(KNEE_MAX_GAP))
     for name, (problem, loads) in (extra_problems or {}).items():
         cases[name] = (problem, np.asarray(loads, dtype=float), None)
     for note in notes:
@@ -712,28 +838,38 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = H_DEFAULT, geometries=
     verdict = verdicts(shape, pressure)
     summary = summary_markdown(H, shape, pressure, verdict, coarse=coarse, notes=notes)
     out = Path(out)
-    files = {f"png_{g}": write_atomic(out / f"validity_{g}.png",
-                                      figure_bytes(plot_sweep(frame, f"{g}: load control, H = {H:g} MPa")))
-             for g, frame in frames.items()}
-    table = (pd.concat(frames.values(), ignore_index=True) if frames
-             else pd.DataFrame(columns=SWEEP_COLUMNS))
+    files = {
+        f"png_{g}": write_atomic(
+            out / f"validity_{g}.png", figure_bytes(plot_sweep(frame, f"{g}: load control, H = {H:g} MPa"))
+        )
+        for g, frame in frames.items()
+    }
+    table = pd.concat(frames.values(), ignore_index=True) if frames else pd.DataFrame(columns=SWEEP_COLUMNS)
     files["sweep_csv"] = write_atomic(out / "validity_sweep.csv", table.to_csv(index=False))
     files["departures_csv"] = write_atomic(out / "validity_departures.csv", pressure.to_csv(index=False))
     files["summary_md"] = write_atomic(out / "validity_summary.md", summary)
-    return {"frames": frames, "shape": shape, "pressure": pressure, "verdict": verdict,
-            "summary": summary, "notes": notes, "timings": timings, "files": files}
+    return {
+        "frames": frames,
+        "shape": shape,
+        "pressure": pressure,
+        "verdict": verdict,
+        "summary": summary,
+        "notes": notes,
+        "timings": timings,
+        "files": files,
+    }
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                        help=f"output directory (default {DEFAULT_OUT})")
-    parser.add_argument("--coarse", action="store_true",
-                        help="coarser meshes and fewer loads (the tests use it)")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
+    parser.add_argument("--coarse", action="store_true", help="coarser meshes and fewer loads (the tests use it)")
     parser.add_argument("--H", type=float, default=H_DEFAULT, help="aggregate modulus of every law, MPa")
-    parser.add_argument("--knee", type=Path, default=DEFAULT_KNEE,
-                        help="directory with the knee's cartilage meshes (skipped if absent)")
+    parser.add_argument(
+        "--knee", type=Path, default=DEFAULT_KNEE, help="directory with the knee's cartilage meshes (skipped if absent)"
+    )
     parser.add_argument("--no-knee", action="store_true", help="do not try the knee")
     return parser.parse_args(argv)
 

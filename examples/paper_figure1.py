@@ -98,8 +98,7 @@ def relative_deviation(law: dea_opt.Law, reference: dea_opt.Law, strain) -> np.n
     return law.stress(strain) / reference.stress(strain) - 1.0
 
 
-def deviation_table(H: float = 0.6, betas=BETAS, strains=TABLE_STRAINS,
-                    approximations=APPROXIMATIONS) -> pd.DataFrame:
+def deviation_table(H: float = 0.6, betas=BETAS, strains=TABLE_STRAINS, approximations=APPROXIMATIONS) -> pd.DataFrame:
     """Relative deviation of the approximations from Eq. (2), one row per (beta, strain).
 
     Returns
@@ -113,17 +112,24 @@ def deviation_table(H: float = 0.6, betas=BETAS, strains=TABLE_STRAINS,
     for beta in betas:
         eq2 = dea_opt.AteshianLaw(H, beta)
         eps = np.asarray(strains, dtype=float)
-        columns = {name: relative_deviation(approximation_law(H, beta, order), eq2, eps)
-                   for name, order in approximations.items()}
+        columns = {
+            name: relative_deviation(approximation_law(H, beta, order), eq2, eps)
+            for name, order in approximations.items()
+        }
         sigma = eq2.stress(eps) / H
         for k, e in enumerate(eps):
-            rows.append({"beta": beta, "strain": float(e), "eq2_stress_over_H": float(sigma[k]),
-                         **{name: float(values[k]) for name, values in columns.items()}})
+            rows.append(
+                {
+                    "beta": beta,
+                    "strain": float(e),
+                    "eq2_stress_over_H": float(sigma[k]),
+                    **{name: float(values[k]) for name, values in columns.items()},
+                }
+            )
     return pd.DataFrame(rows)
 
 
-def deviation_curves(H: float = 0.6, betas=BETAS, approximations=APPROXIMATIONS,
-                     n_points: int = 201) -> dict:
+def deviation_curves(H: float = 0.6, betas=BETAS, approximations=APPROXIMATIONS, n_points: int = 201) -> dict:
     """Relative deviation from Eq. (2) over compressive strains (0, 0.4], for panel (b).
 
     Returns
@@ -135,8 +141,10 @@ def deviation_curves(H: float = 0.6, betas=BETAS, approximations=APPROXIMATIONS,
     out = {"strain": strain}
     for beta in betas:
         eq2 = dea_opt.AteshianLaw(H, beta)
-        out[beta] = {name: relative_deviation(approximation_law(H, beta, order), eq2, strain)
-                     for name, order in approximations.items()}
+        out[beta] = {
+            name: relative_deviation(approximation_law(H, beta, order), eq2, strain)
+            for name, order in approximations.items()
+        }
     return out
 
 
@@ -166,8 +174,7 @@ def plot_figure1(curves: dict, deviations: dict):
     for beta, sigma in curves["eq2"].items():
         colour = _COLOURS.get(beta)
         ax.plot(strain, sigma, "-", color=colour, lw=2, label=f"Eq. (2), beta = {beta:g}")
-        ax.plot(strain, curves["eq3"][beta], "--", color=colour, lw=1.5,
-                label=f"Eq. (3), beta = {beta:g}")
+        ax.plot(strain, curves["eq3"][beta], "--", color=colour, lw=1.5, label=f"Eq. (3), beta = {beta:g}")
     ax.plot(strain, curves["linear"], ":", color="k", lw=1.5, label="linear, sigma = H eps")
     ax.axhline(0, color="0.8", lw=0.8)
     ax.axvline(0, color="0.8", lw=0.8)
@@ -180,8 +187,13 @@ def plot_figure1(curves: dict, deviations: dict):
     compression = -deviations["strain"]
     for beta in (k for k in deviations if k != "strain"):
         for name, values in deviations[beta].items():
-            bx.plot(compression, 100 * values, linestyle=_APPROX_STYLE.get(name, "-"),
-                    color=_COLOURS.get(beta), label=f"{name}, beta = {beta:g}")
+            bx.plot(
+                compression,
+                100 * values,
+                linestyle=_APPROX_STYLE.get(name, "-"),
+                color=_COLOURS.get(beta),
+                label=f"{name}, beta = {beta:g}",
+            )
     for level in (-10, -5, 5, 10):
         bx.axhline(level, color="0.75", lw=0.8)
     bx.axvline(0.3, color="0.5", lw=0.8, ls="--")
@@ -198,8 +210,10 @@ def plot_figure1(curves: dict, deviations: dict):
 def format_table(table: pd.DataFrame) -> str:
     """The deviation table as Markdown, deviations in per cent."""
     names = [c for c in table.columns if c in APPROXIMATIONS]
-    lines = ["| beta | strain | Eq. (2) sigma/H | " + " | ".join(f"{n} [%]" for n in names) + " |",
-             "|---|---|---|" + "---|" * len(names)]
+    lines = [
+        "| beta | strain | Eq. (2) sigma/H | " + " | ".join(f"{n} [%]" for n in names) + " |",
+        "|---|---|---|" + "---|" * len(names),
+    ]
     for row in table.itertuples(index=False):
         values = " | ".join(f"{100 * getattr(row, n):+.2f}" for n in names)
         lines.append(f"| {row.beta:g} | {row.strain:+.1f} | {row.eq2_stress_over_H:+.4f} | {values} |")
@@ -222,9 +236,14 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = 0.6) -> dict:
     curves = figure1_curves(H, n_points=n_points)
     deviations = deviation_curves(H, n_points=40 if coarse else 200)
     table = deviation_table(H)
-    curve_frame = pd.DataFrame({"strain": curves["strain"], "linear": curves["linear"],
-                                **{f"eq2_beta{b:g}": v for b, v in curves["eq2"].items()},
-                                **{f"eq3_beta{b:g}": v for b, v in curves["eq3"].items()}})
+    curve_frame = pd.DataFrame(
+        {
+            "strain": curves["strain"],
+            "linear": curves["linear"],
+            **{f"eq2_beta{b:g}": v for b, v in curves["eq2"].items()},
+            **{f"eq3_beta{b:g}": v for b, v in curves["eq3"].items()},
+        }
+    )
     files = {
         "png": write_atomic(out / "figure1.png", figure_bytes(plot_figure1(curves, deviations))),
         "curves_csv": write_atomic(out / "figure1_curves.csv", curve_frame.to_csv(index=False)),
@@ -234,14 +253,14 @@ def run(out=DEFAULT_OUT, coarse: bool = False, H: float = 0.6) -> dict:
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--out", type=Path, default=DEFAULT_OUT,
-                        help=f"output directory (default {DEFAULT_OUT})")
-    parser.add_argument("--coarse", action="store_true",
-                        help="fewer points on the curves (the tests use it)")
-    parser.add_argument("--H", type=float, default=0.6,
-                        help="aggregate modulus in MPa (the normalised figure does not depend on it)")
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
+    parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
+    parser.add_argument("--coarse", action="store_true", help="fewer points on the curves (the tests use it)")
+    parser.add_argument(
+        "--H", type=float, default=0.6, help="aggregate modulus in MPa (the normalised figure does not depend on it)"
+    )
     return parser.parse_args(argv)
 
 

@@ -113,8 +113,13 @@ def study_problem(n_springs: int, law: dea_opt.Law, force=None) -> dea_opt.Conta
     """The hip with about ``n_springs`` springs; the head (body 2) free to translate."""
     n_rings, n_sectors = socket_grid(n_springs)
     layer = socket_layer(n_rings=n_rings, n_sectors=n_sectors, **HIP)
-    return dea_opt.ContactProblem(layer, law, force=tuple(peak_force() if force is None else force),
-                                  reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz"))
+    return dea_opt.ContactProblem(
+        layer,
+        law,
+        force=tuple(peak_force() if force is None else force),
+        reference=(0.0, 0.0, 0.0),
+        free=("ux", "uy", "uz"),
+    )
 
 
 # --- the methods ------------------------------------------------------------------------
@@ -134,8 +139,7 @@ def method_cases(law: dea_opt.Law, solvers=None) -> list[dict]:
     cases = [{"label": "newton", "method": "newton", "solver": "-", "options": {}}]
     if law.is_linear:  # the QP is the linear law's energy; any other law needs nlp
         for solver in qp_solvers() if solvers is None else solvers:
-            cases.append({"label": f"qp-{solver}", "method": "qp", "solver": solver,
-                          "options": {"solver": solver}})
+            cases.append({"label": f"qp-{solver}", "method": "qp", "solver": solver, "options": {"solver": solver}})
     for form, solver in (("constrained", "IPOPT"), ("reduced", "IPOPT-reduced")):
         cases.append({"label": f"nlp-{form}", "method": "nlp", "solver": solver, "options": {"form": form}})
     return cases
@@ -162,9 +166,17 @@ def run_case(problem: dea_opt.ContactProblem, case: dict, reference, repeat: int
             s = dea_opt.solve(problem, case["method"], certificate_tol=CHECK_TOL, strict=False, **case["options"])
         except dea_opt.DeaError as exc:  # a solver that breaks is a failed row, not a crash
             wall = time.perf_counter() - start
-            return {"label": case["label"], "method": case["method"], "solver": case["solver"],
-                    "repeat": repeat, "success": False, "status": "error", "message": str(exc)[:200],
-                    "wall_time": wall, "total_time": wall}
+            return {
+                "label": case["label"],
+                "method": case["method"],
+                "solver": case["solver"],
+                "repeat": repeat,
+                "success": False,
+                "status": "error",
+                "message": str(exc)[:200],
+                "wall_time": wall,
+                "total_time": wall,
+            }
     wall = time.perf_counter() - start
     dp, du = _difference(s, reference)
     agrees = bool(max(dp, du) <= CHECK_TOL)
@@ -179,14 +191,27 @@ def run_case(problem: dea_opt.ContactProblem, case: dict, reference, repeat: int
     else:
         message = "ok"
     return {
-        "label": case["label"], "method": case["method"], "solver": case["solver"], "repeat": repeat,
+        "label": case["label"],
+        "method": case["method"],
+        "solver": case["solver"],
+        "repeat": repeat,
         "success": bool(solver_success and s.certificate.passed and agrees),
-        "solver_success": solver_success, "certified": s.certificate.passed, "agrees": agrees,
-        "status": s.status, "message": message,
-        "wall_time": wall, "build_time": s.build_time, "solve_time": s.solve_time,
-        "total_time": s.build_time + s.solve_time, "iterations": s.iterations,
-        "worst_residual": worst, "worst_name": name, "peak_pressure": s.peak_pressure,
-        "contact_area": s.contact_area, "d_pressure": dp, "d_displacement": du,
+        "solver_success": solver_success,
+        "certified": s.certificate.passed,
+        "agrees": agrees,
+        "status": s.status,
+        "message": message,
+        "wall_time": wall,
+        "build_time": s.build_time,
+        "solve_time": s.solve_time,
+        "total_time": s.build_time + s.solve_time,
+        "iterations": s.iterations,
+        "worst_residual": worst,
+        "worst_name": name,
+        "peak_pressure": s.peak_pressure,
+        "contact_area": s.contact_area,
+        "d_pressure": dp,
+        "d_displacement": du,
     }
 
 
@@ -200,8 +225,16 @@ def warm_up(laws=LAWS, solvers=None) -> None:
             run_case(problem, case, reference)
 
 
-def run_study(sizes=SIZES[0], laws=LAWS, repeat: int = 1, solvers=None, *, max_repeat: int = MAX_REPEAT[0],
-              budget: float = BUDGET, verbose: bool = False) -> pd.DataFrame:
+def run_study(
+    sizes=SIZES[0],
+    laws=LAWS,
+    repeat: int = 1,
+    solvers=None,
+    *,
+    max_repeat: int = MAX_REPEAT[0],
+    budget: float = BUDGET,
+    verbose: bool = False,
+) -> pd.DataFrame:
     """Every law x size x method, at least ``repeat`` times; one row per run.
 
     A method is run again, up to ``max_repeat`` times in all, while its runs at this size
@@ -236,12 +269,22 @@ def run_study(sizes=SIZES[0], laws=LAWS, repeat: int = 1, solvers=None, *, max_r
                     row = run_case(problem, case, reference, r)
                     spent += row["wall_time"]
                     r += 1
-                    rows.append({"law": name, "n_target": n, "n_springs": len(problem.layer),
-                                 "n_rings": n_rings, "n_sectors": n_sectors, **row})
+                    rows.append(
+                        {
+                            "law": name,
+                            "n_target": n,
+                            "n_springs": len(problem.layer),
+                            "n_rings": n_rings,
+                            "n_sectors": n_sectors,
+                            **row,
+                        }
+                    )
                 if verbose:
-                    print(f"  {name:8s} N={len(problem.layer):6d} {case['label']:16s} {r} run(s), best "
-                          f"{min(x['wall_time'] for x in rows[-r:]):8.4f} s  "
-                          f"{'ok' if all(x['success'] for x in rows[-r:]) else rows[-1]['message']}")
+                    print(
+                        f"  {name:8s} N={len(problem.layer):6d} {case['label']:16s} {r} run(s), best "
+                        f"{min(x['wall_time'] for x in rows[-r:]):8.4f} s  "
+                        f"{'ok' if all(x['success'] for x in rows[-r:]) else rows[-1]['message']}"
+                    )
     table = pd.DataFrame(rows)
     table["accuracy"] = "default"
     table["check_tol"] = CHECK_TOL
@@ -262,20 +305,28 @@ def summary_table(table: pd.DataFrame) -> pd.DataFrame:
         for label, runs in group.groupby("label", sort=False):
             ok = runs[runs["success"].astype(bool)]
             key = (runs["method"].iloc[0], runs["solver"].iloc[0])
-            rows.append({
-                "law": law, "n_springs": n, "label": label, "method": key[0], "solver": key[1],
-                "runs": len(runs), "success_rate": float(sgm.loc[key, "success_rate"]),
-                "best_time": float(ok["wall_time"].min()) if len(ok) else float("nan"),
-                "sgm_time": float(sgm.loc[key, "shifted_gm_time"]),
-                "formulation_time": float(ok["total_time"].min()) if len(ok) else float("nan"),
-                "iterations": int(runs["iterations"].max()) if "iterations" in runs else -1,
-                "d_pressure": float(runs["d_pressure"].max()),
-                "worst_residual": float(runs["worst_residual"].max()),
-            })
+            rows.append(
+                {
+                    "law": law,
+                    "n_springs": n,
+                    "label": label,
+                    "method": key[0],
+                    "solver": key[1],
+                    "runs": len(runs),
+                    "success_rate": float(sgm.loc[key, "success_rate"]),
+                    "best_time": float(ok["wall_time"].min()) if len(ok) else float("nan"),
+                    "sgm_time": float(sgm.loc[key, "shifted_gm_time"]),
+                    "formulation_time": float(ok["total_time"].min()) if len(ok) else float("nan"),
+                    "iterations": int(runs["iterations"].max()) if "iterations" in runs else -1,
+                    "d_pressure": float(runs["d_pressure"].max()),
+                    "worst_residual": float(runs["worst_residual"].max()),
+                }
+            )
     summary = pd.DataFrame(rows)
     newton = summary[summary["label"] == "newton"].set_index(["law", "n_springs"])["best_time"]
-    summary["relative"] = [row.best_time / newton.loc[(row.law, row.n_springs)]
-                           for row in summary.itertuples(index=False)]
+    summary["relative"] = [
+        row.best_time / newton.loc[(row.law, row.n_springs)] for row in summary.itertuples(index=False)
+    ]
     return summary
 
 
@@ -295,10 +346,15 @@ def fit_exponents(summary: pd.DataFrame) -> pd.DataFrame:
 
 
 # --- the picture ------------------------------------------------------------------------
-_STYLE = {"newton": ("k", "o", "-"), "nlp-constrained": ("tab:red", "s", "-"),
-          "nlp-reduced": ("tab:orange", "D", "-"), "qp-CLARABEL": ("tab:blue", "^", "--"),
-          "qp-OSQP": ("tab:green", "v", "--"), "qp-SCS": ("tab:purple", "<", "--"),
-          "qp-PIQP": ("tab:cyan", ">", "--")}
+_STYLE = {
+    "newton": ("k", "o", "-"),
+    "nlp-constrained": ("tab:red", "s", "-"),
+    "nlp-reduced": ("tab:orange", "D", "-"),
+    "qp-CLARABEL": ("tab:blue", "^", "--"),
+    "qp-OSQP": ("tab:green", "v", "--"),
+    "qp-SCS": ("tab:purple", "<", "--"),
+    "qp-PIQP": ("tab:cyan", ">", "--"),
+}
 _LAW_TITLE = {"linear": f"linear law, H = {H:g} MPa", "ateshian": f"Eq. (2), H = {H:g} MPa, beta = {BETA:g}"}
 
 
@@ -306,8 +362,14 @@ def plot_study(summary: pd.DataFrame):
     """Top: best wall time against N (log-log) per method, one panel per law.
     Bottom: the largest pressure difference from Newton, relative to the peak."""
     laws = list(dict.fromkeys(summary["law"]))
-    fig, axes = plt.subplots(2, len(laws), figsize=(5.2 * len(laws), 6.6), squeeze=False,
-                             gridspec_kw={"height_ratios": (2.2, 1)}, sharex=True)
+    fig, axes = plt.subplots(
+        2,
+        len(laws),
+        figsize=(5.2 * len(laws), 6.6),
+        squeeze=False,
+        gridspec_kw={"height_ratios": (2.2, 1)},
+        sharex=True,
+    )
     for j, law in enumerate(laws):
         ax, bx = axes[0, j], axes[1, j]
         rows = summary[summary["law"] == law]
@@ -318,20 +380,25 @@ def plot_study(summary: pd.DataFrame):
             if len(failed):
                 ax.plot(failed["n_springs"], failed["sgm_time"], "x", color=colour, ms=9)
             if label != "newton":  # Newton is the reference: its difference is zero by definition
-                bx.plot(g["n_springs"], np.maximum(g["d_pressure"], 1e-16), ls=ls, marker=marker, color=colour,
-                        ms=4)
+                bx.plot(g["n_springs"], np.maximum(g["d_pressure"], 1e-16), ls=ls, marker=marker, color=colour, ms=4)
         n = np.array(sorted(set(rows["n_springs"])), dtype=float)
-        ax.plot(n, rows[rows["label"] == "newton"]["best_time"].iloc[0] * n / n[0], ":", color="0.6", lw=1,
-                label="~ N (guide)")
+        ax.plot(
+            n,
+            rows[rows["label"] == "newton"]["best_time"].iloc[0] * n / n[0],
+            ":",
+            color="0.6",
+            lw=1,
+            label="~ N (guide)",
+        )
         ax.set(xscale="log", yscale="log", ylabel="wall time per solve [s]", title=_LAW_TITLE.get(law, law))
         ax.grid(alpha=0.3, which="both")
         ax.legend(fontsize=7, loc="upper left")
         bx.axhline(CHECK_TOL, color="0.5", lw=0.8, ls="--")
-        bx.set(xscale="log", yscale="log", xlabel="springs N", ylabel="max |p - p_newton| / peak",
-               ylim=(1e-17, 1e-4))
+        bx.set(xscale="log", yscale="log", xlabel="springs N", ylabel="max |p - p_newton| / peak", ylim=(1e-17, 1e-4))
         bx.grid(alpha=0.3, which="both")
-    fig.suptitle(f"Hip at the gait peak ({PEAK_LOAD:g} N, {TILT_DEG:g} deg): best of the repeats, "
-                 "x = a failed run", fontsize=10)
+    fig.suptitle(
+        f"Hip at the gait peak ({PEAK_LOAD:g} N, {TILT_DEG:g} deg): best of the repeats, x = a failed run", fontsize=10
+    )
     fig.tight_layout()
     return fig
 
@@ -366,8 +433,9 @@ def blas_threads() -> str:
     return ", ".join(counts) or "unknown"
 
 
-def summary_markdown(summary: pd.DataFrame, exponents: pd.DataFrame, *, coarse: bool, repeat: int,
-                     load_average: float | None = None) -> str:
+def summary_markdown(
+    summary: pd.DataFrame, exponents: pd.DataFrame, *, coarse: bool, repeat: int, load_average: float | None = None
+) -> str:
     """Best wall time per method and size as a Markdown table (numbers from ``summary``).
 
     ``repeat`` is the least number of runs per method and size; ``load_average`` the
@@ -375,33 +443,53 @@ def summary_markdown(summary: pd.DataFrame, exponents: pd.DataFrame, *, coarse: 
     slower and noisier).
     """
     sizes = sorted(set(summary["n_springs"]))
-    lines = [f"# Solver study: the hip at the gait peak ({PEAK_LOAD:g} N tilted {TILT_DEG:g} deg)", "",
-             f"Computed by `examples/solver_study.py`{' --coarse' if coarse else ''}: best wall time of "
-             f"at least {repeat} run(s) per solve, s; {os.cpu_count()} cores"
-             + (f" (load average {load_average:.1f} at the start)" if load_average is not None else "")
-             + f"; BLAS threads: {blas_threads()}"
-             + f"; dea-opt {dea_opt.__version__}. "
-             "`d_pressure` is the largest pressure difference from Newton relative to the peak.", ""]
+    lines = [
+        f"# Solver study: the hip at the gait peak ({PEAK_LOAD:g} N tilted {TILT_DEG:g} deg)",
+        "",
+        f"Computed by `examples/solver_study.py`{' --coarse' if coarse else ''}: best wall time of "
+        f"at least {repeat} run(s) per solve, s; {os.cpu_count()} cores"
+        + (f" (load average {load_average:.1f} at the start)" if load_average is not None else "")
+        + f"; BLAS threads: {blas_threads()}"
+        + f"; dea-opt {dea_opt.__version__}. "
+        "`d_pressure` is the largest pressure difference from Newton relative to the peak.",
+        "",
+    ]
     for law, rows in summary.groupby("law", sort=False):
-        lines += [f"## {_LAW_TITLE.get(law, law)}", "",
-                  "| method | " + " | ".join(f"N = {n}" for n in sizes)
-                  + " | k in time ~ N^k (two largest N) | worst d_pressure | success |",
-                  "|---|" + "---|" * (len(sizes) + 3)]
+        lines += [
+            f"## {_LAW_TITLE.get(law, law)}",
+            "",
+            "| method | "
+            + " | ".join(f"N = {n}" for n in sizes)
+            + " | k in time ~ N^k (two largest N) | worst d_pressure | success |",
+            "|---|" + "---|" * (len(sizes) + 3),
+        ]
         for label, g in rows.groupby("label", sort=False):
             g = g.set_index("n_springs")
-            times = " | ".join(f"{g.loc[n, 'best_time']:.3g}" if n in g.index and np.isfinite(g.loc[n, "best_time"])
-                               else "failed" for n in sizes)
+            times = " | ".join(
+                f"{g.loc[n, 'best_time']:.3g}" if n in g.index and np.isfinite(g.loc[n, "best_time"]) else "failed"
+                for n in sizes
+            )
             k = exponents[(exponents["law"] == law) & (exponents["label"] == label)]["exponent"]
-            lines.append(f"| {label} | {times} | {k.iloc[0]:.2f} | {g['d_pressure'].max():.1e} | "
-                         f"{g['success_rate'].mean():.0f} % |" if len(k) else
-                         f"| {label} | {times} | - | {g['d_pressure'].max():.1e} | {g['success_rate'].mean():.0f} % |")
+            lines.append(
+                f"| {label} | {times} | {k.iloc[0]:.2f} | {g['d_pressure'].max():.1e} | "
+                f"{g['success_rate'].mean():.0f} % |"
+                if len(k)
+                else f"| {label} | {times} | - | {g['d_pressure'].max():.1e} | {g['success_rate'].mean():.0f} % |"
+            )
         lines.append("")
     return "\n".join(lines)
 
 
 # --- the script -------------------------------------------------------------------------
-def run(out=DEFAULT_OUT, coarse: bool = False, sizes=None, repeat: int | None = None, laws=LAWS,
-        solvers=None, verbose: bool = True) -> dict:
+def run(
+    out=DEFAULT_OUT,
+    coarse: bool = False,
+    sizes=None,
+    repeat: int | None = None,
+    laws=LAWS,
+    solvers=None,
+    verbose: bool = True,
+) -> dict:
     """Run the study and write its table, summary, picture and Markdown into ``out``.
 
     Returns
@@ -430,13 +518,18 @@ def run(out=DEFAULT_OUT, coarse: bool = False, sizes=None, repeat: int | None = 
 
 
 def parse_args(argv=None) -> argparse.Namespace:
-    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0],
-                                     formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser = argparse.ArgumentParser(
+        description=__doc__.split("\n\n")[0], formatter_class=argparse.RawDescriptionHelpFormatter
+    )
     parser.add_argument("--out", type=Path, default=DEFAULT_OUT, help=f"output directory (default {DEFAULT_OUT})")
     parser.add_argument("--coarse", action="store_true", help="300 and 1000 springs, one repeat (the tests use it)")
     parser.add_argument("--sizes", type=int, nargs="+", help="target spring counts (default 1000 3000 10000 30000)")
-    parser.add_argument("--repeat", type=int, help="least runs per method and size (default 1; fast methods "
-                                                   f"are rerun up to {MAX_REPEAT[0]} times within {BUDGET:g} s)")
+    parser.add_argument(
+        "--repeat",
+        type=int,
+        help="least runs per method and size (default 1; fast methods "
+        f"are rerun up to {MAX_REPEAT[0]} times within {BUDGET:g} s)",
+    )
     parser.add_argument("--laws", nargs="+", choices=LAWS, default=list(LAWS), help="laws to study")
     parser.add_argument("--solvers", nargs="+", help="QP solvers (default: CLARABEL, OSQP, SCS, PIQP as installed)")
     parser.add_argument("--quiet", action="store_true", help="no line per run")
@@ -452,11 +545,19 @@ def main(argv=None) -> dict:
     if solvers is not None:
         missing = sorted(set(solvers) - set(installed_qp_solvers()))
         if missing:
-            raise SystemExit(f"QP solver(s) {', '.join(missing)} not installed here; cvxpy has "
-                             f"{', '.join(installed_qp_solvers())}")
+            raise SystemExit(
+                f"QP solver(s) {', '.join(missing)} not installed here; cvxpy has {', '.join(installed_qp_solvers())}"
+            )
     start = time.perf_counter()
-    result = run(args.out, coarse=args.coarse, sizes=args.sizes, repeat=args.repeat, laws=args.laws,
-                 solvers=solvers, verbose=not args.quiet)
+    result = run(
+        args.out,
+        coarse=args.coarse,
+        sizes=args.sizes,
+        repeat=args.repeat,
+        laws=args.laws,
+        solvers=solvers,
+        verbose=not args.quiet,
+    )
     print(result["markdown"])
     for path in result["files"].values():
         print(f"wrote {path}")

@@ -28,8 +28,12 @@ def applies(method, law) -> bool:
 def method_law_pairs(methods, laws) -> list:
     """``pytest.param(method, law)`` for the pairs the capabilities allow, and only those (no
     run-time skips for pairs that do not apply)."""
-    return [pytest.param(method, law, id=f"{getattr(law, 'name', type(law).__name__)}-{method}")
-            for law in laws for method in methods if applies(method, law)]
+    return [
+        pytest.param(method, law, id=f"{getattr(law, 'name', type(law).__name__)}-{method}")
+        for law in laws
+        for method in methods
+        if applies(method, law)
+    ]
 
 
 def solve_quietly(problem, method, **options):

@@ -30,8 +30,11 @@ def test_two_directions_and_the_side_give_the_third_by_the_isb_convention(side):
         R = random_rotation(rng)
         anterior, proximal, right = R[:, 0], R[:, 1], R[:, 2]  # ISB: X anterior, Y proximal, Z right
         medial = -right if side == "right" else right
-        for given in ({"medial": medial, "proximal": proximal}, {"medial": medial, "anterior": anterior},
-                      {"anterior": anterior, "proximal": proximal}):
+        for given in (
+            {"medial": medial, "proximal": proximal},
+            {"medial": medial, "anterior": anterior},
+            {"anterior": anterior, "proximal": proximal},
+        ):
             frame = AnatomicalFrame.from_directions(**given, side=side)
             np.testing.assert_allclose(frame.medial, medial, atol=1e-12)
             np.testing.assert_allclose(frame.anterior, anterior, atol=1e-12)
@@ -54,8 +57,9 @@ def test_landmarks():
     # a right knee in a frame of its own: epicondyles on x, the hip 400 mm up
     medial_epicondyle, lateral_epicondyle = np.array([45.0, 3.0, 2.0]), np.array([-35.0, 3.0, 2.0])
     hip = np.array([10.0, 20.0, 410.0])
-    frame = AnatomicalFrame.from_landmarks({"medial": medial_epicondyle, "lateral": lateral_epicondyle,
-                                            "proximal": hip}, side="right", origin="midpoint")
+    frame = AnatomicalFrame.from_landmarks(
+        {"medial": medial_epicondyle, "lateral": lateral_epicondyle, "proximal": hip}, side="right", origin="midpoint"
+    )
     np.testing.assert_allclose(frame.medial, X, atol=1e-15)  # the pair's axis is kept exactly
     up = hip - 0.5 * (medial_epicondyle + lateral_epicondyle)
     up -= (up @ X) * X
@@ -64,25 +68,30 @@ def test_landmarks():
     np.testing.assert_array_equal(frame.origin, [5.0, 3.0, 2.0])
     assert frame.origin_name == "medial-lateral midpoint"
     # the distal end named instead of the proximal one gives the same frame
-    other = AnatomicalFrame.from_landmarks({"lateral": lateral_epicondyle, "medial": medial_epicondyle,
-                                            "distal": 2 * np.array([5.0, 3.0, 2.0]) - hip}, side="right")
+    other = AnatomicalFrame.from_landmarks(
+        {"lateral": lateral_epicondyle, "medial": medial_epicondyle, "distal": 2 * np.array([5.0, 3.0, 2.0]) - hip},
+        side="right",
+    )
     np.testing.assert_allclose(other.proximal, frame.proximal, atol=1e-12)
 
 
-@pytest.mark.parametrize("spec, match", [
-    ({"medial": X}, "two of medial, anterior and proximal"),
-    ({"medial": X, "proximal": Z}, "side"),
-    ({"medial": X, "proximal": Z, "side": "up"}, "side must be 'right' or 'left'"),
-    ({"medial": X, "proximal": Z, "side": "right", "colour": 1}, "unknown key colour"),
-    ({"medial": X, "anterior": X + Z, "proximal": Z, "side": "right"}, "must be perpendicular"),
-    ({"medial": X, "anterior": -Y, "proximal": Z, "side": "left"}, "make a right limb"),
-    ({"medial": (0, 0, 0), "proximal": Z, "side": "right"}, "nonzero direction"),
-    ({"medial": X, "proximal": Z, "side": "right", "origin": "knee"}, "origin must be 'centroid'"),
-    ({"landmarks": {"medial": X, "lateral": -X}, "side": "right"}, "three named points"),
-    ({"landmarks": {"medial": X, "lateral": -X, "elbow": Z}, "side": "right"}, "not a direction"),
-    ({"landmarks": {"medial": X, "anterior": Y, "proximal": Z}, "side": "right"}, "one pair of opposite"),
-    ({"landmarks": {"medial": X, "lateral": -X, "proximal": Z}, "medial": X}, "not both"),
-])
+@pytest.mark.parametrize(
+    "spec, match",
+    [
+        ({"medial": X}, "two of medial, anterior and proximal"),
+        ({"medial": X, "proximal": Z}, "side"),
+        ({"medial": X, "proximal": Z, "side": "up"}, "side must be 'right' or 'left'"),
+        ({"medial": X, "proximal": Z, "side": "right", "colour": 1}, "unknown key colour"),
+        ({"medial": X, "anterior": X + Z, "proximal": Z, "side": "right"}, "must be perpendicular"),
+        ({"medial": X, "anterior": -Y, "proximal": Z, "side": "left"}, "make a right limb"),
+        ({"medial": (0, 0, 0), "proximal": Z, "side": "right"}, "nonzero direction"),
+        ({"medial": X, "proximal": Z, "side": "right", "origin": "knee"}, "origin must be 'centroid'"),
+        ({"landmarks": {"medial": X, "lateral": -X}, "side": "right"}, "three named points"),
+        ({"landmarks": {"medial": X, "lateral": -X, "elbow": Z}, "side": "right"}, "not a direction"),
+        ({"landmarks": {"medial": X, "anterior": Y, "proximal": Z}, "side": "right"}, "one pair of opposite"),
+        ({"landmarks": {"medial": X, "lateral": -X, "proximal": Z}, "medial": X}, "not both"),
+    ],
+)
 def test_bad_frames_are_named_errors(spec, match):
     with pytest.raises(d.InputError, match=match):
         AnatomicalFrame.from_dict(spec)
@@ -127,15 +136,17 @@ def test_without_anatomy_the_axes_are_named_not_printed_as_vectors():
 
 def test_summary_gives_centres_of_pressure_in_the_anatomical_frame(tmp_path):
     layer, anatomy = tibial_plateau("right")
-    problem = d.ContactProblem(layer, d.LinearLaw(10.0), force=(0, 0, -900), moment=(-1500, 3000, 0),
-                               free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(10.0), force=(0, 0, -900), moment=(-1500, 3000, 0), free=("uz", "rx", "ry")
+    )
     solution = d.solve(problem, "newton")
     summary = io.summary_dict(solution, anatomy=anatomy)
     origin = layer.areas @ layer.points / layer.areas.sum()
     cop = solution.center_of_pressure - origin
     assert abs(cop[1]) > 0.5  # the moment about x moves it off the axis
-    assert summary["center_of_pressure_anatomical"] == pytest.approx({"medial": -cop[0], "anterior": cop[1],
-                                                                        "proximal": cop[2]}, abs=1e-12)
+    assert summary["center_of_pressure_anatomical"] == pytest.approx(
+        {"medial": -cop[0], "anterior": cop[1], "proximal": cop[2]}, abs=1e-12
+    )
     for name in ("medial", "lateral"):
         mask = layer.labels == name
         weight = solution.pressure[mask] * layer.areas[mask]
@@ -151,11 +162,17 @@ def test_the_readme_examples_of_compartments_and_the_anatomical_frame_run(tmp_pa
     from pathlib import Path
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    blocks = [re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
-              for title in ("### Compartments", "### The anatomical frame")]
+    blocks = [
+        re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
+        for title in ("### Compartments", "### The anatomical frame")
+    ]
     layer = plate_layer(60.0, 30.0, 30, 15, thickness=3.0)
-    namespace = {"layer": layer, "epicondyle_m": np.array([40.0, 0.0, 10.0]),
-                 "epicondyle_l": np.array([-40.0, 0.0, 10.0]), "hip_centre": np.array([0.0, 10.0, 420.0])}
+    namespace = {
+        "layer": layer,
+        "epicondyle_m": np.array([40.0, 0.0, 10.0]),
+        "epicondyle_l": np.array([-40.0, 0.0, 10.0]),
+        "hip_centre": np.array([0.0, 10.0, 420.0]),
+    }
     exec(compile(blocks[0], "README.md", "exec"), namespace)
     labelled = namespace["layer"]
     np.testing.assert_array_equal(labelled.labels, np.where(layer.points[:, 0] < 0, "lateral", "medial"))

@@ -22,8 +22,9 @@ def bed():
 
 
 def pressed(layer, law=None, **kw):
-    return d.ContactProblem(layer, law or d.LinearLaw(1.0), force=(0, 0, -10.0), reference=(0, 0, 25.0),
-                            free=kw.pop("free", ("uz",)), **kw)
+    return d.ContactProblem(
+        layer, law or d.LinearLaw(1.0), force=(0, 0, -10.0), reference=(0, 0, 25.0), free=kw.pop("free", ("uz",)), **kw
+    )
 
 
 # --- solver options ------------------------------------------------------------------------
@@ -43,8 +44,9 @@ def test_max_iter_must_be_a_positive_integer(bed, method, max_iter):
         d.solve(pressed(bed), method, max_iter=max_iter)
 
 
-@pytest.mark.parametrize("method, name", [("nlp", "tol"), ("qp", "tol"), ("newton", "gtol"), ("newton", "xtol"),
-                                          ("auto", "tol")])
+@pytest.mark.parametrize(
+    "method, name", [("nlp", "tol"), ("qp", "tol"), ("newton", "gtol"), ("newton", "xtol"), ("auto", "tol")]
+)
 @pytest.mark.parametrize("value", [-1, 0, 1.5, float("nan"), float("inf"), "1e-8"])
 def test_tolerances_must_lie_in_zero_one(bed, method, name, value):
     with pytest.raises(d.InputError, match=f"{name} must be a number in \\(0, 1\\)"):
@@ -58,10 +60,13 @@ def test_options_are_checked_even_when_no_solver_runs(bed):
         d.solve(unloaded, "newton", x0=[1.0, 2.0])
 
 
-@pytest.mark.parametrize("options, reason", [
-    ({"bogus_key": 1}, "No such IPOPT option: bogus_key"),
-    ({"tol": -1.0}, "Invalid options"),
-])
+@pytest.mark.parametrize(
+    "options, reason",
+    [
+        ({"bogus_key": 1}, "No such IPOPT option: bogus_key"),
+        ({"tol": -1.0}, "Invalid options"),
+    ],
+)
 def test_ipopt_options_ipopt_rejects_are_input_errors(bed, options, reason):
     with pytest.raises(d.InputError, match=f"ipopt_options .* were rejected by IPOPT: {reason}"):
         d.solve(pressed(bed), "nlp", ipopt_options=options)
@@ -82,16 +87,20 @@ def test_an_unknown_qp_solver_setting_is_an_input_error(bed, solver):
 # --- values whose products overflow or underflow -----------------------------------------------
 
 
-@pytest.mark.parametrize("make", [
-    lambda: d.LinearLaw(1e308),
-    lambda: d.LinearLaw(1e-320),
-    lambda: d.LinearLaw(2 * LARGEST),
-    lambda: d.LinearLaw(SMALLEST / 2),
-    lambda: d.AteshianLaw(1e308, 0.1),
-    lambda: d.BlankevoortLaw(1e-310),
-    lambda: d.CubicLaw(1.0, 1e300),
-    lambda: d.PolynomialLaw(1e29, 1e29, 5),  # its Taylor coefficients overflow
-], ids=["H=1e308", "H=1e-320", "H>largest", "H<smallest", "ateshian", "blankevoort", "cubic-beta", "polynomial"])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: d.LinearLaw(1e308),
+        lambda: d.LinearLaw(1e-320),
+        lambda: d.LinearLaw(2 * LARGEST),
+        lambda: d.LinearLaw(SMALLEST / 2),
+        lambda: d.AteshianLaw(1e308, 0.1),
+        lambda: d.BlankevoortLaw(1e-310),
+        lambda: d.CubicLaw(1.0, 1e300),
+        lambda: d.PolynomialLaw(1e29, 1e29, 5),  # its Taylor coefficients overflow
+    ],
+    ids=["H=1e308", "H=1e-320", "H>largest", "H<smallest", "ateshian", "blankevoort", "cubic-beta", "polynomial"],
+)
 def test_law_parameters_out_of_range(make):
     with pytest.raises(d.InputError):
         make()
@@ -111,26 +120,43 @@ def test_the_largest_and_smallest_modulus_solve_exactly(H, method):
     assert s.u[8] == pytest.approx(-F * 2.0 / (H * area), rel=1e-6)
 
 
-@pytest.mark.parametrize("field, value", [
-    ("thickness", 1e-320), ("thickness", 1e-40), ("areas", 1e-320), ("areas", 1e300), ("thickness", 1e200),
-    ("gap", 1e300), ("points", 1e200),
-])
+@pytest.mark.parametrize(
+    "field, value",
+    [
+        ("thickness", 1e-320),
+        ("thickness", 1e-40),
+        ("areas", 1e-320),
+        ("areas", 1e300),
+        ("thickness", 1e200),
+        ("gap", 1e300),
+        ("points", 1e200),
+    ],
+)
 def test_layer_values_out_of_range(bed, field, value):
-    arrays = {"points": bed.points, "normals": bed.normals, "areas": bed.areas, "thickness": bed.thickness,
-              "gap": bed.gap}
+    arrays = {
+        "points": bed.points,
+        "normals": bed.normals,
+        "areas": bed.areas,
+        "thickness": bed.thickness,
+        "gap": bed.gap,
+    }
     arrays[field] = np.full_like(arrays[field], value)
     with pytest.raises(d.InputError, match=f"{field} must be at (most|least)"):
         d.SpringLayer(**arrays)
 
 
-@pytest.mark.parametrize("make", [
-    lambda: d.Load(force=(0, 0, 1e300)),
-    lambda: d.Load(moment=(1e31, 0, 0)),
-    lambda: d.Load(force=(0, 0, -1.0), point=(1e200, 0, 0)),
-    lambda: d.Body(reference=(0, 0, 1e300)),
-    lambda: d.Body(prescribed={"uz": 1e300}),
-    lambda: d.Body(force=(0, 0, 1e31)),
-], ids=["force", "moment", "point", "reference", "prescribed", "body-force"])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: d.Load(force=(0, 0, 1e300)),
+        lambda: d.Load(moment=(1e31, 0, 0)),
+        lambda: d.Load(force=(0, 0, -1.0), point=(1e200, 0, 0)),
+        lambda: d.Body(reference=(0, 0, 1e300)),
+        lambda: d.Body(prescribed={"uz": 1e300}),
+        lambda: d.Body(force=(0, 0, 1e31)),
+    ],
+    ids=["force", "moment", "point", "reference", "prescribed", "body-force"],
+)
 def test_loads_and_bodies_out_of_range(make):
     with pytest.raises(d.InputError, match="must be at most 1e\\+30"):
         make()
@@ -152,8 +178,9 @@ def test_a_nonzero_load_below_the_smallest_scale(bed, size):
 def test_tiny_loads_within_the_range_are_solved(method):
     """1e-12 N and 1e-12 N mm on a unit modulus: far inside the range, solved exactly."""
     layer = plate_layer(10.0, 10.0, 5, 5, thickness=2.0)
-    problem = d.ContactProblem(layer, d.LinearLaw(1.0), force=(0, 0, -1e-12), moment=(1e-13, 0, 0),
-                               free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(1.0), force=(0, 0, -1e-12), moment=(1e-13, 0, 0), free=("uz", "rx", "ry")
+    )
     s = d.solve(problem, method)
     assert s.success
     f = (s.pressure * layer.areas)[:, None] * layer.normals
@@ -165,10 +192,17 @@ def test_law_h_1e308_through_a_scenario_is_a_clean_cli_error(tmp_path):
     """The issue's reproducer went through auto's qp fallback into cvxpy ('Problem data contains
     NaN or Inf'); now the law is rejected when it is built, and the CLI says so."""
     scenario = tmp_path / "huge.toml"
-    scenario.write_text('[geometry]\nkind = "sphere_on_bed"\n[law]\nkind = "linear"\nH = 1e308\n'
-                        '[load]\nforce = [0, 0, -10]\n[body2]\nreference = [0, 0, 25]\nfree = ["uz"]\n')
-    done = subprocess.run([sys.executable, "-m", "dea_opt.cli", "run", str(scenario), "-o", str(tmp_path / "out")],
-                          capture_output=True, text=True, timeout=300, check=False)
+    scenario.write_text(
+        '[geometry]\nkind = "sphere_on_bed"\n[law]\nkind = "linear"\nH = 1e308\n'
+        '[load]\nforce = [0, 0, -10]\n[body2]\nreference = [0, 0, 25]\nfree = ["uz"]\n'
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "dea_opt.cli", "run", str(scenario), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert done.returncode == 2, done.stderr[-2000:]
     assert done.stderr.startswith("dea-opt: error:") and "Traceback" not in done.stderr
     assert "1e+30" in done.stderr

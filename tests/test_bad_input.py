@@ -129,8 +129,11 @@ def test_free_body_without_springs(method):
 
 
 @pytest.mark.parametrize("method", ["newton", "nlp"])
-@pytest.mark.parametrize("law, force", [(d.AteshianLaw(0.6, 0.05), 400.0), (d.AteshianLaw(0.6, 0.0), 400.0),
-                                        (d.BlankevoortLaw(0.6), 100.0)], ids=["ateshian", "ateshian-0", "log"])
+@pytest.mark.parametrize(
+    "law, force",
+    [(d.AteshianLaw(0.6, 0.05), 400.0), (d.AteshianLaw(0.6, 0.0), 400.0), (d.BlankevoortLaw(0.6), 100.0)],
+    ids=["ateshian", "ateshian-0", "log"],
+)
 def test_bounded_laws_pushed_towards_crushing_never_give_nan(method, law, force):
     # The log law's barrier is weak (finite energy at eps = -1), so it gets a smaller load.
     with warnings.catch_warnings():

@@ -28,8 +28,9 @@ def _free_body(force, moment, free=("uz", "rx", "ry")):
 def test_moving_body1_under_the_opposite_load_mirrors_moving_body2(layer, method):
     law = d.LinearLaw(10.0)
     moves2 = d.ContactProblem(layer, law, body2=_free_body(FORCE, MOMENT))
-    moves1 = d.ContactProblem(layer, law, body1=_free_body(np.negative(FORCE), np.negative(MOMENT)),
-                              body2=d.Body(reference=REF, free=()))
+    moves1 = d.ContactProblem(
+        layer, law, body1=_free_body(np.negative(FORCE), np.negative(MOMENT)), body2=d.Body(reference=REF, free=())
+    )
     s2, s1 = solve_quietly(moves2, method), solve_quietly(moves1, method)
     np.testing.assert_allclose(s1.body1_displacement, -s2.body2_displacement, atol=1e-9)
     np.testing.assert_allclose(s1.body2_displacement, 0.0)
@@ -40,8 +41,9 @@ def test_moving_body1_under_the_opposite_load_mirrors_moving_body2(layer, method
 def test_both_bodies_free_give_the_same_relative_motion(layer, method):
     law = d.LinearLaw(10.0)
     one = d.ContactProblem(layer, law, body2=_free_body(FORCE, MOMENT))
-    both = d.ContactProblem(layer, law, body1=_free_body(np.negative(FORCE), np.negative(MOMENT)),
-                            body2=_free_body(FORCE, MOMENT))
+    both = d.ContactProblem(
+        layer, law, body1=_free_body(np.negative(FORCE), np.negative(MOMENT)), body2=_free_body(FORCE, MOMENT)
+    )
     s_one, s_both = solve_quietly(one, method), solve_quietly(both, method)
     relative = s_both.body2_displacement - s_both.body1_displacement
     np.testing.assert_allclose(relative, s_one.body2_displacement, atol=1e-8)

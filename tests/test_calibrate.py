@@ -68,8 +68,9 @@ def knee_problem():
     tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
     layer = M.springs_from_meshes(tibia, femur, labels=labels, max_gap=2.0)
     centre = 0.5 * sum((m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral))
-    return d.ContactProblem(layer, d.AteshianLaw(**TRUE), force=(0.0, 0.0, -1000.0), reference=tuple(centre),
-                            free=("uz", "ry"))
+    return d.ContactProblem(
+        layer, d.AteshianLaw(**TRUE), force=(0.0, 0.0, -1000.0), reference=tuple(centre), free=("uz", "ry")
+    )
 
 
 def test_synthetic_recovery_on_the_real_knee(knee_problem, tmp_path):
@@ -88,25 +89,36 @@ def test_synthetic_recovery_on_the_hip():
     """The demo's hip socket (meshed finer), 2.4 kN tilted 20 degrees from its axis."""
     layer = socket_layer(radius=25.0, thickness=3.0, coverage=80.0, n_rings=90, n_sectors=240, gap=0.3)
     tilt = np.radians(20.0)
-    problem = d.ContactProblem(layer, d.AteshianLaw(**TRUE), force=2400.0 * np.array([np.sin(tilt), 0, -np.cos(tilt)]),
-                               reference=(0, 0, 0), free=("ux", "uy", "uz"))
+    problem = d.ContactProblem(
+        layer,
+        d.AteshianLaw(**TRUE),
+        force=2400.0 * np.array([np.sin(tilt), 0, -np.cos(tilt)]),
+        reference=(0, 0, 0),
+        free=("ux", "uy", "uz"),
+    )
     check_recovery(problem)
 
 
 def small_problem(law=None):
     law = law or d.AteshianLaw(0.6, 0.3)
     layer = sphere_on_bed_layer(radius=25.0, thickness=2.0, extent=7.0, n_rings=30, n_sectors=24)
-    return d.ContactProblem(layer, law, force=(0, 0, -10.0), moment=(3.0, 0, 0), reference=(0, 0, 25.0),
-                            free=("uz", "rx", "ry"))
+    return d.ContactProblem(
+        layer, law, force=(0, 0, -10.0), moment=(3.0, 0, 0), reference=(0, 0, 25.0), free=("uz", "rx", "ry")
+    )
 
 
 def test_the_jacobian_is_the_derivative_of_the_residuals():
     problem = small_problem()
     truth = solve(problem)
     rng = np.random.default_rng(3)
-    data = (PressureMap(problem.layer.points, truth.pressure * np.exp(0.05 * rng.standard_normal(len(truth.pressure))),
-                        film=(0.05, 0.3)),
-            ContactData(area=90.0, center=(0.2, 0.1, 0.0)))
+    data = (
+        PressureMap(
+            problem.layer.points,
+            truth.pressure * np.exp(0.05 * rng.standard_normal(len(truth.pressure))),
+            film=(0.05, 0.3),
+        ),
+        ContactData(area=90.0, center=(0.2, 0.1, 0.0)),
+    )
     model = _Model(problem, data, ("H", "beta"), np.array([True, True]), "newton")
     z = np.log([0.7, 0.25])
     r, J, _ = model.evaluate(z)
@@ -134,7 +146,9 @@ def test_censored_residuals_in_closed_form():
     assert residual(1.2, None) == pytest.approx(np.log(1.0 / 1.2) / 0.1, rel=1e-5)  # log of hypot(m, floor)
     assert residual(0.5, "LLW") == pytest.approx(np.sqrt(-2 * log_ndtr(-np.log(1.0 / 0.5) / 0.1)), rel=1e-5)  # "below"
     assert residual(0.1, "LLLW") == pytest.approx(np.sqrt(-2 * log_ndtr(-np.log(1.0 / 0.2) / 0.1)), rel=1e-5)  # far off
-    assert residual(0.6, "LLLW") == pytest.approx(np.sqrt(-2 * log_ndtr(np.log(1.0 / 0.6) / 0.1)), rel=1e-5)  # saturated
+    assert residual(0.6, "LLLW") == pytest.approx(
+        np.sqrt(-2 * log_ndtr(np.log(1.0 / 0.6) / 0.1)), rel=1e-5
+    )  # saturated
     assert residual(2.5, "LW") < 1e-6  # "below" 2.5 and the model says 1: it agrees
     assert residual(10.0, "LW") > 10.0  # "saturated" while the model says 1
     assert PressureMap(points, [0.5, 1.0, 2.5], film="LLW").state.tolist() == [-1, 0, 1]

@@ -51,6 +51,7 @@ def test_schema():
 
 # --- acceptance 1: the demo -------------------------------------------------------------
 
+
 def test_demo_writes_table_series_plots_and_exposure_map(tmp_path):
     result = invoke("demo", "--coarse", "--frames", "6", "-o", tmp_path)
     assert result.exit_code == 0, result.stderr
@@ -71,6 +72,7 @@ def test_demo_writes_table_series_plots_and_exposure_map(tmp_path):
 
 
 # --- acceptance 2: run ------------------------------------------------------------------
+
 
 def test_run_plate_springs_reproduces_the_closed_form(tmp_path):
     result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path)
@@ -105,9 +107,22 @@ def test_run_a_load_path_with_overrides(tmp_path):
     scenario = tmp_path / "scenarios" / "hip.toml"
     scenario.parent.mkdir()
     scenario.write_text((EXAMPLES / "hip_gait.toml").read_text())
-    result = invoke("run", scenario, "--set", "load_path.frames=4", "--set", "geometry.n_rings=8",
-                    "--set", "geometry.n_sectors=24", "--set", 'output.formats=["csv"]', "-m", "qp",
-                    "--set", "solve.tol=1e-12")
+    result = invoke(
+        "run",
+        scenario,
+        "--set",
+        "load_path.frames=4",
+        "--set",
+        "geometry.n_rings=8",
+        "--set",
+        "geometry.n_sectors=24",
+        "--set",
+        'output.formats=["csv"]',
+        "-m",
+        "qp",
+        "--set",
+        "solve.tol=1e-12",
+    )
     assert result.exit_code == 0, result.stderr
     out = tmp_path / "output" / "hip_gait"  # [output].directory is relative to the scenario
     frames = pd.read_csv(out / "frames.csv")
@@ -116,8 +131,9 @@ def test_run_a_load_path_with_overrides(tmp_path):
 
 
 def test_uncertified_answer_exits_1_with_outputs_written(tmp_path):
-    result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path, "--set", "solve.certificate_tol=1e-30",
-                    "-m", "newton")
+    result = invoke(
+        "run", EXAMPLES / "plate_springs.toml", "-o", tmp_path, "--set", "solve.certificate_tol=1e-30", "-m", "newton"
+    )
     assert result.exit_code == 1
     assert "no certified answer" in result.stderr
     assert (tmp_path / "contact.json").is_file()
@@ -140,23 +156,33 @@ force = [0.0, 0.0, -500.0]
 PATH = PLATE.replace("[load]\nforce = [0.0, 0.0, -500.0]\n", '[load_path]\nfile = "loads.csv"\n')
 
 
-@pytest.mark.parametrize("name, toml, loads, extra, expected", [
-    ("malformed TOML", PLATE.replace("H = 10.0", "H = 10.0 ]"), None, [], "line 6"),
-    ("unknown key", PLATE.replace("H = 10.0", "H = 10.0\nmodulus = 3"), None, [], "law.modulus"),
-    ("string for a number", PLATE.replace("nx = 20", 'nx = "20"'), None, [], "geometry.nx"),
-    ("missing mesh", PLATE.replace('kind = "plate"\nnx = 20\nny = 2', 'kind = "meshes"\nmesh1 = "femur.stl"\n'
-                                   'mesh2 = "tibia.stl"'), None, [], "femur.stl"),
-    ("load CSV without Fz", PATH, "time,Fx,Fy\n0,0,0\n", [], "missing column Fz"),
-    ("non-numeric cell", PATH, "time,Fx,Fy,Fz\n0,0,0,-1\n1,0,zero,-1\n", [], "line 3, column Fy"),
-    ("empty load path", PATH, "time,Fx,Fy,Fz\n", [], "no rows"),
-    ("empty load file", PATH, "", [], "is empty"),
-    ("unknown method", PLATE, None, ["--method", "simplex"], "must be one of auto, newton, qp, nlp"),
-    ("unknown method in the file", PLATE + '[solve]\nmethod = "simplex"\n', None, [], "solve.method"),
-    ("unknown solver", PLATE + '[solve]\nsolver = "NOSUCH"\n', None, ["--method", "qp"], "NOSUCH"),
-    ("missing scenario", None, None, [], "scenario file not found"),
-    ("bad --set", PLATE, None, ["--set", "law.H"], "--set must look like"),
-    ("load pulling apart", PLATE.replace("-500.0]", "500.0]"), None, [], "cannot carry"),
-])
+@pytest.mark.parametrize(
+    "name, toml, loads, extra, expected",
+    [
+        ("malformed TOML", PLATE.replace("H = 10.0", "H = 10.0 ]"), None, [], "line 6"),
+        ("unknown key", PLATE.replace("H = 10.0", "H = 10.0\nmodulus = 3"), None, [], "law.modulus"),
+        ("string for a number", PLATE.replace("nx = 20", 'nx = "20"'), None, [], "geometry.nx"),
+        (
+            "missing mesh",
+            PLATE.replace(
+                'kind = "plate"\nnx = 20\nny = 2', 'kind = "meshes"\nmesh1 = "femur.stl"\nmesh2 = "tibia.stl"'
+            ),
+            None,
+            [],
+            "femur.stl",
+        ),
+        ("load CSV without Fz", PATH, "time,Fx,Fy\n0,0,0\n", [], "missing column Fz"),
+        ("non-numeric cell", PATH, "time,Fx,Fy,Fz\n0,0,0,-1\n1,0,zero,-1\n", [], "line 3, column Fy"),
+        ("empty load path", PATH, "time,Fx,Fy,Fz\n", [], "no rows"),
+        ("empty load file", PATH, "", [], "is empty"),
+        ("unknown method", PLATE, None, ["--method", "simplex"], "must be one of auto, newton, qp, nlp"),
+        ("unknown method in the file", PLATE + '[solve]\nmethod = "simplex"\n', None, [], "solve.method"),
+        ("unknown solver", PLATE + '[solve]\nsolver = "NOSUCH"\n', None, ["--method", "qp"], "NOSUCH"),
+        ("missing scenario", None, None, [], "scenario file not found"),
+        ("bad --set", PLATE, None, ["--set", "law.H"], "--set must look like"),
+        ("load pulling apart", PLATE.replace("-500.0]", "500.0]"), None, [], "cannot carry"),
+    ],
+)
 def test_bad_input_exits_2_with_one_paragraph(tmp_path, name, toml, loads, extra, expected):
     scenario = tmp_path / "case.toml"
     if toml is not None:
@@ -195,6 +221,7 @@ def test_console_script_reports_errors_without_traceback(tmp_path):
 
 # --- issue 10: every raw traceback of the scenario and the CLI is a named error ---------------
 
+
 def _springs_npz(tmp_path, kind):
     import numpy as np
 
@@ -208,17 +235,20 @@ def _springs_npz(tmp_path, kind):
     return PLATE.replace('kind = "plate"\nnx = 20\nny = 2', 'kind = "springs"\nfile = "springs.npz"')
 
 
-@pytest.mark.parametrize("name, expected", [
-    ("non-UTF-8 TOML", "is not UTF-8 text (TOML files are UTF-8): byte 0xe9 at line 2"),
-    ("TOML nested past Python's recursion limit", "nests tables or arrays too deeply"),
-    ("TOML nested deeper than a scenario", "nests tables or arrays more than 16 levels deep"),
-    ("law.H = 1e308", "law.H (line 6): must be <= 1e+30, got 1e+308"),
-    ("NPZ springs with object arrays", "array 'x' holds Python objects"),
-    ("NPZ springs with ragged arrays", "array 'y' has 3 values, but 'x' has 4"),
-    ("a generator parameter of the wrong type", "geometry.parameters.step of hip_meshes must be a number"),
-    ("a mesh path with a NUL byte", "geometry.mesh1 (line 3): a path cannot contain a NUL byte"),
-    ("an output folder with a NUL byte", "output.directory (line 12): a path cannot contain a NUL byte"),
-])
+@pytest.mark.parametrize(
+    "name, expected",
+    [
+        ("non-UTF-8 TOML", "is not UTF-8 text (TOML files are UTF-8): byte 0xe9 at line 2"),
+        ("TOML nested past Python's recursion limit", "nests tables or arrays too deeply"),
+        ("TOML nested deeper than a scenario", "nests tables or arrays more than 16 levels deep"),
+        ("law.H = 1e308", "law.H (line 6): must be <= 1e+30, got 1e+308"),
+        ("NPZ springs with object arrays", "array 'x' holds Python objects"),
+        ("NPZ springs with ragged arrays", "array 'y' has 3 values, but 'x' has 4"),
+        ("a generator parameter of the wrong type", "geometry.parameters.step of hip_meshes must be a number"),
+        ("a mesh path with a NUL byte", "geometry.mesh1 (line 3): a path cannot contain a NUL byte"),
+        ("an output folder with a NUL byte", "output.directory (line 12): a path cannot contain a NUL byte"),
+    ],
+)
 def test_raw_tracebacks_of_issue_10_are_named_errors(tmp_path, name, expected):
     scenario = tmp_path / "case.toml"
     if name == "non-UTF-8 TOML":
@@ -231,15 +261,21 @@ def test_raw_tracebacks_of_issue_10_are_named_errors(tmp_path, name, expected):
     elif name.startswith("NPZ"):
         scenario.write_text(_springs_npz(tmp_path, "object" if "object" in name else "ragged"))
     elif name.startswith("a generator"):
-        scenario.write_text(PLATE.replace('kind = "plate"\nnx = 20\nny = 2',
-                                          'kind = "generator"\nfunction = "hip_meshes"\nparameters = {step = "3"}'))
+        scenario.write_text(
+            PLATE.replace(
+                'kind = "plate"\nnx = 20\nny = 2',
+                'kind = "generator"\nfunction = "hip_meshes"\nparameters = {step = "3"}',
+            )
+        )
     elif name.startswith("a mesh path"):
-        scenario.write_text(PLATE.replace('kind = "plate"\nnx = 20\nny = 2',
-                                          'kind = "meshes"\nmesh1 = "a\\u0000.stl"\nmesh2 = "b.stl"'))
+        scenario.write_text(
+            PLATE.replace('kind = "plate"\nnx = 20\nny = 2', 'kind = "meshes"\nmesh1 = "a\\u0000.stl"\nmesh2 = "b.stl"')
+        )
     else:
         scenario.write_text(PLATE + '[output]\ndirectory = "out\\u0000put"\n')
-    text = one_paragraph_error(invoke("run", scenario) if "output folder" in name else
-                               invoke("run", scenario, "-o", tmp_path / "out"))
+    text = one_paragraph_error(
+        invoke("run", scenario) if "output folder" in name else invoke("run", scenario, "-o", tmp_path / "out")
+    )
     assert expected in text
 
 

@@ -58,7 +58,8 @@ def case(tmp_path):
     points = solution.problem.layer.points
     reading = solution.pressure * np.exp(0.05 * rng.standard_normal(len(points)))
     pd.DataFrame({"x": points[:, 0], "y": points[:, 1], "z": points[:, 2], "p": reading}).to_csv(
-        tmp_path / "film.csv", index=False)
+        tmp_path / "film.csv", index=False
+    )
     scenario = tmp_path / "start.toml"
     scenario.write_text(SCENARIO.format(H=1.2, beta=0.6))
     return scenario, tmp_path / "film.csv", solution
@@ -85,20 +86,24 @@ def test_calibrate_writes_the_fit(case):
 
 def test_calibrate_one_parameter_into_a_folder(case, tmp_path):
     scenario, film, _ = case
-    result = invoke("calibrate", scenario, "--data", film, "--parameters", "H", "--set", "law.beta=0.3",
-                    "-o", tmp_path / "fit")
+    result = invoke(
+        "calibrate", scenario, "--data", film, "--parameters", "H", "--set", "law.beta=0.3", "-o", tmp_path / "fit"
+    )
     assert result.exit_code == 0, result.stderr
     summary = json.loads((tmp_path / "fit" / "calibration.json").read_text())
     assert summary["parameters"] == ["H"] and summary["values"]["H"] == pytest.approx(0.6, rel=0.01)
 
 
-@pytest.mark.parametrize("extra, expected", [
-    (["--data", "nosuch.csv"], "no such file"),
-    (["--data", "{film}", "--film", "XYZ"], "film must be one of"),
-    (["--data", "{film}", "--film", "a,b"], "--film must be"),
-    (["--data", "{film}", "--parameters", "E"], "parameters must name"),
-    (["--data", "{film}", "--noise", "-1"], "noise must be"),
-])
+@pytest.mark.parametrize(
+    "extra, expected",
+    [
+        (["--data", "nosuch.csv"], "no such file"),
+        (["--data", "{film}", "--film", "XYZ"], "film must be one of"),
+        (["--data", "{film}", "--film", "a,b"], "--film must be"),
+        (["--data", "{film}", "--parameters", "E"], "parameters must name"),
+        (["--data", "{film}", "--noise", "-1"], "noise must be"),
+    ],
+)
 def test_bad_input_exits_2_with_one_paragraph(case, extra, expected):
     scenario, film, _ = case
     result = invoke("calibrate", scenario, *[str(a).format(film=film) for a in extra])

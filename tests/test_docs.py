@@ -27,8 +27,27 @@ SOURCES = sorted((ROOT / "dea_opt").rglob("*.py"))
 #: Words in formulas that are not symbols: functions, the words of an optimisation problem,
 #: and the index letters every page uses (i over springs, j over dofs, k over bodies, b over
 #: blocks).
-VOCABULARY = {"sum", "min", "max", "sqrt", "diag", "exp", "ln", "sin", "cos", "int", "inf", "minimize",
-              "subject", "to", "i", "j", "k", "b", "active"}
+VOCABULARY = {
+    "sum",
+    "min",
+    "max",
+    "sqrt",
+    "diag",
+    "exp",
+    "ln",
+    "sin",
+    "cos",
+    "int",
+    "inf",
+    "minimize",
+    "subject",
+    "to",
+    "i",
+    "j",
+    "k",
+    "b",
+    "active",
+}
 
 
 @pytest.mark.parametrize("name", formulations.names())
@@ -81,8 +100,12 @@ def _formulas(text: str) -> list[str]:
     for i, line in enumerate(lines):
         if line.startswith("```"):
             fence = not fence
-        elif not fence and line.startswith("    ") and line.strip() and (
-                i == 0 or not lines[i - 1].strip() or lines[i - 1].startswith("    ")):
+        elif (
+            not fence
+            and line.startswith("    ")
+            and line.strip()
+            and (i == 0 or not lines[i - 1].strip() or lines[i - 1].startswith("    "))
+        ):
             out.append(line)
     return out
 
@@ -124,8 +147,10 @@ def test_every_symbol_of_a_page_s_formulas_is_defined_on_that_page(page):
 
 
 def test_the_symbol_check_catches_an_undefined_symbol():
-    text = "## Symbols\n\n| symbol | meaning |\n|---|---|\n| `x`, `V_i` | dofs, volumes |\n\n## Math\n\n" \
-           "    Phi(x) = sum_i V_i w(x_i)  (a remark with y)\n    K^T A^(-1/2)\n"
+    text = (
+        "## Symbols\n\n| symbol | meaning |\n|---|---|\n| `x`, `V_i` | dofs, volumes |\n\n## Math\n\n"
+        "    Phi(x) = sum_i V_i w(x_i)  (a remark with y)\n    K^T A^(-1/2)\n"
+    )
     defined = _defined(text)
     tokens = {t for line in _formulas(text) for t in _identifiers(line)}
     assert tokens == {"Phi", "x", "sum_i", "V_i", "w", "x_i", "K", "A"}
@@ -135,8 +160,11 @@ def test_the_symbol_check_catches_an_undefined_symbol():
 def test_error_catalogue_lists_every_error():
     readme = (ROOT / "README.md").read_text()
     catalogue = readme.split("## Error catalogue", 1)[1].split("\n## ", 1)[0]
-    classes = [c for _, c in inspect.getmembers(dea_opt.errors, inspect.isclass)
-               if issubclass(c, (dea_opt.DeaError, Warning)) and c.__module__ == "dea_opt.errors"]
+    classes = [
+        c
+        for _, c in inspect.getmembers(dea_opt.errors, inspect.isclass)
+        if issubclass(c, (dea_opt.DeaError, Warning)) and c.__module__ == "dea_opt.errors"
+    ]
     assert len(classes) >= 5
     for cls in classes:
         assert f"`{cls.__name__}`" in catalogue, f"{cls.__name__} is not in the README's error catalogue"
@@ -157,8 +185,10 @@ def test_the_readme_run_status_table_lists_every_run_status_with_its_exit_code_a
 
     readme = (ROOT / "README.md").read_text()
     table = readme.split("### Run statuses", 1)[1].split("\n#", 1)[0]
-    rows = {m.group(1): (int(m.group(2)), m.group(3).strip())
-            for m in re.finditer(r"^\| `(\w+)` \| (\d+) \| (.+?) \|$", table, re.MULTILINE)}
+    rows = {
+        m.group(1): (int(m.group(2)), m.group(3).strip())
+        for m in re.finditer(r"^\| `(\w+)` \| (\d+) \| (.+?) \|$", table, re.MULTILINE)
+    }
     assert set(rows) == {status.value for status in RunStatus}
     for status in RunStatus:
         assert rows[status.value] == (status.exit_code, status.description.replace("|", "\\|")), status

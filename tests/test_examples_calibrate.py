@@ -45,9 +45,11 @@ def test_calibrate_from_film_coarse(tmp_path):
     assert set(residuals.state) <= {"below", "measured", "saturated"} and len(residuals) == len(film)
     within = residuals.state == "measured"
     # a reading within the range: (log predicted - log measured) / noise
-    np.testing.assert_allclose(residuals.residual[within],
-                               np.log(np.hypot(residuals.predicted[within], 5e-4) / residuals.measured[within]) / 0.05,
-                               rtol=1e-9)
+    np.testing.assert_allclose(
+        residuals.residual[within],
+        np.log(np.hypot(residuals.predicted[within], 5e-4) / residuals.measured[within]) / 0.05,
+        rtol=1e-9,
+    )
     unc = summary["uncertainty"]
     assert unc["failed_draws"] == 0 and unc["draws"] == 24
     assert unc["first_order"]["peak_pressure"] > 0 and unc["monte_carlo"]["peak_pressure"] > 0

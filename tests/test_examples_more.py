@@ -52,6 +52,7 @@ def ball_in_socket(force, H, R, h, gap):
     carried is ``2 pi R^2 int_{cos t > gap/d} H (d cos t - gap) / h cos t sin t dt``.
     Returns ``(approach d, peak pressure, contact area)``.
     """
+
     def carried(dd):
         c0 = gap / dd
         # Gauss-Legendre with 4 nodes is exact for this quadratic in c.
@@ -168,8 +169,9 @@ def test_hip_files(hip):
     assert last.cells[0].type == "triangle"
     np.testing.assert_allclose(last.point_data["pressure"], path.pressures[-1], rtol=1e-12)
     exposure = meshio.read(out / "exposure.vtu")
-    np.testing.assert_allclose(exposure.point_data["pressure_time_integral"],
-                               path.exposure.pressure_time_integral, rtol=1e-12)
+    np.testing.assert_allclose(
+        exposure.point_data["pressure_time_integral"], path.exposure.pressure_time_integral, rtol=1e-12
+    )
     for name in ("cycle.png", "exposure.png"):
         assert (out / name).read_bytes()[:8] == PNG
     summary = json.loads((out / "summary.json").read_text())
@@ -194,8 +196,7 @@ def _knee_checks(result, load):
         assert row["medial_share"] + row["lateral_share"] == pytest.approx(1.0, abs=1e-12)
         if layer.labels is not None:
             for side in ("medial", "lateral"):
-                assert row[f"{side}_share"] == pytest.approx(force[layer.labels == side].sum() / force.sum(),
-                                                             rel=1e-12)
+                assert row[f"{side}_share"] == pytest.approx(force[layer.labels == side].sum() / force.sum(), rel=1e-12)
 
 
 @pytest.fixture(scope="module")
@@ -237,8 +238,10 @@ def test_knee_files(knee):
     written = pd.read_csv(out / "knee_comparison.csv")
     np.testing.assert_allclose(written["peak_pressure"], result["table"]["peak_pressure"], rtol=1e-12)
     summary = json.loads((out / "knee_linear.json").read_text())
-    shares = {r["name"]: r["share"] for r in (summary["regions"].values() if isinstance(summary["regions"], dict)
-                                              else summary["regions"])}
+    shares = {
+        r["name"]: r["share"]
+        for r in (summary["regions"].values() if isinstance(summary["regions"], dict) else summary["regions"])
+    }
     assert shares["medial"] == pytest.approx(result["table"]["medial_share"].iloc[0], rel=1e-12)
     for line in result["markdown"].splitlines():
         if line.startswith("| linear |"):
@@ -264,9 +267,15 @@ def test_knee_file_roles(tmp_path):
         (tmp_path / name).write_bytes(b"x")
     p = {name: tmp_path / name for name in names}
     assert module.find_meshes([p["lat_tib.stl"], p["femur.stl"], p["med_tib.stl"]]) == {
-        "lateral": p["lat_tib.stl"], "femur": p["femur.stl"], "medial": p["med_tib.stl"]}
+        "lateral": p["lat_tib.stl"],
+        "femur": p["femur.stl"],
+        "medial": p["med_tib.stl"],
+    }
     assert module.find_meshes([p["a.stl"], p["b.stl"], p["c.stl"]]) == {
-        "femur": p["a.stl"], "medial": p["b.stl"], "lateral": p["c.stl"]}
+        "femur": p["a.stl"],
+        "medial": p["b.stl"],
+        "lateral": p["c.stl"],
+    }
     assert module.find_meshes([p["tibia.stl"], p["a.stl"]]) == {"tibia": p["tibia.stl"], "femur": p["a.stl"]}
     with pytest.raises(ValueError, match="cannot tell"):
         module.find_meshes([p["femur.stl"], p["med_tib.stl"]])
@@ -283,8 +292,12 @@ def synthetic_knee(tmp_path_factory):
     folder = tmp_path_factory.mktemp("synthetic_knee")
     pair = knee_meshes(condyle_radius=(30.0, 30.0))
     labels = pair.options["labels"]
-    files = {"femur": folder / "femur.stl", "medial": folder / "medial.stl",
-             "lateral": folder / "lateral.stl", "tibia": folder / "tibia.stl"}
+    files = {
+        "femur": folder / "femur.stl",
+        "medial": folder / "medial.stl",
+        "lateral": folder / "lateral.stl",
+        "tibia": folder / "tibia.stl",
+    }
     pair.mesh2.export(files["femur"])
     pair.mesh1.export(files["tibia"])
     for side in ("medial", "lateral"):
@@ -296,8 +309,11 @@ def synthetic_knee(tmp_path_factory):
 def test_knee_example_on_a_synthetic_knee_matches_the_closed_form(synthetic_knee, tmp_path, mode):
     module = _load("knee_from_meshes")
     pair, files = synthetic_knee
-    paths = ([files["femur"], files["medial"], files["lateral"]] if mode == "three files"
-             else [files["tibia"], files["femur"]])
+    paths = (
+        [files["femur"], files["medial"], files["lateral"]]
+        if mode == "three files"
+        else [files["tibia"], files["femur"]]
+    )
     load = 400.0
     result = module.main([*map(str, paths), "--coarse", "--load", f"{load:g}", "--out", str(tmp_path)])
     _knee_checks(result, load)

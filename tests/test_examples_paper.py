@@ -211,7 +211,9 @@ def test_shape_analysis_matches_eq2(validity):
     for beta, v in result["shape"].items():
         assert v["deviation_at_claim"] == pytest.approx(H * -0.3 / eq2(-0.3, beta) - 1, rel=1e-10)
         for level, strain in v["departure"].items():
-            expected = brentq(lambda s, beta=beta, level=level: (1 - H * s / -eq2(-s, beta)) - level, 1e-6, 0.9, xtol=1e-14)
+            expected = brentq(
+                lambda s, beta=beta, level=level: (1 - H * s / -eq2(-s, beta)) - level, 1e-6, 0.9, xtol=1e-14
+            )
             assert strain == pytest.approx(expected, abs=1e-9)
         assert v["departure"][0.05] < v["departure"][0.10] < 0.3
     assert result["shape"][0.05]["deviation_at_claim"] == pytest.approx(-0.1848, abs=1e-4)
@@ -309,7 +311,8 @@ def test_validity_files(validity):
     sweep = pd.read_csv(out / "validity_sweep.csv")
     assert len(sweep) == sum(len(f) for f in result["frames"].values())
     np.testing.assert_allclose(
-        sweep["peak_pressure_MPa"], pd.concat(result["frames"].values())["peak_pressure_MPa"], rtol=1e-12)
+        sweep["peak_pressure_MPa"], pd.concat(result["frames"].values())["peak_pressure_MPa"], rtol=1e-12
+    )
     departures = pd.read_csv(out / "validity_departures.csv")
     np.testing.assert_allclose(departures["strain_ref_5"], result["pressure"]["strain_ref_5"], rtol=1e-12)
     assert not list(out.glob(".*.tmp")), "a temporary file was left behind"
@@ -334,9 +337,13 @@ def test_knee_sweep_when_available():
     laws = module.validity_laws()
     problem = module.knee_problem(laws["linear"], KNEE)
     assert set(problem.layer.labels) == {"medial", "lateral"}
-    frame = module.load_sweep(problem, {k: laws[k] for k in ("linear", "ateshian_b0.05")},
-                              np.geomspace(5.0, 100.0, 4), geometry="knee",
-                              check=module.window_check(module.KNEE_MAX_GAP))
+    frame = module.load_sweep(
+        problem,
+        {k: laws[k] for k in ("linear", "ateshian_b0.05")},
+        np.geomspace(5.0, 100.0, 4),
+        geometry="knee",
+        check=module.window_check(module.KNEE_MAX_GAP),
+    )
     lin = frame.query("law == 'linear'")["peak_pressure_MPa"].to_numpy()
     ate = frame.query("law == 'ateshian_b0.05'")["peak_pressure_MPa"].to_numpy()
     assert np.all(np.diff(lin) > 0) and np.all(ate >= lin)  # Eq. (2) is stiffer in compression

@@ -19,8 +19,9 @@ from dea_opt.study import installed_qp_solvers
 
 def _plate(law=None, e=5.0):
     layer = plate_layer(40.0, 10.0, 80, 4, thickness=2.0)
-    return d.ContactProblem(layer, law or d.LinearLaw(10.0), load=d.Load((0, 0, -500.0), point=(e, 0, 0)),
-                            free=("uz", "rx", "ry"))
+    return d.ContactProblem(
+        layer, law or d.LinearLaw(10.0), load=d.Load((0, 0, -500.0), point=(e, 0, 0)), free=("uz", "rx", "ry")
+    )
 
 
 def _bed(law, force):
@@ -94,8 +95,11 @@ def test_newton_iteration_limit():
 
 
 #: First-order QP solvers that stop early at a loose tolerance, those installed here.
-LOOSE = [(solver, options) for solver, options in (("SCS", {}), ("OSQP", {"polishing": False}))
-         if solver in installed_qp_solvers()]
+LOOSE = [
+    (solver, options)
+    for solver, options in (("SCS", {}), ("OSQP", {"polishing": False}))
+    if solver in installed_qp_solvers()
+]
 
 
 @pytest.mark.parametrize("solver, options", LOOSE)
@@ -188,8 +192,12 @@ def test_auto_uses_newton_when_it_succeeds_and_qp_for_linear_fallback(monkeypatc
 
     def fails(self, load=None, *, x0=None):
         return d.formulations.FormulationResult(
-            u_free=np.zeros(self.system.n_dofs), stress=np.zeros(self.system.n_springs), success=False,
-            status=Status.MAX_ITERATIONS, message="forced failure")
+            u_free=np.zeros(self.system.n_dofs),
+            stress=np.zeros(self.system.n_springs),
+            success=False,
+            status=Status.MAX_ITERATIONS,
+            message="forced failure",
+        )
 
     monkeypatch.setattr(newton.NewtonModel, "solve", fails)
     s = d.solve(_plate())

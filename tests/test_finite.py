@@ -37,8 +37,16 @@ def punch(nx=60, ny=6, length=PUNCH):
 
 
 def punch_problem(layer, force, moment, reference=(0.0, 0.0, 0.0), free=("uz", "ry"), law=None, **kw):
-    return d.ContactProblem(layer, law or d.LinearLaw(H), force=(0.0, 0.0, -force), moment=(0.0, moment, 0.0),
-                            reference=reference, free=free, kinematics="finite", **kw)
+    return d.ContactProblem(
+        layer,
+        law or d.LinearLaw(H),
+        force=(0.0, 0.0, -force),
+        moment=(0.0, moment, 0.0),
+        reference=reference,
+        free=free,
+        kinematics="finite",
+        **kw,
+    )
 
 
 def springs_on_body2(solution):
@@ -51,8 +59,10 @@ def springs_on_body2(solution):
 
 # --- geometry --------------------------------------------------------------------------------
 
-@pytest.mark.parametrize("theta", [np.zeros(3), np.array([1e-5, -2e-5, 3e-6]), np.array([0.3, -0.2, 0.5]),
-                                   np.array([1.5, 0.4, -2.0])])
+
+@pytest.mark.parametrize(
+    "theta", [np.zeros(3), np.array([1e-5, -2e-5, 3e-6]), np.array([0.3, -0.2, 0.5]), np.array([1.5, 0.4, -2.0])]
+)
 def test_rotation_and_its_jacobian(theta):
     assert np.abs(G.rotation(theta) - Rotation.from_rotvec(theta).as_matrix()).max() < 1e-14
     R, J = G.rotation(theta), G.left_jacobian(theta)
@@ -63,8 +73,12 @@ def test_rotation_and_its_jacobian(theta):
         spin = dR @ R.T  # [J e_j]x
         assert np.allclose([spin[2, 1], spin[0, 2], spin[1, 0]], J[:, j], atol=1e-8)
     moment = np.array([3.0, -1.0, 2.0])
-    fd = np.column_stack([(G.left_jacobian(theta + e).T @ moment - G.left_jacobian(theta - e).T @ moment) / 2e-6
-                          for e in np.eye(3) * 1e-6])
+    fd = np.column_stack(
+        [
+            (G.left_jacobian(theta + e).T @ moment - G.left_jacobian(theta - e).T @ moment) / 2e-6
+            for e in np.eye(3) * 1e-6
+        ]
+    )
     assert np.allclose(G.jacobian_transpose_derivative(theta, moment), fd, atol=1e-7)
 
 
@@ -112,22 +126,39 @@ def test_gap_derivative_is_the_derivative_of_the_gap(kind):
 def test_the_tangent_is_the_jacobian_of_the_residual(kind):
     rng = np.random.default_rng(5)
     p, n = _random_springs(rng, 150)
-    system = FiniteSystem(p, n, rng.uniform(0.5, 1.0, len(p)), rng.uniform(2.0, 3.0, len(p)), _targets(kind, rng, p, n),
-                          np.array([1.0, 2.0, 5.0]), np.array([0, 2, 3, 4]), np.array([0.0, 0.1, 0.0, 0.0, 0.0, 0.2]),
-                          np.array([1.0, 2.0, -50.0]), np.array([10.0, -20.0, 5.0]))
+    system = FiniteSystem(
+        p,
+        n,
+        rng.uniform(0.5, 1.0, len(p)),
+        rng.uniform(2.0, 3.0, len(p)),
+        _targets(kind, rng, p, n),
+        np.array([1.0, 2.0, 5.0]),
+        np.array([0, 2, 3, 4]),
+        np.array([0.0, 0.1, 0.0, 0.0, 0.0, 0.2]),
+        np.array([1.0, 2.0, -50.0]),
+        np.array([10.0, -20.0, 5.0]),
+    )
     law = d.CubicLaw(H, 0.3)
     x = np.array([0.05, -0.3, 0.1, -0.05])
     state = system.state(system.coordinates(x), law)
     assert (state.eps < 0).sum() > 10
-    fd = np.column_stack([(system.state(system.coordinates(x + e), law).residual()
-                           - system.state(system.coordinates(x - e), law).residual()) / 2e-7
-                          for e in np.eye(4) * 1e-7])
+    fd = np.column_stack(
+        [
+            (
+                system.state(system.coordinates(x + e), law).residual()
+                - system.state(system.coordinates(x - e), law).residual()
+            )
+            / 2e-7
+            for e in np.eye(4) * 1e-7
+        ]
+    )
     K = state.tangent()
     assert np.abs(K - fd).max() <= 1e-6 * np.abs(K).max()
     assert np.abs(K - K.T).max() > 1e-3 * np.abs(K).max()  # not symmetric: no energy behind it
 
 
 # --- the flat punch --------------------------------------------------------------------------
+
 
 def _second_moment(layer):
     return float(layer.areas @ layer.points[:, 0] ** 2)
@@ -146,8 +177,11 @@ def test_tilted_punch_in_full_contact_tan_theta_is_m_over_k_i(degrees):
     resultant, about = springs_on_body2(finite)
     assert np.allclose(resultant, [0.0, 0.0, force], atol=1e-9 * force)  # along the bed's normal
     assert abs(about[1] + moment) < 1e-9 * moment
-    small = solve(d.ContactProblem(layer, d.LinearLaw(H), force=(0, 0, -force), moment=(0, moment, 0),
-                                   reference=(0, 0, 0), free=("uz", "ry")))
+    small = solve(
+        d.ContactProblem(
+            layer, d.LinearLaw(H), force=(0, 0, -force), moment=(0, moment, 0), reference=(0, 0, 0), free=("uz", "ry")
+        )
+    )
     assert abs(small.u[10] - moment / (k * I)) < 1e-9  # the small kinematics: theta itself
     assert abs(finite.u[10] - np.arctan(small.u[10])) < 1e-9
 
@@ -191,8 +225,16 @@ def test_finite_and_small_agree_to_second_order():
     for degrees in (0.25, 0.5, 1.0, 2.0, 4.0):
         moment = k * I * np.tan(np.radians(degrees))
         finite = solve(punch_problem(layer, force, moment, reference=(0.0, 0.0, z_c)))
-        small = solve(d.ContactProblem(layer, d.LinearLaw(H), force=(0, 0, -force), moment=(0, moment, 0),
-                                       reference=(0, 0, z_c), free=("uz", "ry")))
+        small = solve(
+            d.ContactProblem(
+                layer,
+                d.LinearLaw(H),
+                force=(0, 0, -force),
+                moment=(0, moment, 0),
+                reference=(0, 0, z_c),
+                free=("uz", "ry"),
+            )
+        )
         assert (finite.strain < 0).all() and (small.strain < 0).all()
         theta = finite.u[10]
         assert abs(np.tan(theta) - moment / (k * I)) < 1e-12
@@ -205,6 +247,7 @@ def test_finite_and_small_agree_to_second_order():
 
 
 # --- spheres ---------------------------------------------------------------------------------
+
 
 def test_sphere_on_a_bed_pressed_straight_down_is_the_small_answer():
     """A vertical translation moves a sphere straight along every vertical ray: the exact gaps are
@@ -226,8 +269,11 @@ def test_ball_in_socket_turns_freely_and_agrees_with_small_to_second_order():
     targets = Targets.spheres((0.0, 0.0, 0.0), 24.8, n=len(layer))
     motions, differences = [], []
     for scale in (0.5, 1.0, 2.0, 4.0):
-        kw = {"force": (3.0 * scale, 1.0 * scale, -10.0 * scale), "reference": (0.0, 0.0, 0.0),
-              "free": ("ux", "uy", "uz")}
+        kw = {
+            "force": (3.0 * scale, 1.0 * scale, -10.0 * scale),
+            "reference": (0.0, 0.0, 0.0),
+            "free": ("ux", "uy", "uz"),
+        }
         finite = solve(d.ContactProblem(layer, d.LinearLaw(1.0), kinematics="finite", targets=targets, **kw))
         small = solve(d.ContactProblem(layer, d.LinearLaw(1.0), **kw))
         resultant, _ = springs_on_body2(finite)
@@ -236,13 +282,21 @@ def test_ball_in_socket_turns_freely_and_agrees_with_small_to_second_order():
         differences.append(np.abs(finite.u - small.u).max())
     slope = np.polyfit(np.log(motions), np.log(differences), 1)[0]
     assert slope > 1.9
-    turned = d.ContactProblem(layer, d.LinearLaw(1.0), force=(0, 0, -10.0), reference=(0, 0, 0), free=("uz", "rx", "ry"),
-                              kinematics="finite", targets=targets)
+    turned = d.ContactProblem(
+        layer,
+        d.LinearLaw(1.0),
+        force=(0, 0, -10.0),
+        reference=(0, 0, 0),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=targets,
+    )
     held = solve(turned)
     assert held.success and held.info.get("held") and abs(held.u[9:]).max() == 0.0
 
 
 # --- Newton and IPOPT ------------------------------------------------------------------------
+
 
 def _cases():
     layer = punch(20, 4)
@@ -250,29 +304,54 @@ def _cases():
     force = 1.6 * k * layer.areas.sum() * (PUNCH / 2) * np.tan(np.radians(25.0))
     rng = np.random.default_rng(11)
     tilted = plate_layer(8.0, 8.0, 12, 12, thickness=3.0)
-    m = -tilted.normals + np.column_stack([rng.normal(0, 0.15, len(tilted)), rng.normal(0, 0.15, len(tilted)),
-                                           np.zeros(len(tilted))])
+    m = -tilted.normals + np.column_stack(
+        [rng.normal(0, 0.15, len(tilted)), rng.normal(0, 0.15, len(tilted)), np.zeros(len(tilted))]
+    )
     planes = Targets.planes(tilted.points, m)
     out = {
         "punch 20 deg": punch_problem(layer, force, k * I * np.tan(np.radians(20.0))),
         "lifted punch": punch_problem(layer, 20.0, 20.0 * 0.6 * PUNCH / 2),
-        "punch, Ateshian law, ux free (held)": punch_problem(layer, force, k * I * np.tan(np.radians(15.0)),
-                                                             free=("ux", "uz", "ry"), law=d.AteshianLaw(H, 0.3)),
+        "punch, Ateshian law, ux free (held)": punch_problem(
+            layer, force, k * I * np.tan(np.radians(15.0)), free=("ux", "uz", "ry"), law=d.AteshianLaw(H, 0.3)
+        ),
         "tilted planes, moments on three axes": d.ContactProblem(
-            tilted, d.CubicLaw(H, 0.2), force=(0.0, 0.0, -300.0), moment=(150.0, -200.0, 80.0),
-            reference=(0.5, -0.3, 4.0), free=("uz", "rx", "ry"), kinematics="finite", targets=planes),
+            tilted,
+            d.CubicLaw(H, 0.2),
+            force=(0.0, 0.0, -300.0),
+            moment=(150.0, -200.0, 80.0),
+            reference=(0.5, -0.3, 4.0),
+            free=("uz", "rx", "ry"),
+            kinematics="finite",
+            targets=planes,
+        ),
         "prescribed rotation of 20 deg": d.ContactProblem(
-            tilted, d.LinearLaw(H), body2=d.Body(reference=(0.0, 0.0, 4.0), free=("uz", "ry"), force=(0, 0, -400.0),
-                                                 prescribed={"rx": np.radians(20.0)}),
-            kinematics="finite", targets=planes),
+            tilted,
+            d.LinearLaw(H),
+            body2=d.Body(
+                reference=(0.0, 0.0, 4.0), free=("uz", "ry"), force=(0, 0, -400.0), prescribed={"rx": np.radians(20.0)}
+            ),
+            kinematics="finite",
+            targets=planes,
+        ),
         "ball in a socket, pushed off its axis": d.ContactProblem(
             socket_layer(radius=25.0, thickness=2.0, coverage=80.0, n_rings=20, n_sectors=40, gap=0.2),
-            d.AteshianLaw(1.0, 0.2), force=(6.0, 2.0, -20.0), reference=(0.0, 0.0, 0.0), free=("ux", "uy", "uz"),
-            kinematics="finite", targets=Targets.spheres((0.0, 0.0, 0.0), 24.8, n=800)),
+            d.AteshianLaw(1.0, 0.2),
+            force=(6.0, 2.0, -20.0),
+            reference=(0.0, 0.0, 0.0),
+            free=("ux", "uy", "uz"),
+            kinematics="finite",
+            targets=Targets.spheres((0.0, 0.0, 0.0), 24.8, n=800),
+        ),
         "sphere on a bed, rolled": d.ContactProblem(
-            sphere_on_bed_layer(25.0, 2.0, 7.0, 20, 24), d.LinearLaw(1.0), force=(0, 0, -30.0), moment=(0, 40.0, 0),
-            reference=(0.0, 0.0, 20.0), free=("uz", "ry"), kinematics="finite",
-            targets=Targets.spheres((0.0, 0.0, 25.0), 25.0, n=480)),
+            sphere_on_bed_layer(25.0, 2.0, 7.0, 20, 24),
+            d.LinearLaw(1.0),
+            force=(0, 0, -30.0),
+            moment=(0, 40.0, 0),
+            reference=(0.0, 0.0, 20.0),
+            free=("uz", "ry"),
+            kinematics="finite",
+            targets=Targets.spheres((0.0, 0.0, 25.0), 25.0, n=480),
+        ),
     }
     return out
 
@@ -305,11 +384,15 @@ def test_newton_and_ipopt_agree(name):
 
 def test_statuses_are_the_vocabulary_of_every_method():
     layer = punch(10, 2)
-    unloaded = solve(d.ContactProblem(layer.with_gap(0.1), d.LinearLaw(H), reference=(0, 0, 0), free=("uz", "ry"),
-                                      kinematics="finite"))
+    unloaded = solve(
+        d.ContactProblem(
+            layer.with_gap(0.1), d.LinearLaw(H), reference=(0, 0, 0), free=("uz", "ry"), kinematics="finite"
+        )
+    )
     assert unloaded.success and unloaded.status is d.Status.UNLOADED and not unloaded.pressure.any()
-    pressed = solve(d.ContactProblem(layer.with_gap(-0.1), d.LinearLaw(H), reference=(0, 0, 0), free=("ry",),
-                                     kinematics="finite"))
+    pressed = solve(
+        d.ContactProblem(layer.with_gap(-0.1), d.LinearLaw(H), reference=(0, 0, 0), free=("ry",), kinematics="finite")
+    )
     assert pressed.success and pressed.status is d.Status.PRELOADED and pressed.pressure.min() > 0
     assert solve(punch_problem(layer, 50.0, 0.0)).status is d.Status.CONVERGED
 
@@ -321,6 +404,7 @@ def test_auto_is_newton_and_certified():
 
 
 # --- the solution, its pose and reactions -------------------------------------------------------
+
 
 def test_pose_and_reactions_at_the_solved_pose():
     problem = CASES["prescribed rotation of 20 deg"]
@@ -359,6 +443,7 @@ def test_validity_of_finite_kinematics_does_not_judge_rotations():
 
 # --- bad input ---------------------------------------------------------------------------------
 
+
 def test_bad_input_is_named():
     layer = punch(10, 2)
     with pytest.raises(d.InputError, match="kinematics must be one of"):
@@ -385,6 +470,7 @@ def test_bad_input_is_named():
 
 # --- random problems, checked by sums written here ------------------------------------------------
 
+
 @pytest.mark.parametrize("seed", range(8))
 def test_random_tilted_problems_are_in_equilibrium_by_our_own_sums(seed):
     """Random targets tilted up to 15 degrees off the springs, random loads, moments and free
@@ -404,8 +490,9 @@ def test_random_tilted_problems_are_in_equilibrium_by_our_own_sums(seed):
     moment = tuple(float(v) for v in rng.normal(0.0, 60.0, 3))
     reference = tuple(float(v) for v in rng.normal(0.0, 1.0, 3) + [0.0, 0.0, 3.0])
     law = [d.LinearLaw(H), d.CubicLaw(H, 0.3), d.AteshianLaw(H, 0.4)][seed % 3]
-    problem = d.ContactProblem(layer, law, force=force, moment=moment, reference=reference, free=free,
-                               kinematics="finite", targets=targets)
+    problem = d.ContactProblem(
+        layer, law, force=force, moment=moment, reference=reference, free=free, kinematics="finite", targets=targets
+    )
     newton = solve(problem, "finite")
     resultant, about = springs_on_body2(newton)
     J = G.left_jacobian(newton.u[9:12])
@@ -430,8 +517,9 @@ def test_bad_options_frames_and_starts_are_named():
     with pytest.raises(d.InputError, match="frame is not rigid"):
         largemotion.solve(problem, frame=skew)
     with pytest.raises(d.InputError, match="prescribed motion"):
-        d.solve(d.ContactProblem(layer, d.LinearLaw(H), body1=d.Body(free=(), prescribed={"uz": 0.1}),
-                                 kinematics="finite"))
+        d.solve(
+            d.ContactProblem(layer, d.LinearLaw(H), body1=d.Body(free=(), prescribed={"uz": 0.1}), kinematics="finite")
+        )
     with pytest.raises(d.InputError, match="must be finite"):
         Targets.planes(np.full((20, 3), np.nan), -layer.normals)
     from dea_opt.sensitivity import sensitivities

@@ -40,8 +40,13 @@ def quiet(function, *args, **kw):
 @pytest.fixture(scope="module")
 def hip():
     pair = hip_meshes(step=3.0)
-    return {"mesh1": pair.mesh1, "mesh2": pair.mesh2, "options": {}, "reference": np.asarray(pair.reference2),
-            "cast": quiet(M.cast_springs, pair.mesh1, pair.mesh2)}
+    return {
+        "mesh1": pair.mesh1,
+        "mesh2": pair.mesh2,
+        "options": {},
+        "reference": np.asarray(pair.reference2),
+        "cast": quiet(M.cast_springs, pair.mesh1, pair.mesh2),
+    }
 
 
 @pytest.fixture(scope="module")
@@ -54,8 +59,13 @@ def knee():
     tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
     centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
     options = {"labels": labels, "max_gap": 2.0}
-    return {"mesh1": tibia, "mesh2": femur, "options": options, "reference": 0.5 * (centre[0] + centre[1]),
-            "cast": quiet(M.cast_springs, tibia, femur, **options)}
+    return {
+        "mesh1": tibia,
+        "mesh2": femur,
+        "options": options,
+        "reference": 0.5 * (centre[0] + centre[1]),
+        "cast": quiet(M.cast_springs, tibia, femur, **options),
+    }
 
 
 def _pose(cast, degrees, axis):
@@ -82,8 +92,9 @@ def _small_gaps(layer, T, reference):
 
     theta = Rotation.from_matrix(T[:3, :3]).as_rotvec()
     t = T[:3, :3] @ reference + T[:3, 3] - reference
-    return layer.gap + layer.normals @ t + np.einsum("ij,ij->i", np.cross(theta, layer.points - reference),
-                                                    layer.normals)
+    return (
+        layer.gap + layer.normals @ t + np.einsum("ij,ij->i", np.cross(theta, layer.points - reference), layer.normals)
+    )
 
 
 def _compare(data, degrees, axis):
@@ -101,8 +112,13 @@ def _compare(data, degrees, axis):
     # where a hit stays inside its face by the barycentric test, the fresh cast met that face too
     stays = ~off_face(at_pose.hit, at_pose.valid, targets.faces, T @ targets.frame, cast.mesh2, tolerance=-1e-6)
     disagree = stays[i0] & ~same
-    return {"translation": translation, "on": len(on), "error": error, "small": small,
-            "stays_but_not_fresh": int(disagree.sum())}
+    return {
+        "translation": translation,
+        "on": len(on),
+        "error": error,
+        "small": small,
+        "stays_but_not_fresh": int(disagree.sum()),
+    }
 
 
 POSES = [(5.0, (1.0, 0.3, 0.0)), (15.0, (0.2, 1.0, 0.4)), (30.0, (1.0, -1.0, 0.5))]
@@ -110,12 +126,13 @@ POSES = [(5.0, (1.0, 0.3, 0.0)), (15.0, (0.2, 1.0, 0.4)), (30.0, (1.0, -1.0, 0.5
 
 @pytest.mark.parametrize("degrees, axis", POSES)
 @pytest.mark.parametrize("where", ["hip", "knee"])
-def test_gaps_at_a_prescribed_pose_equal_a_fresh_cast_where_targets_stay_on_their_face(where, degrees, axis,
-                                                                                        request):
+def test_gaps_at_a_prescribed_pose_equal_a_fresh_cast_where_targets_stay_on_their_face(where, degrees, axis, request):
     data = request.getfixturevalue(where)
     out = _compare(data, degrees, axis)
-    print(f"\n{where} {degrees:g} deg, translation {out['translation']:.2f} mm: {out['on']} springs on their face, "
-          f"finite gap error {out['error'].max():.2e} mm, small model's {out['small'].max():.3g} mm")
+    print(
+        f"\n{where} {degrees:g} deg, translation {out['translation']:.2f} mm: {out['on']} springs on their face, "
+        f"finite gap error {out['error'].max():.2e} mm, small model's {out['small'].max():.3g} mm"
+    )
     assert out["translation"] > 1.0  # several mm of translation with the rotation
     assert out["on"] >= 3
     assert out["error"].max() <= 1e-9
@@ -149,9 +166,16 @@ LOAD, VARUS = 1000.0, 1000.0  # N along -z; N mm about y (varus-valgus is ry in 
 @pytest.fixture(scope="module")
 def knee_solved(knee):
     cast = knee["cast"]
-    problem = d.ContactProblem(cast.layer, d.LinearLaw(10.0), force=(0.0, 0.0, -LOAD), moment=(0.0, VARUS, 0.0),
-                               reference=tuple(knee["reference"]), free=("uz", "rx", "ry"), kinematics="finite",
-                               targets=cast)
+    problem = d.ContactProblem(
+        cast.layer,
+        d.LinearLaw(10.0),
+        force=(0.0, 0.0, -LOAD),
+        moment=(0.0, VARUS, 0.0),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=cast,
+    )
     return {"problem": problem, "newton": quiet(d.solve, problem, "newton")}
 
 
@@ -161,8 +185,9 @@ def test_the_knee_re_cast_afresh_at_the_solved_pose_carries_the_load(knee, knee_
     degrees = np.degrees(np.linalg.norm(solution.u[9:12]))
     print(f"\nknee: rotation {degrees:.2f} deg, {solution.info['recast']}")
     assert degrees > 2.0  # beyond the small kinematics' 3-degree range of validity or near it
-    layer = quiet(d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_overlap=WIDE,
-                  **knee["options"])
+    layer = quiet(
+        d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_overlap=WIDE, **knee["options"]
+    )
     pressure = -d.LinearLaw(10.0).stress(np.minimum(layer.gap / layer.thickness, 0.0))
     push = (pressure * layer.areas)[:, None] * layer.normals
     centre = knee["reference"] + solution.u[6:9]

@@ -31,8 +31,9 @@ def quiet(function, *args, **kw):
 
 def _punch():
     layer = plate_layer(SIDE, SIDE, 30, 6, thickness=THICK)
-    return layer, d.ContactProblem(layer, d.LinearLaw(H), reference=(0.0, 0.0, 0.0), free=("uz", "ry"),
-                                   kinematics="finite")
+    return layer, d.ContactProblem(
+        layer, d.LinearLaw(H), reference=(0.0, 0.0, 0.0), free=("uz", "ry"), kinematics="finite"
+    )
 
 
 def test_a_path_of_tilting_moments_is_frame_by_frame_the_closed_form():
@@ -40,8 +41,16 @@ def test_a_path_of_tilting_moments_is_frame_by_frame_the_closed_form():
     k, I = H / THICK, float(layer.areas @ layer.points[:, 0] ** 2)
     force = 1.6 * k * layer.areas.sum() * (SIDE / 2) * np.tan(np.radians(25.0))
     degrees = np.linspace(0.0, 25.0, 11)
-    loads = np.column_stack([np.zeros(11), np.zeros(11), np.full(11, -force), np.zeros(11),
-                             k * I * np.tan(np.radians(degrees)), np.zeros(11)])
+    loads = np.column_stack(
+        [
+            np.zeros(11),
+            np.zeros(11),
+            np.full(11, -force),
+            np.zeros(11),
+            k * I * np.tan(np.radians(degrees)),
+            np.zeros(11),
+        ]
+    )
     result = quiet(d.solve_path, problem, loads, method="auto")
     assert result.table["success"].all()
     for k_frame, solution in enumerate(result.solutions):
@@ -49,8 +58,10 @@ def test_a_path_of_tilting_moments_is_frame_by_frame_the_closed_form():
         alone = quiet(d.solve, problem.with_load(force=loads[k_frame, :3], moment=loads[k_frame, 3:]))
         assert np.abs(alone.u - solution.u).max() < 1e-10
     # warm starts: after the first frame every frame needs fewer iterations than a cold start
-    assert result.table["iterations"][1:].max() <= quiet(d.solve, problem.with_load(
-        force=loads[5, :3], moment=loads[5, 3:])).iterations
+    assert (
+        result.table["iterations"][1:].max()
+        <= quiet(d.solve, problem.with_load(force=loads[5, :3], moment=loads[5, 3:])).iterations
+    )
 
 
 def test_solve_path_takes_the_kinematics_and_checks_it():
@@ -75,8 +86,9 @@ def gait():
     the plateau, uz and the varus-valgus ry found, a load with two peaks."""
     pair = knee_meshes()
     cast = quiet(d.mesh.cast_springs, pair.mesh1, pair.mesh2, **pair.options)
-    problem = d.ContactProblem(cast.layer, d.LinearLaw(H), reference=pair.reference2, free=("uz", "ry"),
-                               kinematics="finite", targets=cast)
+    problem = d.ContactProblem(
+        cast.layer, d.LinearLaw(H), reference=pair.reference2, free=("uz", "ry"), kinematics="finite", targets=cast
+    )
     frames = 9
     phase = np.linspace(0.0, 1.0, frames)
     loads = np.zeros((frames, 6))
@@ -183,8 +195,12 @@ def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):
     assert '"kinematics": "finite"' in summary and '"method": "finite"' in summary
     assert solution is None or solution.success
     small = load_scenario(path)
-    assert build_problem(small.model_copy(update={"solve": small.solve.model_copy(update={"kinematics": "small"})})
-                         ).kinematics == "small"
+    assert (
+        build_problem(
+            small.model_copy(update={"solve": small.solve.model_copy(update={"kinematics": "small"})})
+        ).kinematics
+        == "small"
+    )
 
 
 def test_labels_follow_the_faces_through_updates_and_whole_re_casts():
@@ -196,8 +212,16 @@ def test_labels_follow_the_faces_through_updates_and_whole_re_casts():
     cast = quiet(d.mesh.cast_springs, pair.mesh1, pair.mesh2, **pair.options)
     side = np.where(cast.layer.points[:, 0] > 0, "east", "west")
     cast = dataclasses.replace(cast, layer=dataclasses.replace(cast.layer, labels=side))
-    problem = d.ContactProblem(cast.layer, d.LinearLaw(H), force=(0, 0, -800.0), moment=(0, 2000.0, 0),
-                               reference=pair.reference2, free=("uz", "ry"), kinematics="finite", targets=cast)
+    problem = d.ContactProblem(
+        cast.layer,
+        d.LinearLaw(H),
+        force=(0, 0, -800.0),
+        moment=(0, 2000.0, 0),
+        reference=pair.reference2,
+        free=("uz", "ry"),
+        kinematics="finite",
+        targets=cast,
+    )
     for full_shift in (5.0, 1e-3):
         solution = quiet(d.solve, problem, full_shift=full_shift)
         counts = solution.info["recast"]

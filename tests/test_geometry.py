@@ -32,9 +32,20 @@ def closed_and_outward(mesh):
 def test_layer_builders_unchanged():
     assert list(inspect.signature(g.plate_layer).parameters) == ["length", "width", "nx", "ny", "thickness"]
     assert list(inspect.signature(g.sphere_on_bed_layer).parameters) == [
-        "radius", "thickness", "extent", "n_rings", "n_sectors"]
+        "radius",
+        "thickness",
+        "extent",
+        "n_rings",
+        "n_sectors",
+    ]
     assert list(inspect.signature(g.socket_layer).parameters) == [
-        "radius", "thickness", "coverage", "n_rings", "n_sectors", "gap"]
+        "radius",
+        "thickness",
+        "coverage",
+        "n_rings",
+        "n_sectors",
+        "gap",
+    ]
     assert isinstance(g.plate_layer(nx=4, ny=2), d.SpringLayer)
 
 
@@ -79,33 +90,41 @@ def test_whole_spherical_shell_is_closed_with_a_cavity():
 
 def test_lunate_shell_has_a_fossa_and_a_notch():
     cov, fossa, notch = 85.0, 25.0, 60.0
-    lunate = g.spherical_shell_mesh(24.5, 2.0, cov, articular="inner", fossa=fossa, notch=notch,
-                                    step=3.0)
+    lunate = g.spherical_shell_mesh(24.5, 2.0, cov, articular="inner", fossa=fossa, notch=notch, step=3.0)
     assert closed_and_outward(lunate)
     u = lunate.vertices / np.linalg.norm(lunate.vertices, axis=1)[:, None]
     polar = np.degrees(np.arccos(-u[:, 2]))  # from the pole at -z
     azimuth = np.degrees(np.arctan2(u[:, 0], u[:, 1]))  # from +y, where the notch opens
     assert polar.min() == pytest.approx(fossa) and polar.max() == pytest.approx(cov)
     assert np.abs(azimuth).min() == pytest.approx(notch / 2)
-    inner = np.einsum("ij,ij->i", lunate.face_normals,
-                      lunate.triangles_center / np.linalg.norm(lunate.triangles_center, axis=1)[:, None]) < -0.9
+    inner = (
+        np.einsum(
+            "ij,ij->i",
+            lunate.face_normals,
+            lunate.triangles_center / np.linalg.norm(lunate.triangles_center, axis=1)[:, None],
+        )
+        < -0.9
+    )
     exact = 2 * np.pi * 24.5**2 * (np.cos(np.radians(fossa)) - np.cos(np.radians(cov))) * (360 - notch) / 360
     assert lunate.area_faces[inner].sum() == pytest.approx(exact, rel=2e-3)
 
 
-@pytest.mark.parametrize("call, words", [
-    (lambda: g.slab_mesh(nx=0), "nx"),
-    (lambda: g.slab_mesh(thickness=-1.0), "thickness"),
-    (lambda: g.slab_mesh(facing="left"), "facing"),
-    (lambda: g.spherical_shell_mesh(10.0, 12.0), "thickness < radius"),
-    (lambda: g.spherical_shell_mesh(coverage=200.0), "coverage"),
-    (lambda: g.spherical_shell_mesh(fossa=95.0, coverage=90.0), "fossa"),
-    (lambda: g.spherical_shell_mesh(articular="middle"), "articular"),
-    (lambda: g.spherical_shell_mesh(step=0.0), "step"),
-    (lambda: g.hip_meshes(head_radius=26.0, socket_radius=25.0), "head_radius < socket_radius"),
-    (lambda: g.sphere_on_bed_meshes(radius=5.0, extent=8.0), "extent"),
-    (lambda: g.knee_meshes(plateau=50.0), "plateau"),
-])
+@pytest.mark.parametrize(
+    "call, words",
+    [
+        (lambda: g.slab_mesh(nx=0), "nx"),
+        (lambda: g.slab_mesh(thickness=-1.0), "thickness"),
+        (lambda: g.slab_mesh(facing="left"), "facing"),
+        (lambda: g.spherical_shell_mesh(10.0, 12.0), "thickness < radius"),
+        (lambda: g.spherical_shell_mesh(coverage=200.0), "coverage"),
+        (lambda: g.spherical_shell_mesh(fossa=95.0, coverage=90.0), "fossa"),
+        (lambda: g.spherical_shell_mesh(articular="middle"), "articular"),
+        (lambda: g.spherical_shell_mesh(step=0.0), "step"),
+        (lambda: g.hip_meshes(head_radius=26.0, socket_radius=25.0), "head_radius < socket_radius"),
+        (lambda: g.sphere_on_bed_meshes(radius=5.0, extent=8.0), "extent"),
+        (lambda: g.knee_meshes(plateau=50.0), "plateau"),
+    ],
+)
 def test_builders_reject_bad_arguments(call, words):
     with pytest.raises(d.InputError, match=words):
         call()

@@ -40,8 +40,16 @@ def grid_surface_layer(n=16, half=6.0, radius=20.0, thickness=2.0):
     areas = 0.5 * np.linalg.norm(np.cross(edge1, edge2), axis=1)
     gap = radius - np.sqrt(radius**2 - (points[:, :2] ** 2).sum(axis=1))
     labels = np.where(points[:, 0] < 0, "medial", "lateral")
-    return d.SpringLayer(points, np.tile([0.0, 0.0, 1.0], (len(points), 1)), areas, thickness, gap,
-                         source_face=keep, surface=(vertices, faces), labels=labels)
+    return d.SpringLayer(
+        points,
+        np.tile([0.0, 0.0, 1.0], (len(points), 1)),
+        areas,
+        thickness,
+        gap,
+        source_face=keep,
+        surface=(vertices, faces),
+        labels=labels,
+    )
 
 
 @pytest.fixture(scope="module")
@@ -58,8 +66,9 @@ def point_solution():
 def surface_solution():
     """Springs on the faces of a triangle surface, with labels, tilted by a moment."""
     layer = grid_surface_layer()
-    problem = d.ContactProblem(layer, d.LinearLaw(20.0), force=(0, 0, -100), moment=(0, 150, 0),
-                               reference=(0, 0, 20), free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(20.0), force=(0, 0, -100), moment=(0, 150, 0), reference=(0, 0, 20), free=("uz", "rx", "ry")
+    )
     solution = d.solve(problem, "newton")
     assert 0 < solution.in_contact.sum() < len(layer)
     return solution
@@ -146,9 +155,14 @@ def test_atomic_open_bad_mode(tmp_path):
 def expected_fields(solution):
     layer = solution.problem.layer
     fields = {
-        "pressure": solution.pressure, "strain": solution.strain, "gap": layer.gap,
-        "thickness": layer.thickness, "in_contact": solution.in_contact, "spring_force": solution.spring_force,
-        "normal": layer.normals, "area": layer.areas,
+        "pressure": solution.pressure,
+        "strain": solution.strain,
+        "gap": layer.gap,
+        "thickness": layer.thickness,
+        "in_contact": solution.in_contact,
+        "spring_force": solution.spring_force,
+        "normal": layer.normals,
+        "area": layer.areas,
     }
     if layer.source_face is not None:
         fields["source_face"] = layer.source_face
@@ -157,6 +171,7 @@ def expected_fields(solution):
 
 def test_vtu_round_trip_with_meshio(solution, tmp_path):
     import meshio
+
     path = solution.to_vtk(tmp_path / "out.vtu")
     mesh = meshio.read(path)
     layer = solution.problem.layer
@@ -247,10 +262,18 @@ def test_csv_round_trip(solution, tmp_path):
     assert tuple(table) == io.CSV_COLUMNS
     layer = solution.problem.layer
     want = {
-        "x": layer.points[:, 0], "y": layer.points[:, 1], "z": layer.points[:, 2],
-        "nx": layer.normals[:, 0], "ny": layer.normals[:, 1], "nz": layer.normals[:, 2],
-        "area": layer.areas, "thickness": layer.thickness, "gap": layer.gap,
-        "strain": solution.strain, "pressure": solution.pressure, "spring_force": solution.spring_force,
+        "x": layer.points[:, 0],
+        "y": layer.points[:, 1],
+        "z": layer.points[:, 2],
+        "nx": layer.normals[:, 0],
+        "ny": layer.normals[:, 1],
+        "nz": layer.normals[:, 2],
+        "area": layer.areas,
+        "thickness": layer.thickness,
+        "gap": layer.gap,
+        "strain": solution.strain,
+        "pressure": solution.pressure,
+        "spring_force": solution.spring_force,
     }
     for name, value in want.items():
         np.testing.assert_allclose(table[name], value, rtol=0, atol=1e-12, err_msg=name)
@@ -303,7 +326,8 @@ def test_json_contents(surface_solution, tmp_path):
     for name in ("medial", "lateral"):
         assert data["regions"][name]["force"] == pytest.approx(label_stats[name].force, rel=1e-15)
     assert sum(data["regions"][n]["force"] for n in ("medial", "lateral")) == pytest.approx(
-        s.total_normal_force, rel=1e-12)
+        s.total_normal_force, rel=1e-12
+    )
     assert data["regions"]["anterior"]["force"] == pytest.approx(split["anterior"].force, rel=1e-15)
     assert data["label_codes"] == {"lateral": 0, "medial": 1}
 
@@ -369,7 +393,11 @@ def test_write_results(surface_solution, tmp_path):
     split = split_by_axis(s, "y", names=("posterior", "anterior"))
     paths = io.write_results(s, tmp_path / "run", stem="knee", regions=split)
     assert {k: p.name for k, p in paths.items()} == {
-        "vtk": "knee.vtu", "csv": "knee.csv", "json": "knee.json", "png": "knee.png"}
+        "vtk": "knee.vtu",
+        "csv": "knee.csv",
+        "json": "knee.json",
+        "png": "knee.png",
+    }
     assert all(p.is_file() for p in paths.values())
     assert max(io.vtk_differences(s, paths["vtk"]).values()) == 0.0
     png_size(paths["png"])
@@ -387,7 +415,8 @@ def test_csv_quotes_awkward_labels(surface_solution, tmp_path):
     layer = surface_solution.problem.layer
     awkward = np.where(layer.labels == "medial", 'medial, "M"', " lateral\nL ")
     solution = dataclasses.replace(
-        surface_solution, problem=surface_solution.problem.with_layer(dataclasses.replace(layer, labels=awkward)))
+        surface_solution, problem=surface_solution.problem.with_layer(dataclasses.replace(layer, labels=awkward))
+    )
     table = io.read_csv(io.to_csv(solution, tmp_path / "awkward.csv"))
     np.testing.assert_array_equal(table["label"], awkward)
     np.testing.assert_array_equal(table["pressure"], solution.pressure)
@@ -396,7 +425,7 @@ def test_csv_quotes_awkward_labels(surface_solution, tmp_path):
 def test_read_csv_rejects_bad_numbers(point_solution, tmp_path):
     path = io.to_csv(point_solution, tmp_path / "springs.csv")
     lines = path.read_text().splitlines()
-    lines[1] = "oops" + lines[1][lines[1].index(","):]
+    lines[1] = "oops" + lines[1][lines[1].index(",") :]
     path.write_text("\n".join(lines) + "\n")
     with pytest.raises(InputError, match="column 'x' .* does not parse"):
         io.read_csv(path)

@@ -49,11 +49,18 @@ def knee():
     built = time.perf_counter()
     centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
     reference = tuple(0.5 * (centre[0] + centre[1]))
-    problem = d.ContactProblem(cast.layer, d.LinearLaw(MODULUS), force=(0.0, 0.0, -LOAD),
-                               reference=reference, free=("uz", "ry"))
+    problem = d.ContactProblem(
+        cast.layer, d.LinearLaw(MODULUS), force=(0.0, 0.0, -LOAD), reference=reference, free=("uz", "ry")
+    )
     print(f"\nknee: read {loaded - start:.2f} s, {len(cast.layer)} springs cast in {built - loaded:.2f} s")
-    return {"femur": femur, "tibia": tibia, "labels": labels, "cast": cast, "problem": problem,
-            "warnings": [str(w.message) for w in caught]}
+    return {
+        "femur": femur,
+        "tibia": tibia,
+        "labels": labels,
+        "cast": cast,
+        "problem": problem,
+        "warnings": [str(w.message) for w in caught],
+    }
 
 
 @pytest.fixture(scope="module")
@@ -135,17 +142,19 @@ def test_medial_lateral_share(solutions, knee):
     layer = knee["problem"].layer
     for method, s in solutions.items():
         force = s.pressure * layer.areas
-        share = {side: float(force[layer.labels == side].sum() / force.sum())
-                 for side in ("medial", "lateral")}
-        print(f"knee {method}: medial {share['medial']:.4f}, lateral {share['lateral']:.4f} of the load; "
-              f"peak {s.peak_pressure:.3f} MPa, contact {s.contact_area:.1f} mm^2, "
-              f"uz {s.u[8]:.4f} mm, ry {np.degrees(s.u[10]):.4f} deg")
+        share = {side: float(force[layer.labels == side].sum() / force.sum()) for side in ("medial", "lateral")}
+        print(
+            f"knee {method}: medial {share['medial']:.4f}, lateral {share['lateral']:.4f} of the load; "
+            f"peak {s.peak_pressure:.3f} MPa, contact {s.contact_area:.1f} mm^2, "
+            f"uz {s.u[8]:.4f} mm, ry {np.degrees(s.u[10]):.4f} deg"
+        )
         assert 0 < share["medial"] < 1 and 0 < share["lateral"] < 1
         assert share["medial"] + share["lateral"] == pytest.approx(1.0, abs=1e-12)
 
 
 def test_outputs(solutions, tmp_path):
     from dea_opt import io
+
     if not (hasattr(io, "to_vtk") and hasattr(io, "plot_pressure")):
         pytest.skip("dea_opt.io has no to_vtk/plot_pressure yet")
     import meshio
@@ -234,8 +243,9 @@ def test_a_fixed_window_at_the_solved_pose_drops_springs_and_says_so(recast, kne
     deeper = recast.cast.layer.gap < -1.0
     assert deeper.sum() > 100
     assert fixed.dropped["overlap"] == deeper.sum()  # each spring the fixed window dropped is counted
-    np.testing.assert_array_equal(np.sort(fixed.dropped.faces["overlap"]),
-                                  np.sort(recast.cast.layer.source_face[deeper]))
+    np.testing.assert_array_equal(
+        np.sort(fixed.dropped.faces["overlap"]), np.sort(recast.cast.layer.source_face[deeper])
+    )
     strain = np.minimum(fixed.layer.gap / fixed.layer.thickness, 0.0)
     assert (-MODULUS * strain * fixed.layer.areas) @ fixed.layer.normals[:, 2] < 0.97 * recast.force[2]
 

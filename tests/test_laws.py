@@ -81,10 +81,12 @@ def test_eq3_is_the_third_order_taylor_series_of_eq2(beta):
 @pytest.mark.parametrize("beta", [0.0, 0.05, 0.6])
 def test_polynomial_order_3_equals_cubic(beta):
     assert d.PolynomialLaw(0.6, beta, 3) == d.CubicLaw(0.6, beta)
-    np.testing.assert_allclose(d.PolynomialLaw(0.6, beta, 3).coefficients, d.CubicLaw(0.6, beta).coefficients,
-                               rtol=1e-14)
-    np.testing.assert_allclose(d.PolynomialLaw(0.6, beta, 3).energy(STRAINS), d.CubicLaw(0.6, beta).energy(STRAINS),
-                               rtol=1e-13, atol=1e-16)
+    np.testing.assert_allclose(
+        d.PolynomialLaw(0.6, beta, 3).coefficients, d.CubicLaw(0.6, beta).coefficients, rtol=1e-14
+    )
+    np.testing.assert_allclose(
+        d.PolynomialLaw(0.6, beta, 3).energy(STRAINS), d.CubicLaw(0.6, beta).energy(STRAINS), rtol=1e-13, atol=1e-16
+    )
 
 
 @pytest.mark.parametrize("order", [2, 5, 7, 9])
@@ -109,8 +111,9 @@ def test_taylor_coefficients_first_terms():
     np.testing.assert_allclose(c[:3], [2.0, -1.0, 2.0 * (1 + 1.0) / 2])
 
 
-@pytest.mark.parametrize("law", [d.AteshianLaw(0.6, 0.05), d.AteshianLaw(0.6, 0.0), d.BlankevoortLaw(0.6)],
-                         ids=lambda law: law.describe())
+@pytest.mark.parametrize(
+    "law", [d.AteshianLaw(0.6, 0.05), d.AteshianLaw(0.6, 0.0), d.BlankevoortLaw(0.6)], ids=lambda law: law.describe()
+)
 def test_bounded_laws_are_infinite_not_nan_when_crushed(law):
     eps = np.array([-1.0, -1.5, -0.999999])
     with np.errstate(all="raise"):
@@ -123,6 +126,7 @@ def test_bounded_laws_are_infinite_not_nan_when_crushed(law):
 @pytest.mark.parametrize("law", LAWS, ids=lambda law: law.describe())
 def test_casadi_expressions_match_numpy(law):
     import casadi as ca
+
     x = ca.SX.sym("x")
     fns = ca.Function("f", [x], [law.stress(x), law.tangent(x), law.energy(x)])
     for e in (-0.7, -0.2, 0.0, 0.3):

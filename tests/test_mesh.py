@@ -70,15 +70,21 @@ def _legacy_vtk(points, polygons, binary=False, version="3.0", trailer=""):
     if version.startswith("5"):
         offsets = np.concatenate([[0], np.cumsum([len(p) for p in polygons])])
         conn = [v for p in polygons for v in p]
-        body = (f"POINTS {len(points)} float\n" + " ".join(map(str, np.ravel(points))) + "\n"
-                "METADATA\nINFORMATION 0\n\n"
-                f"POLYGONS {len(offsets)} {len(conn)}\nOFFSETS vtktypeint64\n"
-                + " ".join(map(str, offsets)) + "\nCONNECTIVITY vtktypeint64\n"
-                + " ".join(map(str, conn)) + "\n")
+        body = (
+            f"POINTS {len(points)} float\n" + " ".join(map(str, np.ravel(points))) + "\n"
+            "METADATA\nINFORMATION 0\n\n"
+            f"POLYGONS {len(offsets)} {len(conn)}\nOFFSETS vtktypeint64\n"
+            + " ".join(map(str, offsets))
+            + "\nCONNECTIVITY vtktypeint64\n"
+            + " ".join(map(str, conn))
+            + "\n"
+        )
         return (head + body + trailer).encode()
     records = "\n".join(" ".join(map(str, (len(p), *p))) for p in polygons)
-    body = (f"POINTS {len(points)} float\n" + "\n".join(" ".join(map(str, p)) for p in points) + "\n"
-            f"POLYGONS {len(polygons)} {size}\n" + records + "\n")
+    body = (
+        f"POINTS {len(points)} float\n" + "\n".join(" ".join(map(str, p)) for p in points) + "\n"
+        f"POLYGONS {len(polygons)} {size}\n" + records + "\n"
+    )
     return (head + body + trailer).encode()
 
 
@@ -157,9 +163,15 @@ def test_degenerate_faces_dropped_with_count_and_labels_follow():
     assert set(layer.labels) == {"slab"}
 
 
-@pytest.mark.parametrize("build", [small_slab, lambda: geometry.knee_meshes(n_plateau=8, step=8.0).mesh1,
-                                   lambda: geometry.spherical_shell_mesh(10.0, 1.0, 180.0, step=15.0)],
-                         ids=["slab", "two pieces", "hollow ball"])
+@pytest.mark.parametrize(
+    "build",
+    [
+        small_slab,
+        lambda: geometry.knee_meshes(n_plateau=8, step=8.0).mesh1,
+        lambda: geometry.spherical_shell_mesh(10.0, 1.0, 180.0, step=15.0),
+    ],
+    ids=["slab", "two pieces", "hollow ball"],
+)
 def test_inconsistent_winding_is_repaired(build):
     good = build()
     faces = good.faces.copy()
@@ -190,8 +202,7 @@ def test_a_clean_mesh_gives_no_warning():
 def test_plate_pair_springs_are_the_top_faces():
     pair = geometry.plate_meshes(nx=20, ny=5)
     layer = d.SpringLayer.from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0)
-    top = np.flatnonzero(np.isclose(pair.mesh1.triangles_center[:, 2], 0.0)
-                         & (pair.mesh1.face_normals[:, 2] > 0.5))
+    top = np.flatnonzero(np.isclose(pair.mesh1.triangles_center[:, 2], 0.0) & (pair.mesh1.face_normals[:, 2] > 0.5))
     assert np.array_equal(np.sort(layer.source_face), top)
     np.testing.assert_allclose(layer.normals, np.tile([0, 0, 1.0], (len(layer), 1)), atol=1e-12)
     np.testing.assert_allclose(layer.gap, 0.0, atol=1e-12)
@@ -300,7 +311,7 @@ def test_concatenate_meshes_labels_faces():
     a, b = small_slab(), small_slab(center=(10.0, 0.0))
     mesh, labels = M.concatenate_meshes({"left": a, "right": b})
     assert len(mesh.faces) == len(labels) == len(a.faces) + len(b.faces)
-    assert (labels[: len(a.faces)] == "left").all() and (labels[len(a.faces):] == "right").all()
+    assert (labels[: len(a.faces)] == "left").all() and (labels[len(a.faces) :] == "right").all()
 
 
 # --------------------------------------------------------------------------------------------
@@ -350,8 +361,7 @@ def sphere_levels(tmp_path_factory):
         pair = geometry.sphere_on_bed_meshes(R, H_BED, extent=6.0, n_bed=n_bed, step=step)
         pair.mesh1.export(folder / "bed.stl")
         pair.mesh2.export(folder / "sphere.stl")
-        layer = d.SpringLayer.from_meshes(folder / "bed.stl", folder / "sphere.stl", thickness2=0.0,
-                                          max_gap=0.8)
+        layer = d.SpringLayer.from_meshes(folder / "bed.stl", folder / "sphere.stl", thickness2=0.0, max_gap=0.8)
         out.append((layer, M.load_mesh(folder / "bed.stl"), M.load_mesh(folder / "sphere.stl")))
     return out
 
@@ -363,7 +373,7 @@ def _height_above(points, sphere):
     a, b, c = tri[:, 0, :2], tri[:, 1, :2], tri[:, 2, :2]
     heights = np.full(len(points), np.nan)
     for start in range(0, len(points), 256):
-        p = points[start:start + 256, None, :2]
+        p = points[start : start + 256, None, :2]
         v0, v1, v2 = b - a, c - a, p - a
         den = v0[:, 0] * v1[:, 1] - v0[:, 1] * v1[:, 0]
         u = (v2[..., 0] * v1[:, 1] - v2[..., 1] * v1[:, 0]) / den
@@ -374,7 +384,7 @@ def _height_above(points, sphere):
         assert inside[rows, k].all()
         z0, z1, z2 = tri[k, 0, 2], tri[k, 1, 2], tri[k, 2, 2]
         z = z0 + u[rows, k] * (z1 - z0) + v[rows, k] * (z2 - z0)
-        heights[start:start + 256] = z - points[start:start + 256, 2]
+        heights[start : start + 256] = z - points[start : start + 256, 2]
     return heights
 
 
@@ -390,8 +400,9 @@ def test_sphere_contact_converges_to_the_closed_form(sphere_levels, method):
     force, peak, area = closed_form()
     err_peak, err_area = [], []
     for layer, _, _ in sphere_levels:
-        problem = d.ContactProblem(layer, d.LinearLaw(MODULUS), force=(0, 0, -force),
-                                   reference=(0.0, 0.0, R), free=("uz",))
+        problem = d.ContactProblem(
+            layer, d.LinearLaw(MODULUS), force=(0, 0, -force), reference=(0.0, 0.0, R), free=("uz",)
+        )
         s = solve(problem, method)
         assert s.u[8] == pytest.approx(-DEPTH, rel=0.05)  # faceting: the sphere lies inside R
         err_peak.append(abs(s.peak_pressure - peak) / peak)
@@ -399,8 +410,7 @@ def test_sphere_contact_converges_to_the_closed_form(sphere_levels, method):
     h = np.array([1.0, 0.5, 0.25])  # mesh size relative to the coarsest
     order_peak = np.polyfit(np.log(h), np.log(err_peak), 1)[0]
     order_area = np.polyfit(np.log(h), np.log(err_area), 1)[0]
-    print(f"{method}: peak errors {err_peak} (order {order_peak:.2f}), area errors {err_area} "
-          f"(order {order_area:.2f})")
+    print(f"{method}: peak errors {err_peak} (order {order_peak:.2f}), area errors {err_area} (order {order_area:.2f})")
     assert np.all(np.diff(err_peak) < 0) and np.all(np.diff(err_area) < 0)
     assert order_peak > 1.5  # gaps and the force integral are second order
     assert order_area > 0.8  # the contact edge cuts cells: first order
@@ -579,8 +589,14 @@ BAD_POSES = {
     "3x3": np.eye(3),
     "nan": np.full((4, 4), np.nan),
 }
-POSE_MESSAGES = {"scaled": "not rigid", "sheared": "not rigid", "reflection": "reflection",
-                 "last row": "last row", "3x3": "4x4", "nan": "finite"}
+POSE_MESSAGES = {
+    "scaled": "not rigid",
+    "sheared": "not rigid",
+    "reflection": "reflection",
+    "last row": "last row",
+    "3x3": "4x4",
+    "nan": "finite",
+}
 
 
 @pytest.mark.parametrize("name", BAD_POSES)
@@ -591,29 +607,35 @@ def test_pose_must_be_rigid(name):
     assert "pose" in str(info.value)
 
 
-@pytest.mark.parametrize("options, words", [
-    ({"max_gap": -1.0}, "max_gap"),
-    ({"max_overlap": float("nan")}, "max_overlap"),
-    ({"max_angle": 120.0}, "max_angle"),
-    ({"thickness1": -2.0}, "thickness1"),
-    ({"thickness1": np.ones(3)}, "thickness1"),
-    ({"thickness1": "bone.xyz"}, "unknown extension"),
-    ({"labels": ["a", "b"]}, "labels"),
-])
+@pytest.mark.parametrize(
+    "options, words",
+    [
+        ({"max_gap": -1.0}, "max_gap"),
+        ({"max_overlap": float("nan")}, "max_overlap"),
+        ({"max_angle": 120.0}, "max_angle"),
+        ({"thickness1": -2.0}, "thickness1"),
+        ({"thickness1": np.ones(3)}, "thickness1"),
+        ({"thickness1": "bone.xyz"}, "unknown extension"),
+        ({"labels": ["a", "b"]}, "labels"),
+    ],
+)
 def test_bad_options(options, words):
     pair = geometry.plate_meshes(nx=4, ny=2)
     with pytest.raises(d.InputError, match=words):
         M.springs_from_meshes(pair.mesh1, pair.mesh2, **{"thickness2": 0.0, **options})
 
 
-@pytest.mark.parametrize("name, value, expected", [
-    ("max_gap", -1.0, "max_gap must be a finite number >= 0, got -1.0"),
-    ("max_gap", True, "max_gap must be a finite number >= 0, got True"),
-    ("max_overlap", "1", "max_overlap must be a finite number >= 0, got '1'"),
-    ("max_overlap", float("inf"), "max_overlap must be a finite number >= 0, got inf"),
-    ("max_angle", 120.0, r"max_angle must be a finite number in \[0, 90\], got 120.0"),
-    ("max_angle", -1e-9, r"max_angle must be a finite number in \[0, 90\], got -1e-09"),
-])
+@pytest.mark.parametrize(
+    "name, value, expected",
+    [
+        ("max_gap", -1.0, "max_gap must be a finite number >= 0, got -1.0"),
+        ("max_gap", True, "max_gap must be a finite number >= 0, got True"),
+        ("max_overlap", "1", "max_overlap must be a finite number >= 0, got '1'"),
+        ("max_overlap", float("inf"), "max_overlap must be a finite number >= 0, got inf"),
+        ("max_angle", 120.0, r"max_angle must be a finite number in \[0, 90\], got 120.0"),
+        ("max_angle", -1e-9, r"max_angle must be a finite number in \[0, 90\], got -1e-09"),
+    ],
+)
 def test_window_errors_name_the_range_and_what_came(name, value, expected):
     pair = geometry.plate_meshes(nx=4, ny=2)
     with pytest.raises(d.InputError, match=f"^{expected}$"):
@@ -628,8 +650,7 @@ def test_scale_must_be_a_positive_number(value):
 
 def test_window_edges_are_accepted():
     pair = geometry.plate_meshes(nx=4, ny=2)
-    layer = M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0, max_gap=0, max_overlap=0.0,
-                                  max_angle=90)
+    layer = M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0, max_gap=0, max_overlap=0.0, max_angle=90)
     assert len(layer) > 0 and (layer.gap == 0).all()
 
 

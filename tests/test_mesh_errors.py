@@ -30,51 +30,93 @@ def binary_stl(n_declared: int, n_written: int) -> bytes:
 
 
 def ascii_stl(z="0") -> str:
-    return ("solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
-            f"vertex 0 1 {z}\nendloop\nendfacet\nendsolid t\n")
+    return (
+        "solid t\nfacet normal 0 0 1\nouter loop\nvertex 0 0 0\nvertex 1 0 0\n"
+        f"vertex 0 1 {z}\nendloop\nendfacet\nendsolid t\n"
+    )
 
 
 OBJ = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n"
 
 # name: (file name, bytes, the words the message must hold besides the file's name)
 BAD_FILES = {
-    "binary garbage .stl": ("garbage.stl", np.random.default_rng(1).bytes(5000),
-                            [STL_EXPECTED, "binary data (5000 bytes", "header declares"]),
-    "binary garbage .obj": ("garbage.obj", np.random.default_rng(2).bytes(3000),
-                            ["is not an OBJ surface", "'v x y z'", "binary data (3000 bytes)"]),
-    "binary garbage .off": ("garbage.off", np.random.default_rng(3).bytes(3000),
-                            ["is not an OFF surface", "binary data"]),
-    "binary garbage .ply": ("garbage.ply", np.random.default_rng(4).bytes(3000),
-                            ["is not a PLY surface", "binary data"]),
-    "binary garbage .vtk": ("garbage.vtk", np.random.default_rng(5).bytes(3000),
-                            ["is not a legacy VTK file", "# vtk DataFile", "binary data"]),
-    "binary garbage .vtp": ("garbage.vtp", np.random.default_rng(6).bytes(3000),
-                            ["is not a VTK XML PolyData file", "binary data"]),
-    "truncated binary STL": ("cut.stl", binary_stl(100, 10),
-                             [STL_EXPECTED, "header declares 100 triangles, which take 5084 bytes", "584 bytes"]),
-    "text in an .stl": ("notes.stl", b"hello world\nthis is no mesh\n",
-                        [STL_EXPECTED, "text whose first line is 'hello world'"]),
+    "binary garbage .stl": (
+        "garbage.stl",
+        np.random.default_rng(1).bytes(5000),
+        [STL_EXPECTED, "binary data (5000 bytes", "header declares"],
+    ),
+    "binary garbage .obj": (
+        "garbage.obj",
+        np.random.default_rng(2).bytes(3000),
+        ["is not an OBJ surface", "'v x y z'", "binary data (3000 bytes)"],
+    ),
+    "binary garbage .off": (
+        "garbage.off",
+        np.random.default_rng(3).bytes(3000),
+        ["is not an OFF surface", "binary data"],
+    ),
+    "binary garbage .ply": (
+        "garbage.ply",
+        np.random.default_rng(4).bytes(3000),
+        ["is not a PLY surface", "binary data"],
+    ),
+    "binary garbage .vtk": (
+        "garbage.vtk",
+        np.random.default_rng(5).bytes(3000),
+        ["is not a legacy VTK file", "# vtk DataFile", "binary data"],
+    ),
+    "binary garbage .vtp": (
+        "garbage.vtp",
+        np.random.default_rng(6).bytes(3000),
+        ["is not a VTK XML PolyData file", "binary data"],
+    ),
+    "truncated binary STL": (
+        "cut.stl",
+        binary_stl(100, 10),
+        [STL_EXPECTED, "header declares 100 triangles, which take 5084 bytes", "584 bytes"],
+    ),
+    "text in an .stl": (
+        "notes.stl",
+        b"hello world\nthis is no mesh\n",
+        [STL_EXPECTED, "text whose first line is 'hello world'"],
+    ),
     "blank lines": ("blank.stl", b"  \n\n \n", [STL_EXPECTED, "only blank lines"]),
     "OBJ in an .stl": ("obj.stl", OBJ.encode(), ["holds OBJ text", "extension .stl", "rename it to .obj"]),
     "ASCII STL in an .obj": ("stl.obj", ascii_stl().encode(), ["holds ASCII STL text", "rename it to .stl"]),
-    "binary STL in a .ply": ("stl.ply", binary_stl(1, 1), ["holds a binary STL", "extension .ply",
-                                                           "rename it to .stl"]),
+    "binary STL in a .ply": (
+        "stl.ply",
+        binary_stl(1, 1),
+        ["holds a binary STL", "extension .ply", "rename it to .stl"],
+    ),
     "binary STL in a .vtk": ("stl.vtk", binary_stl(1, 1), ["holds a binary STL", "rename it to .stl"]),
     "PLY in an .off": ("ply.off", b"ply\nformat ascii 1.0\nend_header\n", ["holds a PLY file", "rename it to .ply"]),
-    "VTK XML in a .vtk": ("xml.vtk", b'<?xml version="1.0"?>\n<VTKFile type="PolyData">\n',
-                          ["holds a VTK XML file", "rename it to .vtp"]),
-    "NaN vertex in an ASCII STL": ("nan.stl", ascii_stl("nan").encode(),
-                                   ["vertices must be finite", "1 of 3 vertices", "nan"]),
-    "inf vertex in an OBJ": ("inf.obj", OBJ.replace("1 0 0", "1 0 inf").encode(),
-                             ["vertices must be finite", "inf"]),
-    "NaN vertex in a binary STL": ("nan_binary.stl", b"\0" * 80 + struct.pack("<I", 1) + struct.pack(
-        "<12fH", 0, 0, 1, 0, 0, 0, 1, 0, float("nan"), 0, 1, 0, 0), ["vertices must be finite"]),
-    "face index out of range": ("index.obj", OBJ.replace("f 1 2 3", "f 1 2 9").encode(),
-                                ["could not be read as OBJ", "expected an OBJ surface"]),
+    "VTK XML in a .vtk": (
+        "xml.vtk",
+        b'<?xml version="1.0"?>\n<VTKFile type="PolyData">\n',
+        ["holds a VTK XML file", "rename it to .vtp"],
+    ),
+    "NaN vertex in an ASCII STL": (
+        "nan.stl",
+        ascii_stl("nan").encode(),
+        ["vertices must be finite", "1 of 3 vertices", "nan"],
+    ),
+    "inf vertex in an OBJ": ("inf.obj", OBJ.replace("1 0 0", "1 0 inf").encode(), ["vertices must be finite", "inf"]),
+    "NaN vertex in a binary STL": (
+        "nan_binary.stl",
+        b"\0" * 80 + struct.pack("<I", 1) + struct.pack("<12fH", 0, 0, 1, 0, 0, 0, 1, 0, float("nan"), 0, 1, 0, 0),
+        ["vertices must be finite"],
+    ),
+    "face index out of range": (
+        "index.obj",
+        OBJ.replace("f 1 2 3", "f 1 2 9").encode(),
+        ["could not be read as OBJ", "expected an OBJ surface"],
+    ),
     "zero bytes": ("empty.stl", b"", ["is empty (0 bytes)", "expected a .stl triangle surface"]),
     "legacy VTK 5.1 that ends in its POLYGONS": (
-        "cut.vtk", b"# vtk DataFile Version 5.1\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\n"
-                   b"POLYGONS 2 3\n", ["could not be read as legacy VTK POLYDATA", "the file ends before a section"]),
+        "cut.vtk",
+        b"# vtk DataFile Version 5.1\nx\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 0 1 0\nPOLYGONS 2 3\n",
+        ["could not be read as legacy VTK POLYDATA", "the file ends before a section"],
+    ),
 }
 
 
@@ -186,7 +228,9 @@ HUGE = {
 @pytest.mark.parametrize("what", HUGE)
 def test_an_oversized_generator_is_refused_before_allocating(what):
     # each request needs more than a terabyte: refused on any machine, before any array is made
-    with pytest.raises(d.InputError, match=r"would need about [0-9.e+]+ (TB|PB) of memory, and this machine has") as info:
+    with pytest.raises(
+        d.InputError, match=r"would need about [0-9.e+]+ (TB|PB) of memory, and this machine has"
+    ) as info:
         HUGE[what]()
     assert what in str(info.value)
 
@@ -196,8 +240,11 @@ def test_the_guard_estimates_the_memory_from_the_face_count(monkeypatch):
     n_polar, n_azimuth = 29, 120  # ceil(85 / 3) polar rows, 360 / 3 azimuths
     faces = 4 * n_polar * n_azimuth + 4 * (n_polar + n_azimuth)
     expected = memory.format_bytes(budget.BYTES_PER_GENERATED_FACE * faces)
-    with pytest.raises(d.InputError, match=rf"\({faces} faces\) would need about {expected} of memory, "
-                                           r"and this machine has 1 MB free"):
+    with pytest.raises(
+        d.InputError,
+        match=rf"\({faces} faces\) would need about {expected} of memory, "
+        r"and this machine has 1 MB free",
+    ):
         geometry.spherical_shell_mesh(24.0, 2.0, 85.0, step=3.0)
     monkeypatch.setattr(memory, "available_memory", lambda: budget.BYTES_PER_GENERATED_FACE * faces)
     assert len(geometry.spherical_shell_mesh(24.0, 2.0, 85.0, step=3.0).faces) <= faces
@@ -233,8 +280,11 @@ def test_the_estimates_bound_the_measured_peak(tmp_path):
 def test_a_cast_between_huge_meshes_is_refused_before_casting(monkeypatch):
     pair = geometry.plate_meshes(nx=8, ny=2)
     monkeypatch.setattr(memory, "available_memory", lambda: 1000)
-    with pytest.raises(d.InputError, match=r"casting springs from mesh1 \(104 faces\) onto mesh2 \(104 faces\) "
-                                           r"would need about .* of memory"):
+    with pytest.raises(
+        d.InputError,
+        match=r"casting springs from mesh1 \(104 faces\) onto mesh2 \(104 faces\) "
+        r"would need about .* of memory",
+    ):
         M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0)
 
 
@@ -273,8 +323,10 @@ def test_mesh_derived_normals_are_unit_and_gaps_scale_at_any_size_in_range(scale
     np.testing.assert_allclose(layer.thickness / scale, reference.layer.thickness, rtol=1e-9)
 
 
-@pytest.mark.parametrize("scale, words", [(1e-7, "spans only"), (1e-200, "spans only"),
-                                          (1e11, "has coordinates up to"), (1e200, "has coordinates up to")])
+@pytest.mark.parametrize(
+    "scale, words",
+    [(1e-7, "spans only"), (1e-200, "spans only"), (1e11, "has coordinates up to"), (1e200, "has coordinates up to")],
+)
 @pytest.mark.parametrize("given", ["trimesh", "arrays"])
 def test_meshes_too_small_or_too_large_are_named(scale, words, given):
     mesh = geometry.slab_mesh(4.0, 3.0, 1.0, 4, 3)

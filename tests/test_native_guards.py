@@ -28,17 +28,22 @@ problem = d.ContactProblem(layer, d.LinearLaw(1.0), moment=(1e-3, 0, 0), referen
 
 
 def _run(code: str) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=120, check=False)
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)], capture_output=True, text=True, timeout=120, check=False
+    )
 
 
 @pytest.mark.parametrize("call", [f"d.solve(problem, {m!r})" for m in METHODS] + ["d.check_load_supported(problem)"])
 def test_two_springs_on_a_sphere_with_only_rx_free_exit_cleanly(call):
-    code = TWO_SPRINGS + f"""
+    code = (
+        TWO_SPRINGS
+        + f"""
 try:
     {call}
 except d.LoadNotSupportedError as exc:
     print("named:", type(exc).__name__, exc.direction)
 """
+    )
     done = _run(code)
     assert done.returncode == 0, f"exit {done.returncode}: {done.stderr[-2000:]}"
     assert "named: LoadNotSupportedError {'body2.rx': 0.001}" in done.stdout
@@ -67,8 +72,9 @@ except d.LoadNotSupportedError as exc:
 def _system(m=1, n=3, load=None, e0=None):
     AT = np.zeros((m, n))
     AT[0] = 1.0
-    return SpringSystem(AT, np.zeros(n) if e0 is None else e0, np.ones(n), np.ones(m) if load is None else load,
-                        stiffness=float(n))
+    return SpringSystem(
+        AT, np.zeros(n) if e0 is None else e0, np.ones(n), np.ones(m) if load is None else load, stiffness=float(n)
+    )
 
 
 @pytest.mark.parametrize("method", ("newton", "qp", "nlp"))

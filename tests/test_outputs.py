@@ -78,6 +78,7 @@ def consistent(folder: Path) -> bool:
 
 # --- the publication, in process ------------------------------------------------------------
 
+
 def test_staged_files_appear_together_with_the_manifest_last(tmp_path):
     folder = tmp_path / "out"
     with output_run(folder, info={"command": "test"}) as run:
@@ -204,6 +205,7 @@ def test_a_crash_in_the_middle_of_the_renames_leaves_no_manifest_and_says_so(tmp
 
 # --- which folders a run may write into ------------------------------------------------------
 
+
 def test_a_folder_of_someone_elses_is_refused_by_name(tmp_path):
     folder = tmp_path / "home"
     folder.mkdir()
@@ -266,13 +268,15 @@ def test_stale_temporary_files_are_removed_at_the_start_of_the_next_run(tmp_path
 
 # --- kill -9 and Ctrl-C of dea-opt run, at random moments ------------------------------------
 
+
 def _dea_opt(*args) -> list[str]:
     return [sys.executable, "-m", "dea_opt.cli", *map(str, args)]
 
 
 def _run(args, cwd) -> subprocess.CompletedProcess:
-    return subprocess.run(_dea_opt(*args), cwd=cwd, capture_output=True, text=True, timeout=300,
-                          env={**os.environ, "MPLBACKEND": "Agg"})
+    return subprocess.run(
+        _dea_opt(*args), cwd=cwd, capture_output=True, text=True, timeout=300, env={**os.environ, "MPLBACKEND": "Agg"}
+    )
 
 
 @pytest.mark.slow
@@ -291,9 +295,14 @@ def test_kill_and_ctrl_c_at_random_moments_never_leave_two_runs_in_one_folder(tm
         previous = read_manifest(folder)
         how = signal.SIGKILL if trial % 2 == 0 else signal.SIGINT
         modulus = 5.0 + trial  # every run's peak differs, so a mixed folder would show
-        process = subprocess.Popen(_dea_opt("run", scenario, "-q", "--set", f"law.H={modulus}"), cwd=tmp_path,
-                                   stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-                                   env={**os.environ, "MPLBACKEND": "Agg"})
+        process = subprocess.Popen(
+            _dea_opt("run", scenario, "-q", "--set", f"law.H={modulus}"),
+            cwd=tmp_path,
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+            env={**os.environ, "MPLBACKEND": "Agg"},
+        )
         time.sleep(rng.uniform(0.3, 1.05) * whole)
         process.send_signal(how)
         _, stderr = process.communicate(timeout=300)

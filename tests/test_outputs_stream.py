@@ -39,10 +39,21 @@ def reference_csv(solution) -> str:
     writer = csv.writer(buffer, lineterminator="\n")
     writer.writerow(io.CSV_COLUMNS)
     for i in range(len(layer)):
-        writer.writerow([*layer.points[i].tolist(), *layer.normals[i].tolist(), float(layer.areas[i]),
-                         float(layer.thickness[i]), float(layer.gap[i]), float(solution.strain[i]),
-                         float(solution.pressure[i]), float(solution.spring_force[i]), int(solution.in_contact[i]),
-                         -1, str(layer.labels[i])])
+        writer.writerow(
+            [
+                *layer.points[i].tolist(),
+                *layer.normals[i].tolist(),
+                float(layer.areas[i]),
+                float(layer.thickness[i]),
+                float(layer.gap[i]),
+                float(solution.strain[i]),
+                float(solution.pressure[i]),
+                float(solution.spring_force[i]),
+                int(solution.in_contact[i]),
+                -1,
+                str(layer.labels[i]),
+            ]
+        )
     return buffer.getvalue()
 
 
@@ -69,8 +80,12 @@ def test_streamed_vtu_reads_back_exactly(plate_solution, tmp_path, monkeypatch, 
     mesh = meshio.read(path)
     layer = plate_solution.problem.layer
     np.testing.assert_array_equal(mesh.points, layer.points)
-    for name, want in (("pressure", plate_solution.pressure), ("strain", plate_solution.strain),
-                       ("normal", layer.normals), ("area", layer.areas)):
+    for name, want in (
+        ("pressure", plate_solution.pressure),
+        ("strain", plate_solution.strain),
+        ("normal", layer.normals),
+        ("area", layer.areas),
+    ):
         np.testing.assert_array_equal(mesh.point_data[name], want, err_msg=name)
     assert max(io.vtk_differences(plate_solution, path).values()) == 0.0
 
@@ -139,8 +154,15 @@ def test_raster_maps_keep_the_peak(plate_solution, monkeypatch, tmp_path):
     fig = Figure()
     FigureCanvasAgg(fig)
     ax = fig.add_subplot()
-    draw.draw_values(ax, geometry, plate_solution.pressure, "viridis", Normalize(0, 1),
-                     contact=plate_solution.in_contact, grey=ListedColormap(["0.85"]))
+    draw.draw_values(
+        ax,
+        geometry,
+        plate_solution.pressure,
+        "viridis",
+        Normalize(0, 1),
+        contact=plate_solution.in_contact,
+        grey=ListedColormap(["0.85"]),
+    )
     assert not ax.collections or all(type(c).__name__ != "TriMesh" for c in ax.collections)
     image = np.ma.filled(ax.images[-1].get_array(), np.nan)
     assert np.nanmax(image) == plate_solution.peak_pressure  # a pixel is the largest pressure in it
@@ -170,7 +192,8 @@ def test_path_memory_grows_with_what_is_kept():
     assert path_memory(20_000, 0) == pytest.approx(2 * base)
     kept = path_memory(10_000, 5400)
     assert kept - path_memory(10_000, 5400, keep_solutions=False, keep_pressures=False) == pytest.approx(
-        10_000 * 5400 * 32.0)
+        10_000 * 5400 * 32.0
+    )
     assert path_memory(10_000, 5400, keep_solutions=False, keep_pressures=False) == base
 
 

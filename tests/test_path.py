@@ -33,6 +33,7 @@ def newton_path(hip, gait):
 
 # --- the synthetic gait load ------------------------------------------------------------
 
+
 def test_shipped_gait_is_reproducible_and_labelled():
     shipped = load_hip_gait()
     assert list(shipped.columns) == ["time", "Fx", "Fy", "Fz", "Mx", "My", "Mz"]
@@ -48,18 +49,19 @@ def test_gait_is_a_double_hump_peaking_near_2_4_bw():
     stance = bw[:62]
     peaks = [i for i in range(1, 61) if stance[i] >= stance[i - 1] and stance[i] >= stance[i + 1] and stance[i] > 2]
     assert len(peaks) == 2
-    assert stance[peaks[0]:peaks[1]].min() < 0.8 * stance[peaks].min()  # a valley between the humps
+    assert stance[peaks[0] : peaks[1]].min() < 0.8 * stance[peaks].min()  # a valley between the humps
     assert bw[70:].max() < 0.5  # swing
     assert (table["Fz"] < 0).all()
 
 
 # --- solving a path ---------------------------------------------------------------------
 
+
 def test_newton_path_table(newton_path, gait):
     table = newton_path.table
     # the fixed columns first, then one per validity check (no labels: no region columns)
-    assert list(table.columns)[:len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
-    extra = list(table.columns)[len(TABLE_COLUMNS):]
+    assert list(table.columns)[: len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
+    extra = list(table.columns)[len(TABLE_COLUMNS) :]
     assert extra and all(c.startswith("validity_") for c in extra)
     assert table["valid"].all() and (table["message"] == "").all()
     assert len(table) == len(gait) and newton_path.success
@@ -111,17 +113,20 @@ def test_ateshian_path_by_newton(hip, gait):
     assert result.success and result.table["peak_pressure"].gt(0).all()
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"loads": []}, "empty"),
-    ({"loads": np.zeros((3, 4))}, "shape"),
-    ({"loads": np.zeros((3, 3)), "times": [0, 2, 1]}, "increase"),
-    ({"loads": np.zeros((3, 3)), "times": [0, 1]}, "one per frame"),
-    ({"loads": pd.DataFrame({"Fx": [0.0], "Fy": [0.0]})}, "missing Fz"),
-    ({"loads": np.zeros((2, 3)), "method": "simplex"}, "method must be one of"),
-    ({"loads": np.zeros((2, 3)), "body": 3}, "body must be 1 or 2"),
-    ({"loads": np.zeros((2, 3)), "poses": np.zeros((3, 4, 4))}, r"shape \(2, 4, 4\)"),
-    ({"loads": np.zeros((2, 3)), "poses": np.tile(np.eye(4), (2, 1, 1))}, "not built from meshes"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"loads": []}, "empty"),
+        ({"loads": np.zeros((3, 4))}, "shape"),
+        ({"loads": np.zeros((3, 3)), "times": [0, 2, 1]}, "increase"),
+        ({"loads": np.zeros((3, 3)), "times": [0, 1]}, "one per frame"),
+        ({"loads": pd.DataFrame({"Fx": [0.0], "Fy": [0.0]})}, "missing Fz"),
+        ({"loads": np.zeros((2, 3)), "method": "simplex"}, "method must be one of"),
+        ({"loads": np.zeros((2, 3)), "body": 3}, "body must be 1 or 2"),
+        ({"loads": np.zeros((2, 3)), "poses": np.zeros((3, 4, 4))}, r"shape \(2, 4, 4\)"),
+        ({"loads": np.zeros((2, 3)), "poses": np.tile(np.eye(4), (2, 1, 1))}, "not built from meshes"),
+    ],
+)
 def test_bad_path_input(hip, kwargs, match):
     loads = kwargs.pop("loads")
     with pytest.raises(InputError, match=match):
@@ -150,6 +155,7 @@ def test_uncertified_frames_are_flagged_or_raised(hip, gait):
 
 # --- exposure ---------------------------------------------------------------------------
 
+
 def test_exposure_is_exact_for_piecewise_linear_pressure():
     times = [0.0, 1.0, 3.0]
     pressures = [np.array([2.0, 0.0, 1.0]), np.array([2.0, 2.0, 3.0]), np.array([2.0, 0.0, 1.0])]
@@ -163,8 +169,9 @@ def test_exposure_is_exact_for_piecewise_linear_pressure():
 
 
 def test_exposure_on_sites():
-    e = exposure([0.0, 1.0], [np.array([1.0]), np.array([1.0, 3.0])], [np.array([2]), np.array([2, 0])],
-                 threshold=0.0, n_sites=4)
+    e = exposure(
+        [0.0, 1.0], [np.array([1.0]), np.array([1.0, 3.0])], [np.array([2]), np.array([2, 0])], threshold=0.0, n_sites=4
+    )
     assert np.allclose(e.pressure_time_integral, [1.5, 0.0, 1.0, 0.0])
     with pytest.raises(InputError, match="threshold"):
         exposure([0.0], [np.zeros(1)], threshold=-1)
@@ -179,6 +186,7 @@ def test_path_exposure_matches_the_table(newton_path):
 
 
 # --- files ------------------------------------------------------------------------------
+
 
 def test_writes_table_series_plots_and_exposure(newton_path, tmp_path):
     import meshio
@@ -215,6 +223,7 @@ def test_pvd_needs_solutions(hip, gait, tmp_path):
 
 
 # --- moving meshes ----------------------------------------------------------------------
+
 
 def test_poses_recast_the_springs_each_frame():
     from dea_opt.geometry import sphere_on_bed_meshes

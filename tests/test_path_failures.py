@@ -60,8 +60,7 @@ def test_a_frame_the_springs_cannot_carry_is_recorded_and_the_path_goes_on(hip, 
         assert own_equilibrium(result.solutions[k], LOADS[k]) < 1e-6
         cold = d.solve(hip.with_load(force=LOADS[k]), "newton")
         assert np.abs(result.pressures[k] - cold.pressure).max() <= 1e-6 * cold.peak_pressure
-    assert result.failures() == [{"frame": 1, "time": 0.5, "status": "load_not_supported",
-                                  "message": row["message"]}]
+    assert result.failures() == [{"frame": 1, "time": 0.5, "status": "load_not_supported", "message": row["message"]}]
     line = result.failure_message()
     assert line.startswith("1 of 3 frames have no certified answer: frame 1 (0.5 s) load_not_supported: ")
     assert "\n" not in line and len(line) < 300
@@ -93,8 +92,15 @@ def test_stop_on_error_restores_aborting(hip):
 
 
 def test_every_output_has_every_frame(hip, tmp_path):
-    result = solve_path(hip, LOADS, times=TIMES, method="newton", keep_solutions=False, keep_pressures=False,
-                        series=tmp_path / "series_frames")
+    result = solve_path(
+        hip,
+        LOADS,
+        times=TIMES,
+        method="newton",
+        keep_solutions=False,
+        keep_pressures=False,
+        series=tmp_path / "series_frames",
+    )
     assert result.solutions is None and result.pressures is None
     files = result.write(tmp_path)
     table = pd.read_csv(files["table"], keep_default_na=False, na_values=[""])
@@ -158,8 +164,9 @@ def test_a_pose_without_springs_is_a_failed_frame():
     assert result.table["success"].iloc[[0, 2]].all()
     with pytest.raises(InputError, match="frame 1"):
         calls.clear()
-        solve_path(problem, np.tile([0.0, 0.0, -100.0], (3, 1)), poses, layer_for_pose=layer_for_pose,
-                   stop_on_error=True)
+        solve_path(
+            problem, np.tile([0.0, 0.0, -100.0], (3, 1)), poses, layer_for_pose=layer_for_pose, stop_on_error=True
+        )
 
 
 def test_exposure_accumulated_equals_the_dense_computation():
@@ -170,8 +177,9 @@ def test_exposure_accumulated_equals_the_dense_computation():
     pressures = [np.where(rng.random(n_springs) < 0.3, 0.0, rng.uniform(0, 2, n_springs)) for _ in times]
     sites = [rng.integers(0, n_sites, n_springs) for _ in times]
     skipped = {3, 4}
-    got = exposure(times, [None if k in skipped else p for k, p in enumerate(pressures)], sites, threshold,
-                   n_sites=n_sites)
+    got = exposure(
+        times, [None if k in skipped else p for k, p in enumerate(pressures)], sites, threshold, n_sites=n_sites
+    )
     # dense: a frames x sites array of the kept frames, the largest pressure at each site
     keep = [k for k in range(n_frames) if k not in skipped]
     P = np.zeros((len(keep), n_sites))
@@ -186,6 +194,7 @@ def test_exposure_accumulated_equals_the_dense_computation():
     dense = np.stack([np.interp(fine, t, P[:, j]) for j in range(n_sites)], axis=1)
     dt = fine[1] - fine[0]
     np.testing.assert_allclose(got.time_above, (dense > threshold).sum(axis=0) * dt, atol=4 * dt)
-    np.testing.assert_allclose(got.exposure_above, np.trapezoid(np.maximum(dense - threshold, 0), fine, axis=0),
-                               atol=1e-6)
+    np.testing.assert_allclose(
+        got.exposure_above, np.trapezoid(np.maximum(dense - threshold, 0), fine, axis=0), atol=1e-6
+    )
     assert got.duration == times[-1] - times[0]

@@ -23,12 +23,14 @@ from dea_opt.geometry import plate_layer
 from dea_opt.loadpath import REGION_COLUMNS, TABLE_COLUMNS, solve_path
 
 H = 10.0
-LOADS = np.array([
-    [0.0, 0.0, -400.0, 0.0, -1500.0, 0.0],
-    [0.0, 0.0, -400.0, 0.0, 0.0, 0.0],
-    [0.0, 0.0, -400.0, 0.0, 1500.0, 0.0],
-    [0.0, 0.0, -2800.0, 0.0, 0.0, 0.0],  # 2800 N on 400 mm^2: 7 MPa, strain 0.7 > 0.3
-])
+LOADS = np.array(
+    [
+        [0.0, 0.0, -400.0, 0.0, -1500.0, 0.0],
+        [0.0, 0.0, -400.0, 0.0, 0.0, 0.0],
+        [0.0, 0.0, -400.0, 0.0, 1500.0, 0.0],
+        [0.0, 0.0, -2800.0, 0.0, 0.0, 0.0],  # 2800 N on 400 mm^2: 7 MPa, strain 0.7 > 0.3
+    ]
+)
 
 
 @pytest.fixture(scope="module")
@@ -51,7 +53,7 @@ def test_region_columns_are_the_sums_over_each_half(path, labelled):
     table = path.table
     assert path.regions == {"lateral": "lateral", "medial": "medial"}
     expected = [f"{p}_{c}" for p in ("lateral", "medial") for c in REGION_COLUMNS]
-    assert list(table.columns)[-len(expected):] == expected
+    assert list(table.columns)[-len(expected) :] == expected
     for k, solution in enumerate(path.solutions):
         p, a = solution.pressure, labelled.areas
         total = float(p @ a)
@@ -94,7 +96,7 @@ def test_validity_per_frame(path):
 def test_files_carry_validity_and_regions(path, labelled, tmp_path):
     files = path.write(tmp_path, anatomy={"medial": (-1, 0, 0), "proximal": (0, 0, 1), "side": "right"})
     table = pd.read_csv(files["table"], keep_default_na=False, na_values=[""])
-    assert list(table.columns)[:len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
+    assert list(table.columns)[: len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
     np.testing.assert_array_equal(table["medial_force_share"], path.table["medial_force_share"])
     assert table["valid"].tolist() == [True, True, True, False]
     summary = json.loads(files["summary"].read_text())
@@ -116,8 +118,9 @@ def test_regions_given_for_a_path(labelled):
     """A layer without labels, split for the whole path by a function of the layer."""
     bare = dataclasses.replace(labelled, labels=None)
     problem = d.ContactProblem(bare, d.LinearLaw(H), free=("uz", "ry"))
-    result = solve_path(problem, LOADS[:3], method="newton",
-                        regions=lambda layer: label_by_axis(layer, "x", names=("left", "right")))
+    result = solve_path(
+        problem, LOADS[:3], method="newton", regions=lambda layer: label_by_axis(layer, "x", names=("left", "right"))
+    )
     assert set(result.regions) == {"left", "right"}
     with pytest.raises(d.InputError, match="one label per spring"):
         solve_path(problem, LOADS[:1], regions=np.zeros(3))

@@ -45,8 +45,7 @@ def run(code: str, terminal: bool) -> str:
     leader, follower = pty.openpty()
     # a terminal 100 columns wide (a new pseudo-terminal has none, and tqdm fits its bar to it)
     fcntl.ioctl(follower, termios.TIOCSWINSZ, struct.pack("HHHH", 30, 100, 0, 0))
-    process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=follower,
-                               env=env)
+    process = subprocess.Popen(command, stdin=subprocess.DEVNULL, stdout=subprocess.DEVNULL, stderr=follower, env=env)
     os.close(follower)
     chunks = []
     while True:

@@ -73,9 +73,7 @@ PROFILE = os.environ.get("DEA_HYPOTHESIS_PROFILE", "ci")
 if PROFILE not in PROFILE_TOTALS:
     raise RuntimeError(f"DEA_HYPOTHESIS_PROFILE must be one of {sorted(PROFILE_TOTALS)}, got {PROFILE!r}")
 if os.environ.get("DEA_HYPOTHESIS_SEED"):
-    settings.register_profile(
-        f"dea-{PROFILE}-seeded", settings.get_profile(f"dea-{PROFILE}"), derandomize=False
-    )
+    settings.register_profile(f"dea-{PROFILE}-seeded", settings.get_profile(f"dea-{PROFILE}"), derandomize=False)
     _BASE = settings.get_profile(f"dea-{PROFILE}-seeded")
 else:
     _BASE = settings.get_profile(f"dea-{PROFILE}")
@@ -166,8 +164,9 @@ def _cap(R, coverage, nr, ns):
     polar = np.arccos(0.5 * (np.cos(t0) + np.cos(t1)))
     phi = 2 * np.pi * (np.arange(ns) + 0.5) / ns
     P, F = np.meshgrid(polar, phi, indexing="ij")
-    direction = np.column_stack([(np.sin(P) * np.cos(F)).ravel(), (np.sin(P) * np.sin(F)).ravel(),
-                                 (-np.cos(P)).ravel()])
+    direction = np.column_stack(
+        [(np.sin(P) * np.cos(F)).ravel(), (np.sin(P) * np.sin(F)).ravel(), (-np.cos(P)).ravel()]
+    )
     return R * direction, -direction, np.repeat(area, ns), np.zeros(3)
 
 
@@ -333,8 +332,19 @@ def laws(draw, linear=None):
 
 
 @st.composite
-def cases(draw, *, geometry=None, law=None, linear=None, free="mixed", moving=None, gap_kind=None,
-          pull=False, extra_dof=False, strain=(-3.0, -0.7)):
+def cases(
+    draw,
+    *,
+    geometry=None,
+    law=None,
+    linear=None,
+    free="mixed",
+    moving=None,
+    gap_kind=None,
+    pull=False,
+    extra_dof=False,
+    strain=(-3.0, -0.7),
+):
     geometry = geometry or draw(st.sampled_from(sorted(RESISTED)))
     shape = draw(shapes(geometry))
     resisted = RESISTED[geometry]
@@ -451,11 +461,17 @@ def assert_agree(problem, solutions, rtol=1e-6):
     for name in names[1:]:
         s = solutions[name]
         np.testing.assert_allclose(
-            s.pressure, ref.pressure, rtol=0, atol=rtol * max(peak, 1e-300),
+            s.pressure,
+            ref.pressure,
+            rtol=0,
+            atol=rtol * max(peak, 1e-300),
             err_msg=f"pressure: {names[0]} vs {name}",
         )
         np.testing.assert_allclose(
-            P @ s.u[free], P @ ref.u[free], rtol=0, atol=rtol * max(umax, 1e-300),
+            P @ s.u[free],
+            P @ ref.u[free],
+            rtol=0,
+            atol=rtol * max(umax, 1e-300),
             err_msg=f"displacement: {names[0]} vs {name}",
         )
 
@@ -494,8 +510,7 @@ def assert_balanced(problem, solution, rtol=1e-8):
         # contact_force / contact_moment (dea_opt's own) equal minus the load on body 2's free dofs
         own = np.concatenate([solution.contact_force, solution.contact_moment])
         idx = [i for i, dof in enumerate(d.DOFS) if dof in problem.body2.free]
-        np.testing.assert_allclose((own + problem.body2.load_vector)[idx] / length[6:][idx], 0.0,
-                                   atol=rtol * scale)
+        np.testing.assert_allclose((own + problem.body2.load_vector)[idx] / length[6:][idx], 0.0, atol=rtol * scale)
 
 
 def farkas_margin(problem) -> float:
@@ -657,10 +672,14 @@ def transformed(problem, Q, t) -> d.ContactProblem:
     new_layer = d.SpringLayer(layer.points @ Q.T + t, layer.normals @ Q.T, layer.areas, layer.thickness, layer.gap)
     bodies = []
     for body in (problem.body1, problem.body2):
-        bodies.append(d.Body(
-            reference=tuple(Q @ np.asarray(body.reference) + t), free=body.free,
-            force=tuple(Q @ np.asarray(body.force)), moment=tuple(det * Q @ np.asarray(body.moment)),
-        ))
+        bodies.append(
+            d.Body(
+                reference=tuple(Q @ np.asarray(body.reference) + t),
+                free=body.free,
+                force=tuple(Q @ np.asarray(body.force)),
+                moment=tuple(det * Q @ np.asarray(body.moment)),
+            )
+        )
     return d.ContactProblem(new_layer, problem.law, body1=bodies[0], body2=bodies[1])
 
 
@@ -687,8 +706,12 @@ def _check_equivariant(case, Q, t, method):
     peak = base.peak_pressure
     np.testing.assert_allclose(other.pressure, base.pressure, rtol=0, atol=1e-6 * max(peak, 1e-300))
     # compressive strains are unique; open springs' strains are not where u is not
-    np.testing.assert_allclose(np.minimum(other.strain, 0), np.minimum(base.strain, 0), rtol=0,
-                               atol=1e-6 * max(np.abs(base.strain).max(), 1e-300))
+    np.testing.assert_allclose(
+        np.minimum(other.strain, 0),
+        np.minimum(base.strain, 0),
+        rtol=0,
+        atol=1e-6 * max(np.abs(base.strain).max(), 1e-300),
+    )
     # u: all six dofs of the moving body are free, so the free subspace maps onto itself.
     # Compare along the directions the contact determines (everywhere for a unique answer).
     P = determined_projector(problem, base)
@@ -704,8 +727,9 @@ def _check_equivariant(case, Q, t, method):
         # A unique answer is equivariant in full. (Where the compressed springs leave a
         # direction free, Newton's answer has no part along what no spring resists at all,
         # but along directions only open springs resist it may be any point of a flat set.)
-        np.testing.assert_allclose(other.u, transform_u(base.u, Q), rtol=0,
-                                   atol=1e-6 * max(np.abs(base.u).max(), 1e-300))
+        np.testing.assert_allclose(
+            other.u, transform_u(base.u, Q), rtol=0, atol=1e-6 * max(np.abs(base.u).max(), 1e-300)
+        )
     for s, p in ((base, problem), (other, moved)):
         assert_balanced(p, s, rtol=1e-6 if method != "newton" else 1e-8)
 
@@ -740,8 +764,12 @@ def test_mirroring_mirrors_the_solution(case, plane, data):
 
 @budget("superpose")
 @SEEDED
-@given(case=cases(law=d.LinearLaw(1.0), gap_kind="bonded"), H=st.floats(-1.0, 2.0),
-       pick=st.integers(0, 2**31 - 1), method=st.sampled_from(("newton", "qp", "nlp")))
+@given(
+    case=cases(law=d.LinearLaw(1.0), gap_kind="bonded"),
+    H=st.floats(-1.0, 2.0),
+    pick=st.integers(0, 2**31 - 1),
+    method=st.sampled_from(("newton", "qp", "nlp")),
+)
 def test_linear_bonded_layer_in_full_compression_superposes_loads(case, H, pick, method):
     """``u(r1 + r2) = u(r1) + u(r2)`` while every spring stays compressed."""
     layer, centre = make_layer(case)
@@ -751,8 +779,13 @@ def test_linear_bonded_layer_in_full_compression_superposes_loads(case, H, pick,
     A = system.A
     # a motion compressing every spring: maximize the smallest compression (an LP)
     m = A.shape[1]
-    res = linprog(np.r_[np.zeros(m), -1.0], A_ub=np.c_[A, np.ones(len(A))], b_ub=np.zeros(len(A)),
-                  bounds=[(-1, 1)] * m + [(0, 1)], method="highs")
+    res = linprog(
+        np.r_[np.zeros(m), -1.0],
+        A_ub=np.c_[A, np.ones(len(A))],
+        b_ub=np.zeros(len(A)),
+        bounds=[(-1, 1)] * m + [(0, 1)],
+        method="highs",
+    )
     assert res.status == 0
     x_star, margin = res.x[:m], res.x[m]
     assume(margin > 1e-3 * np.abs(A).max())

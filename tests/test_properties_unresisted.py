@@ -151,8 +151,12 @@ def cases(draw, *, zero_load=False):
         size = 10 ** draw(st.floats(0.0, 1.5))
         shape = (size, size * draw(st.floats(0.5, 2.0)), nx, ny)
     elif geometry == "socket":
-        shape = (10 ** draw(st.floats(0.0, 1.5)), draw(st.floats(30.0, 150.0)), draw(st.integers(2, 6)),
-                 draw(st.integers(5, 14)))
+        shape = (
+            10 ** draw(st.floats(0.0, 1.5)),
+            draw(st.floats(30.0, 150.0)),
+            draw(st.integers(2, 6)),
+            draw(st.integers(5, 14)),
+        )
     else:
         shape = (10 ** draw(st.floats(0.0, 1.5)), draw(st.integers(12, 90)))
     unresisted = UNRESISTED[geometry]
@@ -164,11 +168,17 @@ def cases(draw, *, zero_load=False):
         # tolerated rounding (below 1e-9 of the load) or a real part (above 1e-5)
         extra = 10 ** draw(st.one_of(st.floats(-14.0, -9.0), st.floats(-5.0, 0.0)))
     return Case(
-        geometry=geometry, shape=shape, law=draw(laws()), moving=draw(st.sampled_from([1, 2])),
-        free=tuple(dof for dof in d.DOFS if dof in free), area_spread=draw(st.sampled_from([0.0, 0.5, 1.0])),
+        geometry=geometry,
+        shape=shape,
+        law=draw(laws()),
+        moving=draw(st.sampled_from([1, 2])),
+        free=tuple(dof for dof in d.DOFS if dof in free),
+        area_spread=draw(st.sampled_from([0.0, 0.5, 1.0])),
         thickness=10 ** draw(st.floats(-0.5, 0.5)),
         gap_kind="press" if zero_load else draw(st.sampled_from(["open", "bonded", "press", "mixed"])),
-        gap_level=draw(st.floats(0.001, 0.1)), strain=10 ** draw(st.floats(-3.0, -1.5)), extra=extra,
+        gap_level=draw(st.floats(0.001, 0.1)),
+        strain=10 ** draw(st.floats(-3.0, -1.5)),
+        extra=extra,
         seed=draw(st.integers(0, 2**31 - 1)),
     )
 
@@ -185,9 +195,11 @@ def solve_all(problem, law):
 
 def describe(outcomes) -> str:
     return "\n".join(
-        f"{m}: {type(o).__name__}: {str(o)[:200]}" if isinstance(o, Exception)
+        f"{m}: {type(o).__name__}: {str(o)[:200]}"
+        if isinstance(o, Exception)
         else f"{m}: success={o.success} status={o.status} worst={o.certificate.worst()}"
-        for m, o in outcomes.items())
+        for m, o in outcomes.items()
+    )
 
 
 def check_balanced(case: Case, problem, solution, load, rtol):
@@ -199,14 +211,16 @@ def check_balanced(case: Case, problem, solution, load, rtol):
     free = [i for i, dof in enumerate(d.DOFS) if dof in case.free]
     pressure = solution.pressure
     overlap = np.maximum(-layer.gap / layer.thickness, 0.0)
-    scale = max(np.abs(load / length).max(), float(pressure @ layer.areas),
-                case.law.modulus * float(layer.areas @ overlap))
+    scale = max(
+        np.abs(load / length).max(), float(pressure @ layer.areas), case.law.modulus * float(layer.areas @ overlap)
+    )
     residual = np.abs((resultant(layer, pressure, case.moving) + load) / length)[free]
     assert residual.max(initial=0.0) <= rtol * scale, (
         f"{solution.method}: springs do not balance the load: residual {residual.max() / scale:.3g} on "
-        f"{[d.DOFS[free[i]] for i in np.flatnonzero(residual > rtol * scale)]}")
+        f"{[d.DOFS[free[i]] for i in np.flatnonzero(residual > rtol * scale)]}"
+    )
     # no motion along what nothing resists: the answer is the minimum-norm one
-    u = solution.u[6 * (case.moving - 1): 6 * case.moving] * length
+    u = solution.u[6 * (case.moving - 1) : 6 * case.moving] * length
     held = [i for i in free if d.DOFS[i] in UNRESISTED[case.geometry]]
     size = np.abs(u[free]).max(initial=0.0)
     assert np.abs(u[held]).max(initial=0.0) <= 1e-8 * size, f"motion along unresisted dofs: {u[held]}"
@@ -220,14 +234,23 @@ def test_unresisted_free_dofs_are_rejected_or_held(case):
     note(repr(case))
     outcomes = solve_all(problem, case.law)
     note(describe(outcomes))
-    event(f"{case.geometry}: " + ("rejected" if rejected(case) else
-                                  "held" if all(dof in UNRESISTED[case.geometry] for dof in case.free) else
-                                  "some unresisted" if any(dof in UNRESISTED[case.geometry] for dof in case.free)
-                                  else "all resisted"))
+    event(
+        f"{case.geometry}: "
+        + (
+            "rejected"
+            if rejected(case)
+            else "held"
+            if all(dof in UNRESISTED[case.geometry] for dof in case.free)
+            else "some unresisted"
+            if any(dof in UNRESISTED[case.geometry] for dof in case.free)
+            else "all resisted"
+        )
+    )
     if rejected(case):
         for method, outcome in outcomes.items():
             assert isinstance(outcome, d.LoadNotSupportedError), (
-                f"{method}: a load along an unresisted dof was not rejected:\n{describe(outcomes)}")
+                f"{method}: a load along an unresisted dof was not rejected:\n{describe(outcomes)}"
+            )
             unresisted = [f"body{case.moving}.{dof}" for dof in case.free if dof in UNRESISTED[case.geometry]]
             assert any(outcome.direction.get(name, 0.0) != 0.0 for name in unresisted)
         return
@@ -241,8 +264,11 @@ def test_unresisted_free_dofs_are_rejected_or_held(case):
         for outcome in outcomes.values():
             assert outcome.status is d.Status.HELD and not outcome.u.any()
             np.testing.assert_allclose(
-                outcome.pressure, -case.law.stress(np.minimum(problem.layer.gap / problem.layer.thickness, 0.0)),
-                rtol=1e-12, atol=0)
+                outcome.pressure,
+                -case.law.stress(np.minimum(problem.layer.gap / problem.layer.thickness, 0.0)),
+                rtol=1e-12,
+                atol=0,
+            )
     assert_agree(problem, outcomes)
 
 

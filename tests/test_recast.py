@@ -178,8 +178,7 @@ def test_recast_at_a_translated_solution_carries_the_load_exactly():
     new = again.cast.layer
     same = np.isin(new.source_face, cast.layer.source_face)
     start = dict(zip(cast.layer.source_face, cast.layer.gap))
-    np.testing.assert_allclose(new.gap[same], [start[f] + solution.u[8] for f in new.source_face[same]],
-                               atol=1e-9)
+    np.testing.assert_allclose(new.gap[same], [start[f] + solution.u[8] for f in new.source_face[same]], atol=1e-9)
     force = (law.H * np.maximum(-new.gap, 0.0) / new.thickness * new.areas) @ new.normals
     np.testing.assert_allclose(again.force, force, rtol=1e-12)
     np.testing.assert_allclose(again.force, [0.0, 0.0, 200.0], atol=1e-7)
@@ -310,8 +309,11 @@ def test_targets_survive_subset_concatenate_and_with_gap(hip):
 def test_concatenating_layers_of_two_surfaces_stacks_them():
     pair = geometry.knee_meshes(n_plateau=8, step=6.0)
     a = M.springs_from_meshes(pair.mesh1, pair.mesh2, **pair.options)
-    b = M.springs_from_meshes(geometry.slab_mesh(4.0, 4.0, 1.0, 2, 2), geometry.slab_mesh(
-        4.0, 4.0, 1.0, 2, 2, top=0.5, facing="down"), thickness2=0.0)
+    b = M.springs_from_meshes(
+        geometry.slab_mesh(4.0, 4.0, 1.0, 2, 2),
+        geometry.slab_mesh(4.0, 4.0, 1.0, 2, 2, top=0.5, facing="down"),
+        thickness2=0.0,
+    )
     both = d.SpringLayer.concatenate([a, b])
     faces = both.surface[1][both.source_face]
     corners = both.surface[0][faces].mean(axis=1)
@@ -328,24 +330,50 @@ def test_layers_without_meshes_have_no_targets():
         M.tangent_plane_gap(layer, np.eye(4))
 
 
-@pytest.mark.parametrize("given, words", [
-    ({"target_points": np.zeros((8, 3))}, "given together"),
-    ({"target_points": np.zeros((8, 3)), "target_normals": np.tile([0, 0, 2.0], (8, 1)),
-      "target_faces": np.zeros(8, dtype=int)}, "unit vectors"),
-    ({"target_points": np.zeros((8, 3)), "target_normals": np.tile([0, 0, 1.0], (8, 1)),
-      "target_faces": np.zeros(8)}, "target_faces must be integers"),
-    ({"target_points": np.zeros((7, 3)), "target_normals": np.tile([0, 0, 1.0], (8, 1)),
-      "target_faces": np.zeros(8, dtype=int)}, "target_points must have shape"),
-])
+@pytest.mark.parametrize(
+    "given, words",
+    [
+        ({"target_points": np.zeros((8, 3))}, "given together"),
+        (
+            {
+                "target_points": np.zeros((8, 3)),
+                "target_normals": np.tile([0, 0, 2.0], (8, 1)),
+                "target_faces": np.zeros(8, dtype=int),
+            },
+            "unit vectors",
+        ),
+        (
+            {
+                "target_points": np.zeros((8, 3)),
+                "target_normals": np.tile([0, 0, 1.0], (8, 1)),
+                "target_faces": np.zeros(8),
+            },
+            "target_faces must be integers",
+        ),
+        (
+            {
+                "target_points": np.zeros((7, 3)),
+                "target_normals": np.tile([0, 0, 1.0], (8, 1)),
+                "target_faces": np.zeros(8, dtype=int),
+            },
+            "target_points must have shape",
+        ),
+    ],
+)
 def test_bad_targets_are_named(given, words):
     layer = geometry.plate_layer(4.0, 2.0, 4, 2)
     with pytest.raises(d.InputError, match=words):
         d.SpringLayer(layer.points, layer.normals, layer.areas, layer.thickness, **given)
 
 
-@pytest.mark.parametrize("index, words", [
-    (np.ones(3, dtype=bool), "boolean index"), (np.array([0.5]), "integer indices"), (np.array([99]), "lie in"),
-])
+@pytest.mark.parametrize(
+    "index, words",
+    [
+        (np.ones(3, dtype=bool), "boolean index"),
+        (np.array([0.5]), "integer indices"),
+        (np.array([99]), "lie in"),
+    ],
+)
 def test_bad_subsets_are_named(index, words):
     with pytest.raises(d.InputError, match=words):
         geometry.plate_layer(4.0, 2.0, 4, 2).subset(index)

@@ -24,8 +24,7 @@ P, B, L = 500.0, 40.0, 10.0  # plate load (N) and size (mm)
 
 def _plate(e):
     layer = plate_layer(B, L, 400, 10, thickness=2.0)
-    return d.ContactProblem(layer, d.LinearLaw(10.0), load=d.Load((0, 0, -P), point=(e, 0, 0)),
-                            free=("uz", "rx", "ry"))
+    return d.ContactProblem(layer, d.LinearLaw(10.0), load=d.Load((0, 0, -P), point=(e, 0, 0)), free=("uz", "rx", "ry"))
 
 
 def _socket():
@@ -101,17 +100,26 @@ def _quadrature(force, law):
 
     def carried(approach):
         a = math.sqrt(2 * R * approach - approach**2)
+
         def strain(rho):
             return (R - math.sqrt(R * R - rho * rho) - approach) / H_BED
-        return quad(lambda rho: -law.stress(np.array([strain(rho)]))[0] * 2 * math.pi * rho, 0, a,
-                    epsabs=1e-13, epsrel=1e-12, limit=200)[0]
+
+        return quad(
+            lambda rho: -law.stress(np.array([strain(rho)]))[0] * 2 * math.pi * rho,
+            0,
+            a,
+            epsabs=1e-13,
+            epsrel=1e-12,
+            limit=200,
+        )[0]
 
     approach = brentq(lambda x: carried(x) - force, 1e-6, 0.999 * H_BED, xtol=1e-14)
     return approach, -law.stress(np.array([-approach / H_BED]))[0]
 
 
-@pytest.mark.parametrize("name, method", [(name, m) for name, law in BED_LAWS.items() for m in METHODS
-                                          if applies(m, law)])
+@pytest.mark.parametrize(
+    "name, method", [(name, m) for name, law in BED_LAWS.items() for m in METHODS if applies(m, law)]
+)
 def test_sphere_on_bed(name, method):
     law = BED_LAWS[name]
     s = solution(f"bed-{name}", method)

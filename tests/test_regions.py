@@ -19,8 +19,9 @@ def tilted():
     layer = sphere_on_bed_layer(n_rings=24, n_sectors=32)
     labels = np.where(layer.points[:, 0] < -2.0, "medial", np.where(layer.points[:, 0] < 2.0, "centre", "lateral"))
     layer = dataclasses.replace(layer, labels=labels)
-    problem = d.ContactProblem(layer, d.LinearLaw(10.0), force=(0, 0, -30), moment=(0, 20, 0),
-                               reference=(0, 0, 25), free=("uz", "ry"))
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(10.0), force=(0, 0, -30), moment=(0, 20, 0), reference=(0, 0, 25), free=("uz", "ry")
+    )
     solution = d.solve(problem, "newton")
     assert 0 < solution.in_contact.sum() < len(layer)
     return solution
@@ -31,8 +32,7 @@ def plate():
     """A bonded plate with integer labels (left half 1, right half 2)."""
     layer = plate_layer(nx=40, ny=4)
     layer = dataclasses.replace(layer, labels=np.where(layer.points[:, 0] < 0, 1, 2))
-    problem = d.ContactProblem(layer, d.LinearLaw(10.0), force=(0, 0, -400), moment=(0, 1000, 0),
-                               free=("uz", "ry"))
+    problem = d.ContactProblem(layer, d.LinearLaw(10.0), force=(0, 0, -400), moment=(0, 1000, 0), free=("uz", "ry"))
     return d.solve(problem, "newton")
 
 
@@ -61,8 +61,9 @@ def assert_partition(stats, solution):
     resultant = sum(s.force_vector for s in stats.values())
     np.testing.assert_allclose(resultant, solution.contact_force, rtol=1e-12, atol=1e-12)
     weighted = sum(s.force * s.center_of_pressure for s in stats.values() if s.force > 0)
-    np.testing.assert_allclose(weighted / solution.total_normal_force, solution.center_of_pressure,
-                               rtol=1e-10, atol=1e-12)
+    np.testing.assert_allclose(
+        weighted / solution.total_normal_force, solution.center_of_pressure, rtol=1e-10, atol=1e-12
+    )
 
 
 def test_label_regions(tilted):

@@ -59,17 +59,23 @@ class MinimizeModel:
         if out.success:
             self.last = u_free
         return FormulationResult(
-            u_free=u_free, stress=self.law.stress(np.minimum(system.strain_at(u_free), 0.0)),
-            success=bool(out.success), status=SCIPY_STATUS.get(out.status, Status.SOLVER_ERROR),
-            message=f"BFGS: {out.message}", iterations=int(out.nit),
-            info={"native_status": int(out.status)})
+            u_free=u_free,
+            stress=self.law.stress(np.minimum(system.strain_at(u_free), 0.0)),
+            success=bool(out.success),
+            status=SCIPY_STATUS.get(out.status, Status.SOLVER_ERROR),
+            message=f"BFGS: {out.message}",
+            iterations=int(out.nit),
+            info={"native_status": int(out.status)},
+        )
 
 
 def toy_module(laws="any", warm_start=True):
     return types.SimpleNamespace(
         Model=MinimizeModel,
-        OPTIONS=(Option("gtol", float, 1e-10, "BFGS's gradient tolerance (scaled)", range=(0, 1), tolerance=True),
-                 Option("maxiter", int, 2000, "BFGS's iteration limit", range=(1, None))),
+        OPTIONS=(
+            Option("gtol", float, 1e-10, "BFGS's gradient tolerance (scaled)", range=(0, 1), tolerance=True),
+            Option("maxiter", int, 2000, "BFGS's iteration limit", range=(1, None)),
+        ),
         CAPABILITIES=Capabilities(laws=laws, warm_start=warm_start, duals=False, checks_load_first=False),
         VARIANT=None,
     )
@@ -87,8 +93,9 @@ def toy():
 def plate(law=None, e=10.0, force=-500.0):
     """A plate under an eccentric load: lift-off, so the contact set is a real unknown."""
     layer = plate_layer(40.0, 10.0, 80, 4, thickness=2.0)
-    return d.ContactProblem(layer, law or d.LinearLaw(20.0), load=d.Load((0, 0, force), point=(e, 0, 0)),
-                            free=("uz", "rx", "ry"))
+    return d.ContactProblem(
+        layer, law or d.LinearLaw(20.0), load=d.Load((0, 0, force), point=(e, 0, 0)), free=("uz", "rx", "ry")
+    )
 
 
 def own_balance(solution, problem):
@@ -202,8 +209,11 @@ def test_an_unregistered_formulation_is_no_longer_a_scenario_s_method():
 
 def test_its_options_are_checked_by_the_registry(toy):
     problem = plate()
-    with pytest.raises(d.InputError, match=r"method 'toy' takes the options \['gtol', 'maxiter', 'x0'\], "
-                                           r"got unknown option 'tol'"):
+    with pytest.raises(
+        d.InputError,
+        match=r"method 'toy' takes the options \['gtol', 'maxiter', 'x0'\], "
+        r"got unknown option 'tol'",
+    ):
         d.solve(problem, "toy", tol=1e-8)
     with pytest.raises(d.InputError, match=r"gtol must be a number in \(0, 1\), got 2"):
         d.solve(problem, "toy", gtol=2)
@@ -224,8 +234,9 @@ def test_capabilities_decide_where_it_applies():
     formulations.register("toy_linear", toy_module(laws="linear"))
     try:
         nonlinear = plate(d.AteshianLaw(10.0, 0.3))
-        with pytest.raises(d.InputError, match="method 'toy_linear' needs a LinearLaw.*method='newton' or "
-                                               "method='nlp'"):
+        with pytest.raises(
+            d.InputError, match="method 'toy_linear' needs a LinearLaw.*method='newton' or method='nlp'"
+        ):
             d.solve(nonlinear, "toy_linear")
         with pytest.raises(d.InputError, match="method 'toy_linear' needs a LinearLaw"):
             d.solve_path(nonlinear, [(0, 0, -1.0)], method="toy_linear")
@@ -239,15 +250,19 @@ def test_capabilities_decide_where_it_applies():
 def test_auto_falls_back_by_capability(monkeypatch):
     """With only Newton and two toys registered, ``auto`` falls back to the first that takes
     the law: the linear-only toy for a linear law, the other for a nonlinear one."""
-    registry = {"newton": formulations.get("newton"), "toy_linear": toy_module(laws="linear"),
-                "toy_any": toy_module()}
+    registry = {"newton": formulations.get("newton"), "toy_linear": toy_module(laws="linear"), "toy_any": toy_module()}
     monkeypatch.setattr(formulations, "FORMULATIONS", registry)
     linear, nonlinear = d.LinearLaw(20.0), d.AteshianLaw(10.0, 0.3)
     assert formulations.fallback_for(linear) == "toy_linear" and formulations.fallback_for(nonlinear) == "toy_any"
 
     def fails(self, load=None, *, x0=None):
-        return FormulationResult(u_free=np.zeros(self.system.n_dofs), stress=np.zeros(self.system.n_springs),
-                                 success=False, status=Status.LINE_SEARCH_FAILED, message="forced")
+        return FormulationResult(
+            u_free=np.zeros(self.system.n_dofs),
+            stress=np.zeros(self.system.n_springs),
+            success=False,
+            status=Status.LINE_SEARCH_FAILED,
+            message="forced",
+        )
 
     monkeypatch.setattr(formulations.get("newton").NewtonModel, "solve", fails)
     for law, expected in ((linear, "toy_linear"), (nonlinear, "toy_any")):
@@ -256,21 +271,28 @@ def test_auto_falls_back_by_capability(monkeypatch):
 
 
 def test_only_newton_takes_a_law_nothing_else_takes(monkeypatch):
-    monkeypatch.setattr(formulations, "FORMULATIONS", {"newton": formulations.get("newton"),
-                                                       "toy_linear": toy_module(laws="linear")})
+    monkeypatch.setattr(
+        formulations, "FORMULATIONS", {"newton": formulations.get("newton"), "toy_linear": toy_module(laws="linear")}
+    )
     assert formulations.fallback_for(d.AteshianLaw(10.0, 0.3)) is None
     s = d.solve(plate(d.AteshianLaw(10.0, 0.3)), "auto")
     assert s.method == "newton" and s.info["fallback"] is None
 
 
-@pytest.mark.parametrize("name, module, match", [
-    ("newton", toy_module(), "already registered"),
-    ("auto", toy_module(), "other than 'auto'"),
-    ("no-dash", toy_module(), "identifier"),
-    ("bare", types.SimpleNamespace(Model=MinimizeModel), "lacks OPTIONS, CAPABILITIES"),
-    ("caps", types.SimpleNamespace(Model=MinimizeModel, OPTIONS=(), CAPABILITIES={"laws": "any"}),
-     "CAPABILITIES must be a Capabilities"),
-])
+@pytest.mark.parametrize(
+    "name, module, match",
+    [
+        ("newton", toy_module(), "already registered"),
+        ("auto", toy_module(), "other than 'auto'"),
+        ("no-dash", toy_module(), "identifier"),
+        ("bare", types.SimpleNamespace(Model=MinimizeModel), "lacks OPTIONS, CAPABILITIES"),
+        (
+            "caps",
+            types.SimpleNamespace(Model=MinimizeModel, OPTIONS=(), CAPABILITIES={"laws": "any"}),
+            "CAPABILITIES must be a Capabilities",
+        ),
+    ],
+)
 def test_a_bad_registration_is_refused(name, module, match):
     with pytest.raises(d.InputError, match=match):
         formulations.register(name, module)
@@ -278,8 +300,11 @@ def test_a_bad_registration_is_refused(name, module, match):
 
 
 def test_unknown_names_and_bad_capabilities():
-    with pytest.raises(d.InputError, match=r"method must be one of \('auto', 'newton', 'qp', 'nlp', 'finite', 'finite_nlp'\), "
-                                          r"got 'simplex'"):
+    with pytest.raises(
+        d.InputError,
+        match=r"method must be one of \('auto', 'newton', 'qp', 'nlp', 'finite', 'finite_nlp'\), "
+        r"got 'simplex'",
+    ):
         formulations.get("simplex")
     with pytest.raises(d.InputError, match="Capabilities.laws must be 'linear' or 'any'"):
         Capabilities(laws="cubic")
@@ -293,7 +318,9 @@ def test_each_built_in_formulation_declares_itself(name):
     assert all(isinstance(status, Status) for status in module.NATIVE_STATUS.values())
     variant = formulations.variant(name)
     assert variant is None or isinstance(variant, Variant)
-    assert formulations.tolerance_options(name, 1e-8) and set(formulations.tolerance_options(name, 1e-8).values()) == {1e-8}
+    assert formulations.tolerance_options(name, 1e-8) and set(formulations.tolerance_options(name, 1e-8).values()) == {
+        1e-8
+    }
     # every option's default passes its own check
     for option in module.OPTIONS:
         if not callable(option.choices):
@@ -336,6 +363,8 @@ def test_the_readme_tables_of_options_and_capabilities_are_the_registry_s():
             row = f"| `{name}` | `{o.name}` | {o.kind()} | `{o.default!r}` | {'yes' if o.tolerance else ''} | {o.doc} |"
             assert row in section, row
         c = formulations.capabilities(name)
-        row = (f"| `{name}` | {c.laws} | {'yes' if c.warm_start else 'no'} | {', '.join(c.kinematics)} | "
-               f"{'yes' if c.duals else 'no'} | {'before' if c.checks_load_first else 'after a failure'} |")
+        row = (
+            f"| `{name}` | {c.laws} | {'yes' if c.warm_start else 'no'} | {', '.join(c.kinematics)} | "
+            f"{'yes' if c.duals else 'no'} | {'before' if c.checks_load_first else 'after a failure'} |"
+        )
         assert row in section, row

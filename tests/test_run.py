@@ -40,6 +40,7 @@ def stderr_lines(result) -> list[str]:
 
 # --- exit status and what the outputs say ---------------------------------------------------------
 
+
 def test_version_option_and_command():
     for args in (["--version"], ["version"]):
         result = invoke(*args)
@@ -72,8 +73,16 @@ def test_outside_validity_exits_3_with_the_reason_unless_allowed(tmp_path):
     assert last.startswith(f"dea-opt: solved outside validity: strain {strain:.4g} > 0.3")
     assert "use AteshianLaw" in last and len(stderr_lines(result)) == 1  # said once, not twice
     assert read_manifest(tmp_path / "a")["status"] == RunStatus.OUTSIDE_VALIDITY
-    result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path / "b", "--set", "law.H=5",
-                    "--set", "solve.allow_outside_validity=true")
+    result = invoke(
+        "run",
+        EXAMPLES / "plate_springs.toml",
+        "-o",
+        tmp_path / "b",
+        "--set",
+        "law.H=5",
+        "--set",
+        "solve.allow_outside_validity=true",
+    )
     assert result.exit_code == 0
     assert "solved outside validity (allowed by [solve] allow_outside_validity)" in result.stderr
     assert json.loads((tmp_path / "b" / "contact.json").read_text())["validity"]["valid"] is False
@@ -81,8 +90,18 @@ def test_outside_validity_exits_3_with_the_reason_unless_allowed(tmp_path):
 
 
 def test_a_failed_certificate_outranks_validity(tmp_path):
-    result = invoke("run", EXAMPLES / "plate_springs.toml", "-o", tmp_path, "--set", "law.H=5", "-m", "newton",
-                    "--set", "solve.certificate_tol=1e-30")
+    result = invoke(
+        "run",
+        EXAMPLES / "plate_springs.toml",
+        "-o",
+        tmp_path,
+        "--set",
+        "law.H=5",
+        "-m",
+        "newton",
+        "--set",
+        "solve.certificate_tol=1e-30",
+    )
     assert result.exit_code == 1 and "no certified answer" in result.stderr
     assert read_manifest(tmp_path)["status"] == RunStatus.CERTIFICATE_FAILED
 
@@ -132,8 +151,17 @@ def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):
     failures = read_manifest(tmp_path / "out")["failures"]  # the frames' own statuses, counted
     assert sum(failures.values()) == 11 and "load_not_supported" not in failures
     # --stop-on-error: the first failed frame ends the run, a named error, nothing published
-    result = invoke("run", scenario, "-o", tmp_path / "stopped", "-m", "newton", "--stop-on-error",
-                    "--set", "solve.certificate_tol=1e-30")
+    result = invoke(
+        "run",
+        scenario,
+        "-o",
+        tmp_path / "stopped",
+        "-m",
+        "newton",
+        "--stop-on-error",
+        "--set",
+        "solve.certificate_tol=1e-30",
+    )
     assert result.exit_code == 2 and stderr_lines(result)[-1].startswith("dea-opt: error: frame 0")
     assert read_manifest(tmp_path / "stopped") is None
 
@@ -149,8 +177,10 @@ def knee_scenario(tmp_path, scale=1.0, free='["uz", "ry"]', force=1000.0, H=10.0
     meshes) under the femur, loaded along -z at the midpoint of the two tibial centroids."""
     import trimesh
 
-    centres = [(m.area_faces @ m.triangles_center) / m.area
-               for m in (trimesh.load(KNEE / KNEE_FILES[1]), trimesh.load(KNEE / KNEE_FILES[2]))]
+    centres = [
+        (m.area_faces @ m.triangles_center) / m.area
+        for m in (trimesh.load(KNEE / KNEE_FILES[1]), trimesh.load(KNEE / KNEE_FILES[2]))
+    ]
     reference = (0.5 * (centres[0] + centres[1]) * scale).tolist()
     path = tmp_path / "knee.toml"
     path.write_text(f"""\
@@ -175,12 +205,15 @@ formats = ["json"]
 
 
 @needs_knee
-@pytest.mark.parametrize("case, options, failed, words", [
-    ("metres", {"scale": 1e-3}, {"extent", "layer_area", "thickness"}, "looks like metres"),
-    ("a million newtons", {"force": 1e6}, {"peak_pressure"}, "load's units"),
-    ("six free dofs", {"free": '"all"'}, {"rotation", "gap_error"}, "small-rotation kinematics"),
-    ("crushed by a linear H = 5", {"H": 5.0, "force": 5000.0}, {"strain"}, "crushed through its whole thickness"),
-])
+@pytest.mark.parametrize(
+    "case, options, failed, words",
+    [
+        ("metres", {"scale": 1e-3}, {"extent", "layer_area", "thickness"}, "looks like metres"),
+        ("a million newtons", {"force": 1e6}, {"peak_pressure"}, "load's units"),
+        ("six free dofs", {"free": '"all"'}, {"rotation", "gap_error"}, "small-rotation kinematics"),
+        ("crushed by a linear H = 5", {"H": 5.0, "force": 5000.0}, {"strain"}, "crushed through its whole thickness"),
+    ],
+)
 def test_knee_reproducers_exit_3_with_the_reason(tmp_path, case, options, failed, words):
     result = invoke("run", knee_scenario(tmp_path, **options), "-o", tmp_path / "out", "-q")
     assert result.exit_code == 3, result.stderr
@@ -200,12 +233,14 @@ def test_the_physiological_knee_exits_0(tmp_path):
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     assert summary["validity"]["valid"] and 1.0 < summary["peak_pressure"] < 20.0
     regions = summary["regions"]
-    assert sum(regions[n]["force"] for n in ("medial", "lateral")) == pytest.approx(summary["total_normal_force"],
-                                                                                  rel=1e-9)
+    assert sum(regions[n]["force"] for n in ("medial", "lateral")) == pytest.approx(
+        summary["total_normal_force"], rel=1e-9
+    )
     assert all(regions[n]["force"] > 0.0 for n in ("medial", "lateral"))
 
 
 # --- laws from the registry ---------------------------------------------------------------------
+
 
 @dataclass(frozen=True)
 class ToyLaw(Law):
@@ -213,8 +248,10 @@ class ToyLaw(Law):
 
     k: float
     c: float = 0.0
-    ranges = {"k": Range(0.0, None, "MPa", "linear stiffness", low_open=True),
-              "c": Range(0.0, None, "MPa", "cubic stiffness")}
+    ranges = {
+        "k": Range(0.0, None, "MPa", "linear stiffness", low_open=True),
+        "c": Range(0.0, None, "MPa", "cubic stiffness"),
+    }
 
     def stress_expr(self, eps, xp):
         return self.k * eps + self.c * eps**3
@@ -272,8 +309,9 @@ def toy_strain(pressure, k, c):
 
 @pytest.mark.parametrize("method", ["newton", "nlp"])
 def test_a_toy_law_through_solve(toy, method):
-    problem = d.ContactProblem(plate_layer(40.0, 10.0, 40, 4, 2.0), ToyLaw(10.0, 50.0), force=(0.0, 0.0, -2000.0),
-                               free=("uz",))
+    problem = d.ContactProblem(
+        plate_layer(40.0, 10.0, 40, 4, 2.0), ToyLaw(10.0, 50.0), force=(0.0, 0.0, -2000.0), free=("uz",)
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", d.ValidityWarning)
         solution = d.solve(problem, method)
@@ -301,8 +339,9 @@ def test_a_toy_law_through_a_scenario_the_schema_and_the_cli(toy, tmp_path):
 def test_unregistered_kinds_and_bad_parameters_name_the_key():
     with pytest.raises(d.ScenarioError, match="law.kind.*'linear', 'ateshian'"):
         parse_scenario(PLATE_TOY)
-    text = PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0',
-                             'kind = "polynomial"\nH = 1.0\nbeta = 0.1\norder = 2.5')
+    text = PLATE_TOY.replace(
+        'kind = "toy"\nk = 10.0\nc = 50.0', 'kind = "polynomial"\nH = 1.0\nbeta = 0.1\norder = 2.5'
+    )
     with pytest.raises(d.ScenarioError, match="law.order"):
         parse_scenario(text)
     with pytest.raises(d.ScenarioError, match=r"law.H \(line 7\): must be <= 1e\+30, got 1e\+308"):
@@ -310,10 +349,21 @@ def test_unregistered_kinds_and_bad_parameters_name_the_key():
 
 
 def test_law_kinds_in_a_sweep_drop_what_a_kind_does_not_take(tmp_path):
-    (tmp_path / "plate.toml").write_text(PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0',
-                                                           'kind = "ateshian"\nH = 10.0\nbeta = 0.3'))
-    result = invoke("sweep", tmp_path / "plate.toml", "--set", "law.kind=linear,ateshian", "--set",
-                    "law.beta=0.2,0.4", "--scheduler", "synchronous", "-o", tmp_path / "sweep")
+    (tmp_path / "plate.toml").write_text(
+        PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0', 'kind = "ateshian"\nH = 10.0\nbeta = 0.3')
+    )
+    result = invoke(
+        "sweep",
+        tmp_path / "plate.toml",
+        "--set",
+        "law.kind=linear,ateshian",
+        "--set",
+        "law.beta=0.2,0.4",
+        "--scheduler",
+        "synchronous",
+        "-o",
+        tmp_path / "sweep",
+    )
     # the linear cases carry 5 MPa on H = 10 MPa: strain 0.5, past the linear law's 30 %
     assert result.exit_code == 3, result.stderr
     table = pd.read_csv(tmp_path / "sweep" / "sweep.csv")
@@ -325,16 +375,21 @@ def test_law_kinds_in_a_sweep_drop_what_a_kind_does_not_take(tmp_path):
     assert table[table["law.kind"] == "ateshian"]["warnings"].isna().all()
     # a key no law takes is a misspelling, not a parameter to drop
     with pytest.raises(d.ScenarioError, match="law.betta"):
-        parse_scenario(PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0', 'H = 1.0'),
-                       overrides={"law.kind": "linear", "law.betta": 0.3})
+        parse_scenario(
+            PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0', "H = 1.0"),
+            overrides={"law.kind": "linear", "law.betta": 0.3},
+        )
     # --set law=linear is law.kind=linear
-    ateshian = parse_scenario(PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0', 'kind = "ateshian"\nH = 1.0\n'
-                                                'beta = 0.3'), overrides={"law": "linear"})
+    ateshian = parse_scenario(
+        PLATE_TOY.replace('kind = "toy"\nk = 10.0\nc = 50.0', 'kind = "ateshian"\nH = 1.0\nbeta = 0.3'),
+        overrides={"law": "linear"},
+    )
     assert ateshian.law.kind == "linear" and ateshian.law.parameters == {"H": 1.0}
     assert ateshian.notes == ["law kind 'linear' takes no beta: dropped law.beta for this case"]
 
 
 # --- nothing raw reaches the terminal -------------------------------------------------------------
+
 
 def test_library_warnings_go_to_the_log_and_dea_opts_own_to_one_line(tmp_path, monkeypatch):
     import dea_opt.scenario as scenario_package

@@ -37,7 +37,8 @@ def no_warnings(allowed=()):
         yield caught
     bad = [w for w in caught if not (allowed and issubclass(w.category, allowed))]
     assert not bad, "unexpected warnings: " + "; ".join(
-        f"{w.category.__name__}: {w.message} ({w.filename}:{w.lineno})" for w in bad)
+        f"{w.category.__name__}: {w.message} ({w.filename}:{w.lineno})" for w in bad
+    )
 
 
 def solve(problem, method, *, allowed=(d.ValidityWarning,), **options):
@@ -67,8 +68,10 @@ def reference_at(lever):
 
 def strain_for_pressure(law, p):
     """The compressive strain ``eps > 0`` with ``-sigma(-eps) = p`` (a 1-D root)."""
+
     def f(e):
         return -law.stress(np.array([-e]))[0] - p
+
     hi = 0.999999 if law.bounded_strain else 10.0
     return brentq(f, 0.0, hi, xtol=1e-300, rtol=1e-15)
 
@@ -123,13 +126,23 @@ def test_plate_under_centred_load_carries_uniform_pressure(params, method):
     H, strain = params["H"], 0.1
     pressure = H * strain
     force = pressure * layer.areas.sum()
-    problem = d.ContactProblem(layer, d.LinearLaw(H), load=d.Load((0, 0, -force), point=(0, 0, 0)),
-                               reference=reference_at(params["lever"]), free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(
+        layer,
+        d.LinearLaw(H),
+        load=d.Load((0, 0, -force), point=(0, 0, 0)),
+        reference=reference_at(params["lever"]),
+        free=("uz", "rx", "ry"),
+    )
     check_centred_plate(solve(problem, method), problem, pressure, strain)
 
 
-NONLINEAR = [d.AteshianLaw(0.6, 0.3), d.AteshianLaw(2.0, 0.0), d.BlankevoortLaw(0.5),
-             d.CubicLaw(0.6, 0.3), d.PolynomialLaw(0.6, 0.3, 5)]
+NONLINEAR = [
+    d.AteshianLaw(0.6, 0.3),
+    d.AteshianLaw(2.0, 0.0),
+    d.BlankevoortLaw(0.5),
+    d.CubicLaw(0.6, 0.3),
+    d.PolynomialLaw(0.6, 0.3, 5),
+]
 
 
 @pytest.mark.parametrize("method", ("newton", "nlp", "auto"))
@@ -141,8 +154,9 @@ def test_nonlinear_law_plate_closed_form(law, strain, method):
     layer = grid_layer(1.0, 2.0)
     pressure = -law.stress(np.array([-strain]))[0]
     force = pressure * layer.areas.sum()
-    problem = d.ContactProblem(layer, law, load=d.Load((0, 0, -force), point=(0, 0, 0)),
-                               reference=reference_at(3.0), free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(
+        layer, law, load=d.Load((0, 0, -force), point=(0, 0, 0)), reference=reference_at(3.0), free=("uz", "rx", "ry")
+    )
     check_centred_plate(solve(problem, method), problem, pressure, strain_for_pressure(law, pressure))
 
 
@@ -154,8 +168,7 @@ def test_nonlinear_laws_at_small_strains_off_centre(law, strain, method):
     nearly equal numbers): certified, and the springs balance the load to 1e-8."""
     layer = plate_layer(10.0, 10.0, 4, 4, thickness=1.0)
     force = -law.stress(np.array([-strain]))[0] * 100.0
-    problem = d.ContactProblem(layer, law, load=d.Load((0, 0, -force), point=(1.0, 0.5, 0)),
-                               free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(layer, law, load=d.Load((0, 0, -force), point=(1.0, 0.5, 0)), free=("uz", "rx", "ry"))
     s = solve(problem, method)
     resultant = np.concatenate([s.contact_force, s.contact_moment])
     load = problem.body2.load_vector
@@ -169,22 +182,36 @@ def _eccentric(law):
     layer = plate_layer(40.0, 10.0, 40, 5, thickness=2.0)
     gap = 0.02 * np.sin(layer.points[:, 0])  # some overlap, some opening
     layer = layer.with_gap(gap)
-    return d.ContactProblem(layer, law, load=d.Load((0, 0, -150.0), point=(8.0, 1.5, 0)),
-                            moment=None, reference=(2.0, -1.0, 3.0), free=("uz", "rx", "ry"))
+    return d.ContactProblem(
+        layer,
+        law,
+        load=d.Load((0, 0, -150.0), point=(8.0, 1.5, 0)),
+        moment=None,
+        reference=(2.0, -1.0, 3.0),
+        free=("uz", "rx", "ry"),
+    )
 
 
 def _scaled(problem, s, k):
     """Lengths times ``s``, stresses times ``k``: forces ``k s^2``, moments ``k s^3``."""
     layer = problem.layer
-    scaled_layer = d.SpringLayer(layer.points * s, layer.normals, layer.areas * s * s,
-                                 layer.thickness * s, layer.gap * s)
+    scaled_layer = d.SpringLayer(
+        layer.points * s, layer.normals, layer.areas * s * s, layer.thickness * s, layer.gap * s
+    )
     law = problem.law
     H = law.H * k
     new_law = {d.LinearLaw: lambda: d.LinearLaw(H), d.AteshianLaw: lambda: d.AteshianLaw(H, law.beta)}[type(law)]()
     body = problem.body2
-    return d.ContactProblem(scaled_layer, new_law, body2=d.Body(
-        reference=tuple(np.multiply(body.reference, s)), free=body.free,
-        force=tuple(np.multiply(body.force, k * s * s)), moment=tuple(np.multiply(body.moment, k * s**3))))
+    return d.ContactProblem(
+        scaled_layer,
+        new_law,
+        body2=d.Body(
+            reference=tuple(np.multiply(body.reference, s)),
+            free=body.free,
+            force=tuple(np.multiply(body.force, k * s * s)),
+            moment=tuple(np.multiply(body.moment, k * s**3)),
+        ),
+    )
 
 
 SCALES = [(1e-2, 1.0), (1e2, 1.0), (1.0, 1e-3), (1.0, 1e3), (1e-2, 1e-2), (10.0, 1e2), (1e-1, 1e3)]
@@ -200,12 +227,9 @@ def test_scaled_problems_give_scaled_answers(law, s, k, method):
     scaled = solve(_scaled(base, s, k), method)
     peak = reference.peak_pressure
     np.testing.assert_allclose(scaled.pressure / k, reference.pressure, rtol=0, atol=1e-6 * peak)
-    np.testing.assert_allclose(scaled.strain, reference.strain, rtol=0,
-                               atol=1e-6 * np.abs(reference.strain).max())
-    np.testing.assert_allclose(scaled.u[6:9] / s, reference.u[6:9], rtol=0,
-                               atol=1e-6 * np.abs(reference.u[6:9]).max())
-    np.testing.assert_allclose(scaled.u[9:12], reference.u[9:12], rtol=0,
-                               atol=1e-6 * np.abs(reference.u[9:12]).max())
+    np.testing.assert_allclose(scaled.strain, reference.strain, rtol=0, atol=1e-6 * np.abs(reference.strain).max())
+    np.testing.assert_allclose(scaled.u[6:9] / s, reference.u[6:9], rtol=0, atol=1e-6 * np.abs(reference.u[6:9]).max())
+    np.testing.assert_allclose(scaled.u[9:12], reference.u[9:12], rtol=0, atol=1e-6 * np.abs(reference.u[9:12]).max())
 
 
 # --- lever arms: a reference point far from, or at, the layer ----------------------------
@@ -239,8 +263,13 @@ def test_one_spring(method):
     assert s.pressure[0] == pytest.approx(pressure, rel=1e-9)
     assert s.u[8] == pytest.approx(-2.0 * pressure / 4.0, rel=1e-9)
     # all six dofs free, pushed through the spring: only uz is resisted (and determined)
-    six = d.ContactProblem(layer, law, load=d.Load((0, 0, -pressure * 0.5), point=(0.3, -0.2, 0.0)),
-                           reference=(0.3, -0.2, 0.0), free=d.DOFS)
+    six = d.ContactProblem(
+        layer,
+        law,
+        load=d.Load((0, 0, -pressure * 0.5), point=(0.3, -0.2, 0.0)),
+        reference=(0.3, -0.2, 0.0),
+        free=d.DOFS,
+    )
     s = solve(six, method)
     assert s.pressure[0] == pytest.approx(pressure, rel=1e-9)
     assert s.strain[0] == pytest.approx(-pressure / 4.0, rel=1e-9)
@@ -284,9 +313,13 @@ def test_duplicate_springs_act_as_one_with_the_summed_area(method):
     layer = plate_layer(20.0, 6.0, 10, 3, thickness=1.5)
     gap = 0.01 * np.cos(layer.points[:, 0])
     shares = (0.2, 0.3, 0.5)
-    split = d.SpringLayer(np.tile(layer.points, (3, 1)), np.tile(layer.normals, (3, 1)),
-                          np.concatenate([layer.areas * f for f in shares]),
-                          np.tile(layer.thickness, 3), np.tile(gap, 3))
+    split = d.SpringLayer(
+        np.tile(layer.points, (3, 1)),
+        np.tile(layer.normals, (3, 1)),
+        np.concatenate([layer.areas * f for f in shares]),
+        np.tile(layer.thickness, 3),
+        np.tile(gap, 3),
+    )
     law = d.LinearLaw(5.0)
     load = d.Load((0, 0, -60.0), point=(4.0, 0.7, 0))
     one = d.ContactProblem(layer.with_gap(gap), law, load=load, free=("uz", "rx", "ry"))
@@ -335,8 +368,9 @@ def test_all_springs_open_then_pushed_into_full_contact(method):
     layer = plate_layer(12.0, 8.0, 6, 4, thickness=1.5).with_gap(0.2)
     H, strain = 4.0, 0.05
     area = layer.areas.sum()
-    problem = d.ContactProblem(layer, d.LinearLaw(H), load=d.Load((0, 0, -H * strain * area), point=(0, 0, 0)),
-                               free=("uz", "rx", "ry"))
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(H), load=d.Load((0, 0, -H * strain * area), point=(0, 0, 0)), free=("uz", "rx", "ry")
+    )
     s = solve(problem, method)
     assert s.contact_area == pytest.approx(area)
     np.testing.assert_allclose(s.pressure, H * strain, rtol=1e-6)
@@ -374,8 +408,7 @@ def test_springs_on_the_neutral_axis(moment, method):
     rx = -moment * 2.0 / (H * np.sum(A[y > 0] * y[y > 0] ** 2))
     s = solve(problem, method)
     assert s.u[9] == pytest.approx(rx, rel=1e-9)
-    np.testing.assert_allclose(s.pressure, np.where(y > 0, -H * rx * y / 2.0, 0.0), rtol=0,
-                               atol=1e-9 * s.peak_pressure)
+    np.testing.assert_allclose(s.pressure, np.where(y > 0, -H * rx * y / 2.0, 0.0), rtol=0, atol=1e-9 * s.peak_pressure)
 
 
 @pytest.mark.parametrize("method, law", LAW_PAIRS)

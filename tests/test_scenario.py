@@ -85,8 +85,9 @@ def test_defaults_and_problem():
 
 
 def test_load_scale_and_point():
-    scenario = parse(BASE.replace("force = [0.0, 0.0, -1000.0]",
-                                  "force = [0.0, 0.0, -100.0]\npoint = [1.0, 0.0, 0.0]\nscale = 2"))
+    scenario = parse(
+        BASE.replace("force = [0.0, 0.0, -1000.0]", "force = [0.0, 0.0, -100.0]\npoint = [1.0, 0.0, 0.0]\nscale = 2")
+    )
     problem = build_problem(scenario)
     assert problem.body2.force == (0.0, 0.0, -200.0)
     assert problem.body2.moment == pytest.approx((0.0, 200.0, 0.0))
@@ -125,8 +126,10 @@ def test_list_element_of_the_wrong_type():
 
 
 def test_missing_files_are_named(tmp_path):
-    text = BASE.replace('kind = "socket"\nradius = 25.0\nn_rings = 8\nn_sectors = 24',
-                        'kind = "meshes"\nmesh1 = "a.stl"\nmesh2 = "b.stl"')
+    text = BASE.replace(
+        'kind = "socket"\nradius = 25.0\nn_rings = 8\nn_sectors = 24',
+        'kind = "meshes"\nmesh1 = "a.stl"\nmesh2 = "b.stl"',
+    )
     message = error_of(text, tmp_path)
     assert "geometry.mesh1" in message and str(tmp_path / "a.stl") in message and "geometry.mesh2" in message
 
@@ -142,12 +145,12 @@ def test_law_parameters_must_fit_the_kind():
 
 
 def test_exactly_one_load():
-    assert "exactly one" in error_of(BASE + "[load_path]\nbuiltin = \"hip_gait\"\n")
+    assert "exactly one" in error_of(BASE + '[load_path]\nbuiltin = "hip_gait"\n')
     assert "exactly one" in error_of(BASE.replace("[load]\nforce = [0.0, 0.0, -1000.0]\n", ""))
 
 
 def test_missing_table():
-    assert "law: required table is missing" in error_of(BASE.replace("[law]\nkind = \"linear\"\nH = 10.0\n", ""))
+    assert "law: required table is missing" in error_of(BASE.replace('[law]\nkind = "linear"\nH = 10.0\n', ""))
 
 
 def test_bad_dof_name():
@@ -165,8 +168,7 @@ def test_parse_set():
 
 def test_overrides_are_validated_like_the_file():
     data = {"law": {"H": 1.0}}
-    assert apply_overrides(data, {"law.H": 2.0, "solve.method": "qp"}) == {"law": {"H": 2.0},
-                                                                           "solve": {"method": "qp"}}
+    assert apply_overrides(data, {"law.H": 2.0, "solve.method": "qp"}) == {"law": {"H": 2.0}, "solve": {"method": "qp"}}
     assert data == {"law": {"H": 1.0}}
     assert parse(BASE, None).law.H == 10.0
     assert parse_scenario(BASE, overrides={"law.H": 0.45}).law.H == 0.45
@@ -189,6 +191,7 @@ def test_schema_documents_every_table_and_key():
 
 # --- load paths -------------------------------------------------------------------------
 
+
 def path_scenario(tmp_path, csv_text, extra=""):
     (tmp_path / "loads.csv").write_text(csv_text)
     text = BASE.replace("[load]\nforce = [0.0, 0.0, -1000.0]\n", f'[load_path]\nfile = "loads.csv"\n{extra}')
@@ -196,8 +199,7 @@ def path_scenario(tmp_path, csv_text, extra=""):
 
 
 def test_load_path_reads_comments_defaults_and_scale(tmp_path):
-    scenario = path_scenario(tmp_path, "# a comment\ntime,Fx,Fy,Fz\n0,0,0,-100\n# mid\n1,0,0,-200\n",
-                             "scale = 2\n")
+    scenario = path_scenario(tmp_path, "# a comment\ntime,Fx,Fy,Fz\n0,0,0,-100\n# mid\n1,0,0,-200\n", "scale = 2\n")
     data = read_load_path(scenario.load_path)
     assert data.times.tolist() == [0.0, 1.0]
     assert data.loads[:, 2].tolist() == [-200.0, -400.0]
@@ -231,13 +233,16 @@ def test_load_path_empty_cell(tmp_path):
         read_load_path(scenario.load_path)
 
 
-@pytest.mark.parametrize("text, match", [
-    ("", "is empty"),
-    ("time,Fx,Fy,Fz\n", "no rows"),
-    ("time,Fx,Fy,Fz,Fq\n0,0,0,-1,0\n", "unknown column Fq"),
-    ("time,Fx,Fy,Fz\n1,0,0,-1\n0,0,0,-1\n", "must increase"),
-    ("time,Fx,Fy,Fz,pose_tx\n0,0,0,-1,0\n", "pose columns must come all six"),
-])
+@pytest.mark.parametrize(
+    "text, match",
+    [
+        ("", "is empty"),
+        ("time,Fx,Fy,Fz\n", "no rows"),
+        ("time,Fx,Fy,Fz,Fq\n0,0,0,-1,0\n", "unknown column Fq"),
+        ("time,Fx,Fy,Fz\n1,0,0,-1\n0,0,0,-1\n", "must increase"),
+        ("time,Fx,Fy,Fz,pose_tx\n0,0,0,-1,0\n", "pose columns must come all six"),
+    ],
+)
 def test_load_path_bad_tables(tmp_path, text, match):
     scenario = path_scenario(tmp_path, text)
     with pytest.raises(InputError, match=match):
@@ -245,8 +250,9 @@ def test_load_path_bad_tables(tmp_path, text, match):
 
 
 def test_pose_columns_make_rigid_transforms(tmp_path):
-    scenario = path_scenario(tmp_path, "time,Fx,Fy,Fz,pose_tx,pose_ty,pose_tz,pose_rx,pose_ry,pose_rz\n"
-                                       "0,0,0,-1,1,2,3,0,0,90\n")
+    scenario = path_scenario(
+        tmp_path, "time,Fx,Fy,Fz,pose_tx,pose_ty,pose_tz,pose_rx,pose_ry,pose_rz\n0,0,0,-1,1,2,3,0,0,90\n"
+    )
     poses = read_load_path(scenario.load_path).poses
     assert poses.shape == (1, 4, 4)
     assert np.allclose(poses[0] @ [1, 0, 0, 1], [1, 3, 3, 1])
@@ -261,6 +267,7 @@ def test_builtin_gait_load_path():
 
 # --- springs tables ---------------------------------------------------------------------
 
+
 def test_springs_csv_round_trip(tmp_path):
     layer = plate_layer(4.0, 2.0, 4, 2, thickness=2.0).with_gap(np.linspace(-0.1, 0.1, 8))
     back = read_springs(write_springs(layer, tmp_path / "springs.csv"))
@@ -273,12 +280,24 @@ def test_springs_csv_round_trip_is_exact(tmp_path):
     rng = np.random.default_rng(12)
     n = 400
     scale = 10.0 ** rng.integers(-9, 5, (n, 1))
-    layer = SpringLayer(rng.standard_normal((n, 3)) * scale, rng.standard_normal((n, 3)),
-                        rng.uniform(1e-6, 3.0, n) / 3.0, 1.0 / 3.0 + rng.uniform(0.1, 5.0, n),
-                        rng.standard_normal(n) * 1e-3 / 7.0)
-    columns = {"x": layer.points[:, 0], "y": layer.points[:, 1], "z": layer.points[:, 2],
-               "nx": layer.normals[:, 0], "ny": layer.normals[:, 1], "nz": layer.normals[:, 2],
-               "area": layer.areas, "thickness": layer.thickness, "gap": layer.gap}
+    layer = SpringLayer(
+        rng.standard_normal((n, 3)) * scale,
+        rng.standard_normal((n, 3)),
+        rng.uniform(1e-6, 3.0, n) / 3.0,
+        1.0 / 3.0 + rng.uniform(0.1, 5.0, n),
+        rng.standard_normal(n) * 1e-3 / 7.0,
+    )
+    columns = {
+        "x": layer.points[:, 0],
+        "y": layer.points[:, 1],
+        "z": layer.points[:, 2],
+        "nx": layer.normals[:, 0],
+        "ny": layer.normals[:, 1],
+        "nz": layer.normals[:, 2],
+        "area": layer.areas,
+        "thickness": layer.thickness,
+        "gap": layer.gap,
+    }
     # ten significant digits, as a %.10g writer keeps, would not be enough for these numbers
     assert any(float(f"{v:.10g}") != v for v in layer.gap)
     path = write_springs(layer, tmp_path / "springs.csv")
@@ -300,9 +319,17 @@ def test_springs_csv_round_trip_is_exact(tmp_path):
 
 def test_springs_npz(tmp_path):
     layer = plate_layer(4.0, 2.0, 4, 2, thickness=2.0)
-    np.savez(tmp_path / "s.npz", x=layer.points[:, 0], y=layer.points[:, 1], z=layer.points[:, 2],
-             nx=layer.normals[:, 0], ny=layer.normals[:, 1], nz=layer.normals[:, 2], area=layer.areas,
-             thickness=layer.thickness)
+    np.savez(
+        tmp_path / "s.npz",
+        x=layer.points[:, 0],
+        y=layer.points[:, 1],
+        z=layer.points[:, 2],
+        nx=layer.normals[:, 0],
+        ny=layer.normals[:, 1],
+        nz=layer.normals[:, 2],
+        area=layer.areas,
+        thickness=layer.thickness,
+    )
     assert np.allclose(read_springs(tmp_path / "s.npz").points, layer.points)
     np.savez(tmp_path / "bad.npz", x=layer.points[:, 0])
     with pytest.raises(InputError, match="missing arrays"):
@@ -316,16 +343,19 @@ def test_springs_table_with_bad_values(tmp_path):
 
 
 def test_generator_mesh_pair_supplies_references():
-    text = BASE.replace('kind = "socket"\nradius = 25.0\nn_rings = 8\nn_sectors = 24',
-                        'kind = "generator"\nfunction = "hip_meshes"\nparameters = {step = 10.0}')
+    text = BASE.replace(
+        'kind = "socket"\nradius = 25.0\nn_rings = 8\nn_sectors = 24',
+        'kind = "generator"\nfunction = "hip_meshes"\nparameters = {step = 10.0}',
+    )
     problem = build_problem(parse(text))
     assert problem.body2.reference == pytest.approx((0.0, 0.0, -0.5))
     assert problem.layer.source_face is not None
 
 
 def test_generator_errors():
-    text = BASE.replace('kind = "socket"\nradius = 25.0\nn_rings = 8\nn_sectors = 24',
-                        'kind = "generator"\nfunction = "nope"')
+    text = BASE.replace(
+        'kind = "socket"\nradius = 25.0\nn_rings = 8\nn_sectors = 24', 'kind = "generator"\nfunction = "nope"'
+    )
     with pytest.raises(ScenarioError, match="hip_meshes"):
         build_problem(parse(text))
     text = text.replace('"nope"', '"socket_layer"\nparameters = {radiuss = 3}')

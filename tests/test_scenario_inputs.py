@@ -41,6 +41,7 @@ def parse(text, tmp_path):
 
 # --- tables of labelled meshes ------------------------------------------------------------------
 
+
 def halves(mesh, axis=0):
     """The faces of ``mesh`` with centroid below / above 0 along ``axis``, as two meshes."""
     below = mesh.triangles_center[:, axis] < 0.0
@@ -131,9 +132,10 @@ def test_an_empty_table_or_a_missing_part_is_named(split_plate, tmp_path):
 
 @pytest.mark.skipif(not (KNEE / "femoral_cartilage.stl").is_file(), reason="the knee meshes are not there")
 def test_the_knee_from_two_tibial_meshes_labels_medial_and_lateral(tmp_path):
-    text = mesh_scenario(f'{{medial = "{KNEE / "medial_tibial_cartilage.stl"}", '
-                         f'lateral = "{KNEE / "lateral_tibial_cartilage.stl"}"}}',
-                         f'"{KNEE / "femoral_cartilage.stl"}"').replace("thickness1 = 1.0\nthickness2 = 1.0\n", "")
+    text = mesh_scenario(
+        f'{{medial = "{KNEE / "medial_tibial_cartilage.stl"}", lateral = "{KNEE / "lateral_tibial_cartilage.stl"}"}}',
+        f'"{KNEE / "femoral_cartilage.stl"}"',
+    ).replace("thickness1 = 1.0\nthickness2 = 1.0\n", "")
     text = text.replace("max_gap = 1.0", "max_gap = 2.0")
     layer = build_problem(parse(text, tmp_path)).layer
     for label, name in (("medial", "medial_tibial_cartilage.stl"), ("lateral", "lateral_tibial_cartilage.stl")):
@@ -143,6 +145,7 @@ def test_the_knee_from_two_tibial_meshes_labels_medial_and_lateral(tmp_path):
 
 
 # --- [regions]: a split by an axis --------------------------------------------------------------
+
 
 @pytest.mark.parametrize("at, cut", [("", 0.0), ("at = 5.0", 5.0), ('at = "centroid"', 0.0)])
 def test_regions_split_a_single_layer_across_an_axis(tmp_path, at, cut):
@@ -226,10 +229,14 @@ SHIFT = RNG.uniform(-1e-3, 1e-3, 6)  # m
 
 
 def test_sto_columns_map_to_forces_moments_and_poses_in_mm_and_degrees(tmp_path):
-    write_sto(tmp_path / "path.sto", {"time": TIME, "knee_on_tibia_fz": FZ, "knee_on_tibia_mx": MX,
-                                      "knee_flexion": ANGLE, "knee_tx": SHIFT})
-    columns = ('{Fx = "knee_on_tibia_fz", Fy = "knee_on_tibia_fz", Fz = "-knee_on_tibia_fz", '
-               'Mx = "-knee_on_tibia_mx", pose_rx = "knee_flexion", pose_tx = "knee_tx"}')
+    write_sto(
+        tmp_path / "path.sto",
+        {"time": TIME, "knee_on_tibia_fz": FZ, "knee_on_tibia_mx": MX, "knee_flexion": ANGLE, "knee_tx": SHIFT},
+    )
+    columns = (
+        '{Fx = "knee_on_tibia_fz", Fy = "knee_on_tibia_fz", Fz = "-knee_on_tibia_fz", '
+        'Mx = "-knee_on_tibia_mx", pose_rx = "knee_flexion", pose_tx = "knee_tx"}'
+    )
     scenario = parse(sto_scenario('[geometry]\nkind = "plate"', columns), tmp_path)
     data = read_load_path(scenario.load_path)
     assert np.array_equal(data.times, TIME)
@@ -270,18 +277,27 @@ def test_a_run_on_a_sto_load_path_carries_each_frame(tmp_path):
     assert np.allclose(frames["peak_pressure"], -FZ / 400.0, rtol=1e-9)
 
 
-@pytest.mark.parametrize("text, columns, expected", [
-    ("version=1\ntime\tf\n0\t1\n", None, "no 'endheader'"),
-    ("version=1\nendheader\n", None, "no row of column labels"),
-    ("nRows=3\nendheader\ntime\tf\n0\t1\n1\t2\n", None, "nRows=3, but it has 2 rows"),
-    ("endheader\ntime\tf\n0\t1\n1\tabc\n", None, "line 4, column f: expected a finite number, got 'abc'"),
-    ("endheader\ntime\tf\n0\t1\n1\n", None, "line 4: 1 fields"),
-    ("endheader\ntime\tf\tf\n0\t1\t1\n", None, "repeated column labels f"),
-    ("endheader\ntime\tknee_fz\n0\t1\n", '{Fx = "knee_fx", Fy = "knee_fz", Fz = "knee_fz"}',
-     "load_path.columns.Fx names the column 'knee_fx'.*did you mean 'knee_fz'"),
-    ("endheader\ntime\tf\ta\n0\t1\t3\n", '{Fx = "f", Fy = "f", Fz = "f", pose_rx = "a"}',
-     "does not say inDegrees=yes or no"),
-])
+@pytest.mark.parametrize(
+    "text, columns, expected",
+    [
+        ("version=1\ntime\tf\n0\t1\n", None, "no 'endheader'"),
+        ("version=1\nendheader\n", None, "no row of column labels"),
+        ("nRows=3\nendheader\ntime\tf\n0\t1\n1\t2\n", None, "nRows=3, but it has 2 rows"),
+        ("endheader\ntime\tf\n0\t1\n1\tabc\n", None, "line 4, column f: expected a finite number, got 'abc'"),
+        ("endheader\ntime\tf\n0\t1\n1\n", None, "line 4: 1 fields"),
+        ("endheader\ntime\tf\tf\n0\t1\t1\n", None, "repeated column labels f"),
+        (
+            "endheader\ntime\tknee_fz\n0\t1\n",
+            '{Fx = "knee_fx", Fy = "knee_fz", Fz = "knee_fz"}',
+            "load_path.columns.Fx names the column 'knee_fx'.*did you mean 'knee_fz'",
+        ),
+        (
+            "endheader\ntime\tf\ta\n0\t1\t3\n",
+            '{Fx = "f", Fy = "f", Fz = "f", pose_rx = "a"}',
+            "does not say inDegrees=yes or no",
+        ),
+    ],
+)
 def test_bad_sto_files_are_named_errors(tmp_path, text, columns, expected):
     (tmp_path / "path.sto").write_text(text)
     columns = columns or '{Fx = "f", Fy = "f", Fz = "f"}'

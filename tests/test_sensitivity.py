@@ -14,8 +14,13 @@ import dea_opt as d
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 from dea_opt.sensitivity import sensitivities
 
-LAWS = (d.LinearLaw(0.6), d.AteshianLaw(0.6, 0.3), d.CubicLaw(0.6, 0.3), d.PolynomialLaw(0.6, 0.3, 5),
-        d.BlankevoortLaw(0.6))
+LAWS = (
+    d.LinearLaw(0.6),
+    d.AteshianLaw(0.6, 0.3),
+    d.CubicLaw(0.6, 0.3),
+    d.PolynomialLaw(0.6, 0.3, 5),
+    d.BlankevoortLaw(0.6),
+)
 IDS = [type(law).__name__ for law in LAWS]
 BED = sphere_on_bed_layer(radius=25.0, thickness=2.0, extent=7.0, n_rings=24, n_sectors=16)
 LOAD = {"force": (0.0, 0.0, -10.0), "moment": (4.0, -3.0, 0.0)}
@@ -30,8 +35,7 @@ def solve(problem):
 
 
 def bed_problem(law, layer=BED, force=LOAD["force"], moment=LOAD["moment"]):
-    return d.ContactProblem(layer, law, force=force, moment=moment, reference=(0.0, 0.0, 25.0),
-                            free=("uz", "rx", "ry"))
+    return d.ContactProblem(layer, law, force=force, moment=moment, reference=(0.0, 0.0, 25.0), free=("uz", "rx", "ry"))
 
 
 def prescribed_problem(law, uz=-0.3, layer=BED):
@@ -62,9 +66,16 @@ def perturbed(law, name, t):
 
 
 def outputs(s):
-    return {"u": s.u, "strain": s.strain, "pressure": s.pressure, "peak_pressure": s.peak_pressure,
-            "contact_force": s.contact_force, "contact_moment": s.contact_moment,
-            "center_of_pressure": s.center_of_pressure, "W": float(s.pressure @ s.problem.layer.areas)}
+    return {
+        "u": s.u,
+        "strain": s.strain,
+        "pressure": s.pressure,
+        "peak_pressure": s.peak_pressure,
+        "contact_force": s.contact_force,
+        "contact_moment": s.contact_moment,
+        "center_of_pressure": s.center_of_pressure,
+        "W": float(s.pressure @ s.problem.layer.areas),
+    }
 
 
 def check_close(analytic, fd, scale, what):
@@ -83,8 +94,10 @@ def test_law_parameter_derivatives_are_exact(law):
         np.testing.assert_allclose(value, symbolic[name], rtol=1e-12, atol=1e-14)
         v = getattr(law, name)
         step = 1e-6 * v
-        fd = (dataclasses.replace(law, **{name: v + step}).stress(eps)
-              - dataclasses.replace(law, **{name: v - step}).stress(eps)) / (2 * step)
+        fd = (
+            dataclasses.replace(law, **{name: v + step}).stress(eps)
+            - dataclasses.replace(law, **{name: v - step}).stress(eps)
+        ) / (2 * step)
         np.testing.assert_allclose(value, fd, rtol=1e-7, atol=1e-9)
     # H scales every law: d sigma / d H = sigma / H
     np.testing.assert_allclose(complex_step["H"], law.stress(eps) / law.H, rtol=1e-13)
@@ -131,8 +144,11 @@ def test_central_differences_for_every_law_and_parameter(law):
     assert sen.edge.size == 0 and sen.notes == ()
     nominal = outputs(s)
     for name in names:
-        value = getattr(law, name) if name in law.parameter_names else {"thickness_scale": 1.0, "Fz": 10.0,
-                                                                       "Mx": 4.0, "My": 3.0}[name]
+        value = (
+            getattr(law, name)
+            if name in law.parameter_names
+            else {"thickness_scale": 1.0, "Fz": 10.0, "Mx": 4.0, "My": 3.0}[name]
+        )
         t = 1e-6 * value
         plus, minus = solve(perturbed(law, name, t)), solve(perturbed(law, name, -t))
         # away from changes of the contact set
@@ -142,7 +158,7 @@ def test_central_differences_for_every_law_and_parameter(law):
             fd = (np.asarray(a[key]) - np.asarray(b[key])) / (2 * t)
             scale = float(np.abs(base).max()) / abs(value)
             if key == "W":  # total normal force = mean pressure times area, with the area rate
-                analytic = (sen.mean_pressure[name] * s.contact_area + s.mean_pressure * sen.contact_area[name])
+                analytic = sen.mean_pressure[name] * s.contact_area + s.mean_pressure * sen.contact_area[name]
             else:
                 analytic = getattr(sen, key)[name]
             check_close(analytic, fd, scale, f"{type(law).__name__} d{key}/d{name}")
@@ -185,8 +201,9 @@ def test_casadi_parametric_sensitivities_of_the_ipopt_solution_agree(law):
     for name in names:
         for key in ("u", "pressure"):
             expected = ref[name][key]
-            np.testing.assert_allclose(getattr(sen, key)[name], expected, rtol=0,
-                                       atol=1e-9 * np.abs(expected).max(), err_msg=f"d{key}/d{name}")
+            np.testing.assert_allclose(
+                getattr(sen, key)[name], expected, rtol=0, atol=1e-9 * np.abs(expected).max(), err_msg=f"d{key}/d{name}"
+            )
 
 
 def test_random_problems_against_the_independent_nlp_check():
@@ -195,11 +212,17 @@ def test_random_problems_against_the_independent_nlp_check():
         n = 60
         points = np.column_stack([rng.uniform(-10, 10, n), rng.uniform(-10, 10, n), np.zeros(n)])
         normals = np.column_stack([rng.normal(0, 0.1, (n, 2)), np.ones(n)])
-        layer = d.SpringLayer(points, normals, rng.uniform(0.5, 2.0, n), rng.uniform(1.0, 3.0, n),
-                              rng.uniform(0.0, 0.05, n))
+        layer = d.SpringLayer(
+            points, normals, rng.uniform(0.5, 2.0, n), rng.uniform(1.0, 3.0, n), rng.uniform(0.0, 0.05, n)
+        )
         law = LAWS[rng.integers(len(LAWS))]
-        problem = d.ContactProblem(layer, law, force=(rng.normal(0, 1), rng.normal(0, 1), -20.0),
-                                   moment=rng.normal(0, 10, 3), reference=(0, 0, 10.0))
+        problem = d.ContactProblem(
+            layer,
+            law,
+            force=(rng.normal(0, 1), rng.normal(0, 1), -20.0),
+            moment=rng.normal(0, 10, 3),
+            reference=(0, 0, 10.0),
+        )
         s = solve(problem)
         names = (*law.parameter_names, "Fx", "Fz", "Mz", "thickness_scale")
         sen = sensitivities(s, names)
@@ -225,8 +248,10 @@ def test_contact_area_rate_of_a_sphere_in_closed_form():
     # The rate integrates to the change of the (stepwise) area over a wide range of loads.
     fine = sphere_on_bed_layer(radius=R, thickness=2.0, extent=7.0, n_rings=300, n_sectors=32)
     loads = np.linspace(-15.0, -5.0, 11)
-    solutions = [solve(d.ContactProblem(fine, d.AteshianLaw(0.6, 0.3), force=(0, 0, f), reference=(0, 0, R),
-                                        free=("uz",))) for f in loads]
+    solutions = [
+        solve(d.ContactProblem(fine, d.AteshianLaw(0.6, 0.3), force=(0, 0, f), reference=(0, 0, R), free=("uz",)))
+        for f in loads
+    ]
     rates = [sensitivities(s, ("Fz",)).contact_area["Fz"] for s in solutions]
     change = solutions[-1].contact_area - solutions[0].contact_area
     assert np.trapezoid(rates, loads) == pytest.approx(change, rel=0.03)
@@ -240,8 +265,9 @@ def edge_problem(law, F=-20.0):
     points = np.column_stack([X.ravel(), Y.ravel(), np.zeros(100)])
     base = d.SpringLayer(points, np.tile([0, 0, 1.0], (100, 1)), 1.0, 2.0, 0.0)
     approach = -solve(d.ContactProblem(base, law, force=(0, 0, F), reference=(0, 0, 0), free=("uz",))).u[8]
-    layer = d.SpringLayer(np.vstack([points, [[8.0, 0.0, 0.0]]]), np.tile([0, 0, 1.0], (101, 1)), 1.0, 2.0,
-                          np.r_[np.zeros(100), approach])
+    layer = d.SpringLayer(
+        np.vstack([points, [[8.0, 0.0, 0.0]]]), np.tile([0, 0, 1.0], (101, 1)), 1.0, 2.0, np.r_[np.zeros(100), approach]
+    )
     return d.ContactProblem(layer, law, force=(0, 0, F), reference=(0, 0, 0), free=("uz",))
 
 
@@ -315,8 +341,7 @@ def test_per_spring_operator_beyond_the_dense_limit(monkeypatch):
     for name in ("thickness", "gap"):
         for key in ("pressure", "strain"):
             np.testing.assert_allclose(getattr(operator, key)[name] @ v, getattr(dense, key)[name] @ v, atol=1e-12)
-            np.testing.assert_allclose(getattr(operator, key)[name].T @ v, getattr(dense, key)[name].T @ v,
-                                       atol=1e-12)
+            np.testing.assert_allclose(getattr(operator, key)[name].T @ v, getattr(dense, key)[name].T @ v, atol=1e-12)
 
 
 def test_path_frames_are_differentiated_one_by_one():

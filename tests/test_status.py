@@ -54,14 +54,17 @@ def test_every_status_explains_itself():
     assert CERTIFIABLE < set(Status)
 
 
-@pytest.mark.parametrize("exc, status", [
-    (d.LoadNotSupportedError("no"), Status.NOT_SUPPORTED),
-    (d.InputError("bad"), Status.INVALID_INPUT),
-    (d.SolverError("failed", status=Status.NON_FINITE), Status.NON_FINITE),
-    (d.SolverError("failed"), Status.SOLVER_ERROR),
-    (d.SolverError("failed", status="not a status"), Status.SOLVER_ERROR),
-    (d.MissingDependencyError("pip install x"), Status.SOLVER_ERROR),
-])
+@pytest.mark.parametrize(
+    "exc, status",
+    [
+        (d.LoadNotSupportedError("no"), Status.NOT_SUPPORTED),
+        (d.InputError("bad"), Status.INVALID_INPUT),
+        (d.SolverError("failed", status=Status.NON_FINITE), Status.NON_FINITE),
+        (d.SolverError("failed"), Status.SOLVER_ERROR),
+        (d.SolverError("failed", status="not a status"), Status.SOLVER_ERROR),
+        (d.MissingDependencyError("pip install x"), Status.SOLVER_ERROR),
+    ],
+)
 def test_the_status_of_a_run_that_raised(exc, status):
     assert Status.of_error(exc) is status
 
@@ -91,8 +94,10 @@ def test_zero_load_frames_of_a_load_path_have_one_status_by_every_method(method)
     np.testing.assert_allclose(fitted.pressures[0], single.pressure, rtol=0, atol=1e-9 * single.peak_pressure)
 
 
-@pytest.mark.parametrize("method, options", [("newton", {}), ("nlp", {"form": "constrained"}),
-                                             ("nlp", {"form": "reduced", "max_iter": 300}), ("auto", {})])
+@pytest.mark.parametrize(
+    "method, options",
+    [("newton", {}), ("nlp", {"form": "constrained"}), ("nlp", {"form": "reduced", "max_iter": 300}), ("auto", {})],
+)
 def test_a_layer_crushed_by_its_load_is_crushed_by_every_method(method, options):
     """The log law's stress stays finite at eps = -1: 400 N is more than the bed can carry. Each
     method fails in its own way (Newton's line search, IPOPT's search direction or its iteration
@@ -116,8 +121,14 @@ def test_a_certified_answer_is_converged_whatever_the_solver_doubted(options):
 
 
 def test_a_claimed_answer_the_certificate_rejects_is_inaccurate():
-    s = quiet(d.solve, _plate().with_load(force=(0, 0, -300.0), point=(10.0, 0, 0)), "newton", gtol=0.5, xtol=0.5,
-              strict=False)
+    s = quiet(
+        d.solve,
+        _plate().with_load(force=(0, 0, -300.0), point=(10.0, 0, 0)),
+        "newton",
+        gtol=0.5,
+        xtol=0.5,
+        strict=False,
+    )
     assert s.info["native_status"] == "converged" and s.info["solver_success"]
     assert not s.success and s.status is Status.INACCURATE and "fails dea-opt's certificate" in s.message
 
@@ -131,16 +142,20 @@ def test_a_solver_error_carries_a_status():
 
 # --- run statuses: one vocabulary for manifests, sweep rows and exit codes ----------------------
 
-@pytest.mark.parametrize("success, valid, failures, expected", [
-    (True, True, (), "ok"),
-    (True, None, (), "ok"),
-    (True, False, (), "outside_validity"),
-    (False, False, (), "certificate_failed"),  # a failure outranks validity
-    (False, True, ("inaccurate",), "certificate_failed"),
-    (False, True, ("load_not_supported", "load_not_supported"), "load_not_supported"),
-    (False, True, ("pose_error", "load_not_supported"), "pose_error"),
-    (False, True, ("load_not_supported", "solver_error"), "certificate_failed"),
-])
+
+@pytest.mark.parametrize(
+    "success, valid, failures, expected",
+    [
+        (True, True, (), "ok"),
+        (True, None, (), "ok"),
+        (True, False, (), "outside_validity"),
+        (False, False, (), "certificate_failed"),  # a failure outranks validity
+        (False, True, ("inaccurate",), "certificate_failed"),
+        (False, True, ("load_not_supported", "load_not_supported"), "load_not_supported"),
+        (False, True, ("pose_error", "load_not_supported"), "pose_error"),
+        (False, True, ("load_not_supported", "solver_error"), "certificate_failed"),
+    ],
+)
 def test_a_run_status_names_the_cause_of_its_failures(success, valid, failures, expected):
     from dea_opt.status import RunStatus
 
@@ -153,8 +168,13 @@ def test_run_statuses_are_their_strings_with_an_exit_code_and_a_description():
     from dea_opt.status import RunStatus
 
     assert json.loads(json.dumps({"status": RunStatus.LOAD_NOT_SUPPORTED})) == {"status": "load_not_supported"}
-    assert [s for s in RunStatus if s.failed] == [RunStatus.CERTIFICATE_FAILED, RunStatus.LOAD_NOT_SUPPORTED,
-                                                   RunStatus.POSE_ERROR, RunStatus.NOT_CONVERGED, RunStatus.ERROR]
+    assert [s for s in RunStatus if s.failed] == [
+        RunStatus.CERTIFICATE_FAILED,
+        RunStatus.LOAD_NOT_SUPPORTED,
+        RunStatus.POSE_ERROR,
+        RunStatus.NOT_CONVERGED,
+        RunStatus.ERROR,
+    ]
     assert RunStatus.ERROR.exit_code == 2 and all(len(s.description) > 20 for s in RunStatus)
     # the frame statuses a run's status repeats are the same words
     assert RunStatus.of_frame(Status.NOT_SUPPORTED) == Status.NOT_SUPPORTED

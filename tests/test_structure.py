@@ -49,7 +49,7 @@ def _target(name: str) -> str | None:
     module path, :data:`dea_opt.FORMER_MODULES`, is the module it names now)."""
     for old, new in dea_opt.FORMER_MODULES.items():
         if name == old or name.startswith(old + "."):
-            name = new + name[len(old):]
+            name = new + name[len(old) :]
             break
     while name:
         if name in MODULES:
@@ -148,13 +148,30 @@ def test_each_allowed_front_is_real_and_only_a_call_time_import(front):
 #: What the formulations never see (the guide: "Dependencies point one way: formulations code sees
 #: arrays and a law, never meshes or files"): meshes, files, scenarios, load paths, problems,
 #: layers, solutions, and the code that builds their arrays from those.
-NEVER_SEEN_BY_FORMULATIONS = ("dea_opt.mesh", "dea_opt.io", "dea_opt.scenario", "dea_opt.loadpath", "dea_opt.path",
-                              "dea_opt.problem", "dea_opt.layer", "dea_opt.solution", "dea_opt.largemotion",
-                              "dea_opt.solver")
+NEVER_SEEN_BY_FORMULATIONS = (
+    "dea_opt.mesh",
+    "dea_opt.io",
+    "dea_opt.scenario",
+    "dea_opt.loadpath",
+    "dea_opt.path",
+    "dea_opt.problem",
+    "dea_opt.layer",
+    "dea_opt.solution",
+    "dea_opt.largemotion",
+    "dea_opt.solver",
+)
 #: What they may import besides each other: errors, statuses, input checks, tolerances, laws and
 #: the kinematics' array helpers, and the loader of optional dependencies.
-SEEN_BY_FORMULATIONS = ("dea_opt.errors", "dea_opt.status", "dea_opt._validate", "dea_opt._tolerances",
-                        "dea_opt.laws", "dea_opt.law_registry", "dea_opt.kinematics", "dea_opt._optional")
+SEEN_BY_FORMULATIONS = (
+    "dea_opt.errors",
+    "dea_opt.status",
+    "dea_opt._validate",
+    "dea_opt._tolerances",
+    "dea_opt.laws",
+    "dea_opt.law_registry",
+    "dea_opt.kinematics",
+    "dea_opt._optional",
+)
 
 
 def _within(module: str, package: str) -> bool:
@@ -168,8 +185,9 @@ def test_formulations_see_arrays_and_a_law_only():
     assert imported, "the graph sees no import of the formulations"
     forbidden = sorted((a, b) for a, b in imported if any(_within(b, p) for p in NEVER_SEEN_BY_FORMULATIONS))
     assert not forbidden, f"formulations import what they must not see: {forbidden}"
-    other = sorted((a, b) for a, b in imported
-                   if not _within(b, "dea_opt.formulations") and b not in SEEN_BY_FORMULATIONS)
+    other = sorted(
+        (a, b) for a, b in imported if not _within(b, "dea_opt.formulations") and b not in SEEN_BY_FORMULATIONS
+    )
     assert not other, f"formulations import beyond arrays, laws and errors: {other}"
 
 
@@ -195,18 +213,70 @@ def test_version_is_the_projects():
 
 # The public names of the modules that became packages, as they were before the split.
 FORMER_NAMES = {
-    "dea_opt.io": ["CSV_COLUMNS", "SurfaceData", "atomic_open", "atomic_path", "best_fit_frame",
-                   "contact_surface", "label_codes", "plot_pressure", "read_csv", "read_json", "read_vtk",
-                   "summary_dict", "to_csv", "to_json", "to_vtk", "vtk_differences", "write_atomic",
-                   "write_data", "write_results"],
-    "dea_opt.mesh": ["ENGINES", "LOADERS", "MAX_ANGLE", "MAX_GAP", "MAX_OVERLAP", "SpringCast", "TwoWaySprings",
-                     "as_mesh", "cast_springs", "check_pose", "concatenate_meshes", "load_mesh",
-                     "springs_both_ways", "springs_from_meshes", "surface_thickness"],
-    "dea_opt.scenario": ["Scenario", "ScenarioError", "LoadPathData", "load_scenario", "parse_scenario",
-                         "build_problem", "build_layer", "build_geometry", "build_law", "pose_builder",
-                         "read_load_path", "read_springs", "write_springs", "parse_set", "apply_overrides",
-                         "schema_text", "METHOD_NAMES", "FORMATS", "GEOMETRY_KINDS", "pose_matrices",
-                         "load_meshes", "springs_from_mesh_section", "MeshGeometry", "LawSection"],
+    "dea_opt.io": [
+        "CSV_COLUMNS",
+        "SurfaceData",
+        "atomic_open",
+        "atomic_path",
+        "best_fit_frame",
+        "contact_surface",
+        "label_codes",
+        "plot_pressure",
+        "read_csv",
+        "read_json",
+        "read_vtk",
+        "summary_dict",
+        "to_csv",
+        "to_json",
+        "to_vtk",
+        "vtk_differences",
+        "write_atomic",
+        "write_data",
+        "write_results",
+    ],
+    "dea_opt.mesh": [
+        "ENGINES",
+        "LOADERS",
+        "MAX_ANGLE",
+        "MAX_GAP",
+        "MAX_OVERLAP",
+        "SpringCast",
+        "TwoWaySprings",
+        "as_mesh",
+        "cast_springs",
+        "check_pose",
+        "concatenate_meshes",
+        "load_mesh",
+        "springs_both_ways",
+        "springs_from_meshes",
+        "surface_thickness",
+    ],
+    "dea_opt.scenario": [
+        "Scenario",
+        "ScenarioError",
+        "LoadPathData",
+        "load_scenario",
+        "parse_scenario",
+        "build_problem",
+        "build_layer",
+        "build_geometry",
+        "build_law",
+        "pose_builder",
+        "read_load_path",
+        "read_springs",
+        "write_springs",
+        "parse_set",
+        "apply_overrides",
+        "schema_text",
+        "METHOD_NAMES",
+        "FORMATS",
+        "GEOMETRY_KINDS",
+        "pose_matrices",
+        "load_meshes",
+        "springs_from_mesh_section",
+        "MeshGeometry",
+        "LawSection",
+    ],
     "dea_opt.path": ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"],
 }
 

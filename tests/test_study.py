@@ -97,8 +97,15 @@ def test_shifted_geometric_mean():
 
 
 def test_summary_counts_failures_at_the_time_limit():
-    table = pd.DataFrame({"accuracy": ["low"] * 2, "method": ["qp"] * 2, "solver": ["X"] * 2,
-                          "success": [True, False], "total_time": [0.01, 0.02]})
+    table = pd.DataFrame(
+        {
+            "accuracy": ["low"] * 2,
+            "method": ["qp"] * 2,
+            "solver": ["X"] * 2,
+            "success": [True, False],
+            "total_time": [0.01, 0.02],
+        }
+    )
     row = summarize(table, time_limit=1.0).iloc[0]
     assert row["success_rate"] == 50.0
     assert row["shifted_gm_time"] == pytest.approx(np.sqrt(0.02 * 1.01) - 0.01)
@@ -110,12 +117,15 @@ def test_repeats_and_nonlinear_law(hip):
     assert result.skipped == ["qp needs a linear law"]
 
 
-@pytest.mark.parametrize("kwargs, match", [
-    ({"methods": ("newton", "simplex")}, "methods must be taken from"),
-    ({"methods": ("qp",), "solvers": ("NOSUCH",)}, "NOSUCH is not available"),
-    ({"accuracy": ("medium",)}, "accuracy must be taken from"),
-    ({"repeat": 0}, "repeat must be a positive integer"),
-])
+@pytest.mark.parametrize(
+    "kwargs, match",
+    [
+        ({"methods": ("newton", "simplex")}, "methods must be taken from"),
+        ({"methods": ("qp",), "solvers": ("NOSUCH",)}, "NOSUCH is not available"),
+        ({"accuracy": ("medium",)}, "accuracy must be taken from"),
+        ({"repeat": 0}, "repeat must be a positive integer"),
+    ],
+)
 def test_bad_study_input(hip, kwargs, match):
     with pytest.raises(InputError, match=match):
         run_study(hip, **kwargs)
@@ -128,8 +138,10 @@ def test_accuracy_settings_are_ordered():
 def test_compare_command_on_the_hip(tmp_path):
     scenario = tmp_path / "hip.toml"
     scenario.write_text(HIP_TOML)
-    result = CliRunner().invoke(app, ["compare", str(scenario), "--solvers", ",".join(SOLVERS),
-                                      "--accuracy", "low", "-o", str(tmp_path / "out")])
+    result = CliRunner().invoke(
+        app,
+        ["compare", str(scenario), "--solvers", ",".join(SOLVERS), "--accuracy", "low", "-o", str(tmp_path / "out")],
+    )
     assert result.exit_code == 0, result.stderr
     assert "Summary" in result.stdout and "inaccurate" in result.stdout
     table = pd.read_csv(tmp_path / "out" / "compare.csv")
@@ -142,8 +154,9 @@ def test_compare_command_on_the_hip(tmp_path):
 
 def test_compare_on_a_load_path_uses_the_peak_frame(tmp_path):
     scenario = tmp_path / "hip.toml"
-    scenario.write_text(HIP_TOML.replace("[load]\nforce = [820.85, 0.0, -2255.26]\n",
-                                         '[load_path]\nbuiltin = "hip_gait"\n'))
+    scenario.write_text(
+        HIP_TOML.replace("[load]\nforce = [820.85, 0.0, -2255.26]\n", '[load_path]\nbuiltin = "hip_gait"\n')
+    )
     result = CliRunner().invoke(app, ["compare", str(scenario), "--methods", "newton", "-o", str(tmp_path / "out")])
     assert result.exit_code == 0, result.stderr
     table = pd.read_csv(tmp_path / "out" / "compare.csv")

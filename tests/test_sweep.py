@@ -122,8 +122,20 @@ def test_a_failing_case_is_recorded_and_its_retry_replaces_the_row(scenario, tmp
     assert [r["case_id"] for r in lines].count(result.failed[0]) == 2 and len(lines) == 3
     assert lines[-1]["wall_time"] == retried["wall_time"]
     # Through the CLI: --retry-failed replaces again and exits 1 (the case still fails).
-    cli = CliRunner().invoke(app, ["sweep", str(scenario), "--set", "load_path.scale=1,-1", "--scheduler",
-                                   "synchronous", "-o", str(out), "--retry-failed"])
+    cli = CliRunner().invoke(
+        app,
+        [
+            "sweep",
+            str(scenario),
+            "--set",
+            "load_path.scale=1,-1",
+            "--scheduler",
+            "synchronous",
+            "-o",
+            str(out),
+            "--retry-failed",
+        ],
+    )
     assert cli.exit_code == 1 and "1 case(s) run, 1 already finished" in cli.stdout
     assert len(pd.read_csv(out / RESULTS_NAME)) == 2 and runs(out)[result.failed[0]] == 3
 
@@ -158,8 +170,15 @@ def test_twelve_cases_on_two_workers_survive_a_kill(tmp_path):
     scenario = tmp_path / "hip.toml"
     scenario.write_text(LIGHT)
     out = tmp_path / "sweep"
-    command = _command() + ["sweep", str(scenario), *[a for s in TWELVE for a in ("--set", s)], "--workers", "2",
-                            "-o", str(out)]
+    command = _command() + [
+        "sweep",
+        str(scenario),
+        *[a for s in TWELVE for a in ("--set", s)],
+        "--workers",
+        "2",
+        "-o",
+        str(out),
+    ]
     process = subprocess.Popen(command, stdout=subprocess.PIPE, stderr=subprocess.PIPE, start_new_session=True)
     deadline = time.monotonic() + 120
     try:
@@ -191,8 +210,9 @@ def test_twelve_cases_on_two_workers_survive_a_kill(tmp_path):
 
 
 def test_sweep_command(scenario, tmp_path):
-    result = CliRunner().invoke(app, ["sweep", str(scenario), "--set", "law.H=5,10", "--scheduler", "synchronous",
-                                      "-o", str(tmp_path / "s")])
+    result = CliRunner().invoke(
+        app, ["sweep", str(scenario), "--set", "law.H=5,10", "--scheduler", "synchronous", "-o", str(tmp_path / "s")]
+    )
     assert result.exit_code == 0, result.stderr
     assert "2 case(s) run, 0 already finished" in result.stdout
     table = pd.read_csv(tmp_path / "s" / RESULTS_NAME)

@@ -27,8 +27,14 @@ from dea_opt.mesh import cast_springs
 from dea_opt.sweep import RESULTS_NAME, run_sweep, spring_cache
 from dea_opt.sweep.cases import SPRING_CACHE
 
-TILT = np.array([[np.cos(0.02), 0.0, np.sin(0.02), 0.1], [0.0, 1.0, 0.0, -0.05],
-                 [-np.sin(0.02), 0.0, np.cos(0.02), -0.01], [0.0, 0.0, 0.0, 1.0]])
+TILT = np.array(
+    [
+        [np.cos(0.02), 0.0, np.sin(0.02), 0.1],
+        [0.0, 1.0, 0.0, -0.05],
+        [-np.sin(0.02), 0.0, np.cos(0.02), -0.01],
+        [0.0, 0.0, 0.0, 1.0],
+    ]
+)
 
 
 @pytest.fixture(scope="module")
@@ -48,12 +54,32 @@ def empty_memory():
 def cast_fields(springs) -> dict:
     """Every array of a SpringCast and its layer, by name."""
     layer = springs.layer
-    out = {name: getattr(layer, name) for name in ("points", "normals", "areas", "thickness", "gap", "source_face",
-                                                   "labels", "target_points", "target_normals", "target_faces")}
-    out |= {"surface_vertices": layer.surface[0], "surface_faces": layer.surface[1], "hit_face": springs.hit_face,
-            "hit_point": springs.hit_point, "thickness1": springs.thickness1, "thickness2": springs.thickness2,
-            "pose": springs.pose, "outcome": springs.outcome,
-            **{f"dropped_{k}": v for k, v in springs.dropped.faces.items()}}
+    out = {
+        name: getattr(layer, name)
+        for name in (
+            "points",
+            "normals",
+            "areas",
+            "thickness",
+            "gap",
+            "source_face",
+            "labels",
+            "target_points",
+            "target_normals",
+            "target_faces",
+        )
+    }
+    out |= {
+        "surface_vertices": layer.surface[0],
+        "surface_faces": layer.surface[1],
+        "hit_face": springs.hit_face,
+        "hit_point": springs.hit_point,
+        "thickness1": springs.thickness1,
+        "thickness2": springs.thickness2,
+        "pose": springs.pose,
+        "outcome": springs.outcome,
+        **{f"dropped_{k}": v for k, v in springs.dropped.faces.items()},
+    }
     return out
 
 
@@ -85,8 +111,11 @@ def test_a_cast_from_the_cache_is_the_cast_bit_for_bit(pair, tmp_path, pose):
         from_disk = spring_cache.cast(pair.mesh1, pair.mesh2, pose=pose, **options)
         from_memory = spring_cache.cast(pair.mesh1, pair.mesh2, pose=pose, **options)
         after = spring_cache.stats()
-    assert (after["casts"] - before["casts"], after["hits_disk"] - before["hits_disk"],
-            after["hits_memory"] - before["hits_memory"]) == (1, 1, 1)
+    assert (
+        after["casts"] - before["casts"],
+        after["hits_disk"] - before["hits_disk"],
+        after["hits_memory"] - before["hits_memory"],
+    ) == (1, 1, 1)
     assert from_memory is from_disk
     assert_same_cast(fresh, computed)
     assert_same_cast(fresh, from_disk)
@@ -170,8 +199,9 @@ CONCURRENT = textwrap.dedent("""
 
 
 def _start(code, *args):
-    process = subprocess.Popen([sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, "-c", code, *map(str, args)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True
+    )
     assert process.stdout.readline().strip() == "ready", process.stderr.read()
     return process
 
@@ -267,8 +297,11 @@ def test_a_sweep_casts_each_geometry_once_and_writes_the_outputs_asked(scenario,
     assert len(table) == 6 and (table["status"] == "ok").all()
     assert len(list((out / SPRING_CACHE).glob("*.npz"))) == 2  # two proximity windows
     for case in result.cases:
-        assert sorted(p.name for p in (out / "cases" / case).iterdir() if not p.name.startswith(".")) == \
-            ["contact.csv", "contact.json", "manifest.json"]
+        assert sorted(p.name for p in (out / "cases" / case).iterdir() if not p.name.startswith(".")) == [
+            "contact.csv",
+            "contact.json",
+            "manifest.json",
+        ]
     # Each row is what a solve of that case gives without any cache.
     from dea_opt.scenario import build_problem, load_scenario
 
@@ -283,8 +316,10 @@ def test_a_sweep_casts_each_geometry_once_and_writes_the_outputs_asked(scenario,
     again = run_sweep(scenario, sets, out, scheduler="synchronous", outputs="json")
     assert len(again.ran) == 6
     assert set(again.recomputed.values()) == {"it wrote the outputs csv,json, now json"}
-    assert sorted(p.name for p in (out / "cases" / result.cases[0]).iterdir() if not p.name.startswith(".")) == \
-        ["contact.json", "manifest.json"]
+    assert sorted(p.name for p in (out / "cases" / result.cases[0]).iterdir() if not p.name.startswith(".")) == [
+        "contact.json",
+        "manifest.json",
+    ]
     assert run_sweep(scenario, sets, out, scheduler="synchronous", outputs=["json"]).skipped == result.cases
 
 

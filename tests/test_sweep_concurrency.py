@@ -106,8 +106,15 @@ def sweeps_at_once(tmp_path, scenario, out, jobs: list[list[str]]) -> list[dict]
     driver = tmp_path / "driver.py"
     driver.write_text(DRIVER)
     go = tmp_path / "go"
-    processes = [subprocess.Popen([sys.executable, str(driver), str(scenario), str(out), str(go), *sets],
-                                  stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for sets in jobs]
+    processes = [
+        subprocess.Popen(
+            [sys.executable, str(driver), str(scenario), str(out), str(go), *sets],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        for sets in jobs
+    ]
     for process in processes:
         assert process.stdout.readline().strip() == "ready"
     go.touch()
@@ -157,8 +164,12 @@ def _task(scenario: Path, out: Path, overrides: dict) -> CaseTask:
 def _hold(tmp_path, task: CaseTask) -> subprocess.Popen:
     holder = tmp_path / "holder.py"
     holder.write_text(HOLDER)
-    process = subprocess.Popen([sys.executable, str(holder), json.dumps(task.__dict__)], stdin=subprocess.PIPE,
-                               stdout=subprocess.PIPE, text=True)
+    process = subprocess.Popen(
+        [sys.executable, str(holder), json.dumps(task.__dict__)],
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
     assert process.stdout.readline().strip() == "held"
     return process
 
@@ -235,8 +246,19 @@ def test_a_claim_dies_with_its_process(plate, tmp_path):
 def test_kill_9_mid_sweep_then_rerun_finishes_with_one_row_per_case(plate, tmp_path):
     out = tmp_path / "sweep"
     sets = [values(1, 60)]
-    command = [sys.executable, "-m", "dea_opt.cli", "sweep", str(plate), "--set", sets[0], "--scheduler",
-               "synchronous", "-o", str(out)]
+    command = [
+        sys.executable,
+        "-m",
+        "dea_opt.cli",
+        "sweep",
+        str(plate),
+        "--set",
+        sets[0],
+        "--scheduler",
+        "synchronous",
+        "-o",
+        str(out),
+    ]
     process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     deadline = time.monotonic() + 120
     try:
@@ -283,7 +305,7 @@ def test_an_append_writes_one_line_and_never_reads_the_rest(tmp_path):
     (tmp_path / JOURNAL_NAME).write_bytes(before)
     offset, length = journal.append(tmp_path, {"case_id": "abc", "status": "ok"})
     data = (tmp_path / JOURNAL_NAME).read_bytes()
-    assert data[:len(before)] == before and offset == len(before) and len(data) == len(before) + length
+    assert data[: len(before)] == before and offset == len(before) and len(data) == len(before) + length
     assert json.loads(data[offset:]) == {"case_id": "abc", "status": "ok"}
 
 
@@ -297,8 +319,11 @@ def test_a_line_cut_short_by_a_kill_is_dropped_and_the_journal_goes_on(tmp_path)
 
 
 def test_a_later_record_replaces_the_row_in_place(tmp_path):
-    for record in ({"case_id": "a", "status": "error"}, {"case_id": "b", "status": "ok"},
-                   {"case_id": "a", "status": "ok"}):
+    for record in (
+        {"case_id": "a", "status": "error"},
+        {"case_id": "b", "status": "ok"},
+        {"case_id": "a", "status": "ok"},
+    ):
         journal.append(tmp_path, record)
     table = journal.publish_table(tmp_path)
     csv = pd.read_csv(tmp_path / RESULTS_NAME)
@@ -312,8 +337,14 @@ def test_a_claim_is_exclusive_between_processes(tmp_path, plate):
     try:
         with journal.claim(tmp_path, task.case_id) as held:
             assert held is False
-        second = subprocess.run([sys.executable, str(tmp_path / "holder.py"), json.dumps(task.__dict__)],
-                                input="", capture_output=True, text=True, timeout=60, check=False)
+        second = subprocess.run(
+            [sys.executable, str(tmp_path / "holder.py"), json.dumps(task.__dict__)],
+            input="",
+            capture_output=True,
+            text=True,
+            timeout=60,
+            check=False,
+        )
         assert second.stdout.strip() == "taken"
     finally:
         holder.kill()

@@ -151,13 +151,15 @@ def test_a_changed_input_file_recomputes_only_the_cases_that_read_it(springs, tm
     second = sweep(springs, sets, out)
     assert second.ran == [ids["b.csv"]] and second.skipped == [ids["a.csv"]]
     assert second.recomputed == {
-        ids["b.csv"]: "the input file geometry.file (b.csv) changed since its row was computed"}
+        ids["b.csv"]: "the input file geometry.file (b.csv) changed since its row was computed"
+    }
 
     (tmp_path / "path.csv").write_text(LOAD_PATH.replace("-500", "-600"))
     third = sweep(springs, sets, out)
     assert sorted(third.ran) == sorted(ids.values())
     assert set(third.recomputed.values()) == {
-        "the input file load_path.file (path.csv) changed since its row was computed"}
+        "the input file load_path.file (path.csv) changed since its row was computed"
+    }
     # The rows keep what they were computed from; the journal names the files' hashes.
     record = [json.loads(line) for line in (out / JOURNAL_NAME).read_text().splitlines()][-1]
     assert set(record["inputs"]) == {"geometry.file", "load_path.file"}
@@ -166,23 +168,26 @@ def test_a_changed_input_file_recomputes_only_the_cases_that_read_it(springs, tm
 
 def test_files_are_found_after_the_overrides(springs, tmp_path):
     scenario = load_scenario(springs, {"geometry.file": "b.csv"})
-    assert keys.input_files(scenario) == {"geometry.file": (tmp_path / "b.csv").resolve(),
-                                          "load_path.file": (tmp_path / "path.csv").resolve()}
+    assert keys.input_files(scenario) == {
+        "geometry.file": (tmp_path / "b.csv").resolve(),
+        "load_path.file": (tmp_path / "path.csv").resolve(),
+    }
 
 
 def test_mesh_files_are_inputs():
     scenario = load_scenario(Path(__file__).parents[1] / "examples" / "scenarios" / "hip_meshes.toml")
     found = keys.input_files(scenario)
-    assert {k: v.name for k, v in found.items()} == {"geometry.mesh1": "hip_socket.stl",
-                                                     "geometry.mesh2": "hip_head.stl"}
+    assert {k: v.name for k, v in found.items()} == {
+        "geometry.mesh1": "hip_socket.stl",
+        "geometry.mesh2": "hip_head.stl",
+    }
 
 
 def test_a_new_version_or_method_recomputes(plate, tmp_path, monkeypatch):
     out = tmp_path / "sweep"
     sweep(plate, ["law.H=5"], out)
     again = sweep(plate, ["law.H=5"], out, method="newton")
-    assert list(again.recomputed.values()) == [
-        "it was solved with --method (the scenario default), now newton"]
+    assert list(again.recomputed.values()) == ["it was solved with --method (the scenario default), now newton"]
     monkeypatch.setattr(keys, "__version__", "9.9.9")
     later = sweep(plate, ["law.H=5"], out, method="newton")
     assert list(later.recomputed.values()) == ["it was computed by dea-opt 0.1.0, this is 9.9.9"]
@@ -193,9 +198,12 @@ def test_a_results_table_from_before_content_keys_is_kept_and_its_cases_recomput
     out = tmp_path / "sweep"
     out.mkdir()
     old = make_cases(["law.H=5,7"])
-    pd.DataFrame([{"case_id": old[0].id, "law.H": 5, "status": "ok", "peak_pressure": 1.0},
-                  {"case_id": old[1].id, "law.H": 7, "status": "ok", "peak_pressure": 2.0}]).to_csv(
-        out / RESULTS_NAME, index=False)
+    pd.DataFrame(
+        [
+            {"case_id": old[0].id, "law.H": 5, "status": "ok", "peak_pressure": 1.0},
+            {"case_id": old[1].id, "law.H": 7, "status": "ok", "peak_pressure": 2.0},
+        ]
+    ).to_csv(out / RESULTS_NAME, index=False)
     result = sweep(plate, ["law.H=5"], out)
     assert result.ran == [old[0].id]
     assert result.recomputed == {old[0].id: "its row has no content key (it was computed by an older dea-opt)"}
@@ -204,8 +212,11 @@ def test_a_results_table_from_before_content_keys_is_kept_and_its_cases_recomput
     assert table.loc[old[1].id, "peak_pressure"] == 2.0 and table.loc[old[0].id, "peak_pressure"] != 1.0
 
 
-@pytest.mark.parametrize("content", [b"case_id,status\n\x00\xff\xfe\x80garbage\n", b"a,b\n1,2\n",
-                                     b'case_id,status\n,ok\n'], ids=["binary", "no case_id", "empty case_id"])
+@pytest.mark.parametrize(
+    "content",
+    [b"case_id,status\n\x00\xff\xfe\x80garbage\n", b"a,b\n1,2\n", b"case_id,status\n,ok\n"],
+    ids=["binary", "no case_id", "empty case_id"],
+)
 def test_an_unreadable_results_table_stops_the_sweep_before_any_case(plate, tmp_path, content):
     out = tmp_path / "sweep"
     out.mkdir()
@@ -213,8 +224,9 @@ def test_an_unreadable_results_table_stops_the_sweep_before_any_case(plate, tmp_
     with pytest.raises(InputError, match="the results table .*sweep.csv"):
         sweep(plate, ["law.H=5"], out)
     assert sorted(p.name for p in out.iterdir()) == [RESULTS_NAME]  # nothing ran, nothing written
-    result = CliRunner().invoke(app, ["sweep", str(plate), "--set", "law.H=5", "--scheduler", "synchronous",
-                                      "-o", str(out)])
+    result = CliRunner().invoke(
+        app, ["sweep", str(plate), "--set", "law.H=5", "--scheduler", "synchronous", "-o", str(out)]
+    )
     assert result.exit_code == 2 and result.stderr.startswith("dea-opt: error: the results table")
     assert str(out / RESULTS_NAME) in result.stderr and "Traceback" not in result.stderr
     assert (out / RESULTS_NAME).read_bytes() == content

@@ -41,8 +41,19 @@ def plate(tmp_path):
 
 
 def _command(plate, out, *extra) -> list[str]:
-    return [sys.executable, "-m", "dea_opt.cli", "sweep", str(plate), *[a for s in SETS for a in ("--set", s)],
-            "--scheduler", "synchronous", "-o", str(out), *extra]
+    return [
+        sys.executable,
+        "-m",
+        "dea_opt.cli",
+        "sweep",
+        str(plate),
+        *[a for s in SETS for a in ("--set", s)],
+        "--scheduler",
+        "synchronous",
+        "-o",
+        str(out),
+        *extra,
+    ]
 
 
 def in_terminal(command) -> tuple[str, str, int]:
@@ -127,8 +138,9 @@ warnings.warn("a warning after")
 
 def test_noise_goes_to_the_log_and_the_terminal_comes_back(tmp_path):
     log = tmp_path / "sweep.log"
-    done = subprocess.run([sys.executable, "-c", ROUTED, str(log)], capture_output=True, text=True,
-                          timeout=60, check=False)
+    done = subprocess.run(
+        [sys.executable, "-c", ROUTED, str(log)], capture_output=True, text=True, timeout=60, check=False
+    )
     assert done.returncode == 0
     text = log.read_text()
     for noise in ("a raw warning", "CommClosedError", "written to fd 2", "to sys.stderr", "from a child process"):
@@ -142,11 +154,21 @@ def test_dask_noise_stays_off_the_terminal(plate, tmp_path):
     """A LocalCluster sweep, piped: the summary on stdout and nothing at all on stderr."""
     pytest.importorskip("dask.distributed")
     out = tmp_path / "sweep"
-    command = [sys.executable, "-m", "dea_opt.cli", "sweep", str(plate), "--set", "law.H=8,10", "--workers", "1",
-               "-o", str(out)]
+    command = [
+        sys.executable,
+        "-m",
+        "dea_opt.cli",
+        "sweep",
+        str(plate),
+        "--set",
+        "law.H=8,10",
+        "--workers",
+        "1",
+        "-o",
+        str(out),
+    ]
     done = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""
     assert done.stdout == f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}\n"
     assert (out / "sweep.log").is_file()
-

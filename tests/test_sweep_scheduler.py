@@ -74,22 +74,47 @@ def test_a_sweep_runs_on_a_scheduler_and_two_workers_started_apart(tmp_path):
 
     def start(name, *args):
         with open(logs / f"{name}.log", "w") as log:
-            process = subprocess.Popen(_dask(*args), stdout=log, stderr=subprocess.STDOUT, cwd=tmp_path,
-                                       start_new_session=True)
+            process = subprocess.Popen(
+                _dask(*args), stdout=log, stderr=subprocess.STDOUT, cwd=tmp_path, start_new_session=True
+            )
         started.append(process)
         return process
 
     try:
         start("scheduler", "scheduler", "--host", "127.0.0.1", "--port", str(port), "--no-dashboard")
         for k in range(2):
-            start(f"worker{k}", "worker", address, "--nthreads", "1", "--nworkers", "1", "--host", "127.0.0.1",
-                  "--no-dashboard", "--name", f"w{k}")
+            start(
+                f"worker{k}",
+                "worker",
+                address,
+                "--nthreads",
+                "1",
+                "--nworkers",
+                "1",
+                "--host",
+                "127.0.0.1",
+                "--no-dashboard",
+                "--name",
+                f"w{k}",
+            )
         worker_pids = _wait_for_workers(address, 2)
         scenario = tmp_path / "plate.toml"
         scenario.write_text(PLATE)
         out = tmp_path / "sweep"
-        command = _command() + ["sweep", str(scenario), "--set", "law.H=6,8,10,12,14,16", "--set",
-                                "load.scale=1,2", "--scheduler", address, "--outputs", "csv,json", "-o", str(out)]
+        command = _command() + [
+            "sweep",
+            str(scenario),
+            "--set",
+            "law.H=6,8,10,12,14,16",
+            "--set",
+            "load.scale=1,2",
+            "--scheduler",
+            address,
+            "--outputs",
+            "csv,json",
+            "-o",
+            str(out),
+        ]
         done = subprocess.run(command, capture_output=True, text=True, timeout=600, check=False)
         assert done.returncode == 0, done.stderr + (logs / "worker0.log").read_text()[-2000:]
         assert done.stdout.startswith("12 case(s) run, 0 already finished")
@@ -100,8 +125,9 @@ def test_a_sweep_runs_on_a_scheduler_and_two_workers_started_apart(tmp_path):
         # Each case's numbers: the plate's uniform pressure F / A under its own load scale.
         pressure = 100.0 * table["load.scale"] / (40.0 * 10.0)
         assert ((table["mean_pressure"] - pressure).abs() <= 1e-9 * pressure).all()
-        assert sorted(p.name for p in (out / "cases" / table["case_id"].iloc[0]).iterdir()
-                      if not p.name.startswith(".")) == ["contact.csv", "contact.json", "manifest.json"]
+        assert sorted(
+            p.name for p in (out / "cases" / table["case_id"].iloc[0]).iterdir() if not p.name.startswith(".")
+        ) == ["contact.csv", "contact.json", "manifest.json"]
         # A rerun through the same cluster finds every case finished.
         again = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
         assert again.returncode == 0 and again.stdout.startswith("0 case(s) run, 12 already finished")

@@ -82,14 +82,17 @@ def test_first_order_and_monte_carlo_agree_on_the_knee():
     tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
     layer = M.springs_from_meshes(tibia, femur, labels=labels, max_gap=2.0)
     centre = 0.5 * sum((m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral))
-    problem = d.ContactProblem(layer, d.AteshianLaw(5.0, 0.6), force=(0.0, 0.0, -1000.0), reference=tuple(centre),
-                               free=("uz", "ry"))
+    problem = d.ContactProblem(
+        layer, d.AteshianLaw(5.0, 0.6), force=(0.0, 0.0, -1000.0), reference=tuple(centre), free=("uz", "ry")
+    )
     std = {"H": 0.25, "beta": 0.03, "thickness_scale": 0.05}
     first = propagate(d.solve(problem), std)
     mc = monte_carlo(problem, std, n=200, seed=0, scheduler="synchronous")
     assert mc.n_failed == 0
     ratio = first.output_std["peak_pressure"] / mc.std["peak_pressure"]
-    print(f"\nknee: first-order sd of peak {first.output_std['peak_pressure']:.4g} MPa, Monte Carlo {mc.std['peak_pressure']:.4g}")
+    print(
+        f"\nknee: first-order sd of peak {first.output_std['peak_pressure']:.4g} MPa, Monte Carlo {mc.std['peak_pressure']:.4g}"
+    )
     assert 0.85 < ratio < 1.15, (first.output_std, mc.std)
     assert mc.mean["peak_pressure"] == pytest.approx(first.value["peak_pressure"], rel=0.02)
 
@@ -98,8 +101,10 @@ def test_monte_carlo_on_a_local_cluster():
     from distributed import Client, LocalCluster
 
     problem = plate_problem()
-    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster, \
-            Client(cluster) as client:
+    with (
+        LocalCluster(n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None) as cluster,
+        Client(cluster) as client,
+    ):
         mc = monte_carlo(problem, {"Fz": 5.0}, n=16, seed=3, client=client, chunks=2)
     here = monte_carlo(problem, {"Fz": 5.0}, n=16, seed=3, chunks=5)
     assert mc.n_failed == 0 and mc.std["peak_pressure"] == pytest.approx(here.std["peak_pressure"], rel=1e-12)

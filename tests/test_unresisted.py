@@ -63,8 +63,9 @@ def test_a_moment_on_a_ball_with_only_rotations_free_is_rejected_by_every_method
     assert "no spring resists any of the free dofs ('body2.rx', 'body2.ry', 'body2.rz')" in message
     assert "N mm" in message and "about its reference point (0, 0, 0) mm" in message
     # the unbalanced part is the whole moment, in N mm, per dof
-    np.testing.assert_allclose([info.value.direction[f"body2.r{a}"] for a in "xyz"], moment, rtol=0,
-                               atol=1e-12 * np.abs(moment).max())
+    np.testing.assert_allclose(
+        [info.value.direction[f"body2.r{a}"] for a in "xyz"], moment, rtol=0, atol=1e-12 * np.abs(moment).max()
+    )
 
 
 @pytest.mark.parametrize("moment", [(1e-13, 0.0, 0.0), (0.0, 4e-14, -3e-14)])
@@ -235,8 +236,11 @@ def test_the_equilibrium_residual_is_the_documented_formula():
         q = -np.concatenate([f.sum(axis=0), np.cross(arm, f).sum(axis=0)])[[2, 3, 4]]
         radius = np.sqrt(np.mean(np.sum(arm**2, axis=1)))
         length = np.array([1.0, radius, radius])
-        scale = max(np.abs(r / length).max(), np.abs(force_i).sum(),
-                    H * layer.areas @ np.maximum(-layer.gap / layer.thickness, 0.0))
+        scale = max(
+            np.abs(r / length).max(),
+            np.abs(force_i).sum(),
+            H * layer.areas @ np.maximum(-layer.gap / layer.thickness, 0.0),
+        )
         mine = np.abs((q - r) / length).max() / scale
         assert mine > 1e-9
         got = d.certify(problem, u, H * np.minimum(strain, 0.0)).equilibrium
@@ -256,9 +260,16 @@ def test_the_cli_rejects_the_ball_in_socket_reproducer(tmp_path):
     import sys
 
     scenario = tmp_path / "socket.toml"
-    scenario.write_text('[geometry]\nkind = "socket"\nn_rings = 6\nn_sectors = 12\n[law]\nkind = "linear"\nH = 1.0\n'
-                        '[body2]\nreference = [0, 0, 0]\nfree = ["rx", "ry", "rz"]\n[load]\nmoment = [1000, 0, 0]\n')
-    done = subprocess.run([sys.executable, "-m", "dea_opt.cli", "run", str(scenario), "-o", str(tmp_path / "out")],
-                          capture_output=True, text=True, timeout=300, check=False)
+    scenario.write_text(
+        '[geometry]\nkind = "socket"\nn_rings = 6\nn_sectors = 12\n[law]\nkind = "linear"\nH = 1.0\n'
+        '[body2]\nreference = [0, 0, 0]\nfree = ["rx", "ry", "rz"]\n[load]\nmoment = [1000, 0, 0]\n'
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "dea_opt.cli", "run", str(scenario), "-o", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        check=False,
+    )
     assert done.returncode == 2, done.stdout[-2000:] + done.stderr[-2000:]
     assert done.stderr.startswith("dea-opt: error:") and "no spring resists any of the free dofs" in done.stderr

@@ -24,8 +24,7 @@ import dea_opt as d
 from dea_opt.geometry import plate_layer
 from dea_opt.validity import DEFAULT_LIMITS, Check, Validity, ValidityLimits, assess, rotation_gap_error
 
-NAMES = ("strain", "rotation", "gap_error", "extent", "layer_area", "thickness", "peak_pressure",
-         "dropped_springs")
+NAMES = ("strain", "rotation", "gap_error", "extent", "layer_area", "thickness", "peak_pressure", "dropped_springs")
 
 
 def solve_recording(problem, method="newton", **options):
@@ -75,8 +74,9 @@ def test_ateshian_law_is_valid_past_thirty_percent(strain):
     assert check.passed and solution.validity.valid and messages == []
 
 
-@pytest.mark.parametrize("law", [d.AteshianLaw(0.6, 0.05), d.BlankevoortLaw(0.6), d.CubicLaw(0.6, 0.3)],
-                         ids=lambda law: law.name)
+@pytest.mark.parametrize(
+    "law", [d.AteshianLaw(0.6, 0.05), d.BlankevoortLaw(0.6), d.CubicLaw(0.6, 0.3)], ids=lambda law: law.name
+)
 def test_every_law_is_flagged_near_crushing(law):
     solution, messages = solve_recording(pressed_plate(law, 0.9))
     check = solution.validity["strain"]
@@ -154,7 +154,7 @@ def test_gap_error_straight_below_the_reference_is_d_one_minus_cos(theta):
     error = rotation_gap_error(problem, problem.prescribed_u)
     on_axis = np.flatnonzero(np.abs(PLATE.points[:, 1]) < 0.6)  # the rows next to y = 0
     y = PLATE.points[on_axis, 1]
-    series_a = -theta**3 / 6.0 + theta**5 / 120.0  # sin t - t, without cancellation
+    series_a = -(theta**3) / 6.0 + theta**5 / 120.0  # sin t - t, without cancellation
     expected = y * (series_a if theta < 1e-3 else math.sin(theta) - theta) + 2 * D * math.sin(theta / 2) ** 2
     np.testing.assert_allclose(error[on_axis], expected, rtol=1e-10)
 
@@ -171,9 +171,10 @@ def test_gap_error_of_random_motions_matches_scipy(seed):
     c1, c2 = rng.normal(scale=40.0, size=(2, 3))
     u = np.concatenate([rng.normal(size=3), rng.normal(size=3), rng.normal(size=3), rng.normal(size=3)])
     for k in (3, 9):
-        u[k:k + 3] *= math.radians(rng.uniform(1.0, 40.0)) / np.linalg.norm(u[k:k + 3])
-    problem = d.ContactProblem(layer, d.LinearLaw(1.0), body1=d.Body(reference=c1, free=()),
-                               body2=d.Body(reference=c2, free=()))
+        u[k : k + 3] *= math.radians(rng.uniform(1.0, 40.0)) / np.linalg.norm(u[k : k + 3])
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(1.0), body1=d.Body(reference=c1, free=()), body2=d.Body(reference=c2, free=())
+    )
     unit = layer.normals
     expected = np.zeros(n)
     for sign, c, theta in ((-1.0, c1, u[3:6]), (1.0, c2, u[9:12])):
@@ -199,6 +200,7 @@ def test_small_rotation_is_valid_and_translations_leave_no_gap_error():
 
 # --- sizes and units ------------------------------------------------------------------------
 
+
 def test_a_layer_in_micrometres_is_flagged():
     layer = plate_layer(40e3, 10e3, 20, 5, thickness=2e3)
     validity = assess(d.ContactProblem(layer, d.LinearLaw(1.0), force=(0, 0, -1.0)), np.zeros(12))
@@ -223,6 +225,7 @@ def test_a_layer_without_springs_is_not_assessed_for_size():
 
 # --- pressures ---------------------------------------------------------------------------------
 
+
 def test_peak_pressure_above_what_cartilage_survives():
     # H = 100 MPa at 0.2 strain: 20 MPa, valid; at 0.4 (and with a range check switched off): 40 MPa
     ok, _ = solve_recording(pressed_plate(d.LinearLaw(100.0), 0.2))
@@ -238,6 +241,7 @@ def test_peak_pressure_above_what_cartilage_survives():
 
 
 # --- the springs the proximity window drops (a hook for the re-cast at the solved pose) -------
+
 
 def test_dropped_springs_is_not_evaluated_unless_counted():
     solution, _ = solve_recording(pressed_plate(d.LinearLaw(1.0), 0.1))
@@ -257,6 +261,7 @@ def test_dropped_springs_is_not_evaluated_unless_counted():
 
 
 # --- the object: immutable, JSON-ready, one row, one line -------------------------------------
+
 
 def test_the_report_is_immutable_json_ready_and_flat():
     solution, _ = solve_recording(rotated_plate(math.radians(10.0)))
@@ -307,15 +312,25 @@ def test_a_failed_solution_is_not_valid():
     assert all("not finite" in c.advice for c in validity.failed)
 
 
-@pytest.mark.parametrize("kwargs, field", [
-    ({"crushing": 0.0}, "crushing"), ({"crushing": 1.5}, "crushing"), ({"rotation": -1}, "rotation"),
-    ({"rotation": "3 deg"}, "rotation"), ({"gap_error": math.nan}, "gap_error"),
-    ({"compression": 2.0}, "compression"), ({"extent": (10.0, 1.0)}, "extent"),
-    ({"layer_area": 5.0}, "layer_area"), ({"thickness": (0.1, math.nan)}, "thickness"),
-    ({"extent": ("1", "2")}, "extent"), ({"crushing": True}, "crushing"),
-    ({"peak_pressure": 0}, "peak_pressure"), ({"dropped_springs": -2}, "dropped_springs"),
-    ({"dropped_springs": 1.5}, "dropped_springs"),
-])
+@pytest.mark.parametrize(
+    "kwargs, field",
+    [
+        ({"crushing": 0.0}, "crushing"),
+        ({"crushing": 1.5}, "crushing"),
+        ({"rotation": -1}, "rotation"),
+        ({"rotation": "3 deg"}, "rotation"),
+        ({"gap_error": math.nan}, "gap_error"),
+        ({"compression": 2.0}, "compression"),
+        ({"extent": (10.0, 1.0)}, "extent"),
+        ({"layer_area": 5.0}, "layer_area"),
+        ({"thickness": (0.1, math.nan)}, "thickness"),
+        ({"extent": ("1", "2")}, "extent"),
+        ({"crushing": True}, "crushing"),
+        ({"peak_pressure": 0}, "peak_pressure"),
+        ({"dropped_springs": -2}, "dropped_springs"),
+        ({"dropped_springs": 1.5}, "dropped_springs"),
+    ],
+)
 def test_bad_limits_name_the_field(kwargs, field):
     with pytest.raises(d.InputError, match=rf"ValidityLimits\.{field}(\[\d\])? must be"):
         ValidityLimits(**kwargs)
@@ -344,8 +359,10 @@ def test_the_readme_validity_example_runs(capsys):
     from pathlib import Path
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    blocks = [re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
-              for title in ("## A short example", "## Validity")]
+    blocks = [
+        re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
+        for title in ("## A short example", "## Validity")
+    ]
     namespace: dict = {}
     for code in blocks:
         exec(compile(code, "README.md", "exec"), namespace)
@@ -373,8 +390,7 @@ def knee_problem(scale=1.0, law=None, free=("uz", "ry"), force=1000.0):
         layer = M.cast_springs(tibia, femur, labels=labels, max_gap=2.0 * scale).layer
     centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
     reference = tuple(0.5 * (centre[0] + centre[1]))
-    return d.ContactProblem(layer, law or d.LinearLaw(10.0), force=(0.0, 0.0, -force),
-                            reference=reference, free=free)
+    return d.ContactProblem(layer, law or d.LinearLaw(10.0), force=(0.0, 0.0, -force), reference=reference, free=free)
 
 
 @pytest.fixture(scope="module")
@@ -418,8 +434,9 @@ def test_knee_under_a_million_newtons_is_flagged_for_pressure(knee):
 def test_knee_with_six_free_dofs_rotates_out_of_the_small_rotation_model(knee, offset):
     """Issue 11: with the default six free dofs the femur slid about 17 mm and rotated about 21 deg."""
     point = tuple(np.add(knee.body2.reference, offset))
-    problem = d.ContactProblem(knee.layer, knee.law, load=d.Load((0.0, 0.0, -1000.0), point=point),
-                               reference=knee.body2.reference, free=d.DOFS)
+    problem = d.ContactProblem(
+        knee.layer, knee.law, load=d.Load((0.0, 0.0, -1000.0), point=point), reference=knee.body2.reference, free=d.DOFS
+    )
     solution, messages = solve_recording(problem)
     assert solution.success
     degrees = math.degrees(np.linalg.norm(solution.u[9:12]))

@@ -80,9 +80,16 @@ def test_arrays_in_any_memory_layout_are_written_as_their_values(tmp_path, monke
     n = 101
     wide = rng.normal(size=(n, 6))
     surface = SurfaceData(
-        np.asfortranarray(rng.normal(size=(n, 3))), rng.integers(0, n, size=(n, 3)), "triangle",
-        {"big_endian": rng.normal(size=n).astype(">f8"), "strided": wide[:, ::2], "column": wide[:, 1],
-         "fortran": np.asfortranarray(rng.normal(size=(n, 3)))})
+        np.asfortranarray(rng.normal(size=(n, 3))),
+        rng.integers(0, n, size=(n, 3)),
+        "triangle",
+        {
+            "big_endian": rng.normal(size=n).astype(">f8"),
+            "strided": wide[:, ::2],
+            "column": wide[:, 1],
+            "fortran": np.asfortranarray(rng.normal(size=(n, 3))),
+        },
+    )
     mesh = meshio.read(io.write_surface(surface, tmp_path / "s.vtu"))
     np.testing.assert_array_equal(mesh.points, surface.points)
     for name, want in surface.cell_data.items():
@@ -101,8 +108,10 @@ def test_a_truncated_file_is_named(tmp_path):
 
 def test_compressed_and_ascii_files_are_still_written_on_request(tmp_path):
     surface = random_surface(2)
-    for kwargs, marker in (({"compress": True}, b'compressor="vtkZLibDataCompressor"'),
-                           ({"binary": False}, b'format="ascii"')):
+    for kwargs, marker in (
+        ({"compress": True}, b'compressor="vtkZLibDataCompressor"'),
+        ({"binary": False}, b'format="ascii"'),
+    ):
         path = io.write_surface(surface, tmp_path / "s.vtu", **kwargs)
         assert marker in path.read_bytes() and b"AppendedData" not in path.read_bytes()
         mesh = meshio.read(path)

@@ -97,8 +97,9 @@ def test_a_re_solve_with_a_new_load_is_a_fresh_solve(seed):
     model = QPModel(system, law, tol=1e-12)
     model.solve()
     again = model.solve(other)
-    fresh = QPModel(SpringSystem(system.AT, system.e0, system.volume, other, stiffness=system.stiffness), law,
-                    tol=1e-12).solve()
+    fresh = QPModel(
+        SpringSystem(system.AT, system.e0, system.volume, other, stiffness=system.stiffness), law, tol=1e-12
+    ).solve()
     assert again.build_time == 0.0 and fresh.build_time > 0.0
     np.testing.assert_allclose(again.u_free, fresh.u_free, rtol=1e-8, atol=1e-12)
     np.testing.assert_allclose(again.stress, fresh.stress, rtol=0, atol=1e-8 * np.abs(fresh.stress).max())
@@ -126,10 +127,12 @@ def test_a_setting_clarabel_does_not_know_is_named_when_the_model_is_built():
 def test_the_default_qp_imports_no_cvxpy():
     """cvxpy costs most of a second to import: a qp solve with the default solver (its name
     given, as a scenario gives it) never loads it."""
-    code = ("import sys, dea_opt as d; from dea_opt.geometry import plate_layer; "
-            "p = d.ContactProblem(plate_layer(10.0, 10.0, 8, 8, thickness=2.0), d.LinearLaw(5.0), "
-            "force=(0, 0, -50.0), free=('uz',)); s = d.solve(p, 'qp', solver='clarabel'); "
-            "print(s.success, s.info['native_status'], 'cvxpy' in sys.modules)")
+    code = (
+        "import sys, dea_opt as d; from dea_opt.geometry import plate_layer; "
+        "p = d.ContactProblem(plate_layer(10.0, 10.0, 8, 8, thickness=2.0), d.LinearLaw(5.0), "
+        "force=(0, 0, -50.0), free=('uz',)); s = d.solve(p, 'qp', solver='clarabel'); "
+        "print(s.success, s.info['native_status'], 'cvxpy' in sys.modules)"
+    )
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=False)
     assert out.returncode == 0, out.stderr
     assert out.stdout.split() == ["True", "Solved", "False"]
@@ -149,7 +152,9 @@ def test_ipopt_sees_the_block_copies_and_nothing_more(n):
     assert result.success, result.message
     law = d.CubicLaw(2.0, 0.3)
     eps = system.e0 + system.AT.T @ result.u_free
-    np.testing.assert_allclose(result.stress, law.stress(np.minimum(eps, 0.0)), rtol=0,
-                               atol=1e-6 * np.abs(result.stress).max())
-    np.testing.assert_allclose(system.AT @ (system.volume * result.stress), system.load, rtol=0,
-                               atol=1e-6 * np.abs(system.load).max())
+    np.testing.assert_allclose(
+        result.stress, law.stress(np.minimum(eps, 0.0)), rtol=0, atol=1e-6 * np.abs(result.stress).max()
+    )
+    np.testing.assert_allclose(
+        system.AT @ (system.volume * result.stress), system.load, rtol=0, atol=1e-6 * np.abs(system.load).max()
+    )

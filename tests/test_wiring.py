@@ -65,6 +65,7 @@ def socket_path(tmp_path, rows, extra="") -> Path:
 
 # --- 1. load paths through dea-opt run: streamed, every frame recorded, exit 1 / 3 ----------------
 
+
 def test_a_path_is_streamed_and_a_frame_that_cannot_be_carried_is_recorded(tmp_path):
     # frame 2 pulls the head out of the socket (+z): no spring can carry it; the others push it in
     rows = [(0.1 * k, 0.0, 0.0, 800.0 if k == 2 else -800.0 - 100.0 * k) for k in range(5)]
@@ -141,26 +142,37 @@ def test_the_scenario_anatomy_reaches_the_json_and_the_map(tmp_path):
 
 
 def test_a_path_summary_carries_the_anatomy(tmp_path):
-    scenario = socket_path(tmp_path, [(0.0, 0.0, 0.0, -500.0), (0.1, 0.0, 0.0, -900.0)],
-                           '[output]\nanatomy = {medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, -1.0], '
-                           'side = "right"}\n')
+    scenario = socket_path(
+        tmp_path,
+        [(0.0, 0.0, 0.0, -500.0), (0.1, 0.0, 0.0, -900.0)],
+        '[output]\nanatomy = {medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, -1.0], side = "right"}\n',
+    )
     assert invoke("run", scenario, "-o", tmp_path / "out").exit_code == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert np.allclose(summary["anatomy"]["anterior"], [0.0, 1.0, 0.0])  # medial x... right limb: +y
 
 
-@pytest.mark.parametrize("value, words", [
-    ('{medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "up"}', "output.anatomy.side must be"),
-    ('{medial = [0.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right"}',
-     "output.anatomy.medial must be a nonzero direction"),
-    ('{medial = [1.0, 0.0, 0.0], proximal = [1.0, 0.1, 0.0], side = "right"}',
-     "output.anatomy.proximal and output.anatomy.medial must be far from parallel"),
-    ('{medial = [1.0, 0.0, 0.0], up = [0.0, 0.0, 1.0]}', "output.anatomy: unknown key up"),
-    ('{medial = [1.0, "a", 0.0], proximal = [0.0, 0.0, 1.0], side = "right"}', "output.anatomy.medial must be"),
-    ('{landmarks = {medial = [1.0, 0.0, 0.0], lateral = [-1.0, 0.0, 0.0], proximal = [0.0, 0.0, 9.0]}}',
-     "output.anatomy.landmarks: side"),
-    ('"right"', "output.anatomy (line 16)"),
-])
+@pytest.mark.parametrize(
+    "value, words",
+    [
+        ('{medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "up"}', "output.anatomy.side must be"),
+        (
+            '{medial = [0.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right"}',
+            "output.anatomy.medial must be a nonzero direction",
+        ),
+        (
+            '{medial = [1.0, 0.0, 0.0], proximal = [1.0, 0.1, 0.0], side = "right"}',
+            "output.anatomy.proximal and output.anatomy.medial must be far from parallel",
+        ),
+        ("{medial = [1.0, 0.0, 0.0], up = [0.0, 0.0, 1.0]}", "output.anatomy: unknown key up"),
+        ('{medial = [1.0, "a", 0.0], proximal = [0.0, 0.0, 1.0], side = "right"}', "output.anatomy.medial must be"),
+        (
+            "{landmarks = {medial = [1.0, 0.0, 0.0], lateral = [-1.0, 0.0, 0.0], proximal = [0.0, 0.0, 9.0]}}",
+            "output.anatomy.landmarks: side",
+        ),
+        ('"right"', "output.anatomy (line 16)"),
+    ],
+)
 def test_a_bad_anatomy_names_its_key(tmp_path, value, words):
     (tmp_path / "plate.toml").write_text(PLATE + f"[output]\nanatomy = {value}\n")
     result = invoke("run", tmp_path / "plate.toml", "-o", tmp_path / "out")
@@ -173,10 +185,11 @@ def test_the_anatomy_key_is_documented():
     assert "# anatomy = ...  # optional; the anatomical frame" in schema_text()
     assert "[output] anatomy" in README and "anatomy = {medial" in README
     knee = (KNEE_EXAMPLES / "knee.toml").read_text()
-    assert "anatomy = { medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = \"right\" }" in knee
+    assert 'anatomy = { medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right" }' in knee
 
 
 # --- 3. sizes checked before allocating ----------------------------------------------------------
+
 
 def test_a_billion_frames_is_a_named_size_error_with_the_estimate(tmp_path):
     text = SOCKET + '[load_path]\nbuiltin = "hip_gait"\nframes = 1000000000\n'
@@ -203,6 +216,7 @@ def test_the_mesh_memory_guard_is_a_size_limit_error():
 
 
 # --- 5. sweep statuses --------------------------------------------------------------------------
+
 
 def test_a_sweep_case_outside_validity_is_not_ok(tmp_path):
     (tmp_path / "plate.toml").write_text(PLATE + '[output]\nformats = ["json"]\n')
@@ -233,6 +247,7 @@ def test_the_readme_documents_the_sweep_statuses():
 
 
 # --- 7. the demo: validity and compartments ----------------------------------------------------
+
 
 def test_hip_regions_label_the_dome_and_the_walls():
     from dea_opt.demo import hip_regions
@@ -266,6 +281,7 @@ def test_the_demo_shows_validity_and_the_regions(tmp_path):
 
 # --- the attack: a folder a killed run left, two runs at once ------------------------------------
 
+
 def test_a_folder_left_by_a_first_run_killed_mid_path_is_taken_by_the_next(tmp_path):
     folder = tmp_path / "out"
     (folder / "series_frames").mkdir(parents=True)  # what kill -9 leaves before anything was published
@@ -292,8 +308,9 @@ def test_kill_9_of_a_first_run_mid_path_then_rerun(tmp_path):
     scenario = socket_path(tmp_path, rows, '[output]\nformats = ["vtk", "csv", "json"]\n')
     folder = tmp_path / "out"
     env = {**os.environ, "MPLBACKEND": "Agg"}
-    process = subprocess.Popen(_dea_opt("run", scenario, "-o", folder, "-q"), env=env, stdout=subprocess.PIPE,
-                               stderr=subprocess.PIPE)
+    process = subprocess.Popen(
+        _dea_opt("run", scenario, "-o", folder, "-q"), env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE
+    )
     try:
         deadline = time.monotonic() + 120
         while not any(TEMPORARY_NAME.match(p.name) for p in folder.rglob("*")) and time.monotonic() < deadline:
@@ -303,8 +320,9 @@ def test_kill_9_of_a_first_run_mid_path_then_rerun(tmp_path):
     finally:
         process.communicate(timeout=60)
     assert read_manifest(folder) is None  # nothing was published
-    done = subprocess.run(_dea_opt("run", scenario, "-o", folder, "-q"), env=env, capture_output=True, text=True,
-                          timeout=300, check=False)
+    done = subprocess.run(
+        _dea_opt("run", scenario, "-o", folder, "-q"), env=env, capture_output=True, text=True, timeout=300, check=False
+    )
     assert done.returncode == 0, done.stderr
     assert check_outputs(folder) == [] and not [p for p in folder.rglob("*") if TEMPORARY_NAME.match(p.name)]
     assert len(pd.read_csv(folder / "frames.csv")) == 400

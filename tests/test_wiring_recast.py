@@ -33,12 +33,14 @@ def invoke(*args):
 
 # --- 4. springs re-cast at the solved pose --------------------------------------------------------
 
+
 def test_with_validity_returns_a_new_solution_and_checks_its_arguments():
     from dea_opt.geometry import plate_layer
     from dea_opt.validity import ValidityLimits, assess
 
-    problem = d.ContactProblem(plate_layer(40.0, 10.0, 20, 5, 2.0), d.LinearLaw(10.0), force=(0.0, 0.0, -400.0),
-                               free=("uz",))
+    problem = d.ContactProblem(
+        plate_layer(40.0, 10.0, 20, 5, 2.0), d.LinearLaw(10.0), force=(0.0, 0.0, -400.0), free=("uz",)
+    )
     solution = d.solve(problem)
     assert solution.validity["dropped_springs"].passed is None  # not evaluated by default
     counted = solution.with_validity(dropped=3)
@@ -84,8 +86,17 @@ def test_the_knee_run_recasts_at_its_solved_pose(tmp_path):
 @needs_knee
 def test_springs_dropped_at_the_solved_pose_make_the_run_exit_3(tmp_path):
     # H = 3 MPa: strain about 0.6, the femur sinks past the proximity window of the start cast
-    result = invoke("run", KNEE_EXAMPLES / "knee.toml", "-o", tmp_path / "out", "-q", "--set", "law.H=3",
-                    "--set", 'output.formats=["json"]')
+    result = invoke(
+        "run",
+        KNEE_EXAMPLES / "knee.toml",
+        "-o",
+        tmp_path / "out",
+        "-q",
+        "--set",
+        "law.H=3",
+        "--set",
+        'output.formats=["json"]',
+    )
     assert result.exit_code == 3, result.stderr
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     dropped = summary["recast"]["dropped"]
@@ -126,8 +137,8 @@ def test_the_csv_and_the_sto_load_paths_give_the_same_frames(tmp_path):
     assert np.allclose(csv.loads[:, 4], 8000.0 * np.sin(2 * np.pi * phase), atol=1e-2)
 
 
-
 # --- 6. the unsupported-load diagnostic in commensurate units -----------------------------------
+
 
 def _generalized(layer, reference, free) -> np.ndarray:
     """Each spring's push on body 2 as a generalized force over the free dofs (N, N mm), here."""
@@ -151,8 +162,12 @@ def _random_problem(rng):
     reference = rng.normal(scale=5.0, size=3)
     force = rng.normal(scale=1000.0, size=3)
     moment = rng.normal(scale=10.0 ** rng.uniform(2, 6), size=3)
-    return d.ContactProblem(layer, d.LinearLaw(10.0), force=force, moment=moment, reference=tuple(reference),
-                            free=free), layer, reference, free
+    return (
+        d.ContactProblem(layer, d.LinearLaw(10.0), force=force, moment=moment, reference=tuple(reference), free=free),
+        layer,
+        reference,
+        free,
+    )
 
 
 def test_the_unbalanced_part_is_the_smallest_and_never_larger_than_the_load():
@@ -207,8 +222,9 @@ def test_no_raw_warning_from_a_recast(tmp_path):
 
     pair = hip_meshes(step=6.0)
     cast = pair.cast(max_gap=2.0)
-    problem = d.ContactProblem(cast.layer, d.LinearLaw(10.0), force=(0.0, 0.0, -1000.0), reference=pair.reference2,
-                               free=("ux", "uy", "uz"))
+    problem = d.ContactProblem(
+        cast.layer, d.LinearLaw(10.0), force=(0.0, 0.0, -1000.0), reference=pair.reference2, free=("ux", "uy", "uz")
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         solution, report = recast_solution(d.solve(problem), cast)
@@ -226,10 +242,18 @@ def test_the_readme_recast_example_runs_on_the_knee_with_its_numbers():
     from dea_opt.mesh import concatenate_meshes, load_mesh
 
     block = next(b for b in re.findall(r"```python\n(.*?)```", README, re.DOTALL) if "recast_at_solution(" in b)
-    tibia, labels = concatenate_meshes({"medial": load_mesh(KNEE / KNEE_FILES[1]),
-                                        "lateral": load_mesh(KNEE / KNEE_FILES[2])})
-    namespace = {"dea": d, "tibia": tibia, "labels": labels, "femur": load_mesh(KNEE / KNEE_FILES[0]),
-                 "x": -69.0242, "y": -5.9006, "z": -18.8433}
+    tibia, labels = concatenate_meshes(
+        {"medial": load_mesh(KNEE / KNEE_FILES[1]), "lateral": load_mesh(KNEE / KNEE_FILES[2])}
+    )
+    namespace = {
+        "dea": d,
+        "tibia": tibia,
+        "labels": labels,
+        "femur": load_mesh(KNEE / KNEE_FILES[0]),
+        "x": -69.0242,
+        "y": -5.9006,
+        "z": -18.8433,
+    }
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", d.ValidityWarning)
         exec(compile(block, "README.md", "exec"), namespace)  # noqa: S102 - the README's own example
@@ -254,7 +278,9 @@ free = ["ux", "uy", "uz"]
 
 def test_a_path_with_poses_recasts_its_peak_frame_at_that_frame_s_pose(tmp_path):
     rows = "".join(f"{0.1 * k},0,0,{-600 - 300 * k},0,0,0,0,{0.2 * k},0,0,0,0\n" for k in range(4))
-    (tmp_path / "poses.csv").write_text("time,Fx,Fy,Fz,Mx,My,Mz,pose_tx,pose_ty,pose_tz,pose_rx,pose_ry,pose_rz\n" + rows)
+    (tmp_path / "poses.csv").write_text(
+        "time,Fx,Fy,Fz,Mx,My,Mz,pose_tx,pose_ty,pose_tz,pose_rx,pose_ry,pose_rz\n" + rows
+    )
     (tmp_path / "hip.toml").write_text(HIP_GENERATOR + '[load_path]\nfile = "poses.csv"\n')
     result = invoke("run", tmp_path / "hip.toml", "-o", tmp_path / "out", "-q")
     assert result.exit_code == 0, result.stderr
@@ -262,17 +288,28 @@ def test_a_path_with_poses_recasts_its_peak_frame_at_that_frame_s_pose(tmp_path)
     recast = json.loads((tmp_path / "out" / "summary.json").read_text())["recast"]
     peak = int(frames["peak_pressure"].idxmax())
     assert recast["frame"] == peak and frames["validity_dropped_springs"].notna().tolist() == [
-        k == peak for k in range(4)]
+        k == peak for k in range(4)
+    ]
     # that frame's answer balances its load (summed from its row here): the re-cast compares with it
     assert np.allclose(recast["solution_force"], -frames.loc[peak, ["Fx", "Fy", "Fz"]].to_numpy(float), atol=1e-6)
     assert recast["kept"] <= frames.loc[peak, "n_springs"] and 0 < recast["force_error"] < 0.1
 
 
 def test_a_recast_that_cannot_be_made_is_a_warning_not_a_silence(tmp_path):
-    (tmp_path / "hip.toml").write_text(HIP_GENERATOR + '[load]\nforce = [0.0, 0.0, -1000.0]\n'
-                                       '[output]\nformats = ["json"]\n')
-    result = invoke("run", tmp_path / "hip.toml", "-o", tmp_path / "out", "-q", "-m", "newton",
-                    "--set", "solve.certificate_tol=1e-30")
+    (tmp_path / "hip.toml").write_text(
+        HIP_GENERATOR + '[load]\nforce = [0.0, 0.0, -1000.0]\n[output]\nformats = ["json"]\n'
+    )
+    result = invoke(
+        "run",
+        tmp_path / "hip.toml",
+        "-o",
+        tmp_path / "out",
+        "-q",
+        "-m",
+        "newton",
+        "--set",
+        "solve.certificate_tol=1e-30",
+    )
     assert result.exit_code == 1
     assert "dea-opt: warning: springs not re-cast at the solved pose: the answer is not certified" in result.stderr
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())

@@ -35,14 +35,18 @@ def check_range(name: str, arr, unit: str = "", *, positive: bool = False) -> No
     big = np.flatnonzero(np.abs(flat) > LARGEST)
     if big.size:
         i = int(big[0])
-        raise InputError(f"{name} must be at most {LARGEST:g}{unit} in magnitude (products of such values overflow "
-                         f"float64), got {flat[i]:g}{_at(arr, i)}")
+        raise InputError(
+            f"{name} must be at most {LARGEST:g}{unit} in magnitude (products of such values overflow "
+            f"float64), got {flat[i]:g}{_at(arr, i)}"
+        )
     if positive:
         small = np.flatnonzero(flat < SMALLEST)
         if small.size:
             i = int(small[0])
-            raise InputError(f"{name} must be at least {SMALLEST:g}{unit} (it divides and sets a scale; smaller "
-                             f"values underflow float64), got {flat[i]:g}{_at(arr, i)}")
+            raise InputError(
+                f"{name} must be at least {SMALLEST:g}{unit} (it divides and sets a scale; smaller "
+                f"values underflow float64), got {flat[i]:g}{_at(arr, i)}"
+            )
 
 
 def _at(arr: np.ndarray, flat_index: int) -> str:
@@ -68,9 +72,7 @@ def as_float_array(name: str, value, shape: tuple, *, allow_scalar_for=None) -> 
     bad = ~np.isfinite(arr)
     if bad.any():
         index = np.argwhere(bad)[0]
-        raise InputError(
-            f"{name} must be finite, got {arr[tuple(index)]} at index {tuple(int(i) for i in index)}"
-        )
+        raise InputError(f"{name} must be finite, got {arr[tuple(index)]} at index {tuple(int(i) for i in index)}")
     return np.ascontiguousarray(arr)
 
 
@@ -119,7 +121,8 @@ def number_in_range(name: str, value, low=None, high=None, *, low_open: bool = F
         expected = f"a finite number in [{low:g}, {high:g}]"
     else:
         bounds = ([f"{'>' if low_open else '>='} {low:g}"] if low is not None else []) + (
-            [f"<= {high:g}"] if high is not None else [])
+            [f"<= {high:g}"] if high is not None else []
+        )
         expected = " ".join(["a finite number", " and ".join(bounds)]).strip()
     ok = not isinstance(value, bool) and isinstance(value, Real) and math.isfinite(value)
     if ok and low is not None:

@@ -74,7 +74,9 @@ def check_memory(needed: float, what: str, advice: str = "", *, share: float = U
     needed = float(min(needed, 10**300))  # counts from tiny steps may exceed any float
     if needed <= share * available:
         return
-    message = (f"{what} would need about {format_bytes(needed)} of memory, and this machine has "
-               f"{format_bytes(available)} free")
-    raise SizeLimitError(f"{message}: {advice}" if advice else message, needed=needed,
-                         available=float(available), what=what)
+    message = (
+        f"{what} would need about {format_bytes(needed)} of memory, and this machine has {format_bytes(available)} free"
+    )
+    raise SizeLimitError(
+        f"{message}: {advice}" if advice else message, needed=needed, available=float(available), what=what
+    )

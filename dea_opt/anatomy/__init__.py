@@ -9,5 +9,12 @@ and proximal, and where the origin is: the frame maps are drawn in);
 from .frame import AXES, AnatomicalFrame
 from .regions import RegionStats, label_by_axis, region_statistics, regional_statistics, split_by_axis
 
-__all__ = ["AXES", "AnatomicalFrame", "RegionStats", "label_by_axis", "region_statistics", "regional_statistics",
-           "split_by_axis"]
+__all__ = [
+    "AXES",
+    "AnatomicalFrame",
+    "RegionStats",
+    "label_by_axis",
+    "region_statistics",
+    "regional_statistics",
+    "split_by_axis",
+]

@@ -81,8 +81,10 @@ class AnatomicalFrame:
                 cos = abs(float(vectors[i] @ vectors[j]))
                 if cos > _PERPENDICULAR:
                     angle = np.degrees(np.arccos(min(cos, 1.0)))
-                    raise InputError(f"anatomy.{names[i]} and anatomy.{names[j]} must be perpendicular, got "
-                                     f"{90 - angle:.3g} degrees off")
+                    raise InputError(
+                        f"anatomy.{names[i]} and anatomy.{names[j]} must be perpendicular, got "
+                        f"{90 - angle:.3g} degrees off"
+                    )
         # Exactly orthonormal, proximal kept, medial made perpendicular to it, anterior from both.
         proximal = vectors[2]
         medial = vectors[0] - (vectors[0] @ proximal) * proximal
@@ -104,8 +106,9 @@ class AnatomicalFrame:
 
     # --- constructors -------------------------------------------------------------------
     @classmethod
-    def from_directions(cls, medial=None, anterior=None, proximal=None, *, side=None, origin=None,
-                        origin_name: str | None = None) -> AnatomicalFrame:
+    def from_directions(
+        cls, medial=None, anterior=None, proximal=None, *, side=None, origin=None, origin_name: str | None = None
+    ) -> AnatomicalFrame:
         """From two or three directions (mm coordinates); with two, ``side`` gives the third.
 
         Parameters
@@ -122,28 +125,37 @@ class AnatomicalFrame:
         Two directions need only be far from parallel: proximal (else medial) is kept and the
         other made perpendicular to it. Three must be within 10 degrees of perpendicular.
         """
-        given = {n: v for n, v in (("medial", medial), ("anterior", anterior), ("proximal", proximal))
-                 if v is not None}
+        given = {n: v for n, v in (("medial", medial), ("anterior", anterior), ("proximal", proximal)) if v is not None}
         if len(given) < 2:
-            raise InputError(f"anatomy needs two of medial, anterior and proximal (and side), got "
-                             f"{sorted(given) or 'none'}")
+            raise InputError(
+                f"anatomy needs two of medial, anterior and proximal (and side), got {sorted(given) or 'none'}"
+            )
         side = _side(side)
         vectors = {n: _direction(f"anatomy.{n}", v) for n, v in given.items()}
         if len(vectors) == 2:
             # The first of proximal, medial, anterior is kept; the other made perpendicular to it.
-            (first, a), (second, b) = sorted(vectors.items(), key=lambda item: ("proximal", "medial",
-                                                                                 "anterior").index(item[0]))
+            (first, a), (second, b) = sorted(
+                vectors.items(), key=lambda item: ("proximal", "medial", "anterior").index(item[0])
+            )
             if abs(float(a @ b)) > _APART:
-                raise InputError(f"anatomy.{first} and anatomy.{second} must be far from parallel (more than 45 "
-                                 f"degrees apart), got {np.degrees(np.arccos(min(abs(float(a @ b)), 1.0))):.3g}")
+                raise InputError(
+                    f"anatomy.{first} and anatomy.{second} must be far from parallel (more than 45 "
+                    f"degrees apart), got {np.degrees(np.arccos(min(abs(float(a @ b)), 1.0))):.3g}"
+                )
             vectors[second] = (b - (b @ a) * a) / np.linalg.norm(b - (b @ a) * a)
             if side is None:
                 missing = next(n for n in AXES if n not in vectors)
-                raise InputError(f"anatomy gives two directions, so side ('right' or 'left') must say which way "
-                                 f"{missing} points")
+                raise InputError(
+                    f"anatomy gives two directions, so side ('right' or 'left') must say which way {missing} points"
+                )
             vectors = _third(vectors, side)
-        frame = cls(vectors["medial"], vectors["anterior"], vectors["proximal"], origin,
-                    origin_name or ("origin" if origin is not None else "layer centroid"))
+        frame = cls(
+            vectors["medial"],
+            vectors["anterior"],
+            vectors["proximal"],
+            origin,
+            origin_name or ("origin" if origin is not None else "layer centroid"),
+        )
         if side is not None and frame.side != side:
             raise InputError(f"anatomy: medial, anterior and proximal make a {frame.side} limb, but side is {side!r}")
         return frame
@@ -172,13 +184,17 @@ class AnatomicalFrame:
         for name, point in landmarks.items():
             key = str(name).strip().lower()
             if key not in _OPPOSITE:
-                raise InputError(f"anatomy.landmarks: {name!r} is not a direction; name each landmark by the "
-                                 f"direction it marks: {', '.join(_OPPOSITE)}")
+                raise InputError(
+                    f"anatomy.landmarks: {name!r} is not a direction; name each landmark by the "
+                    f"direction it marks: {', '.join(_OPPOSITE)}"
+                )
             points[key] = as_float_array(f"anatomy.landmarks.{name}", point, (3,))
         pairs = [n for n in points if _OPPOSITE[n] in points]
         if len(pairs) != 2:
-            raise InputError(f"anatomy.landmarks must hold one pair of opposite directions (medial and lateral, "
-                             f"anterior and posterior, or proximal and distal) and a third, got {sorted(points)}")
+            raise InputError(
+                f"anatomy.landmarks must hold one pair of opposite directions (medial and lateral, "
+                f"anterior and posterior, or proximal and distal) and a third, got {sorted(points)}"
+            )
         first, second = pairs
         third = next(n for n in points if n not in pairs)
         if _OPPOSITE[third] in pairs or third in pairs:
@@ -200,8 +216,9 @@ class AnatomicalFrame:
             elif key in points:
                 origin, origin_name = points[key], f"{key} landmark"
             else:
-                raise InputError(f"anatomy.origin must be 'midpoint', a landmark ({', '.join(points)}) or a point, "
-                                 f"got {origin!r}")
+                raise InputError(
+                    f"anatomy.origin must be 'midpoint', a landmark ({', '.join(points)}) or a point, got {origin!r}"
+                )
         elif origin is not None:
             origin_name = "origin"
         return cls(vectors["medial"], vectors["anterior"], vectors["proximal"], origin, origin_name)
@@ -218,8 +235,10 @@ class AnatomicalFrame:
         allowed = {"medial", "anterior", "proximal", "side", "origin", "origin_name", "landmarks"}
         unknown = sorted(set(spec) - allowed)
         if unknown:
-            raise InputError(f"anatomy: unknown key{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
-                             f"expected {', '.join(sorted(allowed))}")
+            raise InputError(
+                f"anatomy: unknown key{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}; "
+                f"expected {', '.join(sorted(allowed))}"
+            )
         if "landmarks" in spec:
             extra = sorted(set(spec) & {"medial", "anterior", "proximal", "origin_name"})
             if extra:
@@ -230,8 +249,14 @@ class AnatomicalFrame:
             if origin.strip().lower() not in ("centroid", "layer centroid"):
                 raise InputError(f"anatomy.origin must be 'centroid' or a point (3 numbers, mm), got {origin!r}")
             origin = None
-        return cls.from_directions(spec.get("medial"), spec.get("anterior"), spec.get("proximal"),
-                                   side=spec.get("side"), origin=origin, origin_name=spec.get("origin_name"))
+        return cls.from_directions(
+            spec.get("medial"),
+            spec.get("anterior"),
+            spec.get("proximal"),
+            side=spec.get("side"),
+            origin=origin,
+            origin_name=spec.get("origin_name"),
+        )
 
     # --- use ----------------------------------------------------------------------------
     def direction(self, name: str) -> np.ndarray:
@@ -258,9 +283,14 @@ class AnatomicalFrame:
         return (np.asarray(points, dtype=float) - origin) @ np.array([self.medial, self.anterior, self.proximal]).T
 
     def as_dict(self) -> dict:
-        return {"medial": self.medial.tolist(), "anterior": self.anterior.tolist(),
-                "proximal": self.proximal.tolist(), "side": self.side,
-                "origin": None if self.origin is None else self.origin.tolist(), "origin_name": self.origin_name}
+        return {
+            "medial": self.medial.tolist(),
+            "anterior": self.anterior.tolist(),
+            "proximal": self.proximal.tolist(),
+            "side": self.side,
+            "origin": None if self.origin is None else self.origin.tolist(),
+            "origin_name": self.origin_name,
+        }
 
 
 def _canonical(name: str, vector) -> tuple[str, np.ndarray]:

@@ -143,9 +143,7 @@ def _unit_vector(name: str, value) -> np.ndarray:
 
 def _plane_masks(planes, points) -> dict:
     if not hasattr(planes, "items"):
-        raise InputError(
-            f"planes must be a mapping {{name: (point, normal)}}, got {type(planes).__name__}"
-        )
+        raise InputError(f"planes must be a mapping {{name: (point, normal)}}, got {type(planes).__name__}")
     masks = {}
     for name, spec in planes.items():
         try:

@@ -83,7 +83,9 @@ def unregister(name: str) -> None:
 def _check_module(name, module) -> None:
     missing = [attr for attr in _REQUIRED if not hasattr(module, attr)]
     if missing:
-        raise InputError(f"formulation {name!r} must define {', '.join(_REQUIRED)}; {module!r} lacks {', '.join(missing)}")
+        raise InputError(
+            f"formulation {name!r} must define {', '.join(_REQUIRED)}; {module!r} lacks {', '.join(missing)}"
+        )
     if not isinstance(module.CAPABILITIES, Capabilities):
         raise InputError(f"formulation {name!r}: CAPABILITIES must be a Capabilities, got {module.CAPABILITIES!r}")
     if not all(isinstance(option, Option) for option in module.OPTIONS):
@@ -140,8 +142,9 @@ def check_takes(name: str, law, kinematics: str = "small") -> None:
     if kinematics not in capabilities(name).kinematics:
         need = f"{kinematics!r} kinematics, which it does not solve"
         raise InputError(f"method {name!r} cannot solve {need}: use {able or 'another method'}")
-    raise InputError(f"method {name!r} needs a LinearLaw, got {law.describe()}: use {able or 'another method'} "
-                     f"for this law")
+    raise InputError(
+        f"method {name!r} needs a LinearLaw, got {law.describe()}: use {able or 'another method'} for this law"
+    )
 
 
 def why_not(name: str, law, kinematics: str = "small") -> str | None:

@@ -124,9 +124,13 @@ class Targets:
 
     def __post_init__(self):
         n = len(self.points)
-        for name, arr, shape in (("points", self.points, (n, 3)), ("normals", self.normals, (n, 3)),
-                                 ("radius", self.radius, (n,)), ("concave", self.concave, (n,)),
-                                 ("frame", self.frame, (4, 4))):
+        for name, arr, shape in (
+            ("points", self.points, (n, 3)),
+            ("normals", self.normals, (n, 3)),
+            ("radius", self.radius, (n,)),
+            ("concave", self.concave, (n,)),
+            ("frame", self.frame, (4, 4)),
+        ):
             if np.shape(arr) != shape:
                 raise InputError(f"targets.{name} must have shape {shape}, got {np.shape(arr)}")
         if not (np.isfinite(self.points).all() and np.isfinite(self.normals).all() and np.isfinite(self.radius).all()):
@@ -147,13 +151,13 @@ class Targets:
 
     def subset(self, index) -> Targets:
         faces = None if self.faces is None else self.faces[index]
-        return Targets(self.points[index], self.normals[index], self.radius[index], self.concave[index],
-                       self.frame, faces)
+        return Targets(
+            self.points[index], self.normals[index], self.radius[index], self.concave[index], self.frame, faces
+        )
 
     def with_frame(self, frame) -> Targets:
         """The same targets with body 2's own frame placed by ``frame`` (4x4) at zero displacement."""
-        return Targets(self.points, self.normals, self.radius, self.concave, np.asarray(frame, dtype=float),
-                       self.faces)
+        return Targets(self.points, self.normals, self.radius, self.concave, np.asarray(frame, dtype=float), self.faces)
 
     # --- constructors -------------------------------------------------------------------
     @classmethod
@@ -199,13 +203,21 @@ class Targets:
         checked to 1e-6 mm.
         """
         if not getattr(layer, "has_targets", False):
-            raise InputError("the layer has no targets (target_points, target_normals, target_faces): give "
-                             "Targets.planes(...) or Targets.spheres(...), or cast the springs from meshes")
+            raise InputError(
+                "the layer has no targets (target_points, target_normals, target_faces): give "
+                "Targets.planes(...) or Targets.spheres(...), or cast the springs from meshes"
+            )
         hits = layer.points + layer.gap[:, None] * layer.normals
         frame = _recover_frame(layer.target_points, hits) if pose is None else np.asarray(pose, dtype=float)
         n = len(layer)
-        return cls(np.array(layer.target_points), np.array(layer.target_normals), np.zeros(n), np.zeros(n, bool),
-                   frame, np.array(layer.target_faces))
+        return cls(
+            np.array(layer.target_points),
+            np.array(layer.target_normals),
+            np.zeros(n),
+            np.zeros(n, bool),
+            frame,
+            np.array(layer.target_faces),
+        )
 
 
 def _array(name, value, ndim) -> np.ndarray:
@@ -233,8 +245,10 @@ def _recover_frame(own, world) -> np.ndarray:
     T[:3, :3], T[:3, 3] = R, b - R @ a
     error = float(np.abs(own @ R.T + T[:3, 3] - world).max())
     if error > 1e-6 * scale:
-        raise InputError(f"the layer's targets are not one rigid motion away from its hits (off by {error:.3g} mm): "
-                         f"pass the cast's pose, Targets.from_layer(layer, pose=cast.pose)")
+        raise InputError(
+            f"the layer's targets are not one rigid motion away from its hits (off by {error:.3g} mm): "
+            f"pass the cast's pose, Targets.from_layer(layer, pose=cast.pose)"
+        )
     return T
 
 
@@ -288,11 +302,30 @@ def evaluate(targets: Targets, points, normals, transform) -> Gaps:
             if not len(rows):
                 continue
             if plane[rows[0]]:
-                _plane(targets.points[rows], targets.normals[rows], points[rows], normals[rows], R, shift, s, m,
-                       along, rows)
+                _plane(
+                    targets.points[rows],
+                    targets.normals[rows],
+                    points[rows],
+                    normals[rows],
+                    R,
+                    shift,
+                    s,
+                    m,
+                    along,
+                    rows,
+                )
             else:
-                _sphere(targets.points[rows] @ R.T + shift, targets.radius[rows], targets.concave[rows],
-                        points[rows], normals[rows], s, m, along, rows)
+                _sphere(
+                    targets.points[rows] @ R.T + shift,
+                    targets.radius[rows],
+                    targets.concave[rows],
+                    points[rows],
+                    normals[rows],
+                    s,
+                    m,
+                    along,
+                    rows,
+                )
     valid = np.isfinite(s)
     hit = points + np.where(valid, s, np.nan)[:, None] * normals
     return Gaps(s, hit, m, along, valid)

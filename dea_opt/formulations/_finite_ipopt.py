@@ -74,13 +74,15 @@ class _Surrogate:
         correction = ca.MX.sym("C", n, k)  # (g_i - grad s_i(x_k)) T, per spring
         load = ca.MX.sym("r", k)  # T^T r_k / E0
         x = base + ca.mtimes(ca.DM(T), xi)
-        y = ca.vertcat(*[x[list(system.free).index(j)] if j in system.free else float(system.base[j])
-                         for j in range(6)])
+        y = ca.vertcat(
+            *[x[list(system.free).index(j)] if j in system.free else float(system.base[j]) for j in range(6)]
+        )
         s = self._gaps(ca, y) + ca.mtimes(correction, xi)
         eps = s / ca.DM(system.thickness)
         V = ca.DM(system.areas * system.thickness / energy_scale)
-        self.strain_scale = s0 = max(float(np.sqrt(energy_scale / np.sum(system.areas * system.thickness
-                                                                            * law.modulus))), 1e-12)
+        self.strain_scale = s0 = max(
+            float(np.sqrt(energy_scale / np.sum(system.areas * system.thickness * law.modulus))), 1e-12
+        )
         params = ca.vertcat(base, ca.vec(correction), load)
         if form == "constrained":
             c = ca.MX.sym("c", n)
@@ -97,9 +99,20 @@ class _Surrogate:
             self.lbx, self.ubx = np.full(k, -_STEP_BOUND), np.full(k, _STEP_BOUND)
             self.lbg = self.ubg = np.zeros(0)
             nlp = {"x": xi, "p": params, "f": energy - ca.dot(load, xi)}
-        options = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False,
-                   "ipopt": {"print_level": 0, "sb": "yes", "tol": tol, "max_iter": max_iter,
-                             "mu_strategy": "adaptive", "bound_relax_factor": 0.0, **(ipopt_options or {})}}
+        options = {
+            "print_time": False,
+            "error_on_fail": False,
+            "show_eval_warnings": False,
+            "ipopt": {
+                "print_level": 0,
+                "sb": "yes",
+                "tol": tol,
+                "max_iter": max_iter,
+                "mu_strategy": "adaptive",
+                "bound_relax_factor": 0.0,
+                **(ipopt_options or {}),
+            },
+        }
         try:
             self.solver = ca.nlpsol("dea_finite_nlp", "ipopt", nlp, options)
         except RuntimeError as exc:
@@ -185,8 +198,11 @@ def _scaled_residual(state, T, energy_scale) -> float:
     """The physical residual in the scaled variables, relative to the load and the springs' force."""
     free = state.system.free
     g = T.T @ state.residual() / energy_scale
-    norm = max(float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
-               float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale, 1.0)
+    norm = max(
+        float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
+        float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale,
+        1.0,
+    )
     value = float(np.linalg.norm(g)) / norm
     return value if np.isfinite(value) else np.inf
 
@@ -204,7 +220,7 @@ class _Anderson:
         to_xi = np.linalg.pinv(self.T)
         self.points.append(to_xi @ x)
         self.maps.append(to_xi @ mapped)
-        self.points, self.maps = self.points[-self.memory - 1:], self.maps[-self.memory - 1:]
+        self.points, self.maps = self.points[-self.memory - 1 :], self.maps[-self.memory - 1 :]
         if len(self.points) < 2:
             return mapped
         X = np.array(self.points).T
@@ -215,8 +231,20 @@ class _Anderson:
         return x + self.T @ (xi - X[:, -1])
 
 
-def solve(system, law, T, energy_scale, *, x0, form="constrained", tol=1e-14, outer_tol=1e-12, max_outer=60,
-          max_iter=3000, ipopt_options=None) -> InnerResult:
+def solve(
+    system,
+    law,
+    T,
+    energy_scale,
+    *,
+    x0,
+    form="constrained",
+    tol=1e-14,
+    outer_tol=1e-12,
+    max_outer=60,
+    max_iter=3000,
+    ipopt_options=None,
+) -> InnerResult:
     """The fixed point of the re-centred IPOPT solves (targets fixed).
 
     Stops when the scaled step of an outer iteration is below ``outer_tol`` and the physical

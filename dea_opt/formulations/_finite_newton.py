@@ -111,8 +111,9 @@ def _descent(K, g, material) -> tuple[np.ndarray, bool, str]:
     return d, True, "material"
 
 
-def solve(system, law, T, energy_scale, *, x0, xtol=1e-12, gtol=1e-12, max_iter=100, extended_start=True,
-          cold=True) -> InnerResult:
+def solve(
+    system, law, T, energy_scale, *, x0, xtol=1e-12, gtol=1e-12, max_iter=100, extended_start=True, cold=True
+) -> InnerResult:
     """Newton's method on the finite-kinematics residual of ``system`` (targets fixed).
 
     Parameters
@@ -141,8 +142,11 @@ def solve(system, law, T, energy_scale, *, x0, xtol=1e-12, gtol=1e-12, max_iter=
             status, message = "non_finite", "the law returned a non-finite stress, or a target was lost edge-on"
             break
         g = T.T @ state.residual() / energy_scale
-        norm = max(float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
-                   float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale, 1.0)
+        norm = max(
+            float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
+            float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale,
+            1.0,
+        )
         gnorm = float(np.linalg.norm(g)) / norm
         history.append(gnorm)
         if gnorm <= gtol:
@@ -186,14 +190,27 @@ def solve(system, law, T, energy_scale, *, x0, xtol=1e-12, gtol=1e-12, max_iter=
         size = float(np.linalg.norm(np.linalg.lstsq(T, x - x0, rcond=None)[0])) if T.size else 0.0
         if alpha == 1.0 and settled and scaled_step <= xtol * max(size, 1e-300):
             g = T.T @ state.residual() / energy_scale
-            norm = max(float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
-                       float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale, 1.0)
+            norm = max(
+                float(np.linalg.norm(T.T @ state.load6[free])) / energy_scale,
+                float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale,
+                1.0,
+            )
             if float(np.linalg.norm(g)) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
     if not success and law.bounded_strain and state.eps[state.gaps.valid].min(initial=0.0) < -1 + _CRUSH_WINDOW:
         status = "crushed"
-        message = (f"{message}; springs reach eps = {state.eps.min():.6f}, crushed through their thickness before "
-                   f"the load is carried: the load is beyond what this layer can bear")
-    return InnerResult(x, state, success, status, message, it, time.perf_counter() - start,
-                       {"residual_history": history, "line_evaluations": evaluations, "directions": kinds})
+        message = (
+            f"{message}; springs reach eps = {state.eps.min():.6f}, crushed through their thickness before "
+            f"the load is carried: the load is beyond what this layer can bear"
+        )
+    return InnerResult(
+        x,
+        state,
+        success,
+        status,
+        message,
+        it,
+        time.perf_counter() - start,
+        {"residual_history": history, "line_evaluations": evaluations, "directions": kinds},
+    )

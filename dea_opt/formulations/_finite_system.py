@@ -82,12 +82,23 @@ class FiniteSystem:
         return D @ self.targets.frame
 
     def with_load(self, force, moment) -> FiniteSystem:
-        return FiniteSystem(self.points, self.normals, self.areas, self.thickness, self.targets, self.reference,
-                            self.free, self.base, np.asarray(force, float), np.asarray(moment, float))
+        return FiniteSystem(
+            self.points,
+            self.normals,
+            self.areas,
+            self.thickness,
+            self.targets,
+            self.reference,
+            self.free,
+            self.base,
+            np.asarray(force, float),
+            np.asarray(moment, float),
+        )
 
     def with_springs(self, points, normals, areas, thickness, targets) -> FiniteSystem:
-        return FiniteSystem(points, normals, areas, thickness, targets, self.reference, self.free, self.base,
-                            self.force, self.moment)
+        return FiniteSystem(
+            points, normals, areas, thickness, targets, self.reference, self.free, self.base, self.force, self.moment
+        )
 
     def state(self, y, law, bilateral: bool = False) -> State:
         """Everything at ``y`` that the residual needs (one pass over the springs)."""

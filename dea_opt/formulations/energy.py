@@ -93,8 +93,9 @@ class SpringSystem:
         return self.e0 + np.asarray(u_free, dtype=float) @ self.AT
 
     def with_load(self, load) -> SpringSystem:
-        new = SpringSystem(self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length,
-                           self.factor, self.stiffness)
+        new = SpringSystem(
+            self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length, self.factor, self.stiffness
+        )
         if "resistance" in self.__dict__:  # the same geometry: the same decision
             new.__dict__["resistance"] = self.__dict__["resistance"]
         return new
@@ -227,7 +228,9 @@ def require_finite(what: str, *arrays) -> None:
         if not np.isfinite(arr).all():
             raise SolverError(
                 f"{what} holds NaN or infinite values (an input near the limits of float64?); "
-                f"nothing was passed to the solver", status=Status.NON_FINITE)
+                f"nothing was passed to the solver",
+                status=Status.NON_FINITE,
+            )
 
 
 @dataclass(frozen=True, eq=False)
@@ -401,13 +404,22 @@ def trivial_result(system: SpringSystem, law, load=None) -> FormulationResult | 
         with np.errstate(invalid="ignore", over="ignore"):
             stress = law.stress(np.minimum(system.e0, 0.0))
         return FormulationResult(
-            u_free=np.zeros(m), stress=stress, success=True, status=Status.HELD,
-            message="no spring resists any free dof: every free dof is held at zero motion "
-                    "(the minimum-norm answer)", info={"native_status": None})
+            u_free=np.zeros(m),
+            stress=stress,
+            success=True,
+            status=Status.HELD,
+            message="no spring resists any free dof: every free dof is held at zero motion (the minimum-norm answer)",
+            info={"native_status": None},
+        )
     if not load.any() and system.e0.min(initial=0.0) >= 0:
         return FormulationResult(
-            u_free=np.zeros(m), stress=np.zeros(n), success=True, status=Status.UNLOADED,
-            message="no load and no overlap: nothing to carry", info={"native_status": None})
+            u_free=np.zeros(m),
+            stress=np.zeros(n),
+            success=True,
+            status=Status.UNLOADED,
+            message="no load and no overlap: nothing to carry",
+            info={"native_status": None},
+        )
     return None
 
 
@@ -416,8 +428,13 @@ def failed_result(system: SpringSystem, exc: SolverError) -> FormulationResult:
     ``auto`` can fall back and ``strict=False`` and load paths can report it like any other."""
     status = Status(exc.status) if exc.status else Status.SOLVER_ERROR
     return FormulationResult(
-        u_free=np.full(system.n_dofs, np.nan), stress=np.full(system.n_springs, np.nan), success=False,
-        status=status, message=str(exc), info={"native_status": exc.native_status or exc.status})
+        u_free=np.full(system.n_dofs, np.nan),
+        stress=np.full(system.n_springs, np.nan),
+        success=False,
+        status=status,
+        message=str(exc),
+        info={"native_status": exc.native_status or exc.status},
+    )
 
 
 #: A failed solve whose most compressed spring is within this of ``eps = -1`` ran into a
@@ -435,8 +452,10 @@ def crushed(law, eps) -> bool:
     return bool(law.bounded_strain and eps.size and eps.min() < -1 + CRUSH_WINDOW)
 
 
-CRUSHED_MESSAGE = ("springs reach eps = {eps:.6f}, crushed through their thickness before the load is carried: "
-                   "the load is beyond what this layer can bear")
+CRUSHED_MESSAGE = (
+    "springs reach eps = {eps:.6f}, crushed through their thickness before the load is carried: "
+    "the load is beyond what this layer can bear"
+)
 
 
 def start_vector(system: SpringSystem, x0) -> np.ndarray | None:

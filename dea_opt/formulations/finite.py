@@ -60,27 +60,52 @@ ALIASES = {"newton": "finite", "nlp": "finite_nlp"}
 #: declared here so that the registry checks them, used by :mod:`dea_opt.largemotion`.
 RECAST_OPTIONS = (
     Option("recast", bool, True, "keep springs cast from meshes (targets= a SpringCast) up to date as body 2 moves"),
-    Option("recast_shift", float, 0.01, "mm a spring's hit may move before its thickness is measured again",
-           range=(0, float("inf"))),
-    Option("full_shift", float, 5.0, "mm the hits may move before the whole of mesh 1 is cast again",
-           range=(0, float("inf"))),
+    Option(
+        "recast_shift",
+        float,
+        0.01,
+        "mm a spring's hit may move before its thickness is measured again",
+        range=(0, float("inf")),
+    ),
+    Option(
+        "full_shift",
+        float,
+        5.0,
+        "mm the hits may move before the whole of mesh 1 is cast again",
+        range=(0, float("inf")),
+    ),
     Option("max_recasts", int, 10, "updates of the springs after converged solves, at most", range=(0, None)),
 )
 #: The re-casting options both finite formulations declare: under ``auto`` they go to both.
 SHARED = tuple(option.name for option in RECAST_OPTIONS)
 #: The options of :func:`solve` with ``method="finite"``.
 OPTIONS = (
-    Option("xtol", float, 1e-12, "relative step that counts as converged once the contact set is unchanged",
-           range=(0, 1), tolerance=True),
-    Option("gtol", float, 1e-12, "equilibrium residual in the scaled variables that counts as converged",
-           range=(0, 1), tolerance=True),
+    Option(
+        "xtol",
+        float,
+        1e-12,
+        "relative step that counts as converged once the contact set is unchanged",
+        range=(0, 1),
+        tolerance=True,
+    ),
+    Option(
+        "gtol",
+        float,
+        1e-12,
+        "equilibrium residual in the scaled variables that counts as converged",
+        range=(0, 1),
+        tolerance=True,
+    ),
     Option("max_iter", int, 100, "Newton iterations per solve, at most", range=(1, None)),
-    Option("extended_start", bool, True, "treat every spring as active, tension included, in the first "
-           "iteration of a cold start"),
+    Option(
+        "extended_start",
+        bool,
+        True,
+        "treat every spring as active, tension included, in the first iteration of a cold start",
+    ),
     *RECAST_OPTIONS,
 )
-CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",), duals=False,
-                            checks_load_first=False)
+CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",), duals=False, checks_load_first=False)
 EXTRA_OPTIONS = None
 VARIANT = None
 _NEWTON = ("xtol", "gtol", "max_iter", "extended_start")
@@ -121,8 +146,9 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
     lengths = np.where(free < 3, 1.0, max(radius, 1e-12))
     factor = np.asarray(np.linalg.qr((AT * np.sqrt(volume)).T, mode="r")) if AT.size else np.zeros((0, len(free)))
     e0 = np.where(np.isfinite(state.eps), state.eps, 1e300)
-    small = SpringSystem(AT, e0, volume, state.load6[free], lengths, factor,
-                         float(np.sum(system.areas / system.thickness)))
+    small = SpringSystem(
+        AT, e0, volume, state.load6[free], lengths, factor, float(np.sum(system.areas / system.thickness))
+    )
     small.__dict__["resistance"] = resistance(small)
     return small
 
@@ -190,9 +216,11 @@ class FiniteModel:
         from ..errors import InputError
 
         if not isinstance(system, FiniteSystem):
-            raise InputError(f"the {self.method} formulation solves a FiniteSystem (the arrays of a problem with "
-                             f"kinematics='finite'; dea_opt.solve builds them from a ContactProblem), not "
-                             f"{type(system).__name__}")
+            raise InputError(
+                f"the {self.method} formulation solves a FiniteSystem (the arrays of a problem with "
+                f"kinematics='finite'; dea_opt.solve builds them from a ContactProblem), not "
+                f"{type(system).__name__}"
+            )
         self.system, self.law, self.options = system, law, options
         self.build_time = 0.0
         self._x = None

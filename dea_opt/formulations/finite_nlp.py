@@ -22,11 +22,23 @@ PAGE = "formulations/finite_nlp.md"
 
 #: The options of ``dea_opt.solve`` with ``method="finite_nlp"`` on a finite problem.
 OPTIONS = (
-    Option("form", str, "constrained", "constrained (each spring's compression a variable, its force the "
-           "multiplier) or reduced (min(eps, 0) in the energy)", choices=("constrained", "reduced")),
+    Option(
+        "form",
+        str,
+        "constrained",
+        "constrained (each spring's compression a variable, its force the "
+        "multiplier) or reduced (min(eps, 0) in the energy)",
+        choices=("constrained", "reduced"),
+    ),
     Option("tol", float, 1e-14, "IPOPT's tolerance in the scaled variables", range=(0, 1), tolerance=True),
-    Option("outer_tol", float, 1e-12, "scaled step of an outer iteration that counts as the fixed point",
-           range=(0, 1), tolerance=True),
+    Option(
+        "outer_tol",
+        float,
+        1e-12,
+        "scaled step of an outer iteration that counts as the fixed point",
+        range=(0, 1),
+        tolerance=True,
+    ),
     Option("max_outer", int, 60, "outer iterations (re-centred IPOPT solves) per solve, at most", range=(1, None)),
     Option("max_iter", int, 3000, "IPOPT iterations per outer iteration, at most", range=(1, None)),
     Option("ipopt_options", dict, None, "IPOPT option names to values, passed on"),

@@ -114,8 +114,12 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
         return 1.0, trial, 1
     # A slight overshoot of the full Newton step: accept it on Armijo's condition, checked
     # with energies while they still resolve the decrease.
-    if (value > upper_ok and np.isfinite(value) and value <= abs(slope0)
-            and line.phi(1.0) - line.phi(0.0) <= _WOLFE_DECREASE * slope0):
+    if (
+        value > upper_ok
+        and np.isfinite(value)
+        and value <= abs(slope0)
+        and line.phi(1.0) - line.phi(0.0) <= _WOLFE_DECREASE * slope0
+    ):
         return 1.0, trial, 3
     lo, hi = 0.0, None
     alpha = 1.0
@@ -140,13 +144,34 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
 
 #: The options of :class:`NewtonModel` (checked by :func:`~dea_opt.formulations._options.validate`).
 OPTIONS = (
-    Option("xtol", float, 1e-12, "relative step of Eq. (20) that counts as converged once the contact set is "
-           "unchanged (the paper uses 1e-6)", range=(0, 1), tolerance=True, build=False),
-    Option("gtol", float, 1e-12, "equilibrium residual, the gradient over max(load, spring force, 1) in the scaled "
-           "variables, that counts as converged", range=(0, 1), tolerance=True, build=False),
+    Option(
+        "xtol",
+        float,
+        1e-12,
+        "relative step of Eq. (20) that counts as converged once the contact set is unchanged (the paper uses 1e-6)",
+        range=(0, 1),
+        tolerance=True,
+        build=False,
+    ),
+    Option(
+        "gtol",
+        float,
+        1e-12,
+        "equilibrium residual, the gradient over max(load, spring force, 1) in the scaled "
+        "variables, that counts as converged",
+        range=(0, 1),
+        tolerance=True,
+        build=False,
+    ),
     Option("max_iter", int, 100, "iteration limit", range=(1, None), build=False),
-    Option("extended_start", bool, True, "treat every spring as active, tension included, in the first iteration "
-           "of a cold start (the paper's extended range)", build=False),
+    Option(
+        "extended_start",
+        bool,
+        True,
+        "treat every spring as active, tension included, in the first iteration "
+        "of a cold start (the paper's extended range)",
+        build=False,
+    ),
 )
 CAPABILITIES = Capabilities(laws="any", warm_start=True, duals=False, checks_load_first=False)
 EXTRA_OPTIONS = None

@@ -36,8 +36,13 @@ PAGE = "formulations/nlp.md"
 _CRUSH_MARGIN = 1e-9
 
 OPTIONS = (
-    Option("form", str, "constrained", "'constrained': contact constraints and duals; 'reduced': the free dofs only",
-           choices=("constrained", "reduced")),
+    Option(
+        "form",
+        str,
+        "constrained",
+        "'constrained': contact constraints and duals; 'reduced': the free dofs only",
+        choices=("constrained", "reduced"),
+    ),
     Option("tol", float, 1e-14, "IPOPT's tol", range=(0, 1), tolerance=True),
     Option("max_iter", int, 3000, "IPOPT's iteration limit", range=(1, None)),
     Option("ipopt_options", dict, None, "IPOPT option names to values"),

@@ -58,12 +58,31 @@ def _installed_solvers() -> tuple:
 
 
 OPTIONS = (
-    Option("solver", str, DIRECT, "CLARABEL (called directly) or a QP solver cvxpy has installed",
-           choices=_installed_solvers, normalize=str.upper),
-    Option("tol", float, 1e-10, "the solver's own tolerances (TOLERANCE_OPTIONS)", range=(0, 1), tolerance=True,
-           build=False),
-    Option("warm_start", bool, True, "cvxpy's warm_start for the solvers called through cvxpy (Clarabel starts "
-           "cold; re-solves reuse the factorization's structure either way)", build=False),
+    Option(
+        "solver",
+        str,
+        DIRECT,
+        "CLARABEL (called directly) or a QP solver cvxpy has installed",
+        choices=_installed_solvers,
+        normalize=str.upper,
+    ),
+    Option(
+        "tol",
+        float,
+        1e-10,
+        "the solver's own tolerances (TOLERANCE_OPTIONS)",
+        range=(0, 1),
+        tolerance=True,
+        build=False,
+    ),
+    Option(
+        "warm_start",
+        bool,
+        True,
+        "cvxpy's warm_start for the solvers called through cvxpy (Clarabel starts "
+        "cold; re-solves reuse the factorization's structure either way)",
+        build=False,
+    ),
 )
 CAPABILITIES = Capabilities(laws="linear", warm_start=False, duals=True, checks_load_first=True)
 EXTRA_OPTIONS = "passed to the QP solver (Clarabel's settings, or through cvxpy's solve)"
@@ -99,8 +118,10 @@ _WITH_ITERATE = ("Solved", "AlmostSolved", "MaxIterations", "MaxTime", "Insuffic
 
 def _rejected(solver: str, options: dict, exc: Exception) -> InputError:
     own = ", ".join(option.name for option in OPTIONS)
-    return InputError(f"{solver} rejected the options {sorted(options)}: {exc} (dea_opt's own qp options are "
-                      f"{own}; the rest go to the solver)")
+    return InputError(
+        f"{solver} rejected the options {sorted(options)}: {exc} (dea_opt's own qp options are "
+        f"{own}; the rest go to the solver)"
+    )
 
 
 class _Clarabel:
@@ -135,8 +156,8 @@ class _Clarabel:
         data = np.empty(k * n + 2 * n)
         rows[: k * n] = np.tile(np.arange(n, 2 * n), k)
         data[: k * n] = (scale.AT / -s0).ravel()
-        rows[k * n:] = np.stack([np.arange(n), np.arange(n, 2 * n)], axis=1).ravel()
-        data[k * n:] = -1.0
+        rows[k * n :] = np.stack([np.arange(n), np.arange(n, 2 * n)], axis=1).ravel()
+        data[k * n :] = -1.0
         g_ptr = np.concatenate([np.arange(k + 1) * n, k * n + 2 * np.arange(1, n + 1)])
         self.G = sp.csc_array((data, rows, g_ptr), shape=(2 * n, k + n))
         # A dof a spring does not feel (a face parallel to a translation) is a structural zero:
@@ -157,7 +178,7 @@ class _Clarabel:
         native = str(out.status)
         if native in _WITH_ITERATE:
             z = np.asarray(out.x, dtype=float)
-            xi, lam = z[: self.k], np.asarray(out.z, dtype=float)[self.n:]
+            xi, lam = z[: self.k], np.asarray(out.z, dtype=float)[self.n :]
         else:
             xi, lam = np.full(self.k, np.nan), np.full(self.n, np.nan)
         return xi, lam, native, int(out.iterations), float(out.solve_time)
@@ -248,8 +269,7 @@ class QPModel:
             if self.solver == DIRECT:
                 self.backend = _Clarabel(sc, system.e0, law.H, self.tol, self.solver_options)
             else:
-                self.backend = _Cvxpy(sc, system.e0, law.H, self.solver, self.tol, self.warm_start,
-                                      self.solver_options)
+                self.backend = _Cvxpy(sc, system.e0, law.H, self.solver, self.tol, self.warm_start, self.solver_options)
         self.build_time = time.perf_counter() - start
 
     def solve(self, load=None, *, x0=None) -> FormulationResult:
@@ -287,8 +307,12 @@ class QPModel:
             iterations=iterations,
             build_time=self.build_time if first else 0.0,
             solve_time=elapsed,
-            info={"native_status": native, "solver": self.solver, "solver_time": solver_time,
-                  "compile_and_solve": first},
+            info={
+                "native_status": native,
+                "solver": self.solver,
+                "solver_time": solver_time,
+                "compile_and_solve": first,
+            },
         )
 
 

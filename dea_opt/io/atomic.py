@@ -24,8 +24,16 @@ from pathlib import Path
 
 from ..errors import InputError
 
-__all__ = ["TEMPORARY_NAME", "Staging", "atomic_open", "atomic_path", "file_path", "staged", "write_atomic",
-           "write_data"]
+__all__ = [
+    "TEMPORARY_NAME",
+    "Staging",
+    "atomic_open",
+    "atomic_path",
+    "file_path",
+    "staged",
+    "write_atomic",
+    "write_data",
+]
 
 #: The name of a temporary file: ``.<target name>.<8 hex>.tmp<target suffix>``.
 TEMPORARY_NAME = re.compile(r"^\..+\.[0-9a-f]{8}\.tmp(\.[^.]*)?$")
@@ -105,8 +113,9 @@ def atomic_path(path, *, argument: str = "path"):
         except FileExistsError:
             continue
         except OSError as exc:
-            raise InputError(f"{argument}: cannot write in the directory {str(parent)!r} "
-                             f"({exc.strerror or exc})") from None
+            raise InputError(
+                f"{argument}: cannot write in the directory {str(parent)!r} ({exc.strerror or exc})"
+            ) from None
     staging = _staging_of(target)
     try:
         with contextlib.suppress(OSError):  # a new file keeps the umask's mode
@@ -158,8 +167,9 @@ def write_data(path, data, *, argument: str = "path") -> Path:
 
 
 @contextlib.contextmanager
-def atomic_open(path, mode: str = "w", *, encoding: str | None = None, newline: str | None = None,
-                argument: str = "path"):
+def atomic_open(
+    path, mode: str = "w", *, encoding: str | None = None, newline: str | None = None, argument: str = "path"
+):
     """``open`` for writing, atomically: the file appears complete or not at all.
 
     Parameters
@@ -187,6 +197,7 @@ def atomic_open(path, mode: str = "w", *, encoding: str | None = None, newline: 
 
 
 # --- staging: a run's files wait until they are published together ----------------------
+
 
 class Staging:
     """The finished but unpublished files of one output folder: ``{target: temporary file}``.

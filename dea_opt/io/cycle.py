@@ -82,8 +82,9 @@ def plot_cycle(table, path, title: str | None = None, *, regions: dict | None = 
     colours = ("C0", "C1", "C2")
     for k, (name, values) in enumerate(_components(table, ("Fx", "Fy", "Fz"), anatomy)):
         axes[0].plot(t, values, "-", color=colours[k], label=name, marker=marker)
-    axes[0].plot(t, table["resultant"].to_numpy(dtype=float), "-", color="k", lw=1.5,
-                 label="|contact force|", marker=marker)
+    axes[0].plot(
+        t, table["resultant"].to_numpy(dtype=float), "-", color="k", lw=1.5, label="|contact force|", marker=marker
+    )
     axes[0].set_ylabel("applied force (N)")
     for k, (name, values) in enumerate(_components(table, ("Mx", "My", "Mz"), anatomy)):
         axes[1].plot(t, values, "-", color=colours[k], label=name, marker=marker)
@@ -91,31 +92,56 @@ def plot_cycle(table, path, title: str | None = None, *, regions: dict | None = 
     axes[2].plot(t, table["peak_pressure"].to_numpy(dtype=float), "-", color="C3", label="peak", marker=marker)
     axes[2].plot(t, table["mean_pressure"].to_numpy(dtype=float), "-", color="C1", label="mean", marker=marker)
     axes[2].set_ylabel("pressure (MPa)")
-    axes[3].plot(t, table["contact_area"].to_numpy(dtype=float), "-", color="C2", label="contact area",
-                 marker=marker)
+    axes[3].plot(t, table["contact_area"].to_numpy(dtype=float), "-", color="C2", label="contact area", marker=marker)
     axes[3].set_ylabel("area (mm$^2$)")
     if prefixes:
         for k, (name, prefix) in enumerate(prefixes.items()):
-            axes[4].plot(t, 100.0 * table[f"{prefix}_force_share"].to_numpy(dtype=float), "-", color=f"C{k}",
-                         label=str(name), marker=marker)
+            axes[4].plot(
+                t,
+                100.0 * table[f"{prefix}_force_share"].to_numpy(dtype=float),
+                "-",
+                color=f"C{k}",
+                label=str(name),
+                marker=marker,
+            )
         axes[4].set_ylabel("force share (%)")
         axes[4].set_ylim(0, 100)
     for ax in axes:
         ax.grid(alpha=0.3)
         if failed.any():
-            ax.plot(t[failed], np.zeros(failed.sum()), "x", color="k", ms=7, clip_on=False,
-                    transform=ax.get_xaxis_transform(), label="no certified answer")
+            ax.plot(
+                t[failed],
+                np.zeros(failed.sum()),
+                "x",
+                color="k",
+                ms=7,
+                clip_on=False,
+                transform=ax.get_xaxis_transform(),
+                label="no certified answer",
+            )
         if outside.any():
-            ax.plot(t[outside], np.zeros(outside.sum()), "^", color="C1", ms=6, clip_on=False,
-                    transform=ax.get_xaxis_transform(), label="outside validity")
+            ax.plot(
+                t[outside],
+                np.zeros(outside.sum()),
+                "^",
+                color="C1",
+                ms=6,
+                clip_on=False,
+                transform=ax.get_xaxis_transform(),
+                label="outside validity",
+            )
         ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     for ax in axes[2:4]:
         ax.set_ylim(bottom=0)
     axes[-1].set_xlabel("time (s)")
     peak = table["peak_pressure"].max()
     area = table["contact_area"].max()
-    axes[0].set_title(title or f"{len(t)} frames: peak {peak:.4g} MPa, largest area {area:.4g} mm$^2$"
-                      + (f", {int(failed.sum())} failed" if failed.any() else ""), fontsize="medium")
+    axes[0].set_title(
+        title
+        or f"{len(t)} frames: peak {peak:.4g} MPa, largest area {area:.4g} mm$^2$"
+        + (f", {int(failed.sum())} failed" if failed.any() else ""),
+        fontsize="medium",
+    )
     return _save(fig, path)
 
 
@@ -154,6 +180,8 @@ def plot_exposure(layer, exposure, path, *, moving: bool = False, title: str | N
         decorate_map(ax, frame, geometry)
         fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=label, shrink=0.85)
     note_frame(fig, frame)
-    fig.suptitle(title or f"Contact-stress exposure over {exposure.duration:.3g} s "
-                          f"(threshold {exposure.threshold:g} MPa)", fontsize="medium")
+    fig.suptitle(
+        title or f"Contact-stress exposure over {exposure.duration:.3g} s (threshold {exposure.threshold:g} MPa)",
+        fontsize="medium",
+    )
     return _save(fig, path)

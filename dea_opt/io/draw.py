@@ -126,15 +126,27 @@ def _faces(ax, geometry, values, cmap, norm, contact, grey) -> bool:
 
     xy, tris = geometry.xy, geometry.triangles
     if contact is None:
-        ax.tripcolor(Triangulation(xy[:, 0], xy[:, 1], tris), facecolors=values, cmap=cmap, norm=norm,
-                     edgecolors="none")
+        ax.tripcolor(
+            Triangulation(xy[:, 0], xy[:, 1], tris), facecolors=values, cmap=cmap, norm=norm, edgecolors="none"
+        )
         return False
     if (~contact).any():
-        ax.tripcolor(Triangulation(xy[:, 0], xy[:, 1], tris[~contact]), facecolors=np.zeros((~contact).sum()),
-                     cmap=grey, vmin=0, vmax=1, edgecolors="none")
+        ax.tripcolor(
+            Triangulation(xy[:, 0], xy[:, 1], tris[~contact]),
+            facecolors=np.zeros((~contact).sum()),
+            cmap=grey,
+            vmin=0,
+            vmax=1,
+            edgecolors="none",
+        )
     if contact.any():
-        ax.tripcolor(Triangulation(xy[:, 0], xy[:, 1], tris[contact]), facecolors=values[contact],
-                     cmap=cmap, norm=norm, edgecolors="none")
+        ax.tripcolor(
+            Triangulation(xy[:, 0], xy[:, 1], tris[contact]),
+            facecolors=values[contact],
+            cmap=cmap,
+            norm=norm,
+            edgecolors="none",
+        )
     edges = boundary_edges(tris[contact])
     ax.add_collection(LineCollection(xy[edges], colors="k", linewidths=0.8))
     return len(edges) > 0
@@ -275,6 +287,15 @@ def draw_regions(ax, geometry: MapGeometry, labels) -> None:
             # half way between a region's springs and its neighbours': one line per border
             ax.tricontour(tri, mask.astype(float), levels=[0.5], **style)
         centre = geometry.samples[mask].mean(axis=0)
-        ax.text(centre[0], centre[1], str(name), ha="center", va="center", fontsize="small", fontweight="bold",
-                color="k", bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.7},
-                zorder=6)
+        ax.text(
+            centre[0],
+            centre[1],
+            str(name),
+            ha="center",
+            va="center",
+            fontsize="small",
+            fontweight="bold",
+            color="k",
+            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.7},
+            zorder=6,
+        )

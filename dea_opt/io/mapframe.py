@@ -21,8 +21,14 @@ __all__ = ["MapFrame", "best_fit_frame", "map_frame"]
 #: A map axis within this angle (degrees) of a coordinate axis is labelled ``~ x``.
 _NEAR_AXIS = 20.0
 #: The view's name by the direction the viewer looks from.
-_VIEWS = {"proximal": "superior", "distal": "inferior", "anterior": "anterior", "posterior": "posterior",
-          "medial": "medial", "lateral": "lateral"}
+_VIEWS = {
+    "proximal": "superior",
+    "distal": "inferior",
+    "anterior": "anterior",
+    "posterior": "posterior",
+    "medial": "medial",
+    "lateral": "lateral",
+}
 
 
 def best_fit_frame(points, weights=None, normals=None) -> tuple:
@@ -115,8 +121,10 @@ def _best_fit(points, areas, normals) -> MapFrame:
     xlabel = _nearest_axis(axes[0]) or "in-plane axis 1 (mm)"
     ylabel = _nearest_axis(axes[1]) or "in-plane axis 2 (mm)"
     where = ", ".join(f"{round(float(c), 1) + 0.0:.1f}" for c in origin)
-    note = (f"best-fit plane of the springs, seen from body 2; origin at the layer centroid ({where}) mm; "
-            f"no anatomical frame given")
+    note = (
+        f"best-fit plane of the springs, seen from body 2; origin at the layer centroid ({where}) mm; "
+        f"no anatomical frame given"
+    )
     return MapFrame(origin, axes, xlabel, ylabel, {}, note)
 
 
@@ -128,16 +136,28 @@ def _anatomical(points, areas, normals, anatomy) -> MapFrame:
     names = ("medial", "anterior", "proximal")
     dots = [float(anatomy.direction(n) @ mean) for n in names]
     k = int(np.argmax(np.abs(dots)))
-    toward = names[k] if dots[k] >= 0 else {"medial": "lateral", "anterior": "posterior", "proximal": "distal"}[names[k]]
+    toward = (
+        names[k] if dots[k] >= 0 else {"medial": "lateral", "anterior": "posterior", "proximal": "distal"}[names[k]]
+    )
     e3 = anatomy.direction(toward)
     up = "anterior" if names[k] == "proximal" else "proximal"
     e2 = anatomy.direction(up)
     e1 = np.cross(e2, e3)
     right = _name_of(anatomy, e1)
-    opposite = {"medial": "lateral", "lateral": "medial", "anterior": "posterior", "posterior": "anterior",
-                "proximal": "distal", "distal": "proximal"}
-    sides = {"right": right.capitalize(), "left": opposite[right].capitalize(), "top": up.capitalize(),
-             "bottom": opposite[up].capitalize()}
+    opposite = {
+        "medial": "lateral",
+        "lateral": "medial",
+        "anterior": "posterior",
+        "posterior": "anterior",
+        "proximal": "distal",
+        "distal": "proximal",
+    }
+    sides = {
+        "right": right.capitalize(),
+        "left": opposite[right].capitalize(),
+        "top": up.capitalize(),
+        "bottom": opposite[up].capitalize(),
+    }
     where = anatomy.origin_name
     note = f"{_VIEWS[toward]} view (seen from {toward}); origin at the {where}; {anatomy.side} limb"
     return MapFrame(origin, np.array([e1, e2, e3]), f"{right} (mm)", f"{up} (mm)", sides, note)
@@ -166,5 +186,6 @@ def map_frame(points, areas=None, normals=None, anatomy=None) -> MapFrame:
         return _best_fit(points, areas, normals)
     from ..anatomy import AnatomicalFrame
 
-    return _anatomical(points, areas, None if normals is None else np.asarray(normals, dtype=float),
-                       AnatomicalFrame.from_dict(anatomy))
+    return _anatomical(
+        points, areas, None if normals is None else np.asarray(normals, dtype=float), AnatomicalFrame.from_dict(anatomy)
+    )

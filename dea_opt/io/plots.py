@@ -43,12 +43,27 @@ def decorate_map(ax, frame, geometry) -> None:
     ax.set_xlabel(frame.xlabel)
     ax.set_ylabel(frame.ylabel)
     box = {"boxstyle": "round,pad=0.2", "fc": "white", "ec": "0.6", "alpha": 0.85}
-    where = {"right": (0.99, 0.5, "right", "center", 90), "left": (0.01, 0.5, "left", "center", 90),
-             "top": (0.5, 0.99, "center", "top", 0), "bottom": (0.5, 0.01, "center", "bottom", 0)}
+    where = {
+        "right": (0.99, 0.5, "right", "center", 90),
+        "left": (0.01, 0.5, "left", "center", 90),
+        "top": (0.5, 0.99, "center", "top", 0),
+        "bottom": (0.5, 0.01, "center", "bottom", 0),
+    }
     for side, name in frame.sides.items():
         x, y, ha, va, rotation = where[side]
-        ax.text(x, y, name.upper(), transform=ax.transAxes, ha=ha, va=va, rotation=rotation, fontsize="small",
-                fontweight="bold", bbox=box, zorder=7)
+        ax.text(
+            x,
+            y,
+            name.upper(),
+            transform=ax.transAxes,
+            ha=ha,
+            va=va,
+            rotation=rotation,
+            fontsize="small",
+            fontweight="bold",
+            bbox=box,
+            zorder=7,
+        )
 
 
 def note_frame(fig, frame) -> None:
@@ -99,10 +114,21 @@ def _draw_3d(ax, solution, cmap, norm, grey):
     return outlined
 
 
-def plot_pressure(solution, path, *, view: str = "plane", cmap: str = "viridis", vmax: float | None = None,
-                  title: str | None = None, dpi: int = 150, figsize: tuple = (6.4, 5.2),
-                  elev: float | None = None, azim: float | None = None, anatomy=None,
-                  regions: bool = True) -> Path:
+def plot_pressure(
+    solution,
+    path,
+    *,
+    view: str = "plane",
+    cmap: str = "viridis",
+    vmax: float | None = None,
+    title: str | None = None,
+    dpi: int = 150,
+    figsize: tuple = (6.4, 5.2),
+    elev: float | None = None,
+    azim: float | None = None,
+    anatomy=None,
+    regions: bool = True,
+) -> Path:
     """Draw a pressure map of the contact surface to a PNG.
 
     Faces (or springs) in contact are coloured by pressure with a colour bar in MPa; the
@@ -182,8 +208,16 @@ def plot_pressure(solution, path, *, view: str = "plane", cmap: str = "viridis",
         frame = map_frame(layer.points, layer.areas, layer.normals, anatomy)
         ax = fig.add_subplot()
         geometry = map_geometry(layer, frame)
-        outlined = draw_values(ax, geometry, solution.pressure, colormap, norm, contact=solution.in_contact,
-                               grey=grey, edge=solution.strain)
+        outlined = draw_values(
+            ax,
+            geometry,
+            solution.pressure,
+            colormap,
+            norm,
+            contact=solution.in_contact,
+            grey=grey,
+            edge=solution.strain,
+        )
         if regions and layer.labels is not None:
             draw_regions(ax, geometry, layer.labels)
         if np.isfinite(cop).all():
@@ -195,8 +229,7 @@ def plot_pressure(solution, path, *, view: str = "plane", cmap: str = "viridis",
         ax = fig.add_subplot(projection="3d", computed_zorder=False)
         outlined = _draw_3d(ax, solution, colormap, norm, grey)
         if np.isfinite(cop).all():
-            ax.scatter([cop[0]], [cop[1]], [cop[2]], s=50, c="white", edgecolors="k", depthshade=False,
-                       zorder=10)
+            ax.scatter([cop[0]], [cop[1]], [cop[2]], s=50, c="white", edgecolors="k", depthshade=False, zorder=10)
         axes = best_fit_frame(layer.points, layer.areas, layer.normals)[1]
         tilt = np.radians(40.0)  # look from 40 degrees off the mean normal, toward -e2
         eye = np.cos(tilt) * axes[2] - np.sin(tilt) * axes[1]
@@ -211,8 +244,10 @@ def plot_pressure(solution, path, *, view: str = "plane", cmap: str = "viridis",
         ax.legend(handles=handles, loc="upper right", fontsize="small", framealpha=0.8)
     fig.colorbar(ScalarMappable(norm=norm, cmap=colormap), ax=ax, label="pressure (MPa)", shrink=0.85)
     if title is None:
-        title = (f"{solution.method}: peak {solution.peak_pressure:.4g} MPa, "
-                 f"resultant {np.linalg.norm(solution.contact_force):.4g} N, area {solution.contact_area:.4g} mm$^2$")
+        title = (
+            f"{solution.method}: peak {solution.peak_pressure:.4g} MPa, "
+            f"resultant {np.linalg.norm(solution.contact_force):.4g} N, area {solution.contact_area:.4g} mm$^2$"
+        )
     ax.set_title(title, fontsize="medium")
     write_atomic(target, lambda tmp: fig.savefig(tmp, format=fmt[1:], dpi=dpi, **save_options(fmt[1:])))
     return target

@@ -37,8 +37,18 @@ from .._version import __version__
 from ..errors import InputError, OutputFolderError
 from .atomic import TEMPORARY_NAME, staged, write_data
 
-__all__ = ["INCOMPLETE_NAME", "LOCK_NAME", "MANIFEST_NAME", "OutputRun", "RunInterrupted", "check_output_folder",
-           "check_outputs", "output_folder_path", "output_run", "read_manifest"]
+__all__ = [
+    "INCOMPLETE_NAME",
+    "LOCK_NAME",
+    "MANIFEST_NAME",
+    "OutputRun",
+    "RunInterrupted",
+    "check_output_folder",
+    "check_outputs",
+    "output_folder_path",
+    "output_run",
+    "read_manifest",
+]
 
 MANIFEST_NAME = "manifest.json"
 INCOMPLETE_NAME = "INCOMPLETE.json"
@@ -119,10 +129,12 @@ def check_outputs(folder) -> list[str]:
 
 # --- which folders a run may write into ---------------------------------------------------
 
+
 def _other_run(entry: os.DirEntry) -> bool:
     """A sub-folder another dea-opt command made (a sweep's or a comparison's)."""
-    return entry.is_dir(follow_symlinks=False) and any((Path(entry.path) / mark).exists()
-                                                       for mark in _OWN_SUBFOLDER_MARKS)
+    return entry.is_dir(follow_symlinks=False) and any(
+        (Path(entry.path) / mark).exists() for mark in _OWN_SUBFOLDER_MARKS
+    )
 
 
 def _internal(entry: os.DirEntry, depth: int = 0) -> bool:
@@ -166,7 +178,8 @@ def check_output_folder(folder, force: bool = False) -> Path:
             f"the output folder {path} holds files dea-opt did not write ({shown}) and no dea-opt {MANIFEST_NAME}: "
             f"dea-opt writes only into a new or empty folder, or one holding an earlier dea-opt run, so that "
             f"no file of yours is overwritten; choose another folder (-o), or pass --force to write into it "
-            f"anyway (files named like the outputs are then replaced)")
+            f"anyway (files named like the outputs are then replaced)"
+        )
     return path
 
 
@@ -183,8 +196,10 @@ def _folder_lock(folder: Path):
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             holder = os.pread(fd, 32, 0).decode(errors="replace").strip()
-            raise OutputFolderError(f"another dea-opt run (pid {holder or 'unknown'}) is writing into the output "
-                                    f"folder {folder}: wait for it, or choose another folder (-o)") from None
+            raise OutputFolderError(
+                f"another dea-opt run (pid {holder or 'unknown'}) is writing into the output "
+                f"folder {folder}: wait for it, or choose another folder (-o)"
+            ) from None
         os.ftruncate(fd, 0)
         os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
         yield
@@ -262,15 +277,21 @@ class OutputRun:
     def state(self) -> str:
         """What the folder holds now, in one sentence (for an interrupted run)."""
         if self.manifest is not None:
-            return (f"the outputs of this run were published before the interrupt: {self.folder} holds them, "
-                    f"complete, listed in {MANIFEST_NAME}")
+            return (
+                f"the outputs of this run were published before the interrupt: {self.folder} holds them, "
+                f"complete, listed in {MANIFEST_NAME}"
+            )
         if self.previous is not None:
-            return (f"no output of this run was published; {self.folder} still holds the complete outputs of the "
-                    f"previous run {self.previous.get('run_id')} ({self.previous.get('created')}), listed in "
-                    f"{MANIFEST_NAME}")
+            return (
+                f"no output of this run was published; {self.folder} still holds the complete outputs of the "
+                f"previous run {self.previous.get('run_id')} ({self.previous.get('created')}), listed in "
+                f"{MANIFEST_NAME}"
+            )
         if (self.folder / INCOMPLETE_NAME).exists():
-            return (f"no output of this run was published; {self.folder} holds an incomplete earlier run "
-                    f"({INCOMPLETE_NAME}, no {MANIFEST_NAME}): rerun to complete it")
+            return (
+                f"no output of this run was published; {self.folder} holds an incomplete earlier run "
+                f"({INCOMPLETE_NAME}, no {MANIFEST_NAME}): rerun to complete it"
+            )
         return f"no output of this run was published; {self.folder} holds no complete outputs"
 
     def publish(self, **summary) -> dict:
@@ -299,11 +320,18 @@ class OutputRun:
 
     def _swap(self, pending: dict, files: dict, summary: dict) -> None:
         folder = self.folder
-        _write_json(folder / INCOMPLETE_NAME, {
-            "format": _INCOMPLETE_FORMAT, "run_id": self.run_id, "started": self.started,
-            "message": (f"dea-opt run {self.run_id} was replacing the outputs in this folder and did not finish: "
-                        f"the files here may come from two runs; rerun to complete them"),
-        })
+        _write_json(
+            folder / INCOMPLETE_NAME,
+            {
+                "format": _INCOMPLETE_FORMAT,
+                "run_id": self.run_id,
+                "started": self.started,
+                "message": (
+                    f"dea-opt run {self.run_id} was replacing the outputs in this folder and did not finish: "
+                    f"the files here may come from two runs; rerun to complete them"
+                ),
+            },
+        )
         with contextlib.suppress(FileNotFoundError):
             os.unlink(folder / MANIFEST_NAME)
         _fsync_dir(folder)
@@ -314,9 +342,14 @@ class OutputRun:
         for parent in {target.parent for target in pending} | {folder}:
             _fsync_dir(parent)
         manifest = {
-            "format": _MANIFEST_FORMAT, "run_id": self.run_id, "dea_opt_version": __version__,
-            "created": self.started, "published": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
-            **self.info, **summary, "files": files,
+            "format": _MANIFEST_FORMAT,
+            "run_id": self.run_id,
+            "dea_opt_version": __version__,
+            "created": self.started,
+            "published": time.strftime("%Y-%m-%dT%H:%M:%S%z"),
+            **self.info,
+            **summary,
+            "files": files,
         }
         _write_json(folder / MANIFEST_NAME, manifest)
         os.unlink(folder / INCOMPLETE_NAME)
@@ -340,7 +373,7 @@ def _remove_old(folder: Path, names) -> None:
     """Remove the files of the previous run that this one does not write (and folders left empty)."""
     emptied = set()
     for name in names:
-        path = (folder / name)
+        path = folder / name
         # A manifest is data: never follow it outside the folder.
         if ".." in Path(name).parts or Path(name).is_absolute() or not path.is_file() or path.is_symlink():
             continue

@@ -15,8 +15,19 @@ from .vtk import VTK_EXTENSIONS, to_vtk
 __all__ = ["write_results"]
 
 
-def write_results(solution, directory, *, stem: str = "contact", vtk: str = ".vtu", cells: str = "springs",
-                  labels=None, planes=None, regions=None, view: str = "plane", anatomy=None) -> dict:
+def write_results(
+    solution,
+    directory,
+    *,
+    stem: str = "contact",
+    vtk: str = ".vtu",
+    cells: str = "springs",
+    labels=None,
+    planes=None,
+    regions=None,
+    view: str = "plane",
+    anatomy=None,
+) -> dict:
     """Write ``<stem>.vtu`` (or ``.vtp``), ``.csv``, ``.json`` and ``.png`` into ``directory``.
 
     Parameters

@@ -57,8 +57,14 @@ def write_json(data, path, indent: int = 2) -> Path:
 
 
 _UNITS = {
-    "length": "mm", "area": "mm^2", "force": "N", "moment": "N mm", "pressure": "MPa",
-    "strain": "1", "rotation": "rad", "time": "s",
+    "length": "mm",
+    "area": "mm^2",
+    "force": "N",
+    "moment": "N mm",
+    "pressure": "MPa",
+    "strain": "1",
+    "rotation": "rad",
+    "time": "s",
 }
 
 
@@ -160,8 +166,9 @@ def to_json(solution, path, *, labels=None, planes=None, regions=None, anatomy=N
     -------
     pathlib.Path
     """
-    return write_json(summary_dict(solution, labels=labels, planes=planes, regions=regions, anatomy=anatomy),
-                      path, indent)
+    return write_json(
+        summary_dict(solution, labels=labels, planes=planes, regions=regions, anatomy=anatomy), path, indent
+    )
 
 
 def read_json(path) -> dict:
@@ -171,4 +178,3 @@ def read_json(path) -> dict:
         raise InputError(f"path: no such file {str(target)!r}")
     with open(target, encoding="utf-8") as handle:
         return json.load(handle)
-

@@ -100,14 +100,12 @@ def _checked_faces(layer) -> tuple:
     faces = faces.astype(np.int64)
     if faces.size and (faces.min() < 0 or faces.max() >= len(vertices)):
         raise InputError(
-            f"layer.surface faces must index its {len(vertices)} vertices, got indices "
-            f"{faces.min()}..{faces.max()}"
+            f"layer.surface faces must index its {len(vertices)} vertices, got indices {faces.min()}..{faces.max()}"
         )
     source = layer.source_face.astype(np.int64)
     if source.size and (source.min() < 0 or source.max() >= len(faces)):
         raise InputError(
-            f"layer.source_face must index the {len(faces)} surface faces, got "
-            f"{source.min()}..{source.max()}"
+            f"layer.source_face must index the {len(faces)} surface faces, got {source.min()}..{source.max()}"
         )
     return vertices, faces, source
 
@@ -165,9 +163,7 @@ def layer_surface(layer, data: dict, *, cells: str = "springs") -> SurfaceData:
         raise InputError(f"cells must be 'springs' or 'surface', got {cells!r}")
     if cells == "surface":
         if not has_faces:
-            raise InputError(
-                "cells='surface' needs a layer with surface and source_face; use cells='springs'"
-            )
+            raise InputError("cells='surface' needs a layer with surface and source_face; use cells='springs'")
         return _whole_surface(layer, data)
     if not has_faces:
         from .triangulate import point_triangulation

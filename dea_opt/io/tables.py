@@ -24,13 +24,34 @@ import numpy as np
 from ..errors import InputError
 from .atomic import atomic_open, file_path, write_atomic
 
-__all__ = ["CHUNK_ROWS", "CSV_COLUMNS", "SPRING_COLUMNS", "read_csv", "read_numeric_csv", "read_springs", "to_csv",
-           "write_springs"]
+__all__ = [
+    "CHUNK_ROWS",
+    "CSV_COLUMNS",
+    "SPRING_COLUMNS",
+    "read_csv",
+    "read_numeric_csv",
+    "read_springs",
+    "to_csv",
+    "write_springs",
+]
 
 #: Columns of :func:`to_csv`, in order.
 CSV_COLUMNS = (
-    "x", "y", "z", "nx", "ny", "nz", "area", "thickness", "gap", "strain", "pressure",
-    "spring_force", "in_contact", "source_face", "label",
+    "x",
+    "y",
+    "z",
+    "nx",
+    "ny",
+    "nz",
+    "area",
+    "thickness",
+    "gap",
+    "strain",
+    "pressure",
+    "spring_force",
+    "in_contact",
+    "source_face",
+    "label",
 )
 _FLOAT_COLUMNS = CSV_COLUMNS[:12]
 #: Required columns of a springs table (``gap`` and ``label`` are optional).
@@ -116,12 +137,24 @@ def to_csv(solution, path) -> Path:
     layer = solution.problem.layer
     n = len(layer)
     floats = [
-        layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
-        layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
-        layer.areas, layer.thickness, layer.gap, solution.strain, solution.pressure, solution.spring_force,
+        layer.points[:, 0],
+        layer.points[:, 1],
+        layer.points[:, 2],
+        layer.normals[:, 0],
+        layer.normals[:, 1],
+        layer.normals[:, 2],
+        layer.areas,
+        layer.thickness,
+        layer.gap,
+        solution.strain,
+        solution.pressure,
+        solution.spring_force,
     ]
-    columns = [*floats, solution.in_contact.astype(np.int64),
-               layer.source_face if layer.source_face is not None else np.full(n, -1, dtype=np.int64)]
+    columns = [
+        *floats,
+        solution.in_contact.astype(np.int64),
+        layer.source_face if layer.source_face is not None else np.full(n, -1, dtype=np.int64),
+    ]
     if layer.labels is not None:
         names, codes = np.unique(np.asarray(layer.labels).astype(str), return_inverse=True)
         quoted = [_quoted(name) for name in names.tolist()]
@@ -166,8 +199,9 @@ def read_csv(path) -> dict:
     rows = rows[1:]
     short = next((i for i, row in enumerate(rows) if len(row) != len(CSV_COLUMNS)), None)
     if short is not None:
-        raise InputError(f"path: row {short + 1} of {str(target)!r} has {len(rows[short])} fields, "
-                         f"expected {len(CSV_COLUMNS)}")
+        raise InputError(
+            f"path: row {short + 1} of {str(target)!r} has {len(rows[short])} fields, expected {len(CSV_COLUMNS)}"
+        )
     text = np.array(rows, dtype=object).reshape(len(rows), len(CSV_COLUMNS))
     out = {}
     for k, name in enumerate(CSV_COLUMNS):
@@ -201,8 +235,7 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
     try:
         table = pd.read_csv(path, comment="#", dtype=str, skipinitialspace=True, keep_default_na=False)
     except pd.errors.EmptyDataError:
-        raise InputError(f"{what} {path} is empty: expected a header line with columns "
-                         f"{','.join(required)}") from None
+        raise InputError(f"{what} {path} is empty: expected a header line with columns {','.join(required)}") from None
     except (pd.errors.ParserError, UnicodeDecodeError) as exc:
         raise InputError(f"{what} {path} is not a readable CSV: {exc}".replace("\n", " ")) from None
     table.columns = [str(c).strip() for c in table.columns]
@@ -214,8 +247,10 @@ def read_numeric_csv(path, required: tuple, optional: tuple = (), what: str = "t
             problems.append(f"missing column{'s' if len(missing) > 1 else ''} {', '.join(missing)}")
         if unknown:
             problems.append(f"unknown column{'s' if len(unknown) > 1 else ''} {', '.join(unknown)}")
-        raise InputError(f"{what} {path}: {' and '.join(problems)}; expected columns {','.join(required)}"
-                            + (f" and optionally {','.join(optional)}" if optional else ""))
+        raise InputError(
+            f"{what} {path}: {' and '.join(problems)}; expected columns {','.join(required)}"
+            + (f" and optionally {','.join(optional)}" if optional else "")
+        )
     if table.empty:
         raise InputError(f"{what} {path} has a header but no rows")
     lines = _data_lines(path)
@@ -271,8 +306,14 @@ def read_springs(path):
     gap = table["gap"].to_numpy(dtype=float) if "gap" in table else 0.0
     labels = _labels(table["label"].to_numpy(dtype=str), path) if "label" in table else None
     try:
-        return SpringLayer(points, normals, table["area"].to_numpy(dtype=float),
-                           table["thickness"].to_numpy(dtype=float), gap, labels=labels)
+        return SpringLayer(
+            points,
+            normals,
+            table["area"].to_numpy(dtype=float),
+            table["thickness"].to_numpy(dtype=float),
+            gap,
+            labels=labels,
+        )
     except InputError as exc:
         raise InputError(f"springs table {path}: {exc}") from None
 
@@ -282,20 +323,24 @@ def _npz_array(data, name: str, path: Path, n: int | None, numeric: bool = True)
     try:
         array = data[name]
     except ValueError:  # numpy's refusal to unpickle an array of Python objects
-        raise InputError(f"springs table {path}: array {name!r} holds Python objects (saved from ragged lists or "
-                         f"with dtype=object), which dea-opt does not load (it never unpickles): save it as a "
-                         f"1-D numeric array") from None
+        raise InputError(
+            f"springs table {path}: array {name!r} holds Python objects (saved from ragged lists or "
+            f"with dtype=object), which dea-opt does not load (it never unpickles): save it as a "
+            f"1-D numeric array"
+        ) from None
     except Exception as exc:  # noqa: BLE001 - a damaged archive member: zipfile and zlib errors
-        raise InputError(f"springs table {path}: array {name!r} cannot be read ({type(exc).__name__}: "
-                         f"{exc})") from None
+        raise InputError(f"springs table {path}: array {name!r} cannot be read ({type(exc).__name__}: {exc})") from None
     kinds = "fiu" if numeric else "iuU"
     if array.ndim != 1 or array.dtype.kind not in kinds:
         expected = "a 1-D array of numbers" if numeric else "a 1-D array of text or integers"
-        raise InputError(f"springs table {path}: array {name!r} must be {expected}, got shape {array.shape} and "
-                         f"dtype {array.dtype}")
+        raise InputError(
+            f"springs table {path}: array {name!r} must be {expected}, got shape {array.shape} and dtype {array.dtype}"
+        )
     if n is not None and len(array) != n:
-        raise InputError(f"springs table {path}: array {name!r} has {len(array)} values, but 'x' has {n}: every "
-                         f"array needs one value per spring")
+        raise InputError(
+            f"springs table {path}: array {name!r} has {len(array)} values, but 'x' has {n}: every "
+            f"array needs one value per spring"
+        )
     return array
 
 
@@ -309,12 +354,16 @@ def _springs_from_npz(path: Path):
     with data:
         missing = [c for c in SPRING_COLUMNS if c not in data.files]
         if missing:
-            raise InputError(f"springs table {path}: missing array{'s' if len(missing) > 1 else ''} "
-                             f"{', '.join(missing)}; expected {','.join(SPRING_COLUMNS)} and optionally gap, label")
+            raise InputError(
+                f"springs table {path}: missing array{'s' if len(missing) > 1 else ''} "
+                f"{', '.join(missing)}; expected {','.join(SPRING_COLUMNS)} and optionally gap, label"
+            )
         unknown = [c for c in data.files if c not in (*SPRING_COLUMNS, "gap", "label")]
         if unknown:
-            raise InputError(f"springs table {path}: unknown array{'s' if len(unknown) > 1 else ''} "
-                             f"{', '.join(unknown)}; expected {','.join(SPRING_COLUMNS)} and optionally gap, label")
+            raise InputError(
+                f"springs table {path}: unknown array{'s' if len(unknown) > 1 else ''} "
+                f"{', '.join(unknown)}; expected {','.join(SPRING_COLUMNS)} and optionally gap, label"
+            )
         n = len(_npz_array(data, "x", path, None))
         columns = {name: _npz_array(data, name, path, n) for name in (*SPRING_COLUMNS, "gap") if name in data.files}
         labels = _npz_array(data, "label", path, n, numeric=False) if "label" in data.files else None
@@ -331,8 +380,9 @@ def _labels(text: np.ndarray, path) -> np.ndarray:
     """Region labels read as text: integers when every one is an integer, else the words."""
     if (text == "").any():
         row = int(np.argmax(text == ""))
-        raise InputError(f"springs table {path}, row {row + 1}, column label: expected a region label, "
-                         f"got an empty cell")
+        raise InputError(
+            f"springs table {path}, row {row + 1}, column label: expected a region label, got an empty cell"
+        )
     try:
         return np.array([int(v) for v in text.tolist()], dtype=np.int64)
     except ValueError:
@@ -348,9 +398,17 @@ def write_springs(layer, path) -> Path:
     """
     if Path(path).suffix.lower() == ".npz":
         return _write_springs_npz(layer, path)
-    columns = [layer.points[:, 0], layer.points[:, 1], layer.points[:, 2],
-               layer.normals[:, 0], layer.normals[:, 1], layer.normals[:, 2],
-               layer.areas, layer.thickness, layer.gap]
+    columns = [
+        layer.points[:, 0],
+        layer.points[:, 1],
+        layer.points[:, 2],
+        layer.normals[:, 0],
+        layer.normals[:, 1],
+        layer.normals[:, 2],
+        layer.areas,
+        layer.thickness,
+        layer.gap,
+    ]
     header: tuple[str, ...] = (*SPRING_COLUMNS, "gap")
     rows = [np.asarray(c, dtype=float).tolist() for c in columns]
     if layer.labels is not None:
@@ -362,10 +420,20 @@ def write_springs(layer, path) -> Path:
 
 
 def _write_springs_npz(layer, path) -> Path:
-    arrays = {name: np.asarray(values, dtype=float) for name, values in (
-        ("x", layer.points[:, 0]), ("y", layer.points[:, 1]), ("z", layer.points[:, 2]),
-        ("nx", layer.normals[:, 0]), ("ny", layer.normals[:, 1]), ("nz", layer.normals[:, 2]),
-        ("area", layer.areas), ("thickness", layer.thickness), ("gap", layer.gap))}
+    arrays = {
+        name: np.asarray(values, dtype=float)
+        for name, values in (
+            ("x", layer.points[:, 0]),
+            ("y", layer.points[:, 1]),
+            ("z", layer.points[:, 2]),
+            ("nx", layer.normals[:, 0]),
+            ("ny", layer.normals[:, 1]),
+            ("nz", layer.normals[:, 2]),
+            ("area", layer.areas),
+            ("thickness", layer.thickness),
+            ("gap", layer.gap),
+        )
+    }
     if layer.labels is not None:
         labels = np.asarray(layer.labels)
         arrays["label"] = labels.astype(np.int64) if np.issubdtype(labels.dtype, np.integer) else labels.astype(str)

@@ -145,7 +145,7 @@ def _grid(xy):
     corners = (where[:-1, :-1], where[1:, :-1], where[1:, 1:], where[:-1, 1:])  # a, b, c, d: views
     for row, (i, j, k) in enumerate(((0, 1, 2), (0, 2, 3))):
         for column, corner in enumerate((i, j, k)):
-            triangles[row * m:(row + 1) * m, column] = corners[corner].reshape(-1)
+            triangles[row * m : (row + 1) * m, column] = corners[corner].reshape(-1)
     return triangles
 
 

@@ -30,9 +30,7 @@ def _vtk_path(path) -> tuple:
     target = file_path(path)
     ext = target.suffix.lower()
     if ext not in VTK_EXTENSIONS:
-        raise InputError(
-            f"path must end in .vtu (UnstructuredGrid) or .vtp (PolyData), got {str(path)!r}"
-        )
+        raise InputError(f"path must end in .vtu (UnstructuredGrid) or .vtp (PolyData), got {str(path)!r}")
     return target, ext
 
 
@@ -91,7 +89,7 @@ def _read_data_array(element, header_dtype, byte_order, appended=None) -> np.nda
         raw = base64.b64decode(text)
         size = header_dtype.itemsize
         n_bytes = int(np.frombuffer(raw[:size], header_dtype)[0])
-        values = np.frombuffer(raw[size:size + n_bytes], dtype).astype(dtype.newbyteorder("="))
+        values = np.frombuffer(raw[size : size + n_bytes], dtype).astype(dtype.newbyteorder("="))
     elif fmt == "ascii":
         values = np.array(text.split(), dtype=dtype.newbyteorder("="))
     else:
@@ -136,10 +134,12 @@ def _read_vtp(path: Path) -> SurfaceData:
             raise InputError(f"read_vtk reads one cell size per file, {str(path)!r} mixes {np.unique(sizes)}")
         cells = arrays["connectivity"].astype(np.int64).reshape(len(offsets), -1)
         cell_type = name if name == "vertex" or cells.shape[1] == 3 else f"polygon{cells.shape[1]}"
-    cell_data = {a.get("Name"): _read_data_array(a, header, order, appended)
-                 for a in piece.findall("CellData/DataArray")}
-    point_data = {a.get("Name"): _read_data_array(a, header, order, appended)
-                  for a in piece.findall("PointData/DataArray")}
+    cell_data = {
+        a.get("Name"): _read_data_array(a, header, order, appended) for a in piece.findall("CellData/DataArray")
+    }
+    point_data = {
+        a.get("Name"): _read_data_array(a, header, order, appended) for a in piece.findall("PointData/DataArray")
+    }
     return SurfaceData(points, cells, cell_type, cell_data, point_data)
 
 
@@ -167,8 +167,7 @@ def read_vtk(path) -> SurfaceData:
     block = mesh.cells[0]
     data = {name: np.asarray(values[0]) for name, values in mesh.cell_data.items()}
     point_data = {name: np.asarray(values) for name, values in mesh.point_data.items()}
-    return SurfaceData(np.asarray(mesh.points), np.asarray(block.data, dtype=np.int64), block.type, data,
-                       point_data)
+    return SurfaceData(np.asarray(mesh.points), np.asarray(block.data, dtype=np.int64), block.type, data, point_data)
 
 
 def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
@@ -195,8 +194,10 @@ def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
     """
     expected = contact_surface(solution, cells=cells)
     found = read_vtk(path)
-    pairs: dict[str, tuple[Any, Any]] = {"points": (expected.points, found.points),
-                                         "cells": (expected.cells, found.cells)}
+    pairs: dict[str, tuple[Any, Any]] = {
+        "points": (expected.points, found.points),
+        "cells": (expected.cells, found.cells),
+    }
     for name, value in expected.spring_data.items():
         pairs[name] = (value, found.spring_data.get(name))
     out = {}
@@ -209,4 +210,3 @@ def vtk_differences(solution, path, *, cells: str = "springs") -> dict:
         diff = np.where(both_nan, 0.0, np.abs(want - got))
         out[name] = float(np.nan_to_num(diff, nan=math.inf).max(initial=0.0))
     return out
-

@@ -30,10 +30,16 @@ __all__ = ["ENCODINGS", "VTK_TYPES", "quoteattr", "read_appended", "write_vtk_xm
 ENCODINGS = ("raw", "zlib", "ascii")
 
 VTK_TYPES: dict[np.dtype, str] = {
-    np.dtype(np.float64): "Float64", np.dtype(np.float32): "Float32",
-    np.dtype(np.int64): "Int64", np.dtype(np.int32): "Int32", np.dtype(np.int16): "Int16",
-    np.dtype(np.int8): "Int8", np.dtype(np.uint64): "UInt64", np.dtype(np.uint32): "UInt32",
-    np.dtype(np.uint16): "UInt16", np.dtype(np.uint8): "UInt8",
+    np.dtype(np.float64): "Float64",
+    np.dtype(np.float32): "Float32",
+    np.dtype(np.int64): "Int64",
+    np.dtype(np.int32): "Int32",
+    np.dtype(np.int16): "Int16",
+    np.dtype(np.int8): "Int8",
+    np.dtype(np.uint64): "UInt64",
+    np.dtype(np.uint32): "UInt32",
+    np.dtype(np.uint16): "UInt16",
+    np.dtype(np.uint8): "UInt8",
 }
 #: The NumPy dtype of each VTK DataArray type.
 NUMPY_TYPES: dict[str, np.dtype] = {v: k for k, v in VTK_TYPES.items()}
@@ -77,11 +83,11 @@ def _chunks(values, items: int):
     if values.dtype == little and values.flags.c_contiguous:
         flat = values.reshape(-1)
         for start in range(0, len(flat), items):
-            yield flat[start:start + items]
+            yield flat[start : start + items]
         return
     rows = max(items // max(int(np.prod(values.shape[1:])), 1), 1)
     for start in range(0, len(values), rows):
-        yield np.ascontiguousarray(values[start:start + rows], dtype=little).reshape(-1)
+        yield np.ascontiguousarray(values[start : start + rows], dtype=little).reshape(-1)
 
 
 class _Base64:
@@ -114,12 +120,15 @@ def _write_array(handle, name: str, values, fmt: str, indent: str, offset: int |
     vtk_type = _vtk_type(name, values)
     components = f' NumberOfComponents="{values.shape[1]}"' if values.ndim == 2 else ""
     if fmt == "raw":
-        handle.write(f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components} format="appended" '
-                     f'offset="{offset}"/>\n'.encode("ascii"))
+        handle.write(
+            f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components} format="appended" '
+            f'offset="{offset}"/>\n'.encode("ascii")
+        )
         return
     kind = "ascii" if fmt == "ascii" else "binary"
-    handle.write(f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components} '
-                 f'format="{kind}">'.encode("ascii"))
+    handle.write(
+        f'{indent}<DataArray type="{vtk_type}" Name={quoteattr(name)}{components} format="{kind}">'.encode("ascii")
+    )
     itemsize = np.dtype(values.dtype).itemsize
     n_bytes = int(values.size) * itemsize
     if fmt == "ascii":
@@ -187,10 +196,15 @@ def write_vtk_xml(path, surface, *, binary: bool = True, polydata: bool = False,
     elif _CELL_TYPES.get(surface.cell_type) is None:
         raise InputError(f"cannot write cells of type {surface.cell_type!r} to .vtu")
     # Every array in the order it is written: (section, name, values).
-    arrays: list[tuple[str, str, Any]] = [("PointData", name, np.asarray(value)) for name, value in surface.point_data.items()]
+    arrays: list[tuple[str, str, Any]] = [
+        ("PointData", name, np.asarray(value)) for name, value in surface.point_data.items()
+    ]
     arrays += [("CellData", name, np.asarray(value)) for name, value in surface.cell_data.items()]
-    arrays += [("Points", "Points", np.asarray(surface.points, dtype=np.float64)),
-               (block, "connectivity", cells), (block, "offsets", _Ramp(n_cells, per_cell, np.int64))]
+    arrays += [
+        ("Points", "Points", np.asarray(surface.points, dtype=np.float64)),
+        (block, "connectivity", cells),
+        (block, "offsets", _Ramp(n_cells, per_cell, np.int64)),
+    ]
     if not polydata:
         arrays.append((block, "types", _Ramp(n_cells, _CELL_TYPES[surface.cell_type], np.uint8, constant=True)))
     for _, name, values in arrays:
@@ -210,16 +224,24 @@ def write_vtk_xml(path, surface, *, binary: bool = True, polydata: bool = False,
         position += 8 + int(values.size) * np.dtype(values.dtype).itemsize
     with open(path, "wb") as handle:
         handle.write(b'<?xml version="1.0"?>\n')
-        handle.write(f'<VTKFile type="{kind}" version="1.0" byte_order="LittleEndian" '
-                     f'header_type="UInt64"{compressor}>\n  <{kind}>\n'.encode("ascii"))
+        handle.write(
+            f'<VTKFile type="{kind}" version="1.0" byte_order="LittleEndian" '
+            f'header_type="UInt64"{compressor}>\n  <{kind}>\n'.encode("ascii")
+        )
         if polydata:
             counts = {"Verts": 0, "Lines": 0, "Strips": 0, "Polys": 0}
             counts[block] = n_cells
-            handle.write((f'    <Piece NumberOfPoints="{len(surface.points)}" '
-                          + " ".join(f'NumberOf{k}="{v}"' for k, v in counts.items()) + ">\n").encode("ascii"))
+            handle.write(
+                (
+                    f'    <Piece NumberOfPoints="{len(surface.points)}" '
+                    + " ".join(f'NumberOf{k}="{v}"' for k, v in counts.items())
+                    + ">\n"
+                ).encode("ascii")
+            )
         else:
-            handle.write(f'    <Piece NumberOfPoints="{len(surface.points)}" NumberOfCells="{n_cells}">\n'
-                         .encode("ascii"))
+            handle.write(
+                f'    <Piece NumberOfPoints="{len(surface.points)}" NumberOfCells="{n_cells}">\n'.encode("ascii")
+            )
         section = None
         for (tag, name, values), offset in zip(arrays, offsets):
             if tag != section:
@@ -263,7 +285,7 @@ def read_appended(path) -> tuple:
         raise InputError(f"path: {str(path)!r} has no raw AppendedData")
     tail = data.rfind(b"</AppendedData>")
     try:
-        root = ElementTree.fromstring(data[: found.start()] + data[tail + len(b"</AppendedData>"):])
+        root = ElementTree.fromstring(data[: found.start()] + data[tail + len(b"</AppendedData>") :])
     except ElementTree.ParseError as exc:
         raise InputError(f"path: {str(path)!r} is not a VTK XML file ({exc})") from None
     if root.get("compressor"):
@@ -276,12 +298,15 @@ def read_appended(path) -> tuple:
             continue
         vtk_type = element.get("type", "")
         if vtk_type not in NUMPY_TYPES:
-            raise InputError(f"path: {str(path)!r} has a DataArray of type {element.get('type')!r}, which dea-opt "
-                             f"does not read")
+            raise InputError(
+                f"path: {str(path)!r} has a DataArray of type {element.get('type')!r}, which dea-opt does not read"
+            )
         offset_text = element.get("offset", "")
         if not offset_text.isdigit():
-            raise InputError(f"path: {str(path)!r} has a DataArray {element.get('Name')!r} without a valid offset "
-                             f"(found {offset_text!r})")
+            raise InputError(
+                f"path: {str(path)!r} has a DataArray {element.get('Name')!r} without a valid offset "
+                f"(found {offset_text!r})"
+            )
         offset = int(offset_text)
         at = start + offset
         n_bytes = int(np.frombuffer(data, header, count=1, offset=at)[0]) if at + header.itemsize <= tail else tail

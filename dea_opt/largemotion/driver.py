@@ -49,11 +49,14 @@ def resolve_targets(problem) -> tuple[Targets, object]:
         targets = Targets.from_layer(layer) if layer.has_targets else Targets.facing(layer)
     elif isinstance(given, SpringCast):
         cast = given
-        if len(cast.layer) != len(layer) or not np.array_equal(np.asarray(cast.layer.source_face),
-                                                               np.asarray(layer.source_face)):
-            raise InputError(f"targets is a SpringCast of {len(cast.layer)} springs, but the problem's layer has "
-                             f"{len(layer)}: pass the cast the layer came from (ContactProblem(cast.layer, ..., "
-                             f"targets=cast))")
+        if len(cast.layer) != len(layer) or not np.array_equal(
+            np.asarray(cast.layer.source_face), np.asarray(layer.source_face)
+        ):
+            raise InputError(
+                f"targets is a SpringCast of {len(cast.layer)} springs, but the problem's layer has "
+                f"{len(layer)}: pass the cast the layer came from (ContactProblem(cast.layer, ..., "
+                f"targets=cast))"
+            )
         targets = Targets.from_layer(cast.layer, pose=cast.pose)
     else:
         targets = given
@@ -64,9 +67,11 @@ def resolve_targets(problem) -> tuple[Targets, object]:
     error = np.abs(s0 - layer.gap)
     if len(error) and not (error.max() <= _GAP_TOL * size):
         i = int(np.nanargmax(np.where(np.isfinite(error), error, np.inf)))
-        raise InputError(f"targets must reproduce the layer's gaps at zero displacement: spring {i} has gap "
-                         f"{layer.gap[i]:.6g} mm, its target gives {s0[i]:.6g} mm; build the targets from the same "
-                         f"geometry (Targets.from_layer(layer), the SpringCast, or planes/spheres through the gaps)")
+        raise InputError(
+            f"targets must reproduce the layer's gaps at zero displacement: spring {i} has gap "
+            f"{layer.gap[i]:.6g} mm, its target gives {s0[i]:.6g} mm; build the targets from the same "
+            f"geometry (Targets.from_layer(layer), the SpringCast, or planes/spheres through the gaps)"
+        )
     return targets, cast
 
 
@@ -76,8 +81,10 @@ def check_bodies(problem) -> None:
     moved = [d for d, v in body1.prescribed.items() if v != 0.0]
     if body1.free or moved:
         what = f"free dofs {body1.free}" if body1.free else f"prescribed motion {moved}"
-        raise InputError(f"kinematics='finite' moves body 2 against a fixed body 1, but body1 has {what}: fix body 1 "
-                         f"and give the motion to body 2 (only the relative pose matters)")
+        raise InputError(
+            f"kinematics='finite' moves body 2 against a fixed body 1, but body1 has {what}: fix body 1 "
+            f"and give the motion to body 2 (only the relative pose matters)"
+        )
 
 
 def build_system(problem, targets) -> FiniteSystem:
@@ -86,9 +93,18 @@ def build_system(problem, targets) -> FiniteSystem:
     base = np.zeros(6)
     for dof, value in body2.prescribed.items():
         base[DOFS.index(dof)] = value
-    return FiniteSystem(layer.points, layer.normals, layer.areas, layer.thickness, targets,
-                        np.asarray(body2.reference, dtype=float), free, base, np.asarray(body2.force, dtype=float),
-                        np.asarray(body2.moment, dtype=float))
+    return FiniteSystem(
+        layer.points,
+        layer.normals,
+        layer.areas,
+        layer.thickness,
+        targets,
+        np.asarray(body2.reference, dtype=float),
+        free,
+        base,
+        np.asarray(body2.force, dtype=float),
+        np.asarray(body2.moment, dtype=float),
+    )
 
 
 def scaled_directions(problem, system, law) -> tuple[np.ndarray, float, SpringSystem]:
@@ -133,8 +149,17 @@ def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
     return [(n, check_options(n, parts[n]), x0 if i == 0 else None) for i, n in enumerate(chain)]
 
 
-def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, frame=None,
-          tracker=None, load_checks=None, **options) -> FiniteSolution:
+def solve(
+    problem,
+    method: str = "auto",
+    *,
+    certificate_tol: float = 1e-6,
+    strict: bool = True,
+    frame=None,
+    tracker=None,
+    load_checks=None,
+    **options,
+) -> FiniteSolution:
     """Solve a ``kinematics="finite"`` problem and certify it at the solved pose.
 
     Parameters
@@ -172,8 +197,10 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
         solution = _solve(problem, name, certificate_tol, opts, x0, frame, tracker, load_checks)
         if method == "auto":
             if not solution.success and len(steps) > 1:
-                reason = (f"{name} ended with status {solution.status!r} and certificate residual "
-                          f"{solution.certificate.worst()}")
+                reason = (
+                    f"{name} ended with status {solution.status!r} and certificate residual "
+                    f"{solution.certificate.worst()}"
+                )
                 fallback, opts, _ = steps[1]
                 solution = _solve(problem, fallback, certificate_tol, opts, None, frame, None, load_checks)
                 solution.info["fallback"] = reason
@@ -184,7 +211,9 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
         raise SolverError(
             f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
             f"{solution.message}); certificate residual {worst} = {value:.3g} > {certificate_tol:g}",
-            status=solution.status, solution=solution)
+            status=solution.status,
+            solution=solution,
+        )
     if solution.success and not solution.validity.valid:
         warnings.warn(solution.validity.message(), ValidityWarning, stacklevel=3)
     return solution
@@ -246,8 +275,18 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         tracker.counts["stable"] = stable
     if method == "finite" and not inner.success and loaded and cone is not None:
         cone(problem, small)
-    return _solution(problem, system, law, inner, method, tracker, certificate_tol, build,
-                     time.perf_counter() - start - build, history)
+    return _solution(
+        problem,
+        system,
+        law,
+        inner,
+        method,
+        tracker,
+        certificate_tol,
+        build,
+        time.perf_counter() - start - build,
+        history,
+    )
 
 
 def _inner(method, system, law, T, E0, x, cold, opts):
@@ -278,8 +317,7 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
     cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero, certificate_tol)
     success = bool(finite and cert.passed and np.isfinite(pressure).all())
     info = {k: v for k, v in inner.info.items() if k != "stress"}
-    info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite",
-                residual_history=history)
+    info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
     status = status_of(inner.status, success, system, state)
     if tracker is not None:
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
@@ -291,7 +329,21 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
         # motion and carry no load (the minimum-norm answer).
         info["held"] = held
         message = f"{message}; held at zero motion, as no spring resists them: {', '.join(held)}"
-    return FiniteSolution(problem=final, u=u, strain=state.eps, pressure=pressure, method=method, success=success,
-                          status=status, message=message, iterations=inner.iterations, build_time=build,
-                          solve_time=solve_time, certificate=cert, info=info, targets=targets, dropped=dropped,
-                          tracker=tracker)
+    return FiniteSolution(
+        problem=final,
+        u=u,
+        strain=state.eps,
+        pressure=pressure,
+        method=method,
+        success=success,
+        status=status,
+        message=message,
+        iterations=inner.iterations,
+        build_time=build,
+        solve_time=solve_time,
+        certificate=cert,
+        info=info,
+        targets=targets,
+        dropped=dropped,
+        tracker=tracker,
+    )

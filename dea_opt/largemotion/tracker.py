@@ -108,8 +108,14 @@ class MeshTracker:
 
         if frame is not None:
             self.frame = np.asarray(check_pose(frame, "frame"), dtype=float)
-        self.counts = {"recasts": 0, "updates": 0, "gained": 0, "lost": 0, "left_face": 0,
-                       "dropped": len(self.dropped_faces)}
+        self.counts = {
+            "recasts": 0,
+            "updates": 0,
+            "gained": 0,
+            "lost": 0,
+            "left_face": 0,
+            "dropped": len(self.dropped_faces),
+        }
         self.lost: dict = {}
 
     def targets(self) -> Targets:
@@ -138,18 +144,37 @@ class MeshTracker:
 
             s, m1 = self.springs, self.cast.mesh1
             normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
-            return SpringLayer(m1.triangles_center[s.faces1], normals, m1.area_faces[s.faces1], self.thickness, gap,
-                               source_face=s.faces1, surface=(m1.vertices, m1.faces), labels=self._labels(s.faces1),
-                               target_points=s.q, target_normals=s.m, target_faces=s.faces2)
+            return SpringLayer(
+                m1.triangles_center[s.faces1],
+                normals,
+                m1.area_faces[s.faces1],
+                self.thickness,
+                gap,
+                source_face=s.faces1,
+                surface=(m1.vertices, m1.faces),
+                labels=self._labels(s.faces1),
+                target_points=s.q,
+                target_normals=s.m,
+                target_faces=s.faces2,
+            )
         if self._layer is None:
             from ..layer import SpringLayer
 
             s, m1 = self.springs, self.cast.mesh1
             normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
-            self._layer = SpringLayer(m1.triangles_center[s.faces1], normals, m1.area_faces[s.faces1],
-                                      self.thickness, s.gap, source_face=s.faces1, surface=(m1.vertices, m1.faces),
-                                      labels=self._labels(s.faces1), target_points=s.q,
-                                      target_normals=s.m, target_faces=s.faces2)
+            self._layer = SpringLayer(
+                m1.triangles_center[s.faces1],
+                normals,
+                m1.area_faces[s.faces1],
+                self.thickness,
+                s.gap,
+                source_face=s.faces1,
+                surface=(m1.vertices, m1.faces),
+                labels=self._labels(s.faces1),
+                target_points=s.q,
+                target_normals=s.m,
+                target_faces=s.faces2,
+            )
         return self._layer
 
     def _labels(self, faces):
@@ -196,9 +221,13 @@ class MeshTracker:
         before_faces, before_h = springs.faces2.copy(), self.thickness.copy()
         # 1. Springs whose hit left its face: cast again, allowed the overlap they have now.
         index = np.flatnonzero(left)
-        again = cast_faces(self.cast, pose, springs.faces1[index],
-                           np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
-                           self.mesh1)
+        again = cast_faces(
+            self.cast,
+            pose,
+            springs.faces1[index],
+            np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
+            self.mesh1,
+        )
         found = again.spring
         at = index[found]
         springs.q[at], springs.m[at], springs.faces2[at] = again.q[found], again.m[found], again.faces2[found]
@@ -224,8 +253,15 @@ class MeshTracker:
             tried[ring] = True
             fresh = cast_faces(self.cast, pose, ring, self._allowed(ring, pose), self.mesh1)
             new = fresh.spring
-            springs.extend(fresh.faces[new], fresh.h1[new], fresh.h2[new], fresh.q[new], fresh.m[new],
-                           fresh.faces2[new], fresh.gap[new])
+            springs.extend(
+                fresh.faces[new],
+                fresh.h1[new],
+                fresh.h2[new],
+                fresh.q[new],
+                fresh.m[new],
+                fresh.faces2[new],
+                fresh.gap[new],
+            )
             dropped.append(fresh.faces[fresh.dropped])
             gained += int(new.sum())
             ring = self._ring(fresh.faces[new], tried)
@@ -254,8 +290,9 @@ class MeshTracker:
     def _recast_all(self, system, state, pose):
         new = recast(self.cast, pose)
         self.counts["recasts"] += 1
-        self.counts["left_face"] += int(off_face(state.gaps.hit, state.gaps.valid, self.springs.faces2, pose,
-                                                 self.cast.mesh2).sum())
+        self.counts["left_face"] += int(
+            off_face(state.gaps.hit, state.gaps.valid, self.springs.faces2, pose, self.cast.mesh2).sum()
+        )
         self.counts["gained"] += len(new.gained)
         for reason, faces in new.lost.items():
             self._lose(reason, len(faces))
@@ -268,8 +305,13 @@ class MeshTracker:
         """``system`` with this tracker's springs and targets (the load and coordinates kept)."""
         s, m1 = self.springs, self.cast.mesh1
         normals = m1.face_normals[s.faces1]
-        return system.with_springs(m1.triangles_center[s.faces1], -normals if self.cast.options["flip"] else normals,
-                                   m1.area_faces[s.faces1], self.thickness, self.targets())
+        return system.with_springs(
+            m1.triangles_center[s.faces1],
+            -normals if self.cast.options["flip"] else normals,
+            m1.area_faces[s.faces1],
+            self.thickness,
+            self.targets(),
+        )
 
     def _moved(self, pose, since) -> float:
         """How far (mm) the springs' hits on body 2 moved between ``since`` and ``pose``."""

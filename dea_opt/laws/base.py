@@ -33,9 +33,7 @@ def _namespace(eps):
         return np
     import casadi
 
-    return SimpleNamespace(
-        exp=casadi.exp, log=casadi.log, log1p=casadi.log1p, expm1=casadi.expm1
-    )
+    return SimpleNamespace(exp=casadi.exp, log=casadi.log, log1p=casadi.log1p, expm1=casadi.expm1)
 
 
 def _positive(name, value, *, allow_zero=False, unit="MPa", sets_scale=True):
@@ -55,7 +53,6 @@ def _positive(name, value, *, allow_zero=False, unit="MPa", sets_scale=True):
 
 
 @dataclass(frozen=True)
-
 class Law:
     """Base of every spring law; subclass it for a law of your own.
 
@@ -182,7 +179,6 @@ class Law:
         return {f.name: getattr(self, f.name) for f in dataclasses.fields(self) if f.init}
 
 
-
 def _casadi_stress_jacobian(law: Law, eps: np.ndarray) -> list:
     """``[d sigma / d theta_k (eps)]`` by CasADi's symbolic derivative of :meth:`Law.stress_expr`."""
     import casadi
@@ -197,6 +193,9 @@ def _casadi_stress_jacobian(law: Law, eps: np.ndarray) -> list:
     f = casadi.Function("dsigma", [e, theta], [casadi.jacobian(stress, theta).T])
     values = np.array([float(getattr(law, n)) for n in names])
     flat = eps.reshape(-1)
-    out = np.asarray(f.map(max(flat.size, 1))(flat.reshape(1, -1), values), dtype=float) if flat.size else \
-        np.zeros((len(names), 0))
+    out = (
+        np.asarray(f.map(max(flat.size, 1))(flat.reshape(1, -1), values), dtype=float)
+        if flat.size
+        else np.zeros((len(names), 0))
+    )
     return [row.reshape(eps.shape) for row in out]

@@ -23,8 +23,17 @@ from .base import Law, _positive
 from .registry import HUGE as _HUGE
 from .registry import LawRegistry, Range
 
-__all__ = ["LAWS", "AteshianLaw", "BlankevoortLaw", "CubicLaw", "LinearLaw", "PolynomialLaw", "ateshian_taylor_coefficients",
-           "check_law", "register_law"]
+__all__ = [
+    "LAWS",
+    "AteshianLaw",
+    "BlankevoortLaw",
+    "CubicLaw",
+    "LinearLaw",
+    "PolynomialLaw",
+    "ateshian_taylor_coefficients",
+    "check_law",
+    "register_law",
+]
 
 
 @dataclass(frozen=True)
@@ -192,8 +201,11 @@ def ateshian_taylor_coefficients(H: float, beta: float, order: int) -> np.ndarra
     # Complex numbers or CasADi symbols (parameter derivatives, formulations/sensitivity.md)
     # go through the same arithmetic in an array of their own kind.
     real = all(isinstance(v, (int, float, np.integer, np.floating)) for v in (H, beta))
-    kind = float if real else (complex if all(isinstance(v, (int, float, complex, np.number)) for v in (H, beta))
-                               else object)
+    kind = (
+        float
+        if real
+        else (complex if all(isinstance(v, (int, float, complex, np.number)) for v in (H, beta)) else object)
+    )
     g = np.zeros(n, dtype=kind)  # beta (2 eps + eps^2)
     g[1] = 2.0 * beta
     if n > 2:
@@ -238,15 +250,14 @@ class PolynomialLaw(_PolynomialStress):
     def __post_init__(self):
         object.__setattr__(self, "H", _positive("H", self.H))
         object.__setattr__(self, "beta", _positive("beta", self.beta, allow_zero=True, unit="", sets_scale=False))
-        if isinstance(self.order, bool) or not isinstance(self.order, (int, np.integer)) or not (
-            1 <= self.order <= 40
-        ):
+        if isinstance(self.order, bool) or not isinstance(self.order, (int, np.integer)) or not (1 <= self.order <= 40):
             raise InputError(f"order must be an integer from 1 to 40, got {self.order!r}")
         coefficients = ateshian_taylor_coefficients(self.H, self.beta, int(self.order))
         if not (np.isfinite(coefficients).all() and np.abs(coefficients).max() <= LARGEST):
             raise InputError(
                 f"PolynomialLaw(H={self.H:g}, beta={self.beta:g}, order={self.order}) has Taylor coefficients "
-                f"beyond {LARGEST:g} MPa (largest {np.abs(coefficients).max():g}): use a smaller beta or order")
+                f"beyond {LARGEST:g} MPa (largest {np.abs(coefficients).max():g}): use a smaller beta or order"
+            )
         object.__setattr__(self, "_coefficients", coefficients)
 
     def _parameters(self):
@@ -297,11 +308,11 @@ def check_law(law) -> Law:
         )
     modulus = law.modulus
     if not (math.isfinite(modulus) and modulus >= 0 and (modulus == 0 or SMALLEST <= modulus <= LARGEST)):
-        raise InputError(f"the law's small-strain stiffness (tangent at eps = 0) must be 0 or between {SMALLEST:g} "
-                         f"and {LARGEST:g} MPa, got {modulus!r} from {law.describe()}")
+        raise InputError(
+            f"the law's small-strain stiffness (tangent at eps = 0) must be 0 or between {SMALLEST:g} "
+            f"and {LARGEST:g} MPa, got {modulus!r} from {law.describe()}"
+        )
     return law
-
-
 
 
 #: The registry of law kinds: ``LAWS[name]`` is a :class:`~dea_opt.laws.registry.LawKind`.
@@ -310,4 +321,3 @@ for _cls in (LinearLaw, AteshianLaw, CubicLaw, PolynomialLaw, BlankevoortLaw):
     LAWS.register(_cls)
 #: Register a law of your own: ``@register_law`` on a :class:`Law` subclass (see ``LawRegistry.register``).
 register_law = LAWS.register
-

@@ -102,8 +102,11 @@ class LawParameter:
         """``value`` as this parameter's type, within its range, or a named :class:`InputError`."""
         name = where or self.name
         expected = "an integer" if self.type is int else "a number"
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or (
-                self.type is int and not float(value).is_integer()):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float, np.integer, np.floating))
+            or (self.type is int and not float(value).is_integer())
+        ):
             raise InputError(f"{name} must be {expected}, got {value!r}")
         value = int(value) if self.type is int else float(value)
         r = self.range
@@ -139,8 +142,10 @@ class LawKind:
         names = [p.name for p in self.parameters]
         unknown = [k for k in values if k not in names]
         if unknown:
-            raise InputError(f"law kind {self.name!r} takes {', '.join(names) or 'no parameters'}, not "
-                             f"{', '.join(f'{prefix}{k}' for k in unknown)}")
+            raise InputError(
+                f"law kind {self.name!r} takes {', '.join(names) or 'no parameters'}, not "
+                f"{', '.join(f'{prefix}{k}' for k in unknown)}"
+            )
         checked = {}
         for p in self.parameters:
             if p.name in values:
@@ -157,16 +162,24 @@ def _parameters_of(cls) -> tuple:
         hints = {}
     ranges = getattr(cls, "ranges", None) or {}
     if dataclasses.is_dataclass(cls):
-        fields = [(f.name, f.default if f.default is not dataclasses.MISSING else _REQUIRED)
-                  for f in dataclasses.fields(cls) if f.init]
+        fields = [
+            (f.name, f.default if f.default is not dataclasses.MISSING else _REQUIRED)
+            for f in dataclasses.fields(cls)
+            if f.init
+        ]
     else:
         import inspect
 
         signature = inspect.signature(cls)
-        fields = [(n, q.default if q.default is not q.empty else _REQUIRED) for n, q in signature.parameters.items()
-                  if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)]
-    return tuple(LawParameter(name, int if hints.get(name) is int else float, default, ranges.get(name))
-                 for name, default in fields)
+        fields = [
+            (n, q.default if q.default is not q.empty else _REQUIRED)
+            for n, q in signature.parameters.items()
+            if q.kind in (q.POSITIONAL_OR_KEYWORD, q.KEYWORD_ONLY)
+        ]
+    return tuple(
+        LawParameter(name, int if hints.get(name) is int else float, default, ranges.get(name))
+        for name, default in fields
+    )
 
 
 class LawRegistry(Mapping):
@@ -198,8 +211,10 @@ class LawRegistry(Mapping):
         if not isinstance(name, str) or not name.isidentifier():
             raise InputError(f"a law kind's name must be an identifier (letters, digits, _), got {name!r}")
         if name in self._kinds and self._kinds[name].cls is not cls and not replace:
-            raise InputError(f"law kind {name!r} is already registered for {self._kinds[name].cls.__name__}; "
-                             f"pass replace=True to replace it")
+            raise InputError(
+                f"law kind {name!r} is already registered for {self._kinds[name].cls.__name__}; "
+                f"pass replace=True to replace it"
+            )
         self._kinds[name] = LawKind(name, cls, _parameters_of(cls))
         self.version += 1
         return cls

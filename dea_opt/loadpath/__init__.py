@@ -15,5 +15,16 @@ from .series import FrameSeries, write_pvd
 from .solve import check_frames, path_memory, solve_path
 from .table import REGION_COLUMNS, TABLE_COLUMNS
 
-__all__ = ["REGION_COLUMNS", "TABLE_COLUMNS", "Exposure", "ExposureAccumulator", "FrameSeries", "PathResult",
-           "check_frames", "exposure", "path_memory", "solve_path", "write_pvd"]
+__all__ = [
+    "REGION_COLUMNS",
+    "TABLE_COLUMNS",
+    "Exposure",
+    "ExposureAccumulator",
+    "FrameSeries",
+    "PathResult",
+    "check_frames",
+    "exposure",
+    "path_memory",
+    "solve_path",
+    "write_pvd",
+]

@@ -166,7 +166,7 @@ def exposure(times, pressures, sites=None, threshold: float = 1.0, n_sites: int 
         elif sites is None and len(p) != n_sites:
             # Springs beyond a short frame's length carry nothing at that frame.
             full = np.zeros(n_sites)
-            full[:len(p)] = p
+            full[: len(p)] = p
             accumulator.add(t, full)
         else:
             accumulator.add(t, p, None if sites is None else sites[k])

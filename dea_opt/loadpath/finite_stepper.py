@@ -17,6 +17,7 @@ from ..solution import Solution
 
 __all__ = ["FiniteStepper"]
 
+
 class FiniteStepper:
     """Solves frame after frame with finite kinematics, carrying the pose and the re-cast springs.
 
@@ -36,13 +37,28 @@ class FiniteStepper:
         from ..solver import _check_cone, _check_unresisted
 
         start = time.perf_counter()
-        solution = solve_finite(problem, self.method, certificate_tol=self.certificate_tol, strict=False,
-                                frame=self.pose, tracker=self.tracker, load_checks=(_check_unresisted, _check_cone),
-                                x0=self.x, **self.options)
+        solution = solve_finite(
+            problem,
+            self.method,
+            certificate_tol=self.certificate_tol,
+            strict=False,
+            frame=self.pose,
+            tracker=self.tracker,
+            load_checks=(_check_unresisted, _check_cone),
+            x0=self.x,
+            **self.options,
+        )
         if not solution.success and self.x is not None:
             # The previous frame's pose may be a poor start (a jump in the load): start cold.
-            solution = solve_finite(problem, self.method, certificate_tol=self.certificate_tol, strict=False,
-                                    frame=self.pose, load_checks=(_check_unresisted, _check_cone), **self.options)
+            solution = solve_finite(
+                problem,
+                self.method,
+                certificate_tol=self.certificate_tol,
+                strict=False,
+                frame=self.pose,
+                load_checks=(_check_unresisted, _check_cone),
+                **self.options,
+            )
         object.__setattr__(solution, "build_time", solution.build_time + setup)
         if solution.success:
             self.x = solution.u[problem.free_indices]
@@ -82,8 +98,10 @@ def check_finite_poses(problem: ContactProblem, poses, n: int):
     if poses.shape != (n, 4, 4):
         raise InputError(f"poses must have shape ({n}, 4, 4), one per frame, got {poses.shape}")
     if not isinstance(problem.targets, SpringCast):
-        raise InputError("poses move body 2's mesh, so with kinematics='finite' the springs are re-cast from their "
-                         "SpringCast: give ContactProblem(cast.layer, ..., kinematics='finite', targets=cast)")
+        raise InputError(
+            "poses move body 2's mesh, so with kinematics='finite' the springs are re-cast from their "
+            "SpringCast: give ContactProblem(cast.layer, ..., kinematics='finite', targets=cast)"
+        )
     for k, pose in enumerate(poses):
         check_pose(pose, f"poses[{k}]")
     return poses

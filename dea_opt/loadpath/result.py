@@ -109,8 +109,10 @@ class PathResult:
     def failures(self) -> list[dict]:
         """``[{frame, time, status, message}]`` of every failed frame."""
         rows = self.table.loc[~self.table["success"], ["frame", "time", "status", "message"]]
-        return [{"frame": int(r["frame"]), "time": float(r["time"]), "status": r["status"], "message": r["message"]}
-                for r in rows.to_dict("records")]
+        return [
+            {"frame": int(r["frame"]), "time": float(r["time"]), "status": r["status"], "message": r["message"]}
+            for r in rows.to_dict("records")
+        ]
 
     def failure_message(self, shown: int = 3, width: int = 160) -> str:
         """One line naming the frames without a certified answer and why (empty when none):
@@ -120,7 +122,7 @@ class PathResult:
             return ""
         parts = []
         for f in failures[:shown]:
-            reason = f["message"] if len(f["message"]) <= width else f["message"][:width - 3] + "..."
+            reason = f["message"] if len(f["message"]) <= width else f["message"][: width - 3] + "..."
             parts.append(f"frame {f['frame']} ({f['time']:g} s) {f['status']}: {reason}")
         more = f"; and {len(failures) - shown} more (frames.csv)" if len(failures) > shown else ""
         return f"{len(failures)} of {len(self)} frames have no certified answer: {'; '.join(parts)}{more}"
@@ -172,11 +174,16 @@ class PathResult:
         summary = self.validity_summary()
         if not summary["frames_outside_validity"]:
             return
-        parts = [f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
-                 for name, c in summary["checks"].items()]
-        warnings.warn(f"{len(summary['frames_outside_validity'])} of {len(self)} frames are outside the model's "
-                      f"validity: {'; '.join(parts)}; see the validity columns of the table",
-                      ValidityWarning, stacklevel=4)
+        parts = [
+            f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
+            for name, c in summary["checks"].items()
+        ]
+        warnings.warn(
+            f"{len(summary['frames_outside_validity'])} of {len(self)} frames are outside the model's "
+            f"validity: {'; '.join(parts)}; see the validity columns of the table",
+            ValidityWarning,
+            stacklevel=4,
+        )
 
     def summary(self) -> dict:
         """Headline numbers of the path (plain Python values; NaN where no frame has an answer)."""
@@ -229,8 +236,10 @@ class PathResult:
         if self.frame_files is not None and self.frame_files.files:
             return self.frame_files.write_pvd(path)
         if self.solutions is None:
-            raise InputError("the .pvd series needs the frames' solutions (keep_solutions=True) or frames written "
-                             "while solving (series=<folder>)")
+            raise InputError(
+                "the .pvd series needs the frames' solutions (keep_solutions=True) or frames written "
+                "while solving (series=<folder>)"
+            )
         series = FrameSeries(path.with_name(f"{path.stem}_frames"), len(self))
         for k, (t, solution) in enumerate(zip(self.times, self.solutions)):
             layer = self._frame_layer(k, solution)
@@ -241,8 +250,9 @@ class PathResult:
         if solution is not None:
             return solution.problem.layer
         if self.moving:
-            raise InputError(f"frame {k} failed before its springs were cast; write the series while solving "
-                             f"(series=<folder>)")
+            raise InputError(
+                f"frame {k} failed before its springs were cast; write the series while solving (series=<folder>)"
+            )
         return self.problem.layer
 
     def exposure_to_vtk(self, path) -> Path:
@@ -275,8 +285,7 @@ class PathResult:
         from ..io.cycle import plot_exposure
 
         # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
-        return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title,
-                             anatomy=anatomy)
+        return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title, anatomy=anatomy)
 
     def write(self, directory, formats=FORMATS, extra_summary: dict | None = None, anatomy=None) -> dict:
         """Write the outputs into ``directory``; returns ``{name: path}``.

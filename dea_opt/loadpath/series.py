@@ -47,8 +47,11 @@ class FrameSeries:
             # every frame on one layer: made once (the labels' codes sort every label).
             self._layer, self._surface = layer, layer_surface(layer, fields)
         assert self._surface is not None  # made just above for a new layer
-        surface = replace(self._surface, cell_data=fields) if self._surface.cell_data else \
-            replace(self._surface, point_data=fields)
+        surface = (
+            replace(self._surface, cell_data=fields)
+            if self._surface.cell_data
+            else replace(self._surface, point_data=fields)
+        )
         path = write_surface(surface, self.folder / f"frame_{k:0{self.digits}d}.vtu")
         self.files.append(path)
         self.times.append(float(t))
@@ -62,9 +65,11 @@ class FrameSeries:
 def write_pvd(path, times, files) -> Path:
     """A ParaView collection (``.pvd``) of ``files`` at ``times`` (s); paths stored relative to it."""
     path = Path(path)
-    lines = ['<?xml version="1.0"?>',
-             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
-             "  <Collection>"]
+    lines = [
+        '<?xml version="1.0"?>',
+        '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">',
+        "  <Collection>",
+    ]
     for t, file in zip(times, files):
         relative = Path(os.path.relpath(Path(file).resolve(), path.parent.resolve())).as_posix()
         lines.append(f'    <DataSet timestep="{float(t):.9g}" group="" part="0" file={quoteattr(relative)}/>')

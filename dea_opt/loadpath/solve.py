@@ -59,6 +59,7 @@ __all__ = ["TABLE_COLUMNS", "check_frames", "path_memory", "solve_path"]
 
 # --- frames -----------------------------------------------------------------------------
 
+
 class _ArrayLoads:
     """The loads of a (T, 3) or (T, 6) array, a :class:`Load` made per frame when asked."""
 
@@ -83,8 +84,9 @@ def _frames(loads, times) -> tuple:
     if isinstance(loads, pd.DataFrame):
         missing = [c for c in ("Fx", "Fy", "Fz") if c not in loads]
         if missing:
-            raise InputError(f"loads must have columns Fx, Fy, Fz (and optionally time, Mx, My, Mz); "
-                             f"missing {', '.join(missing)}")
+            raise InputError(
+                f"loads must have columns Fx, Fy, Fz (and optionally time, Mx, My, Mz); missing {', '.join(missing)}"
+            )
         if times is None and "time" in loads:
             times = loads["time"].to_numpy(dtype=float)
         columns = [loads[c] if c in loads else 0.0 * loads["Fx"] for c in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
@@ -92,8 +94,10 @@ def _frames(loads, times) -> tuple:
     if isinstance(loads, np.ndarray) or (len(loads) and not isinstance(loads[0], Load)):
         array = np.asarray(loads, dtype=float)
         if array.ndim != 2 or array.shape[1] not in (3, 6):
-            raise InputError(f"loads must be a sequence of Load, or an array of shape (T, 3) or (T, 6) "
-                             f"(Fx, Fy, Fz[, Mx, My, Mz]), got shape {array.shape}")
+            raise InputError(
+                f"loads must be a sequence of Load, or an array of shape (T, 3) or (T, 6) "
+                f"(Fx, Fy, Fz[, Mx, My, Mz]), got shape {array.shape}"
+            )
         loads = _ArrayLoads(array)
     else:
         loads = list(loads)
@@ -111,7 +115,6 @@ def _frames(loads, times) -> tuple:
     return loads, times
 
 
-
 # --- memory -----------------------------------------------------------------------------
 
 #: Bytes per frame and table column (a row's dict entry, its value and the DataFrame cell).
@@ -120,8 +123,16 @@ _CELL_BYTES = 160.0
 _FRAME_BYTES = 2000.0
 
 
-def path_memory(n_frames: int, n_springs: int, *, n_sites: int | None = None, keep_solutions: bool = True,
-                keep_pressures: bool = True, moving: bool = False, n_regions: int = 0) -> float:
+def path_memory(
+    n_frames: int,
+    n_springs: int,
+    *,
+    n_sites: int | None = None,
+    keep_solutions: bool = True,
+    keep_pressures: bool = True,
+    moving: bool = False,
+    n_regions: int = 0,
+) -> float:
     """Bytes a load path of ``n_frames`` x ``n_springs`` keeps until it returns (an estimate).
 
     The table (about 40 columns and 8 per region, per frame), the pressures (8 bytes per
@@ -156,12 +167,15 @@ def check_frames(n_frames: int, n_springs: int = 0, *, what: str | None = None, 
     keeps = [name for name in ("keep_solutions", "keep_pressures") if options.get(name, True) and n_springs]
     advice = "use fewer frames"
     if keeps:
-        advice += f", or {' and '.join(f'{k}=False' for k in keeps)} (the outputs are written frame by frame " \
-                  f"with series=<folder>)"
+        advice += (
+            f", or {' and '.join(f'{k}=False' for k in keeps)} (the outputs are written frame by frame "
+            f"with series=<folder>)"
+        )
     check_memory(need, what, advice)
 
 
 # --- one frame --------------------------------------------------------------------------
+
 
 def _solve_frame(stepper, frame, new_geometry, setup):
     """``(solution, status, message, error)``: status and message are empty for a certified
@@ -181,8 +195,10 @@ def _solve_frame(stepper, frame, new_geometry, setup):
     except SolverError as exc:
         return exc.solution, Status.of_error(exc), str(exc), exc
     name, value = solution.certificate.worst()
-    message = (f"{solution.method} returned no certified answer (status {solution.status!r}): certificate "
-               f"residual {name} = {value:.3g} > {solution.certificate.tolerance:g}; {solution.message}")
+    message = (
+        f"{solution.method} returned no certified answer (status {solution.status!r}): certificate "
+        f"residual {name} = {value:.3g} > {solution.certificate.tolerance:g}; {solution.message}"
+    )
     return solution, solution.status, message, None
 
 
@@ -197,11 +213,28 @@ def _stop(k, t, status, message, solution, error):
 
 # --- the public entry point -------------------------------------------------------------
 
-def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "auto", times=None, body: int = 2,
-               certificate_tol: float = 1e-6, stop_on_error: bool = False, strict: bool = False,
-               keep_solutions: bool = True, keep_pressures: bool = True, series=None, regions=None,
-               layer_for_pose=None, threshold: float = 1.0, progress: bool = False, kinematics: str | None = None,
-               **options) -> PathResult:
+
+def solve_path(
+    problem: ContactProblem,
+    loads,
+    poses=None,
+    *,
+    method: str = "auto",
+    times=None,
+    body: int = 2,
+    certificate_tol: float = 1e-6,
+    stop_on_error: bool = False,
+    strict: bool = False,
+    keep_solutions: bool = True,
+    keep_pressures: bool = True,
+    series=None,
+    regions=None,
+    layer_for_pose=None,
+    threshold: float = 1.0,
+    progress: bool = False,
+    kinematics: str | None = None,
+    **options,
+) -> PathResult:
     """Solve ``problem`` under each load of a path, warm-starting every frame from the last.
 
     Parameters
@@ -279,11 +312,25 @@ def solve_path(problem: ContactProblem, loads, poses=None, *, method: str = "aut
     # BLAS on one thread throughout: the frames are many small memory-bound products,
     # which a second thread only slows down.
     with single_threaded_blas():
-        return _solve_path(problem, loads, poses, method=method, times=times, body=body,
-                           certificate_tol=certificate_tol, stop=bool(stop_on_error or strict),
-                           keep_solutions=keep_solutions, keep_pressures=keep_pressures, series=series,
-                           regions=regions, layer_for_pose=layer_for_pose, threshold=threshold,
-                           progress=progress, kinematics=kinematics, options=options)
+        return _solve_path(
+            problem,
+            loads,
+            poses,
+            method=method,
+            times=times,
+            body=body,
+            certificate_tol=certificate_tol,
+            stop=bool(stop_on_error or strict),
+            keep_solutions=keep_solutions,
+            keep_pressures=keep_pressures,
+            series=series,
+            regions=regions,
+            layer_for_pose=layer_for_pose,
+            threshold=threshold,
+            progress=progress,
+            kinematics=kinematics,
+            options=options,
+        )
 
 
 def _check_inputs(problem, method, body):
@@ -306,9 +353,26 @@ def _labels(regions, layer):
     return labels
 
 
-def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, stop, keep_solutions,
-                keep_pressures, series, regions, layer_for_pose, threshold, progress, kinematics,
-                options) -> PathResult:
+def _solve_path(
+    problem,
+    loads,
+    poses,
+    *,
+    method,
+    times,
+    body,
+    certificate_tol,
+    stop,
+    keep_solutions,
+    keep_pressures,
+    series,
+    regions,
+    layer_for_pose,
+    threshold,
+    progress,
+    kinematics,
+    options,
+) -> PathResult:
     """The body of :func:`solve_path`."""
     if kinematics is not None and isinstance(problem, ContactProblem):
         problem = replace(problem, kinematics=kinematics)
@@ -316,7 +380,9 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
     if not finite:
         _check_inputs(problem, method, body)
     elif body != 2:
-        raise InputError(f"kinematics='finite' moves body 2 against a fixed body 1: loads act on body 2, got body={body!r}")
+        raise InputError(
+            f"kinematics='finite' moves body 2 against a fixed body 1: loads act on body 2, got body={body!r}"
+        )
     loads, times = _frames(loads, times)
     if finite:
         poses = check_finite_poses(problem, poses, len(loads))
@@ -327,8 +393,14 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
     labels = _labels(regions, problem.layer)
     n_regions = 0 if labels is None else len(np.unique(labels))
     n_sites = _site_count(problem.layer, moving)
-    check_frames(len(loads), len(problem.layer), keep_solutions=keep_solutions, keep_pressures=keep_pressures,
-                 moving=moving, n_regions=n_regions)
+    check_frames(
+        len(loads),
+        len(problem.layer),
+        keep_solutions=keep_solutions,
+        keep_pressures=keep_pressures,
+        moving=moving,
+        n_regions=n_regions,
+    )
     stepper = FiniteStepper(method, options, certificate_tol) if finite else Stepper(method, options, certificate_tol)
     accumulator = ExposureAccumulator(n_sites, threshold)
     frames = FrameSeries(series, len(loads)) if series is not None else None
@@ -350,15 +422,18 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
                 try:
                     base = problem.with_layer(layer_for_pose(poses[k]))
                 except DeaError as exc:  # no springs at this pose, a pose the mesh check refuses
-                    status, message, solution, error = (Status.POSE_ERROR, f"casting the springs at this pose: {exc}",
-                                                        None, exc)
+                    status, message, solution, error = (
+                        Status.POSE_ERROR,
+                        f"casting the springs at this pose: {exc}",
+                        None,
+                        exc,
+                    )
                 if base_regions is not None and not status:
                     frame_regions = FrameRegions(_labels(regions, base.layer), base_regions.prefixes)
             frame = base.with_load(load, body=body)  # shares the spring arrays
             vector = getattr(frame, f"body{body}").load_vector
             if not status:
-                solution, status, message, error = _solve_frame(stepper, frame, new_geometry,
-                                                                setup if k == 0 else 0.0)
+                solution, status, message, error = _solve_frame(stepper, frame, new_geometry, setup if k == 0 else 0.0)
             if status:
                 if stop:
                     raise _stop(k, t, status, message, solution, error) from None
@@ -376,8 +451,9 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
                 accumulator.add(t, solution.pressure, _sites(layer, moving))
             certified = None if status else solution
             if keep_pressures:
-                pressures.append(np.array(certified.pressure) if certified is not None
-                                 else np.full(len(frame.layer), np.nan))
+                pressures.append(
+                    np.array(certified.pressure) if certified is not None else np.full(len(frame.layer), np.nan)
+                )
             if keep_solutions:
                 solutions.append(solution)
             if frames is not None:
@@ -387,9 +463,15 @@ def _solve_path(problem, loads, poses, *, method, times, body, certificate_tol, 
         bar.close()
     table = make_table(rows, base_regions.prefixes if base_regions is not None else None)
     result = PathResult(
-        table=table, times=times, pressures=pressures if keep_pressures else None,
-        solutions=solutions if keep_solutions else None, exposure=accumulator.result(), method=method,
-        problem=problem, moving=moving, regions=dict(base_regions.prefixes) if base_regions is not None else {},
+        table=table,
+        times=times,
+        pressures=pressures if keep_pressures else None,
+        solutions=solutions if keep_solutions else None,
+        exposure=accumulator.result(),
+        method=method,
+        problem=problem,
+        moving=moving,
+        regions=dict(base_regions.prefixes) if base_regions is not None else {},
         frame_files=frames,
     )
     result.warn_validity()

@@ -15,8 +15,15 @@ import numpy as np
 
 from ..errors import InputError
 
-__all__ = ["REGION_COLUMNS", "TABLE_COLUMNS", "FrameRegions", "failed_row", "make_table", "region_prefixes",
-           "solved_row"]
+__all__ = [
+    "REGION_COLUMNS",
+    "TABLE_COLUMNS",
+    "FrameRegions",
+    "failed_row",
+    "make_table",
+    "region_prefixes",
+    "solved_row",
+]
 
 #: Columns of every table, in order, with units. The validity columns of each check
 #: (``validity_<check>``, from :meth:`dea_opt.validity.Validity.columns`) follow them, then
@@ -24,11 +31,18 @@ __all__ = ["REGION_COLUMNS", "TABLE_COLUMNS", "FrameRegions", "failed_row", "mak
 TABLE_COLUMNS = {
     "frame": "frame index",
     "time": "s",
-    "Fx": "N", "Fy": "N", "Fz": "N", "Mx": "N mm", "My": "N mm", "Mz": "N mm",
+    "Fx": "N",
+    "Fy": "N",
+    "Fz": "N",
+    "Mx": "N mm",
+    "My": "N mm",
+    "Mz": "N mm",
     "peak_pressure": "MPa",
     "mean_pressure": "MPa, over the contact",
     "contact_area": "mm^2",
-    "cop_x": "mm", "cop_y": "mm", "cop_z": "mm",
+    "cop_x": "mm",
+    "cop_y": "mm",
+    "cop_z": "mm",
     "resultant": "N, of the spring forces",
     "max_compressive_strain": "1",
     "n_springs": "count",
@@ -51,11 +65,21 @@ REGION_COLUMNS = {
     "peak_pressure": "MPa",
     "mean_pressure": "MPa, over the region's contact",
     "contact_area": "mm^2",
-    "cop_x": "mm", "cop_y": "mm", "cop_z": "mm",
+    "cop_x": "mm",
+    "cop_y": "mm",
+    "cop_z": "mm",
 }
 
-_RESULT_COLUMNS = ("peak_pressure", "mean_pressure", "contact_area", "cop_x", "cop_y", "cop_z", "resultant",
-                   "max_compressive_strain")
+_RESULT_COLUMNS = (
+    "peak_pressure",
+    "mean_pressure",
+    "contact_area",
+    "cop_x",
+    "cop_y",
+    "cop_z",
+    "resultant",
+    "max_compressive_strain",
+)
 
 
 def region_prefixes(names) -> dict:
@@ -106,18 +130,32 @@ class FrameRegions:
                 continue
             stats = region_statistics(solution, mask, name)
             cop = stats.center_of_pressure
-            row.update({
-                f"{prefix}_force": stats.force, f"{prefix}_force_share": stats.share,
-                f"{prefix}_peak_pressure": stats.peak_pressure, f"{prefix}_mean_pressure": stats.mean_pressure,
-                f"{prefix}_contact_area": stats.contact_area,
-                f"{prefix}_cop_x": cop[0], f"{prefix}_cop_y": cop[1], f"{prefix}_cop_z": cop[2],
-            })
+            row.update(
+                {
+                    f"{prefix}_force": stats.force,
+                    f"{prefix}_force_share": stats.share,
+                    f"{prefix}_peak_pressure": stats.peak_pressure,
+                    f"{prefix}_mean_pressure": stats.mean_pressure,
+                    f"{prefix}_contact_area": stats.contact_area,
+                    f"{prefix}_cop_x": cop[0],
+                    f"{prefix}_cop_y": cop[1],
+                    f"{prefix}_cop_z": cop[2],
+                }
+            )
         return row
 
 
 def _load_columns(k: int, t: float, load) -> dict:
-    return {"frame": k, "time": float(t), "Fx": load[0], "Fy": load[1], "Fz": load[2],
-            "Mx": load[3], "My": load[4], "Mz": load[5]}
+    return {
+        "frame": k,
+        "time": float(t),
+        "Fx": load[0],
+        "Fy": load[1],
+        "Fz": load[2],
+        "Mx": load[3],
+        "My": load[4],
+        "Mz": load[5],
+    }
 
 
 def solved_row(k: int, t: float, load, solution, regions: FrameRegions | None = None) -> dict:
@@ -128,15 +166,23 @@ def solved_row(k: int, t: float, load, solution, regions: FrameRegions | None = 
     validity = solution.validity.columns()
     row = {
         **_load_columns(k, t, load),
-        "peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
+        "peak_pressure": solution.peak_pressure,
+        "mean_pressure": solution.mean_pressure,
         "contact_area": solution.contact_area,
-        "cop_x": cop[0], "cop_y": cop[1], "cop_z": cop[2],
+        "cop_x": cop[0],
+        "cop_y": cop[1],
+        "cop_z": cop[2],
         "resultant": float(np.linalg.norm(solution.contact_force)),
         "max_compressive_strain": solution.max_compressive_strain,
-        "n_springs": len(solution.pressure), "iterations": solution.iterations,
-        "build_time": solution.build_time, "solve_time": solution.solve_time,
-        "certificate_residual": value, "certificate_worst": name,
-        "success": True, "status": solution.status, "message": "",
+        "n_springs": len(solution.pressure),
+        "iterations": solution.iterations,
+        "build_time": solution.build_time,
+        "solve_time": solution.solve_time,
+        "certificate_residual": value,
+        "certificate_worst": name,
+        "success": True,
+        "status": solution.status,
+        "message": "",
         **validity,
     }
     row["valid"] = bool(validity["valid"])
@@ -145,8 +191,16 @@ def solved_row(k: int, t: float, load, solution, regions: FrameRegions | None = 
     return row
 
 
-def failed_row(k: int, t: float, load, n_springs: int, status: str, message: str, solution=None,
-               regions: FrameRegions | None = None) -> dict:
+def failed_row(
+    k: int,
+    t: float,
+    load,
+    n_springs: int,
+    status: str,
+    message: str,
+    solution=None,
+    regions: FrameRegions | None = None,
+) -> dict:
     """The row of a frame without a certified answer: its load, status and message, NaN results.
 
     ``solution`` is the uncertified answer when there is one (its iterations, times and
@@ -155,13 +209,23 @@ def failed_row(k: int, t: float, load, n_springs: int, status: str, message: str
     row = {**_load_columns(k, t, load), **{c: math.nan for c in _RESULT_COLUMNS}}
     if solution is not None:
         name, value = solution.certificate.worst()
-        row.update(iterations=solution.iterations, build_time=solution.build_time,
-                   solve_time=solution.solve_time, certificate_residual=value, certificate_worst=name)
+        row.update(
+            iterations=solution.iterations,
+            build_time=solution.build_time,
+            solve_time=solution.solve_time,
+            certificate_residual=value,
+            certificate_worst=name,
+        )
     else:
-        row.update(iterations=0, build_time=0.0, solve_time=0.0, certificate_residual=math.nan,
-                   certificate_worst="")
-    row.update(n_springs=int(n_springs), success=False, status=str(status), message=" ".join(str(message).split()),
-               valid=False, validity_failed="")
+        row.update(iterations=0, build_time=0.0, solve_time=0.0, certificate_residual=math.nan, certificate_worst="")
+    row.update(
+        n_springs=int(n_springs),
+        success=False,
+        status=str(status),
+        message=" ".join(str(message).split()),
+        valid=False,
+        validity_failed="",
+    )
     if regions is not None:
         row.update(regions.columns(None))
     return row
@@ -198,7 +262,7 @@ def _region_order(prefixes: dict):
 
     def key(column):
         for prefix, i in rank.items():
-            suffix = column[len(prefix) + 1:]
+            suffix = column[len(prefix) + 1 :]
             if column.startswith(f"{prefix}_") and suffix in suffixes:
                 return (i, suffixes[suffix])
         return (len(rank), 0)

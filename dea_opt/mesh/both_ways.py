@@ -45,8 +45,9 @@ def _layer_measures(layer: SpringLayer) -> dict:
     }
 
 
-def springs_both_ways(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None, labels1=None,
-                      labels2=None, **options) -> TwoWaySprings:
+def springs_both_ways(
+    mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None, labels1=None, labels2=None, **options
+) -> TwoWaySprings:
     """Cast springs from mesh 1 onto mesh 2 and from mesh 2 onto mesh 1 (JAM's ``flip_meshes``).
 
     With matching meshes the two layers describe the same cartilage contact; how much they
@@ -81,10 +82,10 @@ def springs_both_ways(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=No
     if kept2 is not None:  # per-face arrays of mesh 2 refer to its faces as given
         thickness2 = _subset(thickness2, "thickness2", m2, kept2)
         labels2 = _subset(labels2, "labels2", m2, kept2)
-    forward = springs_from_meshes(mesh1, posed, thickness1=thickness1, thickness2=thickness2,
-                                  labels=labels1, **options)
-    backward = springs_from_meshes(posed, mesh1, thickness1=thickness2, thickness2=thickness1,
-                                   labels=labels2, **options)
+    forward = springs_from_meshes(mesh1, posed, thickness1=thickness1, thickness2=thickness2, labels=labels1, **options)
+    backward = springs_from_meshes(
+        posed, mesh1, thickness1=thickness2, thickness2=thickness1, labels=labels2, **options
+    )
     f, b = _layer_measures(forward), _layer_measures(backward)
 
     def rel(a, b):

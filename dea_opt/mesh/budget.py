@@ -52,12 +52,20 @@ def check_cast_size(n_faces1: int, n_faces2: int, engine: str = "grid") -> None:
     """Check that casting springs between meshes of these face counts fits in memory
     (``engine`` is ``"embree"`` or ``"grid"``, the one that will run)."""
     estimate = BYTES_PER_CAST_FACE[engine] * (n_faces1 + n_faces2)
-    check_memory(estimate, f"casting springs from mesh1 ({n_faces1} faces) onto mesh2 ({n_faces2} faces)",
-                 "decimate the meshes (a knee's cartilage needs 10^4-10^5 faces)", share=PEAK_SHARE)
+    check_memory(
+        estimate,
+        f"casting springs from mesh1 ({n_faces1} faces) onto mesh2 ({n_faces2} faces)",
+        "decimate the meshes (a knee's cartilage needs 10^4-10^5 faces)",
+        share=PEAK_SHARE,
+    )
 
 
 def check_file_size(path) -> None:
     """Check that reading and repairing the mesh file ``path`` fits in memory."""
     size = os.stat(path).st_size
-    check_memory(BYTES_PER_FILE_BYTE * size, f"reading mesh file {path} ({format_bytes(size)})",
-                 "decimate the mesh before reading it (a knee's cartilage needs 10^4-10^5 faces)", share=PEAK_SHARE)
+    check_memory(
+        BYTES_PER_FILE_BYTE * size,
+        f"reading mesh file {path} ({format_bytes(size)})",
+        "decimate the mesh before reading it (a knee's cartilage needs 10^4-10^5 faces)",
+        share=PEAK_SHARE,
+    )

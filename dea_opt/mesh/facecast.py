@@ -58,7 +58,8 @@ class Mesh1:
         if len(todo):
             todo = np.unique(todo)
             face, depth = _caster(self.mesh, self.options["engine"]).nearest(
-                self.centroids[todo], -self.normals[todo], _self_epsilon(self.mesh), np.inf)
+                self.centroids[todo], -self.normals[todo], _self_epsilon(self.mesh), np.inf
+            )
             self.back_face[todo] = face
             self.depth[todo] = np.where(face >= 0, depth, np.inf)
         return self.back_face[faces], self.depth[faces]
@@ -81,8 +82,17 @@ class FaceCast:
         return self.outcome == LOST_REASONS.index("overlap")
 
     def subset(self, index) -> FaceCast:
-        return FaceCast(self.cast, self.faces[index], self.outcome[index], self.q[index], self.m[index],
-                        self.faces2[index], self.gap[index], self.h1[index], self.h2[index])
+        return FaceCast(
+            self.cast,
+            self.faces[index],
+            self.outcome[index],
+            self.q[index],
+            self.m[index],
+            self.faces2[index],
+            self.gap[index],
+            self.h1[index],
+            self.h2[index],
+        )
 
     def reasons(self, mask) -> dict:
         """``{reason: count}`` of the faces ``mask`` selects that made no spring."""
@@ -164,8 +174,9 @@ def cast_faces(cast, pose, faces, allowed, mesh1: Mesh1) -> FaceCast:
             mesh = mesh1.mesh
             leaves = np.einsum("ij,ij->i", mesh.face_normals[back_face[sel].clip(0)], -mesh1.normals[faces[sel]]) > 0
             through1 = np.where((back_face[sel] >= 0) & leaves, depth[sel], np.nan)
-        h1[sel] = _thickness(spec1, mesh1.mesh, faces[sel], mesh1.centroids[faces[sel]], -mesh1.normals[faces[sel]],
-                             engine, through1)
+        h1[sel] = _thickness(
+            spec1, mesh1.mesh, faces[sel], mesh1.centroids[faces[sel]], -mesh1.normals[faces[sel]], engine, through1
+        )
         h2[sel] = _thickness(options["thickness2"], m2, faces2[sel], q[sel], -m2.face_normals[faces2[sel]], engine)
         total = h1[sel] + h2[sel]
         bad = ~(np.isfinite(total) & (total > 0))

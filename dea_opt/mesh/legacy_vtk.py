@@ -15,13 +15,31 @@ __all__ = ["parse_vtk_polydata"]
 
 
 _VTK_TYPES = {
-    "unsigned_char": "u1", "char": "i1", "unsigned_short": "u2", "short": "i2",
-    "unsigned_int": "u4", "int": "i4", "unsigned_long": "u8", "long": "i8",
-    "float": "f4", "double": "f8", "vtktypeint64": "i8", "vtktypeint32": "i4",
+    "unsigned_char": "u1",
+    "char": "i1",
+    "unsigned_short": "u2",
+    "short": "i2",
+    "unsigned_int": "u4",
+    "int": "i4",
+    "unsigned_long": "u8",
+    "long": "i8",
+    "float": "f4",
+    "double": "f8",
+    "vtktypeint64": "i8",
+    "vtktypeint32": "i4",
     "vtkidtype": "i8",
 }
-_VTK_SECTIONS = {"POINTS", "VERTICES", "LINES", "POLYGONS", "TRIANGLE_STRIPS", "POINT_DATA",
-                 "CELL_DATA", "FIELD", "METADATA"}
+_VTK_SECTIONS = {
+    "POINTS",
+    "VERTICES",
+    "LINES",
+    "POLYGONS",
+    "TRIANGLE_STRIPS",
+    "POINT_DATA",
+    "CELL_DATA",
+    "FIELD",
+    "METADATA",
+}
 
 
 class _VtkCursor:
@@ -41,7 +59,7 @@ class _VtkCursor:
             while self.pos < len(self.data):
                 end = self.data.find(b"\n", self.pos)
                 end = len(self.data) if end < 0 else end
-                line = self.data[self.pos:end].decode("ascii", "replace").split()
+                line = self.data[self.pos : end].decode("ascii", "replace").split()
                 self.pos = end + 1
                 if line:
                     return line
@@ -64,7 +82,7 @@ class _VtkCursor:
 
     def take(self, count: int) -> list[str]:
         """The next ``count`` header tokens (ASCII mode)."""
-        out = [t.decode("ascii", "replace") for t in self.tokens[self.index:self.index + count]]
+        out = [t.decode("ascii", "replace") for t in self.tokens[self.index : self.index + count]]
         self.index += count
         return out
 
@@ -74,12 +92,12 @@ class _VtkCursor:
             raise ValueError(f"unknown VTK data type {vtk_type!r}")
         if self.binary:
             size = count * np.dtype(dtype).itemsize
-            raw = self.data[self.pos:self.pos + size]
+            raw = self.data[self.pos : self.pos + size]
             if len(raw) < size:
                 raise ValueError("the file ends inside a binary array")
             self.pos += size
             return np.frombuffer(raw, dtype=">" + dtype).astype(dtype)
-        chunk = self.tokens[self.index:self.index + count]
+        chunk = self.tokens[self.index : self.index + count]
         if len(chunk) < count:
             raise ValueError("the file ends inside an ASCII array")
         self.index += count
@@ -90,7 +108,7 @@ class _VtkCursor:
             while self.pos < len(self.data):
                 end = self.data.find(b"\n", self.pos)
                 end = len(self.data) if end < 0 else end
-                empty = not self.data[self.pos:end].strip()
+                empty = not self.data[self.pos : end].strip()
                 self.pos = end + 1
                 if empty:
                     return
@@ -110,7 +128,7 @@ def _cells_to_triangles(sizes: np.ndarray, connectivity: np.ndarray, strips: boo
     starts = np.concatenate([[0], np.cumsum(sizes)[:-1]])
     out = []
     for start, size in zip(starts, sizes):  # mixed cells are rare: one pass per cell is fine
-        cell = connectivity[start:start + size]
+        cell = connectivity[start : start + size]
         for k in range(1, size - 1):
             if strips:
                 tri = cell[[k - 1, k, k + 1]] if k % 2 else cell[[k, k - 1, k + 1]]
@@ -137,7 +155,7 @@ def _read_cells(cursor: _VtkCursor, header: list[str], version: float) -> tuple[
     for _ in range(n_cells):  # variable-length records must be walked in order
         k = int(flat[pos])
         sizes.append(k)
-        conn.append(flat[pos + 1:pos + 1 + k])
+        conn.append(flat[pos + 1 : pos + 1 + k])
         pos += k + 1
     return np.array(sizes, dtype=np.int64), np.concatenate(conn) if conn else np.zeros(0, np.int64)
 

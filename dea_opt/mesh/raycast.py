@@ -58,8 +58,7 @@ class _GridCaster:
         self.triangles = np.asarray(mesh.triangles, dtype=float)
         v0 = self.triangles[:, 0]
         # (9, F): component rows, so that gathering candidates gives contiguous rows
-        self.frames = np.ascontiguousarray(
-            np.hstack([v0, self.triangles[:, 1] - v0, self.triangles[:, 2] - v0]).T)
+        self.frames = np.ascontiguousarray(np.hstack([v0, self.triangles[:, 1] - v0, self.triangles[:, 2] - v0]).T)
         edges = np.asarray(mesh.edges_unique_length)
         self.cell = float(edges.mean()) if len(edges) else 1.0
         self.origin = np.asarray(mesh.bounds[0], dtype=float)
@@ -76,8 +75,10 @@ class _GridCaster:
 
     def _cells(self, lo, hi):
         pad = 1e-9 * self.cell
-        return (np.floor((lo - self.origin - pad) / self.cell).astype(np.int64),
-                np.floor((hi - self.origin + pad) / self.cell).astype(np.int64))
+        return (
+            np.floor((lo - self.origin - pad) / self.cell).astype(np.int64),
+            np.floor((hi - self.origin + pad) / self.cell).astype(np.int64),
+        )
 
     def _key(self, cells):
         return (cells[:, 0] * self.shape[1] + cells[:, 1]) * self.shape[2] + cells[:, 2]
@@ -194,14 +195,14 @@ class _EmbreeCaster:
         if not n:
             return face, dist
         mesh = self.intersector.mesh
-        first = np.asarray(self.intersector.intersects_first(origins + t_min * directions, directions),
-                           dtype=np.int64)
+        first = np.asarray(self.intersector.intersects_first(origins + t_min * directions, directions), dtype=np.int64)
         found = np.flatnonzero(first >= 0)
         normal = mesh.face_normals[first[found]]
         corner = mesh.triangles[first[found], 0]
         with np.errstate(divide="ignore", invalid="ignore"):
-            t = (np.einsum("ij,ij->i", corner - origins[found], normal)
-                 / np.einsum("ij,ij->i", directions[found], normal))
+            t = np.einsum("ij,ij->i", corner - origins[found], normal) / np.einsum(
+                "ij,ij->i", directions[found], normal
+            )
         good = t > t_min
         face[found[good]], dist[found[good]] = first[found[good]], t[good]
         again = found[~good]
@@ -249,8 +250,9 @@ def _caster(mesh, engine: str):
                 cache["dea_opt_grid"] = cached
         return cached
     if not _has_embree():
-        raise MissingDependencyError("engine='embree' needs the embreex package: pip install embreex "
-                                     "(or pip install dea-opt[fast])")
+        raise MissingDependencyError(
+            "engine='embree' needs the embreex package: pip install embreex (or pip install dea-opt[fast])"
+        )
     from trimesh.ray import ray_pyembree
 
     intersector = mesh.ray
@@ -268,8 +270,7 @@ def _all_hits(intersector, origins: np.ndarray, directions: np.ndarray):
     empty = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
     if not len(origins):
         return empty
-    face, ray, location = intersector.intersects_id(
-        origins, directions, multiple_hits=True, return_locations=True)
+    face, ray, location = intersector.intersects_id(origins, directions, multiple_hits=True, return_locations=True)
     if not len(face):
         return empty
     ray = np.asarray(ray, dtype=np.int64)

@@ -33,11 +33,15 @@ def _read_with_trimesh(path: Path, kind: str) -> tuple[np.ndarray, np.ndarray]:
         if getattr(exc, "name", None) != "charset_normalizer":
             raise InputError(f"mesh file {path} could not be read as {kind.upper()}: {exc}") from exc
         # trimesh guesses the encoding of text that is not UTF-8 with an optional package
-        raise InputError(f"mesh file {path} could not be read as {kind.upper()}: its bytes are not text in "
-                         f"UTF-8 or another encoding trimesh reads; expected {EXPECTED[path.suffix.lower()]}") from exc
+        raise InputError(
+            f"mesh file {path} could not be read as {kind.upper()}: its bytes are not text in "
+            f"UTF-8 or another encoding trimesh reads; expected {EXPECTED[path.suffix.lower()]}"
+        ) from exc
     except Exception as exc:  # trimesh raises many types for a malformed file
-        raise InputError(f"mesh file {path} could not be read as {kind.upper()}: {type(exc).__name__}: {exc}; "
-                         f"expected {EXPECTED[path.suffix.lower()]}") from exc
+        raise InputError(
+            f"mesh file {path} could not be read as {kind.upper()}: {type(exc).__name__}: {exc}; "
+            f"expected {EXPECTED[path.suffix.lower()]}"
+        ) from exc
     if not isinstance(loaded, trimesh.Trimesh):  # e.g. an empty scene or a point cloud
         return np.zeros((0, 3)), np.zeros((0, 3), dtype=np.int64)
     return np.asarray(loaded.vertices), np.asarray(loaded.faces)
@@ -152,8 +156,9 @@ def _load(path, scale):
     try:
         check_content(path)
     except OSError as exc:
-        raise InputError(f"mesh file {path} could not be read ({exc.strerror or exc}); expected "
-                         f"{EXPECTED[suffix]}") from None
+        raise InputError(
+            f"mesh file {path} could not be read ({exc.strerror or exc}); expected {EXPECTED[suffix]}"
+        ) from None
     vertices, faces = LOADERS[suffix](path, suffix[1:])
     return clean(vertices, faces, f"mesh file {path}", scale)
 
@@ -198,8 +203,9 @@ def _prepare(mesh, name: str, scale: float = 1.0):
         return repair(mesh, name, copy=True)
     if isinstance(mesh, (tuple, list)) and len(mesh) == 2:
         return clean(mesh[0], mesh[1], name, number_in_range("scale", scale, 0, low_open=True))
-    raise InputError(f"{name} must be a mesh file path, a trimesh.Trimesh or a (vertices, faces) "
-                     f"tuple, got {type(mesh).__name__}")
+    raise InputError(
+        f"{name} must be a mesh file path, a trimesh.Trimesh or a (vertices, faces) tuple, got {type(mesh).__name__}"
+    )
 
 
 def concatenate_meshes(parts):

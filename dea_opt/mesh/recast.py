@@ -73,8 +73,10 @@ def tangent_plane_gap(layer, pose) -> np.ndarray:
         The gaps (mm); NaN where a ray runs parallel to its target plane.
     """
     if not getattr(layer, "has_targets", False):
-        raise InputError("layer has no targets (target_points, target_normals, target_faces): only springs "
-                         "cast from meshes have them")
+        raise InputError(
+            "layer has no targets (target_points, target_normals, target_faces): only springs "
+            "cast from meshes have them"
+        )
     T = check_pose(pose)
     if T is None:
         raise InputError("pose must be a 4x4 rigid transform, got None")
@@ -158,12 +160,16 @@ class Recast:
 
     def describe(self) -> str:
         lost = ", ".join(f"{r} {len(f)}" for r, f in self.lost.items() if len(f)) or "none"
-        text = (f"{len(self.cast.layer)} springs at the new pose: {self.kept} of {len(self.start.layer)} "
-                f"kept, {len(self.gained)} gained, lost: {lost}; dropped by the window: "
-                f"{self.cast.dropped.describe()}")
+        text = (
+            f"{len(self.cast.layer)} springs at the new pose: {self.kept} of {len(self.start.layer)} "
+            f"kept, {len(self.gained)} gained, lost: {lost}; dropped by the window: "
+            f"{self.cast.dropped.describe()}"
+        )
         if self.force is not None:
-            text += (f"; force {np.array2string(self.force, precision=4)} N against "
-                     f"{np.array2string(np.asarray(self.solution_force), precision=4)} N ({self.force_error:.2%})")
+            text += (
+                f"; force {np.array2string(self.force, precision=4)} N against "
+                f"{np.array2string(np.asarray(self.solution_force), precision=4)} N ({self.force_error:.2%})"
+            )
         return text
 
     def __repr__(self) -> str:
@@ -243,11 +249,15 @@ def recast_at_solution(solution, cast: SpringCast) -> Recast:
         raise InputError(f"cast must be a SpringCast (from dea_opt.mesh.cast_springs), got {type(cast).__name__}")
     layer = problem.layer
     if layer is not cast.layer and not (
-            len(layer) == len(cast.layer) and layer.source_face is not None
-            and np.array_equal(layer.source_face, np.asarray(cast.layer.source_face))
-            and np.array_equal(layer.gap, cast.layer.gap)):
-        raise InputError(f"the solution's layer ({len(layer)} springs) is not the layer of this cast "
-                         f"({len(cast.layer)} springs): pass the SpringCast its layer came from")
+        len(layer) == len(cast.layer)
+        and layer.source_face is not None
+        and np.array_equal(layer.source_face, np.asarray(cast.layer.source_face))
+        and np.array_equal(layer.gap, cast.layer.gap)
+    ):
+        raise InputError(
+            f"the solution's layer ({len(layer)} springs) is not the layer of this cast "
+            f"({len(cast.layer)} springs): pass the SpringCast its layer came from"
+        )
     u = np.asarray(solution.u, dtype=float)
     if u.shape != (12,) or not np.isfinite(u).all():
         raise InputError(f"the solution's u must be 12 finite numbers, got {u!r}")
@@ -262,6 +272,14 @@ def recast_at_solution(solution, cast: SpringCast) -> Recast:
     R1 = T1[:3, :3]
     force = R1 @ spring.sum(axis=0)
     moment = R1 @ np.cross(new.points - centre[:3], spring).sum(axis=0)
-    return Recast(out.cast, cast, out.lost, out.gained, force, moment,
-                  np.asarray(solution.contact_force, dtype=float), np.asarray(solution.contact_moment, dtype=float),
-                  out.pose)
+    return Recast(
+        out.cast,
+        cast,
+        out.lost,
+        out.gained,
+        force,
+        moment,
+        np.asarray(solution.contact_force, dtype=float),
+        np.asarray(solution.contact_moment, dtype=float),
+        out.pose,
+    )

@@ -34,8 +34,9 @@ def clean(vertices, faces, source: str, scale: float = 1.0):
     except (TypeError, ValueError):
         raise InputError(f"{source}: vertices and faces must be numeric arrays") from None
     if faces.size == 0 or vertices.size == 0:
-        raise InputError(f"{source} is empty: it has no triangle faces ({len(vertices)} vertices); "
-                         f"expected a triangle surface")
+        raise InputError(
+            f"{source} is empty: it has no triangle faces ({len(vertices)} vertices); expected a triangle surface"
+        )
     if vertices.ndim != 2 or vertices.shape[1] != 3:
         raise InputError(f"{source}: vertices must have shape (V, 3), got {vertices.shape}")
     if faces.ndim != 2 or faces.shape[1] != 3:
@@ -45,15 +46,18 @@ def clean(vertices, faces, source: str, scale: float = 1.0):
             raise InputError(f"{source}: faces must hold integer vertex indices, got {faces.dtype}")
         faces = faces.astype(np.int64)
     if faces.min() < 0 or faces.max() >= len(vertices):
-        raise InputError(f"{source}: face indices must lie in [0, {len(vertices) - 1}], "
-                         f"got [{faces.min()}, {faces.max()}]")
+        raise InputError(
+            f"{source}: face indices must lie in [0, {len(vertices) - 1}], got [{faces.min()}, {faces.max()}]"
+        )
     finite = np.isfinite(vertices).all(axis=1)
     if finite.all():
         check_size(vertices * scale if scale != 1.0 else vertices, source)
     if not finite.all():
         i = int(np.argmin(finite))
-        raise InputError(f"{source}: vertices must be finite, found NaN or inf in {int((~finite).sum())} of "
-                         f"{len(vertices)} vertices (the first is vertex {i}: {vertices[i].tolist()})")
+        raise InputError(
+            f"{source}: vertices must be finite, found NaN or inf in {int((~finite).sum())} of "
+            f"{len(vertices)} vertices (the first is vertex {i}: {vertices[i].tolist()})"
+        )
     if scale != 1.0:
         vertices = vertices * scale
     mesh = trimesh.Trimesh(vertices, faces, process=True)  # merges the per-face vertices of STL
@@ -69,11 +73,16 @@ def check_size(vertices: np.ndarray, source: str) -> None:
     span = float(np.linalg.norm((hi - lo) / max(top, 1e-300))) * top  # no overflow near 1e308
     small, large = SIZE_RANGE
     if span < small or top > large:
-        what = (f"spans only {span:.3g} mm (its bounding-box diagonal)" if span < small else
-                f"has coordinates up to {top:.3g} mm")
-        raise InputError(f"{source} {what}, outside the sizes dea-opt computes with (a diagonal of at least "
-                         f"{small:g} mm, coordinates within +-{large:g} mm): its vertices would merge into "
-                         f"points or its products overflow; give the mesh in mm (load_mesh(path, scale=...))")
+        what = (
+            f"spans only {span:.3g} mm (its bounding-box diagonal)"
+            if span < small
+            else f"has coordinates up to {top:.3g} mm"
+        )
+        raise InputError(
+            f"{source} {what}, outside the sizes dea-opt computes with (a diagonal of at least "
+            f"{small:g} mm, coordinates within +-{large:g} mm): its vertices would merge into "
+            f"points or its products overflow; give the mesh in mm (load_mesh(path, scale=...))"
+        )
 
 
 def repair(mesh, source: str, copy: bool):
@@ -82,15 +91,16 @@ def repair(mesh, source: str, copy: bool):
     kept = None
     if bad.any():
         if bad.all():
-            raise InputError(f"{source}: all {len(bad)} faces are degenerate (zero area); expected a "
-                             f"triangle surface with faces of nonzero area")
+            raise InputError(
+                f"{source}: all {len(bad)} faces are degenerate (zero area); expected a "
+                f"triangle surface with faces of nonzero area"
+            )
         if copy:
             mesh, copy = mesh.copy(), False
         kept = (np.flatnonzero(~bad), len(bad))  # input index of each face kept, input count
         mesh.update_faces(~bad)
         mesh.remove_unreferenced_vertices()
-        warnings.warn(f"{source}: dropped {int(bad.sum())} degenerate (zero-area) faces of {len(bad)}",
-                      stacklevel=4)
+        warnings.warn(f"{source}: dropped {int(bad.sum())} degenerate (zero-area) faces of {len(bad)}", stacklevel=4)
     if not mesh.is_winding_consistent:
         if copy:
             mesh, copy = mesh.copy(), False
@@ -98,14 +108,16 @@ def repair(mesh, source: str, copy: bool):
         if mesh.is_winding_consistent:
             warnings.warn(f"{source}: winding was inconsistent; re-wound {flipped} faces", stacklevel=4)
         else:
-            warnings.warn(f"{source}: winding is inconsistent and could not be repaired (non-manifold "
-                          f"edges?); face normals may point either way", stacklevel=4)
+            warnings.warn(
+                f"{source}: winding is inconsistent and could not be repaired (non-manifold "
+                f"edges?); face normals may point either way",
+                stacklevel=4,
+            )
     if mesh.is_watertight and mesh.is_winding_consistent and _signed_volume(mesh) < 0:
         if copy:
             mesh, copy = mesh.copy(), False
         mesh.invert()
-        warnings.warn(f"{source}: the closed surface was inside out; inverted so normals point outward",
-                      stacklevel=4)
+        warnings.warn(f"{source}: the closed surface was inside out; inverted so normals point outward", stacklevel=4)
     return mesh, kept
 
 

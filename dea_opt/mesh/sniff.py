@@ -19,7 +19,7 @@ __all__ = ["EXPECTED", "check_content", "check_path", "sniff"]
 #: What each extension's file must hold, as told in error messages.
 EXPECTED = {
     ".stl": "an STL surface (ASCII text starting with 'solid' and holding 'facet' records, or a binary "
-            "STL of 84 + 50 n bytes for its n triangles)",
+    "STL of 84 + 50 n bytes for its n triangles)",
     ".obj": "an OBJ surface (text with 'v x y z' vertex and 'f i j k' face lines)",
     ".ply": "a PLY surface (a header starting with the line 'ply')",
     ".off": "an OFF surface (text starting with 'OFF')",
@@ -51,8 +51,10 @@ def check_path(path) -> Path:
     suffix = path.suffix.lower()
     expected = EXPECTED.get(suffix, "a triangle surface")
     if "\0" in str(path):
-        raise InputError(f"mesh file path {str(path)!r} contains a NUL byte, which no file name can hold; "
-                         f"expected the path of {expected}")
+        raise InputError(
+            f"mesh file path {str(path)!r} contains a NUL byte, which no file name can hold; "
+            f"expected the path of {expected}"
+        )
     try:
         if path.is_dir():
             raise InputError(f"mesh file {path} is a directory, not a file; expected {expected}")
@@ -79,8 +81,7 @@ def sniff(path: Path, suffix: str = "") -> tuple[str, str]:
         if size == 84 + 50 * count:
             return "stl-binary", ""
     start = head.lstrip()
-    for prefix, kind in ((b"# vtk DataFile", "vtk"), (b"<?xml", "vtk-xml"), (b"<VTKFile", "vtk-xml"),
-                         (b"ply", "ply")):
+    for prefix, kind in ((b"# vtk DataFile", "vtk"), (b"<?xml", "vtk-xml"), (b"<VTKFile", "vtk-xml"), (b"ply", "ply")):
         if start.startswith(prefix):  # text headers of formats whose data may be binary
             return kind, ""
     text = _as_text(head)
@@ -88,8 +89,10 @@ def sniff(path: Path, suffix: str = "") -> tuple[str, str]:
         detail = f"binary data ({size} bytes"
         if size >= 84 and suffix == ".stl":
             (count,) = struct.unpack("<I", head[80:84])
-            detail += (f"; read as a binary STL, its header declares {count} triangles, which take "
-                       f"{84 + 50 * count} bytes: truncated, or not an STL")
+            detail += (
+                f"; read as a binary STL, its header declares {count} triangles, which take "
+                f"{84 + 50 * count} bytes: truncated, or not an STL"
+            )
         return "binary", detail + ")"
     lines = [line.strip() for line in text.splitlines() if line.strip()]
     content = [line for line in lines if not line.startswith("#")]  # comments do not say the format
@@ -118,7 +121,7 @@ def _as_text(head: bytes) -> str | None:
         return head.decode("utf-8")
     except UnicodeDecodeError as exc:
         if exc.start >= len(head) - 4:  # a character cut by the end of the head
-            return head[:exc.start].decode("utf-8")
+            return head[: exc.start].decode("utf-8")
         return head.decode("latin-1") if control == 0 else None
 
 
@@ -130,6 +133,8 @@ def check_content(path: Path) -> str:
         found, belongs = KINDS[kind]
         if belongs == suffix or (kind == "vtk-xml" and suffix == ".vtp"):
             return kind
-        raise InputError(f"mesh file {path} holds {found}, but its extension {path.suffix} says it is "
-                         f"{EXPECTED[suffix]}: rename it to {belongs}")
+        raise InputError(
+            f"mesh file {path} holds {found}, but its extension {path.suffix} says it is "
+            f"{EXPECTED[suffix]}: rename it to {belongs}"
+        )
     raise InputError(f"mesh file {path} is not {EXPECTED[suffix]}: it holds {detail}")

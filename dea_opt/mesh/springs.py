@@ -24,8 +24,18 @@ from .budget import check_cast_size
 from .raycast import _caster, _engine, _first_per_ray, _self_epsilon, _through, _to_bone
 from .readers import _prepare, as_mesh
 
-__all__ = ["DROP_REASONS", "LOST_REASONS", "MAX_ANGLE", "MAX_GAP", "MAX_OVERLAP", "Dropped", "SpringCast",
-           "cast_springs", "check_pose", "springs_from_meshes"]
+__all__ = [
+    "DROP_REASONS",
+    "LOST_REASONS",
+    "MAX_ANGLE",
+    "MAX_GAP",
+    "MAX_OVERLAP",
+    "Dropped",
+    "SpringCast",
+    "cast_springs",
+    "check_pose",
+    "springs_from_meshes",
+]
 
 #: Default proximity window of :func:`springs_from_meshes`: gaps up to 2 mm, overlaps up to
 #: 1 mm, normals within 60 degrees of facing each other.
@@ -54,14 +64,16 @@ def check_pose(pose, name: str = "pose") -> np.ndarray | None:
     R = T[:3, :3]
     error = float(np.abs(R.T @ R - np.eye(3)).max())
     if error > POSE_ROTATION:
-        raise InputError(f"{name} is not rigid: its 3x3 block must be a rotation (R^T R = I), but "
-                         f"|R^T R - I| = {error:.3g} (scaling or shear?)")
+        raise InputError(
+            f"{name} is not rigid: its 3x3 block must be a rotation (R^T R = I), but "
+            f"|R^T R - I| = {error:.3g} (scaling or shear?)"
+        )
     det = float(np.linalg.det(R))
     if det < 0:
-        raise InputError(f"{name} is not rigid: its 3x3 block is a reflection (det = {det:.3g}), "
-                         f"expected a rotation with det +1")
+        raise InputError(
+            f"{name} is not rigid: its 3x3 block is a reflection (det = {det:.3g}), expected a rotation with det +1"
+        )
     return T
-
 
 
 #: Why a face of mesh 1 whose ray met mesh 2 made no spring (see :class:`Dropped`).
@@ -166,8 +178,9 @@ def _per_face(values, name, mesh, kept) -> np.ndarray:
     """A per-face array given for the mesh as the user gave it, on the checked mesh's faces."""
     n_given = len(mesh.faces) if kept is None else kept[1]
     if values.ndim != 1 or len(values) != n_given:
-        raise InputError(f"{name} must have one value per face of the mesh as given, shape "
-                         f"({n_given},), got shape {values.shape}")
+        raise InputError(
+            f"{name} must have one value per face of the mesh as given, shape ({n_given},), got shape {values.shape}"
+        )
     return values if kept is None else values[kept[0]]
 
 
@@ -186,8 +199,10 @@ def _resolve_thickness(spec, name, mesh, kept):
     try:
         values = np.array(spec, dtype=float)
     except (TypeError, ValueError):
-        raise InputError(f"{name} must be None (measure through the closed surface), a number, a "
-                         f"per-face array of shape (F,) or a bone mesh, got {type(spec).__name__}") from None
+        raise InputError(
+            f"{name} must be None (measure through the closed surface), a number, a "
+            f"per-face array of shape (F,) or a bone mesh, got {type(spec).__name__}"
+        ) from None
     values = _per_face(values, name, mesh, kept)
     if not np.isfinite(values).all() or (values < 0).any():
         raise InputError(f"{name} must be finite and >= 0 (mm) at every face")
@@ -212,21 +227,50 @@ def _per_face_labels(labels, mesh, kept) -> np.ndarray | None:
     return None if labels is None else _per_face(np.asarray(labels), "labels", mesh, kept)
 
 
-def cast_springs(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None,
-                 max_gap: float = MAX_GAP, max_overlap: float = MAX_OVERLAP,
-                 max_angle: float = MAX_ANGLE, flip: bool = False, labels=None,
-                 engine: str = "auto") -> SpringCast:
+def cast_springs(
+    mesh1,
+    mesh2,
+    *,
+    thickness1=None,
+    thickness2=None,
+    pose=None,
+    max_gap: float = MAX_GAP,
+    max_overlap: float = MAX_OVERLAP,
+    max_angle: float = MAX_ANGLE,
+    flip: bool = False,
+    labels=None,
+    engine: str = "auto",
+) -> SpringCast:
     """Like :func:`springs_from_meshes`, also returning what each ray met (:class:`SpringCast`)."""
-    m1, m2, options = prepare_cast(mesh1, mesh2, thickness1=thickness1, thickness2=thickness2, max_gap=max_gap,
-                                   max_overlap=max_overlap, max_angle=max_angle, flip=flip, labels=labels,
-                                   engine=engine)
+    m1, m2, options = prepare_cast(
+        mesh1,
+        mesh2,
+        thickness1=thickness1,
+        thickness2=thickness2,
+        max_gap=max_gap,
+        max_overlap=max_overlap,
+        max_angle=max_angle,
+        flip=flip,
+        labels=labels,
+        engine=engine,
+    )
     T = check_pose(pose)
     return _cast(m1, m2, np.eye(4) if T is None else T, options)
 
 
-def prepare_cast(mesh1, mesh2, *, thickness1=None, thickness2=None, max_gap: float = MAX_GAP,
-                 max_overlap: float = MAX_OVERLAP, max_angle: float = MAX_ANGLE, flip: bool = False, labels=None,
-                 engine: str = "auto") -> tuple:
+def prepare_cast(
+    mesh1,
+    mesh2,
+    *,
+    thickness1=None,
+    thickness2=None,
+    max_gap: float = MAX_GAP,
+    max_overlap: float = MAX_OVERLAP,
+    max_angle: float = MAX_ANGLE,
+    flip: bool = False,
+    labels=None,
+    engine: str = "auto",
+) -> tuple:
     """``(mesh1, mesh2, options)`` of :func:`cast_springs` before any ray: the checked meshes and
     the options resolved on them (what a cast at any pose starts from; a sweep's cache keeps it)."""
     m1, kept1 = _prepare(mesh1, "mesh1")
@@ -306,9 +350,11 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
     if not good.all():
         _warn_dropped(h1, h2, good, options["thickness1"], options["thickness2"])
         if not good.any():
-            raise InputError("no spring has a positive, measurable thickness: thickness1 + thickness2 "
-                             "must be > 0 (mm); check that closed surfaces are closed and oriented "
-                             "outward, or give the thickness as a number")
+            raise InputError(
+                "no spring has a positive, measurable thickness: thickness1 + thickness2 "
+                "must be > 0 (mm); check that closed surfaces are closed and oriented "
+                "outward, or give the thickness as a number"
+            )
         outcome[sel[~good]] = LOST_REASONS.index("thickness")
         sel, gap, hit_face, hit_point2 = sel[good], gap[good], hit_face[good], hit_point2[good]
         h1, h2, total = h1[good], h2[good], total[good]
@@ -323,10 +369,17 @@ def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, ou
     normals = -m1.face_normals if options["flip"] else m1.face_normals
     face_labels = options["labels"]
     layer = SpringLayer(
-        m1.triangles_center[sel], normals[sel], m1.area_faces[sel], h1 + h2, gap,
-        source_face=sel.astype(np.int64), surface=(m1.vertices, m1.faces),
+        m1.triangles_center[sel],
+        normals[sel],
+        m1.area_faces[sel],
+        h1 + h2,
+        gap,
+        source_face=sel.astype(np.int64),
+        surface=(m1.vertices, m1.faces),
         labels=None if face_labels is None else face_labels[sel],
-        target_points=hit_point2, target_normals=m2.face_normals[hit_face], target_faces=hit_face,
+        target_points=hit_point2,
+        target_normals=m2.face_normals[hit_face],
+        target_faces=hit_face,
     )
     hit_point = hit_point2 @ T[:3, :3].T + T[:3, 3]
     dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
@@ -361,14 +414,16 @@ def _warn_dropped(h1, h2, good, spec1, spec2) -> None:
     for name, h, spec in (("thickness1", h1, spec1), ("thickness2", h2, spec2)):
         bad = int((~np.isfinite(h)).sum())
         if bad:
-            how = ("the inward ray left the surface through a hole or met nothing" if spec is None
-                   else "the inward ray never met the bone mesh")
+            how = (
+                "the inward ray left the surface through a hole or met nothing"
+                if spec is None
+                else "the inward ray never met the bone mesh"
+            )
             parts.append(f"{name} could not be measured at {bad} springs ({how})")
     zero = int((np.isfinite(h1 + h2) & (h1 + h2 <= 0)).sum())
     if zero:
         parts.append(f"{zero} springs have zero total thickness")
-    warnings.warn("; ".join(parts) + f"; dropped {int((~good).sum())} of {len(good)} springs",
-                  stacklevel=4)
+    warnings.warn("; ".join(parts) + f"; dropped {int((~good).sum())} of {len(good)} springs", stacklevel=4)
 
 
 def _closest_distance(points: np.ndarray, mesh) -> float:
@@ -389,32 +444,50 @@ def _closest_distance(points: np.ndarray, mesh) -> float:
 def _raise_no_springs(m2, cos_inside, t_outside, n_rejected, origins2, options):
     """The InputError of a cast that made no spring, saying what the rays met instead."""
     max_gap, max_overlap = options["max_gap"], options["max_overlap"]
-    window = (f"the proximity window -max_overlap={max_overlap:g} <= gap <= max_gap={max_gap:g} mm "
-              f"with max_angle={options['max_angle']:g} deg")
+    window = (
+        f"the proximity window -max_overlap={max_overlap:g} <= gap <= max_gap={max_gap:g} mm "
+        f"with max_angle={options['max_angle']:g} deg"
+    )
     ahead, behind = t_outside[t_outside > max_gap], t_outside[t_outside < 0]
     if len(cos_inside):
         best = float(np.degrees(np.arccos(np.clip(cos_inside.max(), -1, 1))))
-        detail = (f"faces meet within the gap window but their normals are at least {best:.3g} deg "
-                  f"from facing each other (raise max_angle)")
+        detail = (
+            f"faces meet within the gap window but their normals are at least {best:.3g} deg "
+            f"from facing each other (raise max_angle)"
+        )
     elif n_rejected:
-        detail = (f"the faces of mesh2 that {n_rejected} rays met within the window lie behind mesh1's own far "
-                  f"side (the rays went back through mesh1's layer): check the pose and that mesh1's normals "
-                  f"face mesh2")
+        detail = (
+            f"the faces of mesh2 that {n_rejected} rays met within the window lie behind mesh1's own far "
+            f"side (the rays went back through mesh1's layer): check the pose and that mesh1's normals "
+            f"face mesh2"
+        )
     elif len(ahead):
         detail = f"the smallest distance found along the normals is {ahead.min():.4g} mm (raise max_gap)"
     elif len(behind):
         detail = f"the shallowest overlap found is {-behind.max():.4g} mm (raise max_overlap)"
     else:
-        detail = (f"no normal of mesh1 meets a face of mesh2 that faces it; the smallest distance "
-                  f"found between the meshes is {_closest_distance(origins2, m2):.4g} mm (check pose, "
-                  f"flip, units, and that both meshes are in the same frame)")
+        detail = (
+            f"no normal of mesh1 meets a face of mesh2 that faces it; the smallest distance "
+            f"found between the meshes is {_closest_distance(origins2, m2):.4g} mm (check pose, "
+            f"flip, units, and that both meshes are in the same frame)"
+        )
     raise InputError(f"mesh1 and mesh2 never face each other within {window}: {detail}")
 
 
-def springs_from_meshes(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=None,
-                        max_gap: float = MAX_GAP, max_overlap: float = MAX_OVERLAP,
-                        max_angle: float = MAX_ANGLE, flip: bool = False, labels=None,
-                        engine: str = "auto") -> SpringLayer:
+def springs_from_meshes(
+    mesh1,
+    mesh2,
+    *,
+    thickness1=None,
+    thickness2=None,
+    pose=None,
+    max_gap: float = MAX_GAP,
+    max_overlap: float = MAX_OVERLAP,
+    max_angle: float = MAX_ANGLE,
+    flip: bool = False,
+    labels=None,
+    engine: str = "auto",
+) -> SpringLayer:
     """Springs between two cartilage surfaces, by ray casting (JAM's elastic foundation).
 
     One spring per articular face of mesh 1: a face whose normal ray meets a face of mesh 2
@@ -469,6 +542,16 @@ def springs_from_meshes(mesh1, mesh2, *, thickness1=None, thickness2=None, pose=
         would not fit in memory, or no face of mesh 1 facing mesh 2 within the window (the
         message gives the smallest distance found).
     """
-    return cast_springs(mesh1, mesh2, thickness1=thickness1, thickness2=thickness2, pose=pose,
-                        max_gap=max_gap, max_overlap=max_overlap, max_angle=max_angle, flip=flip,
-                        labels=labels, engine=engine).layer
+    return cast_springs(
+        mesh1,
+        mesh2,
+        thickness1=thickness1,
+        thickness2=thickness2,
+        pose=pose,
+        max_gap=max_gap,
+        max_overlap=max_overlap,
+        max_angle=max_angle,
+        flip=flip,
+        labels=labels,
+        engine=engine,
+    ).layer

@@ -34,5 +34,16 @@ from .path import peak_recast, run_path_outputs
 from .runner import check_method, publish_run, run_info, run_scenario, solve_options
 from .static import recast_solution
 
-__all__ = ["EXIT_CODES", "RunOutcome", "check_method", "peak_recast", "publish_run", "recast_solution", "run_info",
-           "run_path_outputs", "run_scenario", "solve_options", "status_of"]
+__all__ = [
+    "EXIT_CODES",
+    "RunOutcome",
+    "check_method",
+    "peak_recast",
+    "publish_run",
+    "recast_solution",
+    "run_info",
+    "run_path_outputs",
+    "run_scenario",
+    "solve_options",
+    "status_of",
+]

@@ -26,7 +26,7 @@ from .runner import check_method, publish_run, run_info, solve_options
 __all__ = ["DEMO_DOME", "DEMO_SCENARIO", "demo_comparison", "demo_scenario", "hip_regions", "run_demo"]
 
 #: The embedded default of ``dea-opt demo`` (also ``examples/scenarios/hip_gait.toml``).
-DEMO_SCENARIO = '''\
+DEMO_SCENARIO = """\
 title = "Hip under a walking cycle (synthetic load), linear DEA"
 
 # A femoral head (R = 25 mm) in a spherical socket covering 80 degrees around its pole, 0.1 mm
@@ -65,7 +65,7 @@ method = "auto"
 directory = "dea-opt-demo"
 exposure_threshold = 1.0
 anatomy = {medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, -1.0], side = "right"}
-'''
+"""
 
 #: Half-angle (degrees) of the acetabular dome labelled ``superior`` by :func:`hip_regions`.
 DEMO_DOME = 35.0
@@ -141,17 +141,36 @@ def demo_comparison(scenario, progress: bool = False) -> list[dict]:
             warnings.simplefilter("ignore")
             s = solve(base.with_law(law), method, strict=False, **options[method])
         name, value = s.certificate.worst()
-        rows.append({
-            "method": method, "law": law.describe(), "success": s.success, "peak_pressure": s.peak_pressure,
-            "contact_area": s.contact_area, "max_strain": s.max_compressive_strain, "iterations": s.iterations,
-            "build_time": s.build_time, "solve_time": s.solve_time, "certificate": value,
-            "certificate_worst": name, "status": s.status,
-        })
+        rows.append(
+            {
+                "method": method,
+                "law": law.describe(),
+                "success": s.success,
+                "peak_pressure": s.peak_pressure,
+                "contact_area": s.contact_area,
+                "max_strain": s.max_compressive_strain,
+                "iterations": s.iterations,
+                "build_time": s.build_time,
+                "solve_time": s.solve_time,
+                "certificate": value,
+                "certificate_worst": name,
+                "status": s.status,
+            }
+        )
     return rows
 
 
-def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False, method: str | None = None,
-             compare: bool = True, progress: bool = False, echo=print, force: bool = False) -> RunOutcome:
+def run_demo(
+    output_dir=None,
+    *,
+    frames: int | None = None,
+    coarse: bool = False,
+    method: str | None = None,
+    compare: bool = True,
+    progress: bool = False,
+    echo=print,
+    force: bool = False,
+) -> RunOutcome:
     """``dea-opt demo``: the comparison table at the gait peak, then the whole gait cycle.
 
     Parameters
@@ -183,8 +202,7 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
     start = time.perf_counter()
     with captured() as messages:
         problem = build_problem(scenario)
-        problem = problem.with_layer(replace(problem.layer, labels=hip_regions(problem.layer,
-                                                                               scenario.output.anatomy)))
+        problem = problem.with_layer(replace(problem.layer, labels=hip_regions(problem.layer, scenario.output.anatomy)))
         options = solve_options(scenario.solve, method, problem.law)
 
         def solve_and_write(folder):
@@ -196,14 +214,22 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
                 echo(f"Gait-peak frame: {_DEMO_PEAK:g} N tilted {_DEMO_TILT:g} degrees, {len(problem.layer)} springs")
                 echo(_format_comparison(table))
                 echo("")
-            outcome = run_path_outputs(scenario, problem, method, options, folder, progress,
-                                extra_summary={"comparison": rows, "scenario": DEMO_SCENARIO})
+            outcome = run_path_outputs(
+                scenario,
+                problem,
+                method,
+                options,
+                folder,
+                progress,
+                extra_summary={"comparison": rows, "scenario": DEMO_SCENARIO},
+            )
             if compare:
                 outcome.files["comparison"] = comparison
             return outcome
 
-        outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
-                              info=run_info(scenario, "demo", method))
+        outcome = publish_run(
+            scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "demo", method)
+        )
     out = outcome.folder or out
     echo(f"Gait cycle: {outcome.message}")
     for line in outcome.validity + outcome.regions:
@@ -215,8 +241,27 @@ def run_demo(output_dir=None, *, frames: int | None = None, coarse: bool = False
 
 
 def _format_comparison(table) -> str:
-    shown = table[["method", "law", "success", "peak_pressure", "contact_area", "max_strain", "iterations",
-                   "build_time", "solve_time", "certificate"]].rename(columns={
-                       "peak_pressure": "peak (MPa)", "contact_area": "area (mm^2)", "max_strain": "strain",
-                       "build_time": "build (s)", "solve_time": "solve (s)", "certificate": "residual"})
+    shown = table[
+        [
+            "method",
+            "law",
+            "success",
+            "peak_pressure",
+            "contact_area",
+            "max_strain",
+            "iterations",
+            "build_time",
+            "solve_time",
+            "certificate",
+        ]
+    ].rename(
+        columns={
+            "peak_pressure": "peak (MPa)",
+            "contact_area": "area (mm^2)",
+            "max_strain": "strain",
+            "build_time": "build (s)",
+            "solve_time": "solve (s)",
+            "certificate": "residual",
+        }
+    )
     return shown.to_string(index=False, float_format=lambda v: f"{v:.4g}")

@@ -82,5 +82,3 @@ class RunOutcome:
 def status_of(success: bool, valid: bool | None, failures=()) -> RunStatus:
     """The status of a run (:meth:`RunStatus.of_run`): a failure outranks an answer outside validity."""
     return RunStatus.of_run(success, valid, failures)
-
-

@@ -14,8 +14,9 @@ def _frames_text(frames) -> str:
     return shown + (", ..." if len(frames) > 10 else "")
 
 
-def run_path_outputs(scenario, problem, method, options, out, progress, extra_summary=None,
-                     stop: bool = False, cast=None) -> RunOutcome:
+def run_path_outputs(
+    scenario, problem, method, options, out, progress, extra_summary=None, stop: bool = False, cast=None
+) -> RunOutcome:
     """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller).
 
     The frames are streamed: each frame's ``.vtu`` is written as it is solved
@@ -34,19 +35,33 @@ def run_path_outputs(scenario, problem, method, options, out, progress, extra_su
     if poses is not None:
         caster = pose_caster(scenario)
         if caster is not None:
+
             def layer_for_pose(pose):
                 return caster(pose).layer
 
     formats, anatomy = scenario.output.formats, scenario.output.anatomy
     loads = data.load_objects()
-    result = solve_path(problem, loads, data.poses, method=method, times=data.times, body=data.body,
-                        certificate_tol=scenario.solve.certificate_tol, stop_on_error=stop, keep_solutions=False,
-                        keep_pressures=False, series=out / "series_frames" if "vtk" in formats else None,
-                        layer_for_pose=layer_for_pose, threshold=scenario.output.exposure_threshold,
-                        progress=progress, **options)
+    result = solve_path(
+        problem,
+        loads,
+        data.poses,
+        method=method,
+        times=data.times,
+        body=data.body,
+        certificate_tol=scenario.solve.certificate_tol,
+        stop_on_error=stop,
+        keep_solutions=False,
+        keep_pressures=False,
+        series=out / "series_frames" if "vtk" in formats else None,
+        layer_for_pose=layer_for_pose,
+        threshold=scenario.output.exposure_threshold,
+        progress=progress,
+        **options,
+    )
     notes = []
     recast = None
     if cast is not None or caster is not None:
+
         def frame_cast(k):
             return cast if caster is None or poses is None else caster(poses[k])
 
@@ -62,31 +77,44 @@ def run_path_outputs(scenario, problem, method, options, out, progress, extra_su
     outside = validity["frames_outside_validity"]
     checks = validity["failed_checks"]
     headline = {
-        "method": method, "success": result.success, "frames": summary["frames"], "n_springs": summary["n_springs"],
-        "failed_frames": len(summary["failed_frames"]), "peak_pressure": summary["peak_pressure"],
-        "peak_time": summary["peak_time"], "contact_area": summary["max_contact_area"],
+        "method": method,
+        "success": result.success,
+        "frames": summary["frames"],
+        "n_springs": summary["n_springs"],
+        "failed_frames": len(summary["failed_frames"]),
+        "peak_pressure": summary["peak_pressure"],
+        "peak_time": summary["peak_time"],
+        "contact_area": summary["max_contact_area"],
         "max_compressive_strain": summary["max_compressive_strain"],
-        "iterations": summary["iterations_total"], "solve_time": summary["solve_time_total"],
+        "iterations": summary["iterations_total"],
+        "solve_time": summary["solve_time_total"],
         "worst_residual": summary["worst_certificate_residual"],
         "max_pressure_time_integral": summary["exposure"]["max_pressure_time_integral"],
-        "valid": not outside, "frames_outside_validity": len(outside),
+        "valid": not outside,
+        "frames_outside_validity": len(outside),
         "validity_failed": ";".join(checks),
         **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
     }
     if summary["peak_frame"] is None:
         message = f"{summary['frames']} frames by {method}: no frame has a certified answer"
     else:
-        message = (f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure']:.4g} MPa at "
-                   f"{summary['peak_time']:.3g} s, largest contact area {summary['max_contact_area']:.4g} mm^2, "
-                   f"{summary['solve_time_total']:.2f} s solving")
+        message = (
+            f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure']:.4g} MPa at "
+            f"{summary['peak_time']:.3g} s, largest contact area {summary['max_contact_area']:.4g} mm^2, "
+            f"{summary['solve_time_total']:.2f} s solving"
+        )
     if not result.success:
         message += f"; {result.failure_message()} (status and message of each in frames.csv)"
     reasons = []
     if outside:
-        parts = [f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
-                 for name, c in validity["checks"].items()]
-        first = (f"{len(outside)} of {summary['frames']} frame(s) outside validity ({_frames_text(outside)}), "
-                 f"failed checks: {', '.join(checks)}")
+        parts = [
+            f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
+            for name, c in validity["checks"].items()
+        ]
+        first = (
+            f"{len(outside)} of {summary['frames']} frame(s) outside validity ({_frames_text(outside)}), "
+            f"failed checks: {', '.join(checks)}"
+        )
         reasons = [first, *parts]
         lines = [f"validity: NOT VALID: {reasons[0]}", *(f"  {r}" for r in reasons[1:])]
     else:
@@ -94,14 +122,29 @@ def run_path_outputs(scenario, problem, method, options, out, progress, extra_su
         lines = [f"validity: valid (every one of the {certified} certified frames)"]
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
-    regions = [f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
-               f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
-               f"contact area {r['max_contact_area']:.4g} mm^2" for name, r in summary["regions"].items()]
+    regions = [
+        f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
+        f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
+        f"contact area {r['max_contact_area']:.4g} mm^2"
+        for name, r in summary["regions"].items()
+    ]
     failures: dict = {}
     for frame in result.failures():
         failures[frame["status"]] = failures.get(frame["status"], 0) + 1
-    return RunOutcome("path", result.success, message, files, headline, result, warnings=notes, valid=not outside,
-                      validity=lines, reasons=reasons, regions=regions, failures=failures)
+    return RunOutcome(
+        "path",
+        result.success,
+        message,
+        files,
+        headline,
+        result,
+        warnings=notes,
+        valid=not outside,
+        validity=lines,
+        reasons=reasons,
+        regions=regions,
+        failures=failures,
+    )
 
 
 def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict, certificate_tol: float):
@@ -147,8 +190,9 @@ def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict
         problem = result.problem.with_layer(cast.layer) if result.moving else result.problem
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ValidityWarning)
-            solution = solve(problem.with_load(loads[k], body=body), method, certificate_tol=certificate_tol,
-                             strict=False, **options)
+            solution = solve(
+                problem.with_load(loads[k], body=body), method, certificate_tol=certificate_tol, strict=False, **options
+            )
     except DeaError as exc:
         return {**where, "error": f"the peak frame {k} was not re-cast at its solved pose: {one_line(str(exc))}"}
     solution, recast = recast_solution(solution, cast)

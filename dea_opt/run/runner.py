@@ -30,15 +30,23 @@ def solve_options(section, method: str, law) -> dict:
         out: dict = {}
         for name in chain:
             if name in formulations.names() and formulations.takes(name, law, "finite"):
-                out.update({o.name: getattr(section, o.name) for o in formulations.options(name)
-                            if not o.tolerance and o.name in ("form",)})
+                out.update(
+                    {
+                        o.name: getattr(section, o.name)
+                        for o in formulations.options(name)
+                        if not o.tolerance and o.name in ("form",)
+                    }
+                )
                 out.update(formulations.tolerance_options(name, section.tol))
         return out
     effective = method if method != "auto" else formulations.fallback_for(law)
     if effective is None:
         return {}
-    options = {option.name: getattr(section, option.name) for option in formulations.options(effective)
-               if not option.tolerance and getattr(section, option.name, None) is not None}
+    options = {
+        option.name: getattr(section, option.name)
+        for option in formulations.options(effective)
+        if not option.tolerance and getattr(section, option.name, None) is not None
+    }
     return options | formulations.tolerance_options(effective, section.tol)
 
 
@@ -52,13 +60,25 @@ def check_method(method: str | None, default: str) -> str:
 
 def run_info(scenario, command: str, method: str | None = None) -> dict:
     """What a manifest records about the run of ``scenario``."""
-    return {"command": command, "title": scenario.title, "scenario": scenario.source,
-            "scenario_sha256": scenario.text_sha256, "overrides": scenario.overrides,
-            **({"method": method} if method else {})}
+    return {
+        "command": command,
+        "title": scenario.title,
+        "scenario": scenario.source,
+        "scenario_sha256": scenario.text_sha256,
+        "overrides": scenario.overrides,
+        **({"method": method} if method else {}),
+    }
 
 
-def run_scenario(scenario, output_dir=None, *, method: str | None = None, progress: bool = False,
-                 force: bool = False, stop_on_error: bool = False) -> RunOutcome:
+def run_scenario(
+    scenario,
+    output_dir=None,
+    *,
+    method: str | None = None,
+    progress: bool = False,
+    force: bool = False,
+    stop_on_error: bool = False,
+) -> RunOutcome:
     """Solve a scenario and publish its outputs into one folder.
 
     Parameters
@@ -103,11 +123,11 @@ def run_scenario(scenario, output_dir=None, *, method: str | None = None, progre
         def solve_and_write(folder):
             if scenario.load_path is None:
                 return run_static(scenario, problem, method, options, folder, cast)
-            return run_path_outputs(scenario, problem, method, options, folder, progress, stop=stop_on_error,
-                                    cast=cast)
+            return run_path_outputs(scenario, problem, method, options, folder, progress, stop=stop_on_error, cast=cast)
 
-        outcome = publish_run(scenario, out, solve_and_write, messages, force=force,
-                              info=run_info(scenario, "run", method))
+        outcome = publish_run(
+            scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "run", method)
+        )
     return outcome
 
 
@@ -126,8 +146,9 @@ def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, 
 
             outcome.files["log"] = write_data(publication.folder / LOG_NAME, log)
         failures = {"failures": {str(k): int(n) for k, n in outcome.failures.items()}} if outcome.failures else {}
-        outcome.manifest = publication.publish(status=outcome.status, exit_code=outcome.exit_code,
-                                               success=outcome.success, valid=outcome.valid, **failures)
+        outcome.manifest = publication.publish(
+            status=outcome.status, exit_code=outcome.exit_code, success=outcome.success, valid=outcome.valid, **failures
+        )
         outcome.folder = publication.folder
     return outcome
 
@@ -137,8 +158,8 @@ def _drop_repeats(outcome: RunOutcome, messages, notes=()) -> None:
     warnings, but for the validity warnings: the validity lines of the outcome state them, with
     every check."""
     assessed = outcome.valid is not None
-    outcome.warnings = [*notes, *outcome.warnings,
-                        *(w for w in messages.own
-                          if not (assessed and messages.categories.get(w) == "ValidityWarning"))]
-
-
+    outcome.warnings = [
+        *notes,
+        *outcome.warnings,
+        *(w for w in messages.own if not (assessed and messages.categories.get(w) == "ValidityWarning")),
+    ]

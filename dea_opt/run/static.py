@@ -38,26 +38,46 @@ def run_static(scenario, problem, method, options, out, cast=None) -> RunOutcome
     name, value = solution.certificate.worst()
     validity = solution.validity
     headline = {
-        "method": solution.method, "success": solution.success, "n_springs": len(solution.pressure),
-        "peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
-        "contact_area": solution.contact_area, "max_compressive_strain": solution.max_compressive_strain,
-        "iterations": solution.iterations, "solve_time": solution.solve_time, "worst_residual": value,
+        "method": solution.method,
+        "success": solution.success,
+        "n_springs": len(solution.pressure),
+        "peak_pressure": solution.peak_pressure,
+        "mean_pressure": solution.mean_pressure,
+        "contact_area": solution.contact_area,
+        "max_compressive_strain": solution.max_compressive_strain,
+        "iterations": solution.iterations,
+        "solve_time": solution.solve_time,
+        "worst_residual": value,
         **validity.columns(),
         **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
     }
     if solution.success:
-        message = (f"{solution.method}: peak pressure {solution.peak_pressure:.4g} MPa, contact area "
-                   f"{solution.contact_area:.4g} mm^2, {solution.iterations} iterations, certificate passed")
+        message = (
+            f"{solution.method}: peak pressure {solution.peak_pressure:.4g} MPa, contact area "
+            f"{solution.contact_area:.4g} mm^2, {solution.iterations} iterations, certificate passed"
+        )
     else:
-        message = (f"{solution.method} returned no certified answer (status {solution.status!r}; {name} = "
-                   f"{value:.3g} > {scenario.solve.certificate_tol:g}); the outputs hold the uncertified answer")
+        message = (
+            f"{solution.method} returned no certified answer (status {solution.status!r}; {name} = "
+            f"{value:.3g} > {scenario.solve.certificate_tol:g}); the outputs hold the uncertified answer"
+        )
     lines = [f"validity: {validity.summary()}"]
     lines += [f"  {check.describe()}" for check in validity.checks]
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose: {recast['describe']}")
-    return RunOutcome("static", solution.success, message, files, headline, solution, warnings=notes,
-                      valid=validity.valid, validity=lines, reasons=[c.describe() for c in validity.failed],
-                      regions=_static_regions(solution))
+    return RunOutcome(
+        "static",
+        solution.success,
+        message,
+        files,
+        headline,
+        solution,
+        warnings=notes,
+        valid=validity.valid,
+        validity=lines,
+        reasons=[c.describe() for c in validity.failed],
+        regions=_static_regions(solution),
+    )
 
 
 def _static_regions(solution) -> list[str]:
@@ -66,8 +86,11 @@ def _static_regions(solution) -> list[str]:
         return []
     from ..anatomy.regions import regional_statistics
 
-    return [f"region {name}: force {r.force:.4g} N ({r.share:.1%} of the total), peak {r.peak_pressure:.4g} MPa, "
-            f"contact area {r.contact_area:.4g} mm^2" for name, r in regional_statistics(solution).items()]
+    return [
+        f"region {name}: force {r.force:.4g} N ({r.share:.1%} of the total), peak {r.peak_pressure:.4g} MPa, "
+        f"contact area {r.contact_area:.4g} mm^2"
+        for name, r in regional_statistics(solution).items()
+    ]
 
 
 def recast_solution(solution, cast) -> tuple:
@@ -92,13 +115,17 @@ def recast_solution(solution, cast) -> tuple:
     except DeaError as exc:
         return solution, {"error": f"springs not re-cast at the solved pose: {one_line(str(exc))}"}
     info = {
-        "springs": len(again.cast.layer), "kept": again.kept, "gained": len(again.gained),
+        "springs": len(again.cast.layer),
+        "kept": again.kept,
+        "gained": len(again.gained),
         "lost": {reason: len(faces) for reason, faces in again.lost.items()},
-        "dropped": again.dropped, "rejected": again.rejected,
-        **{name: np.asarray(getattr(again, name), dtype=float).tolist()
-           for name in ("force", "moment", "solution_force", "solution_moment")},
-        "force_error": again.force_error, "describe": again.describe(),
+        "dropped": again.dropped,
+        "rejected": again.rejected,
+        **{
+            name: np.asarray(getattr(again, name), dtype=float).tolist()
+            for name in ("force", "moment", "solution_force", "solution_moment")
+        },
+        "force_error": again.force_error,
+        "describe": again.describe(),
     }
     return solution.with_validity(dropped=again.dropped), info
-
-

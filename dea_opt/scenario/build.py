@@ -59,11 +59,13 @@ def build_layer(section, pose=None):
     if isinstance(section, PlateGeometry):
         return geometry.plate_layer(section.length, section.width, section.nx, section.ny, section.thickness)
     if isinstance(section, SphereOnBedGeometry):
-        return geometry.sphere_on_bed_layer(section.radius, section.thickness, section.extent,
-                                            section.n_rings, section.n_sectors)
+        return geometry.sphere_on_bed_layer(
+            section.radius, section.thickness, section.extent, section.n_rings, section.n_sectors
+        )
     if isinstance(section, SocketGeometry):
-        return geometry.socket_layer(section.radius, section.thickness, section.coverage,
-                                     section.n_rings, section.n_sectors, section.gap)
+        return geometry.socket_layer(
+            section.radius, section.thickness, section.coverage, section.n_rings, section.n_sectors, section.gap
+        )
     if isinstance(section, SpringsGeometry):
         return read_springs(section.file)
     if isinstance(section, GeneratorGeometry):
@@ -78,22 +80,29 @@ def _from_generator(section: GeneratorGeometry):
 
     function = getattr(geometry, section.function, None)
     if section.function.startswith("_") or not callable(function):
-        public = sorted(n for n in dir(geometry) if not n.startswith("_") and callable(getattr(geometry, n))
-                        and getattr(getattr(geometry, n), "__module__", "") == geometry.__name__
-                        and not isinstance(getattr(geometry, n), type))
-        raise ScenarioError(f"geometry.function must name a builder in dea_opt.geometry ({', '.join(public)}), "
-                            f"got {section.function!r}")
+        public = sorted(
+            n
+            for n in dir(geometry)
+            if not n.startswith("_")
+            and callable(getattr(geometry, n))
+            and getattr(getattr(geometry, n), "__module__", "") == geometry.__name__
+            and not isinstance(getattr(geometry, n), type)
+        )
+        raise ScenarioError(
+            f"geometry.function must name a builder in dea_opt.geometry ({', '.join(public)}), got {section.function!r}"
+        )
     parameters = _checked_parameters(function, section)
     try:
         return function(**parameters)
     except DeaError:
         raise
     except MemoryError as exc:
-        raise ScenarioError(f"geometry.parameters of {section.function} ask for more memory than there is ({exc}): "
-                            f"use a coarser step or fewer elements") from None
+        raise ScenarioError(
+            f"geometry.parameters of {section.function} ask for more memory than there is ({exc}): "
+            f"use a coarser step or fewer elements"
+        ) from None
     except (TypeError, ValueError, ArithmeticError, IndexError) as exc:
-        raise ScenarioError(f"geometry.parameters do not fit {section.function}: {type(exc).__name__}: "
-                            f"{exc}") from None
+        raise ScenarioError(f"geometry.parameters do not fit {section.function}: {type(exc).__name__}: {exc}") from None
 
 
 def _checked_parameters(function, section: GeneratorGeometry) -> dict:
@@ -112,8 +121,10 @@ def _checked_parameters(function, section: GeneratorGeometry) -> dict:
     checked = {}
     for name, value in section.parameters.items():
         if name not in accepted:
-            raise ScenarioError(f"geometry.parameters do not fit {section.function}: it takes no parameter "
-                                f"{name!r} (geometry.parameters.{name}); it takes {', '.join(accepted)}")
+            raise ScenarioError(
+                f"geometry.parameters do not fit {section.function}: it takes no parameter "
+                f"{name!r} (geometry.parameters.{name}); it takes {', '.join(accepted)}"
+            )
         hint = hints.get(name)
         if hint is None or hint is typing.Any:
             checked[name] = value
@@ -122,10 +133,12 @@ def _checked_parameters(function, section: GeneratorGeometry) -> dict:
             checked[name] = TypeAdapter(hint).validate_python(value, strict=True)
         except ValidationError as exc:
             expected = {float: "a number", int: "an integer", bool: "true or false", str: "a string"}.get(
-                hint, getattr(hint, "__name__", str(hint)))
+                hint, getattr(hint, "__name__", str(hint))
+            )
             detail = exc.errors()[0]["msg"] if exc.errors() else str(exc)
-            raise ScenarioError(f"geometry.parameters.{name} of {section.function} must be {expected} "
-                                f"({detail.lower()}), got {value!r}") from None
+            raise ScenarioError(
+                f"geometry.parameters.{name} of {section.function} must be {expected} ({detail.lower()}), got {value!r}"
+            ) from None
     return checked
 
 
@@ -142,8 +155,9 @@ def _layer_of(built, name: str, pose=None):
 def _cast_of(built, name: str, pose=None):
     """The :class:`~dea_opt.mesh.SpringCast` of a generated pair of meshes (mesh 2 at ``pose``)."""
     if not (hasattr(built, "mesh1") and hasattr(built, "mesh2")):
-        raise ScenarioError(f"geometry.function {name} returned {type(built).__name__}, not a SpringLayer or a "
-                            f"pair of meshes")
+        raise ScenarioError(
+            f"geometry.function {name} returned {type(built).__name__}, not a SpringLayer or a pair of meshes"
+        )
     options = {} if pose is None else {"pose": pose}
     if callable(getattr(built, "cast", None)):
         return built.cast(**options)
@@ -199,9 +213,11 @@ def pose_caster(scenario):
     regions = getattr(scenario, "regions", None)
     if isinstance(section, MeshGeometry):
         meshes = load_meshes(section)
+
         def cast(pose):
             return cast_from_mesh_section(section, meshes, pose)
     elif isinstance(section, GeneratorGeometry) and hasattr(built := _from_generator(section), "mesh1"):
+
         def cast(pose):
             return _cast_of(built, section.function, pose)
     else:
@@ -318,8 +334,10 @@ def apply_regions(layer, regions, cut: float | None = None):
     import dataclasses
 
     if layer.labels is not None:
-        raise ScenarioError("[regions] splits springs that have no labels, but these springs have labels already "
-                            "(a table of meshes, or a label column): remove [regions] or the labels")
+        raise ScenarioError(
+            "[regions] splits springs that have no labels, but these springs have labels already "
+            "(a table of meshes, or a label column): remove [regions] or the labels"
+        )
     cut = _cut(layer, regions) if cut is None else cut
     below = layer.points @ axis_vector(regions.split) < cut
     return dataclasses.replace(layer, labels=np.where(below, regions.names[0], regions.names[1]))
@@ -361,7 +379,8 @@ def _problem(scenario: Scenario, layer, references, cast):
         layer = apply_regions(layer, scenario.regions)
         cast = None if cast is None else dataclasses.replace(cast, layer=layer)
     problem = ContactProblem(
-        layer, build_law(scenario.law),
+        layer,
+        build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),
         body2=_body(scenario.body2, DOFS, reference2),
         kinematics=scenario.solve.kinematics,
@@ -369,7 +388,10 @@ def _problem(scenario: Scenario, layer, references, cast):
     )
     if scenario.load is not None:
         load = scenario.load
-        scaled = Load(force=tuple(np.multiply(load.force, load.scale)), moment=tuple(np.multiply(load.moment, load.scale)),
-                      point=None if load.point is None else tuple(load.point))
+        scaled = Load(
+            force=tuple(np.multiply(load.force, load.scale)),
+            moment=tuple(np.multiply(load.moment, load.scale)),
+            point=None if load.point is None else tuple(load.point),
+        )
         problem = problem.with_load(scaled, body=load.body)
     return problem

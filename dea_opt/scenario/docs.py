@@ -29,8 +29,10 @@ from .schema import (
 __all__ = ["schema_text"]
 
 _SECTIONS: tuple[tuple[str, tuple[type[BaseModel], ...] | None], ...] = (
-    ("geometry", (PlateGeometry, SphereOnBedGeometry, SocketGeometry, MeshGeometry, SpringsGeometry,
-                  GeneratorGeometry)),
+    (
+        "geometry",
+        (PlateGeometry, SphereOnBedGeometry, SocketGeometry, MeshGeometry, SpringsGeometry, GeneratorGeometry),
+    ),
     ("law", None),  # one model per registered kind, made when the schema is printed
     ("body1", (BodySection,)),
     ("body2", (BodySection,)),
@@ -83,7 +85,7 @@ def _kind(model: type[BaseModel]) -> str:
 def _choices(model, name: str) -> str:
     """The method names registered now, for the keys that name methods."""
     if model is SolveSection and name in ("method", "methods"):
-        return " | ".join(method_names()[0 if name == "method" else 1:])
+        return " | ".join(method_names()[0 if name == "method" else 1 :])
     return ""
 
 

@@ -78,8 +78,9 @@ def read_load_path(section: LoadPathSection) -> LoadPathData:
     times = table["time"]
     if len(times) > 1 and not (np.diff(times) > 0).all():
         i = int(np.argmax(np.diff(times) <= 0)) + 1
-        raise ScenarioError(f"{name}: column time must increase, but row {i + 1} has time {times[i]:g} after "
-                            f"{times[i - 1]:g}")
+        raise ScenarioError(
+            f"{name}: column time must increase, but row {i + 1} has time {times[i]:g} after {times[i - 1]:g}"
+        )
     loads = np.column_stack([table.get(c, 0.0 * times) for c in _FORCE_COLUMNS + _MOMENT_COLUMNS]) * section.scale
     present = [c for c in _POSE_COLUMNS if c in table]
     if present and len(present) != len(_POSE_COLUMNS):

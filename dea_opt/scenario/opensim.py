@@ -47,8 +47,10 @@ class StorageFile:
         if name not in self.labels:
             close = difflib.get_close_matches(name, self.labels, n=3)
             hint = f"; did you mean {', '.join(repr(c) for c in close)}?" if close else ""
-            raise ScenarioError(f"{where} names the column {name!r}, which {self.path} does not have{hint} (its "
-                                f"columns: {_shortlist(self.labels)})")
+            raise ScenarioError(
+                f"{where} names the column {name!r}, which {self.path} does not have{hint} (its "
+                f"columns: {_shortlist(self.labels)})"
+            )
         values = self.data[:, self.labels.index(name)]
         return -values if negate else values
 
@@ -63,19 +65,22 @@ def read_storage(path) -> StorageFile:
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise ScenarioError(f"load path {path} is not UTF-8 text (byte {exc.start}): is it an OpenSim .sto/.mot "
-                            f"file?") from None
+        raise ScenarioError(
+            f"load path {path} is not UTF-8 text (byte {exc.start}): is it an OpenSim .sto/.mot file?"
+        ) from None
     lines = text.splitlines()
     end = next((i for i, line in enumerate(lines) if line.strip().lower() == "endheader"), None)
     if end is None:
-        raise ScenarioError(f"load path {path} has no 'endheader' line: an OpenSim Storage file (.sto/.mot) starts "
-                            f"with header lines ending in 'endheader', then a row of column labels")
+        raise ScenarioError(
+            f"load path {path} has no 'endheader' line: an OpenSim Storage file (.sto/.mot) starts "
+            f"with header lines ending in 'endheader', then a row of column labels"
+        )
     header = {}
     for line in lines[:end]:
         key, sep, value = line.partition("=")
         if sep:
             header[key.strip().lower()] = value.strip()
-    rows = [(number, line) for number, line in enumerate(lines[end + 1:], start=end + 2) if line.strip()]
+    rows = [(number, line) for number, line in enumerate(lines[end + 1 :], start=end + 2) if line.strip()]
     if not rows:
         raise ScenarioError(f"load path {path} has no row of column labels after 'endheader'")
     tabs = "\t" in rows[0][1]
@@ -91,23 +96,26 @@ def read_storage(path) -> StorageFile:
     for k, (number, line) in enumerate(rows[1:]):
         fields = split(line)
         if len(fields) != len(labels):
-            raise ScenarioError(f"load path {path}, line {number}: {len(fields)} fields, but the label row has "
-                                f"{len(labels)}")
+            raise ScenarioError(
+                f"load path {path}, line {number}: {len(fields)} fields, but the label row has {len(labels)}"
+            )
         for j, field in enumerate(fields):
             try:
                 value = float(field)
             except ValueError:
                 value = math.nan
             if not math.isfinite(value):
-                raise ScenarioError(f"load path {path}, line {number}, column {labels[j]}: expected a finite number, "
-                                    f"got {field!r}")
+                raise ScenarioError(
+                    f"load path {path}, line {number}, column {labels[j]}: expected a finite number, got {field!r}"
+                )
             data[k, j] = value
     if not len(data):
         raise ScenarioError(f"load path {path} has a label row but no rows of numbers")
     expected = header.get("nrows")
     if expected is not None and expected.isdigit() and int(expected) != len(data):
-        raise ScenarioError(f"load path {path}: its header says nRows={expected}, but it has {len(data)} rows "
-                            f"(a file cut short?)")
+        raise ScenarioError(
+            f"load path {path}: its header says nRows={expected}, but it has {len(data)} rows (a file cut short?)"
+        )
     return StorageFile(path, header, labels, data)
 
 
@@ -129,9 +137,11 @@ def load_path_columns(section) -> dict:
     if rotations:
         degrees = storage.in_degrees
         if degrees is None:
-            raise ScenarioError(f"load path {storage.path}: its header does not say inDegrees=yes or no, so the "
-                                f"rotations {', '.join(section.columns[q] for q in rotations)} cannot be read; add "
-                                f"the line to the header")
+            raise ScenarioError(
+                f"load path {storage.path}: its header does not say inDegrees=yes or no, so the "
+                f"rotations {', '.join(section.columns[q] for q in rotations)} cannot be read; add "
+                f"the line to the header"
+            )
         for quantity in rotations:
             table[quantity] = table[quantity] if degrees else np.degrees(table[quantity])
     if any(q in table for q in _ROTATIONS + _TRANSLATIONS):

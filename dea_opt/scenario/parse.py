@@ -51,8 +51,9 @@ def load_scenario(path, overrides: dict | None = None) -> Scenario:
     path = Path(path).expanduser()
     if not path.is_file():
         raise ScenarioError(f"scenario file not found: {path}")
-    return parse_scenario(decode(path.read_bytes(), path), name=str(path), base_dir=path.resolve().parent,
-                          overrides=overrides)
+    return parse_scenario(
+        decode(path.read_bytes(), path), name=str(path), base_dir=path.resolve().parent, overrides=overrides
+    )
 
 
 def decode(data: bytes, name) -> str:
@@ -62,8 +63,10 @@ def decode(data: bytes, name) -> str:
     except UnicodeDecodeError as exc:
         line = data.count(b"\n", 0, exc.start) + 1
         column = exc.start - (data.rfind(b"\n", 0, exc.start) + 1) + 1
-        raise ScenarioError(f"{name} is not UTF-8 text (TOML files are UTF-8): byte {data[exc.start]:#04x} at line "
-                            f"{line}, column {column}; save the file as UTF-8") from None
+        raise ScenarioError(
+            f"{name} is not UTF-8 text (TOML files are UTF-8): byte {data[exc.start]:#04x} at line "
+            f"{line}, column {column}; save the file as UTF-8"
+        ) from None
 
 
 def parse_scenario(text: str, *, name: str = "<scenario>", base_dir=None, overrides: dict | None = None) -> Scenario:
@@ -75,8 +78,10 @@ def parse_scenario(text: str, *, name: str = "<scenario>", base_dir=None, overri
     except tomllib.TOMLDecodeError as exc:
         raise ScenarioError(f"{name} is not valid TOML: {exc}") from None
     except RecursionError:
-        raise ScenarioError(f"{name} nests tables or arrays too deeply to read (a scenario needs 3 levels, at "
-                            f"most {MAX_DEPTH} are read)") from None
+        raise ScenarioError(
+            f"{name} nests tables or arrays too deeply to read (a scenario needs 3 levels, at "
+            f"most {MAX_DEPTH} are read)"
+        ) from None
     _check_depth(data, name)
     overrides = dict(overrides or {})
     if overrides:
@@ -102,8 +107,10 @@ def _check_depth(data, name: str) -> None:
     while stack:
         node, depth, where = stack.pop()
         if depth > MAX_DEPTH:
-            raise ScenarioError(f"{name} nests tables or arrays more than {MAX_DEPTH} levels deep (at "
-                                f"{where or 'the top level'}); a scenario needs 3")
+            raise ScenarioError(
+                f"{name} nests tables or arrays more than {MAX_DEPTH} levels deep (at "
+                f"{where or 'the top level'}); a scenario needs 3"
+            )
         items = node.items() if isinstance(node, dict) else enumerate(node) if isinstance(node, list) else ()
         for key, value in items:
             if isinstance(value, (dict, list)):
@@ -185,8 +192,11 @@ def _message(error: Mapping[str, Any], loc: tuple, data: dict) -> str:
         parameter = law.parameter(loc[-1])
         return f"law kind {law.name!r} needs {loc[-1]}" + (f" ({parameter.describe()})" if parameter else "")
     if kind == "missing":
-        return "required table is missing" if len(loc) == 1 and loc[0] in Scenario.model_fields else \
-            "required key is missing"
+        return (
+            "required table is missing"
+            if len(loc) == 1 and loc[0] in Scenario.model_fields
+            else "required key is missing"
+        )
     if kind == "union_tag_invalid":
         return f"unknown kind {error['ctx']['tag']!r}; expected one of {error['ctx']['expected_tags']}"
     if kind == "union_tag_not_found":
@@ -198,8 +208,17 @@ def _message(error: Mapping[str, Any], loc: tuple, data: dict) -> str:
         return f"must be {bounds[kind]} {shown}, got {_short(given)}"
     message = error["msg"]
     message = message.removeprefix("Value error, ")
-    if kind in ("float_type", "int_type", "string_type", "bool_type", "list_type", "dict_type",
-                "literal_error", "int_from_float", "float_parsing"):
+    if kind in (
+        "float_type",
+        "int_type",
+        "string_type",
+        "bool_type",
+        "list_type",
+        "dict_type",
+        "literal_error",
+        "int_from_float",
+        "float_parsing",
+    ):
         message += f", got {_short(given)}" + (" (a string)" if isinstance(given, str) else "")
     return message
 
@@ -296,6 +315,7 @@ def _find_key_line(text: str, keys: list) -> int | None:
 
 # --- --set overrides --------------------------------------------------------------------
 
+
 def parse_set(text: str) -> tuple[str, list]:
     """Split ``"law.H=0.3,0.45,0.6"`` into ``("law.H", [0.3, 0.45, 0.6])``.
 
@@ -353,6 +373,6 @@ def apply_overrides(data: dict, overrides: dict) -> dict:
         for depth, part in enumerate(parts[:-1]):
             node = node.setdefault(part, {})
             if not isinstance(node, dict):
-                raise ScenarioError(f"--set {key}: {'.'.join(parts[:depth + 1])} is a value, not a table")
+                raise ScenarioError(f"--set {key}: {'.'.join(parts[: depth + 1])} is a value, not a table")
         node[parts[-1]] = value
     return data

@@ -27,17 +27,34 @@ from ..kinematics import DOFS
 from ..laws import LAWS
 
 __all__ = [
-    "FORMATS", "GEOMETRY_KINDS", "LOAD_PATH_COLUMNS", "BodySection", "GeneratorGeometry",
-    "LawSection", "LoadPathSection", "LoadSection", "MeshGeometry", "OutputSection", "PlateGeometry",
-    "RegionsSection", "Scenario", "SocketGeometry", "SolveSection", "SphereOnBedGeometry", "SpringsGeometry",
-    "check_method_name", "law_model", "method_names",
+    "FORMATS",
+    "GEOMETRY_KINDS",
+    "LOAD_PATH_COLUMNS",
+    "BodySection",
+    "GeneratorGeometry",
+    "LawSection",
+    "LoadPathSection",
+    "LoadSection",
+    "MeshGeometry",
+    "OutputSection",
+    "PlateGeometry",
+    "RegionsSection",
+    "Scenario",
+    "SocketGeometry",
+    "SolveSection",
+    "SphereOnBedGeometry",
+    "SpringsGeometry",
+    "check_method_name",
+    "law_model",
+    "method_names",
 ]
 
 Format = Literal["csv", "json", "vtk", "png"]
 FORMATS: tuple[Format, ...] = get_args(Format)
 #: The quantities of a load path a column can be: time, force, moment and the pose of mesh 2.
-LoadPathColumn = Literal["time", "Fx", "Fy", "Fz", "Mx", "My", "Mz",
-                         "pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz"]
+LoadPathColumn = Literal[
+    "time", "Fx", "Fy", "Fz", "Mx", "My", "Mz", "pose_tx", "pose_ty", "pose_tz", "pose_rx", "pose_ry", "pose_rz"
+]
 LOAD_PATH_COLUMNS: tuple[LoadPathColumn, ...] = get_args(LoadPathColumn)
 
 
@@ -69,6 +86,7 @@ def __getattr__(name: str):
 
 
 # --- field types ------------------------------------------------------------------------
+
 
 def _no_nul(value: str) -> str:
     if "\0" in value:
@@ -120,8 +138,10 @@ def _mesh_files(value, info: ValidationInfo):
     if isinstance(value, str):
         return _existing_file(value, info)
     if not isinstance(value, dict) or not value:
-        raise ValueError(f'expected a path or a table of labelled paths {{medial = "medial.stl", ...}}, got '
-                         f"{value!r}" + (" (a number)" if isinstance(value, (int, float)) else ""))
+        raise ValueError(
+            f'expected a path or a table of labelled paths {{medial = "medial.stl", ...}}, got '
+            f"{value!r}" + (" (a number)" if isinstance(value, (int, float)) else "")
+        )
     files = {}
     for label, path in value.items():
         if not isinstance(path, str):
@@ -145,11 +165,17 @@ Count = Annotated[int, Field(ge=1)]
 Dof = Literal["ux", "uy", "uz", "rx", "ry", "rz"]
 DofList = Annotated[list[Dof], BeforeValidator(_dof_list)]
 #: A method name (:func:`method_names`); the JSON schema lists the names registered when it is made.
-Method = Annotated[str, AfterValidator(lambda name: check_method_name(name, "the method")),
-                   Field(json_schema_extra=lambda schema: schema.update(enum=list(method_names())))]
+Method = Annotated[
+    str,
+    AfterValidator(lambda name: check_method_name(name, "the method")),
+    Field(json_schema_extra=lambda schema: schema.update(enum=list(method_names()))),
+]
 #: A formulation compared by ``dea-opt compare`` (a method name other than ``auto``).
-ComparedMethod = Annotated[str, AfterValidator(lambda name: check_method_name(name, "a compared method", auto=False)),
-                           Field(json_schema_extra=lambda schema: schema.update(enum=list(method_names()[1:])))]
+ComparedMethod = Annotated[
+    str,
+    AfterValidator(lambda name: check_method_name(name, "a compared method", auto=False)),
+    Field(json_schema_extra=lambda schema: schema.update(enum=list(method_names()[1:]))),
+]
 
 
 class _Section(BaseModel):
@@ -157,6 +183,7 @@ class _Section(BaseModel):
 
 
 # --- [geometry] -------------------------------------------------------------------------
+
 
 class PlateGeometry(_Section):
     """A rigid plate on a flat bonded layer (``dea_opt.geometry.plate_layer``): the core's plate case."""
@@ -190,8 +217,7 @@ class SocketGeometry(_Section):
     kind: Literal["socket"]
     radius: Positive = Field(25.0, description="head radius (mm)")
     thickness: Positive = Field(3.0, description="total cartilage thickness, both layers (mm)")
-    coverage: Annotated[float, Field(gt=0, le=180)] = Field(
-        80.0, description="half-angle of the socket cap (degrees)")
+    coverage: Annotated[float, Field(gt=0, le=180)] = Field(80.0, description="half-angle of the socket cap (degrees)")
     n_rings: Count = Field(45, description="rings of springs")
     n_sectors: Count = Field(120, description="sectors of springs")
     gap: float = Field(0.0, description="radial clearance between head and socket (mm)")
@@ -220,16 +246,19 @@ class MeshGeometry(_Section):
     mesh2: MeshFiles = Field(description="articular surface of body 2 (path), or a table {label = path}")
     scale: Positive = Field(1.0, description="factor to millimetres (1000 for files in metres)")
     thickness1: Positive | None = Field(
-        None, description="cartilage thickness on body 1 (mm); omit for a closed cartilage surface")
+        None, description="cartilage thickness on body 1 (mm); omit for a closed cartilage surface"
+    )
     thickness2: Positive | None = Field(None, description="cartilage thickness on body 2 (mm)")
     bone1: File | None = Field(None, description="bone mesh of body 1 to measure thickness to (path)")
     bone2: File | None = Field(None, description="bone mesh of body 2 to measure thickness to (path)")
     max_gap: NonNegative | None = Field(None, description="largest gap that makes a spring (mm)")
     max_overlap: NonNegative | None = Field(None, description="largest initial overlap (mm)")
     max_angle: Annotated[float, Field(gt=0, le=180)] | None = Field(
-        None, description="largest angle between facing normals (degrees)")
+        None, description="largest angle between facing normals (degrees)"
+    )
     pose: list[Annotated[list[float], Field(min_length=4, max_length=4)]] | None = Field(
-        None, min_length=4, max_length=4, description="4x4 rigid transform applied to mesh 2")
+        None, min_length=4, max_length=4, description="4x4 rigid transform applied to mesh 2"
+    )
 
     @model_validator(mode="after")
     def _one_thickness(self):
@@ -254,6 +283,7 @@ GEOMETRY_KINDS = ("plate", "sphere_on_bed", "socket", "generator", "meshes", "sp
 
 
 # --- [law], [body1], [body2] ------------------------------------------------------------
+
 
 def _law_json_schema(schema: dict) -> None:
     # The JSON Schema of [law]: one alternative per registered kind, made when asked.
@@ -316,13 +346,16 @@ class BodySection(_Section):
     """One rigid body. Default: body 1 fixed, body 2 free in all six dofs."""
 
     reference: Vector3 | None = Field(
-        None, description="centre of rotation, moments about it (mm); default the generator's, else the origin")
+        None, description="centre of rotation, moments about it (mm); default the generator's, else the origin"
+    )
     free: DofList | None = Field(None, description='free dofs, e.g. ["ux", "uy", "uz"], or "all" / "none"')
     prescribed: dict[Dof, float] = Field(
-        default_factory=dict, description="dofs held at a displacement, e.g. {uz = -0.1} (mm, rad)")
+        default_factory=dict, description="dofs held at a displacement, e.g. {uz = -0.1} (mm, rad)"
+    )
 
 
 # --- [load], [load_path] ----------------------------------------------------------------
+
 
 class LoadSection(_Section):
     """One static load."""
@@ -344,14 +377,19 @@ class LoadPathSection(_Section):
 
     file: File | None = Field(None, description="load CSV, or OpenSim .sto/.mot (path)")
     builtin: Literal["hip_gait"] | None = Field(
-        None, description='a shipped load path instead of a file: "hip_gait" (synthetic, 101 frames)')
+        None, description='a shipped load path instead of a file: "hip_gait" (synthetic, 101 frames)'
+    )
     columns: dict[LoadPathColumn, str] | None = Field(
-        None, description='for .sto/.mot: the file\'s column of each quantity, e.g. {Fx = "knee_r_on_femur_r_in_'
-                          'femur_r_fx", ...} (Fx, Fy, Fz required; a leading "-" negates a column; time defaults '
-                          'to "time"; quantities not named are 0)')
+        None,
+        description="for .sto/.mot: the file's column of each quantity, e.g. {Fx = \"knee_r_on_femur_r_in_"
+        'femur_r_fx", ...} (Fx, Fy, Fz required; a leading "-" negates a column; time defaults '
+        'to "time"; quantities not named are 0)',
+    )
     units: Literal["SI", "mm"] | None = Field(
-        None, description='units of a .sto/.mot file: "SI" (OpenSim\'s N, N m, m: moments and pose '
-                          'translations are converted to N mm and mm; the default) or "mm" (N, N mm, mm)')
+        None,
+        description='units of a .sto/.mot file: "SI" (OpenSim\'s N, N m, m: moments and pose '
+        'translations are converted to N mm and mm; the default) or "mm" (N, N mm, mm)',
+    )
     body: Literal[1, 2] = Field(2, description="the body carrying the loads")
     point: Vector3 | None = Field(None, description="where the forces act (mm)")
     scale: float = Field(1.0, description="factor on every force and moment (for sweeps)")
@@ -363,8 +401,10 @@ class LoadPathSection(_Section):
             raise ValueError("give exactly one of file or builtin")
         opensim = self.file is not None and Path(self.file).suffix.lower() in (".sto", ".mot")
         if opensim and self.columns is None:
-            raise ValueError('an OpenSim .sto/.mot load path needs columns = {Fx = "...", Fy = "...", '
-                             'Fz = "...", ...}: which column of the file is which')
+            raise ValueError(
+                'an OpenSim .sto/.mot load path needs columns = {Fx = "...", Fy = "...", '
+                'Fz = "...", ...}: which column of the file is which'
+            )
         if not opensim and (self.columns is not None or self.units is not None):
             raise ValueError("columns and units apply to OpenSim .sto/.mot load paths only")
         if opensim and not {"Fx", "Fy", "Fz"} <= set(self.columns):
@@ -380,9 +420,11 @@ class RegionsSection(_Section):
 
     split: Literal["x", "y", "z", "-x", "-y", "-z"] = Field(description="the axis to split across")
     at: float | Literal["centroid"] = Field(
-        "centroid", description='where to cut along the axis (mm), or "centroid": the springs\' area centroid')
+        "centroid", description='where to cut along the axis (mm), or "centroid": the springs\' area centroid'
+    )
     names: Annotated[list[str], Field(min_length=2, max_length=2)] = Field(
-        ["medial", "lateral"], description="the labels below and above the cut")
+        ["medial", "lateral"], description="the labels below and above the cut"
+    )
 
     @model_validator(mode="after")
     def _two_names(self):
@@ -393,6 +435,7 @@ class RegionsSection(_Section):
 
 # --- [solve], [output] ------------------------------------------------------------------
 
+
 class SolveSection(_Section):
     """How to solve (``run``) and what to compare (``compare``)."""
 
@@ -402,38 +445,45 @@ class SolveSection(_Section):
     certificate_tol: Positive = Field(1e-6, description="bound on every certificate residual")
     form: Literal["constrained", "reduced"] = Field("constrained", description="NLP form")
     methods: list[ComparedMethod] | None = Field(
-        None, min_length=1, description="methods for compare (default: every registered formulation that solves the "
-                                        "problem)")
-    solvers: list[str] = Field(
-        ["CLARABEL", "OSQP", "SCS", "PIQP"], min_length=1, description="QP solvers for compare")
+        None,
+        min_length=1,
+        description="methods for compare (default: every registered formulation that solves the problem)",
+    )
+    solvers: list[str] = Field(["CLARABEL", "OSQP", "SCS", "PIQP"], min_length=1, description="QP solvers for compare")
     accuracy: list[Literal["low", "default", "high"]] = Field(
-        ["default"], min_length=1, description="accuracy settings for compare")
+        ["default"], min_length=1, description="accuracy settings for compare"
+    )
     repeat: Count = Field(1, description="repeats per compare case")
     kinematics: Literal["small", "finite"] = Field(
-        "small", description="small: the paper's linearised rigid motion (Eq. 9-11), gaps cast once; finite: exact "
-                             "rotations and gaps at the current pose, springs cast from meshes re-cast as body 2 "
-                             "moves (method newton and nlp stand for the finite formulations; qp is small only)")
+        "small",
+        description="small: the paper's linearised rigid motion (Eq. 9-11), gaps cast once; finite: exact "
+        "rotations and gaps at the current pose, springs cast from meshes re-cast as body 2 "
+        "moves (method newton and nlp stand for the finite formulations; qp is small only)",
+    )
     allow_outside_validity: bool = Field(
-        False, description="exit 0 instead of 3 when an answer is certified but outside its model's validity (for "
-                           "exploring on purpose; the outputs still say so)")
+        False,
+        description="exit 0 instead of 3 when an answer is certified but outside its model's validity (for "
+        "exploring on purpose; the outputs still say so)",
+    )
 
 
 class OutputSection(_Section):
     """Where results go and in which formats."""
 
     directory: Annotated[str, AfterValidator(_no_nul)] = Field(
-        "results", description="output folder (relative to the scenario file): new, empty, or holding an earlier "
-                               "dea-opt run")
-    formats: list[Format] = Field(
-        list(FORMATS), description="any of csv, json, vtk, png")
-    exposure_threshold: NonNegative = Field(
-        1.0, description="pressure threshold of the exposure measures (MPa)")
+        "results",
+        description="output folder (relative to the scenario file): new, empty, or holding an earlier dea-opt run",
+    )
+    formats: list[Format] = Field(list(FORMATS), description="any of csv, json, vtk, png")
+    exposure_threshold: NonNegative = Field(1.0, description="pressure threshold of the exposure measures (MPa)")
     anatomy: Annotated[dict[str, Any] | None, AfterValidator(_anatomy)] = Field(
-        None, description='the anatomical frame of the maps and centres of pressure: two or three of medial, '
-                          'anterior, proximal (directions, mesh coordinates) and side = "right" | "left", e.g. '
-                          '{medial = [1, 0, 0], proximal = [0, 0, 1], side = "right"}; or landmarks = {medial = '
-                          '[...], lateral = [...], proximal = [...]} with side (and origin = "midpoint", a '
-                          'landmark or a point, mm); see dea_opt.anatomy.AnatomicalFrame.from_dict')
+        None,
+        description="the anatomical frame of the maps and centres of pressure: two or three of medial, "
+        'anterior, proximal (directions, mesh coordinates) and side = "right" | "left", e.g. '
+        '{medial = [1, 0, 0], proximal = [0, 0, 1], side = "right"}; or landmarks = {medial = '
+        '[...], lateral = [...], proximal = [...]} with side (and origin = "midpoint", a '
+        "landmark or a point, mm); see dea_opt.anatomy.AnatomicalFrame.from_dict",
+    )
 
 
 class Scenario(_Section):

@@ -21,8 +21,16 @@ from ..errors import InputError, SolverError, ValidityWarning
 from .derivatives import LOADS, sensitivities
 from .measurements import FILMS, ContactData, Film, ForceDisplacement, PressureMap
 
-__all__ = ["FILMS", "Calibration", "ContactData", "Film", "ForceDisplacement", "PressureMap", "apply_parameters",
-           "calibrate"]
+__all__ = [
+    "FILMS",
+    "Calibration",
+    "ContactData",
+    "Film",
+    "ForceDisplacement",
+    "PressureMap",
+    "apply_parameters",
+    "calibrate",
+]
 
 
 def _fitted_in_logs(problem, name) -> bool:
@@ -47,14 +55,20 @@ def apply_parameters(problem, values: dict):
         out = out.with_law(dataclasses.replace(problem.law, **law_values))
     if "thickness_scale" in values:
         layer = problem.layer
-        out = out.with_layer(dataclasses.replace(layer, thickness=np.asarray(layer.thickness) * values["thickness_scale"]))
+        out = out.with_layer(
+            dataclasses.replace(layer, thickness=np.asarray(layer.thickness) * values["thickness_scale"])
+        )
     loads = {k: v for k, v in values.items() if k in LOADS}
     if loads:
         vector = problem.body2.load_vector.copy()
         for k, v in loads.items():
             vector[LOADS.index(k)] = v
-        out = out.with_body(2, dataclasses.replace(out.body2, force=tuple(vector[:3]), moment=tuple(vector[3:]),
-                                                   prescribed=dict(out.body2.prescribed)))
+        out = out.with_body(
+            2,
+            dataclasses.replace(
+                out.body2, force=tuple(vector[:3]), moment=tuple(vector[3:]), prescribed=dict(out.body2.prescribed)
+            ),
+        )
     return out
 
 
@@ -110,11 +124,20 @@ class Calibration:
 
     def summary(self) -> dict:
         """JSON-ready: values, standard errors, correlation, cost, and the fit's outcome."""
-        return {"parameters": list(self.parameters), "values": self.values, "start": self.start,
-                "standard_errors": self.standard_errors, "correlation": self.correlation.tolist(),
-                "cost": self.cost, "n_residuals": int(self.residuals.size), "success": self.success,
-                "message": self.message, "nfev": self.nfev, "peak_pressure": self.solution.peak_pressure,
-                "contact_area": self.solution.contact_area}
+        return {
+            "parameters": list(self.parameters),
+            "values": self.values,
+            "start": self.start,
+            "standard_errors": self.standard_errors,
+            "correlation": self.correlation.tolist(),
+            "cost": self.cost,
+            "n_residuals": int(self.residuals.size),
+            "success": self.success,
+            "message": self.message,
+            "nfev": self.nfev,
+            "peak_pressure": self.solution.peak_pressure,
+            "contact_area": self.solution.contact_area,
+        }
 
     def residual_map(self):
         """One row per matched point of every pressure map: ``x, y, z`` (mm), ``measured``,
@@ -129,10 +152,21 @@ class Calibration:
             springs, kept = data.matched(self.solution.problem.layer)
             r, _ = data.residuals(self.solution, None, (), {"match": (springs, kept)})
             state = np.array(["below", "measured", "saturated"])[data.state[kept] + 1]
-            rows.append(pd.DataFrame({"dataset": k, "x": data.points[kept, 0], "y": data.points[kept, 1],
-                                      "z": data.points[kept, 2], "measured": data.pressure[kept],
-                                      "predicted": self.solution.pressure[springs], "state": state,
-                                      "spring": springs, "residual": r}))
+            rows.append(
+                pd.DataFrame(
+                    {
+                        "dataset": k,
+                        "x": data.points[kept, 0],
+                        "y": data.points[kept, 1],
+                        "z": data.points[kept, 2],
+                        "measured": data.pressure[kept],
+                        "predicted": self.solution.pressure[springs],
+                        "state": state,
+                        "spring": springs,
+                        "residual": r,
+                    }
+                )
+            )
         return pd.concat(rows, ignore_index=True) if rows else pd.DataFrame()
 
     def plot(self, path, title: str | None = None):
@@ -148,22 +182,27 @@ class Calibration:
         fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10.5, 4.6), constrained_layout=True)
         films = {data.film for data in self.data if isinstance(data, PressureMap) and data.film is not None}
         film = films.pop() if len(films) == 1 else None
-        for state, marker, label in (("measured", "o", "within the film's range"), ("below", "v", "read 'below'"),
-                                     ("saturated", "^", "read 'saturated'")):
+        for state, marker, label in (
+            ("measured", "o", "within the film's range"),
+            ("below", "v", "read 'below'"),
+            ("saturated", "^", "read 'saturated'"),
+        ):
             rows = table[table.state == state]
             if not len(rows):
                 continue
             # a censored reading says only "beyond the limit": drawn at the limit
-            shown = rows.measured if film is None or state == "measured" else np.full(
-                len(rows), film.lower if state == "below" else film.upper)
+            shown = (
+                rows.measured
+                if film is None or state == "measured"
+                else np.full(len(rows), film.lower if state == "below" else film.upper)
+            )
             ax1.scatter(rows.predicted, shown, s=5, marker=marker, alpha=0.5, label=label)
         top = float(max(table.measured.max(), table.predicted.max()))
         ax1.plot([0, top], [0, top], "k-", lw=0.8)
         if film is not None:
             for limit in (film.lower, film.upper):
                 ax1.axhline(limit, color="0.5", ls="--", lw=0.8)
-        ax1.set(xlabel="predicted pressure (MPa)", ylabel="measured pressure (MPa)",
-                title="measured vs predicted")
+        ax1.set(xlabel="predicted pressure (MPa)", ylabel="measured pressure (MPa)", title="measured vs predicted")
         ax1.legend(loc="upper left", fontsize=8, markerscale=2)
         xyz = table[["x", "y", "z"]].to_numpy()
         centred = xyz - xyz.mean(axis=0)
@@ -171,7 +210,9 @@ class Calibration:
         plane = centred @ axes.T
         limit = float(np.abs(table.residual).max()) or 1.0
         sc = ax2.scatter(plane[:, 0], plane[:, 1], c=table.residual, cmap="RdBu_r", vmin=-limit, vmax=limit, s=6)
-        ax2.set(aspect="equal", xlabel="mm (in the map's plane)", ylabel="mm", title="residual (predicted - measured) / sd")
+        ax2.set(
+            aspect="equal", xlabel="mm (in the map's plane)", ylabel="mm", title="residual (predicted - measured) / sd"
+        )
         fig.colorbar(sc, ax=ax2, shrink=0.85)
         text = ", ".join(f"{p} = {self.values[p]:.4g} ± {self.standard_errors[p]:.2g}" for p in self.parameters)
         fig.suptitle(title or f"calibration: {text}", fontsize=10)
@@ -181,8 +222,18 @@ class Calibration:
             plt.close(fig)
 
 
-def calibrate(problem, data, parameters=("H",), *, start=None, max_nfev: int = 60, scale_errors: bool = True,
-              method: str = "newton", ftol: float = 1e-10, xtol: float = 1e-10) -> Calibration:
+def calibrate(
+    problem,
+    data,
+    parameters=("H",),
+    *,
+    start=None,
+    max_nfev: int = 60,
+    scale_errors: bool = True,
+    method: str = "newton",
+    ftol: float = 1e-10,
+    xtol: float = 1e-10,
+) -> Calibration:
     """Fit ``parameters`` of ``problem`` to ``data`` by least squares with the exact Jacobian.
 
     Parameters
@@ -222,16 +273,28 @@ def calibrate(problem, data, parameters=("H",), *, start=None, max_nfev: int = 6
     logs = np.array([_fitted_in_logs(problem, p) for p in parameters])
     theta0 = np.array([values[p] for p in parameters])
     if (theta0[logs] <= 0).any():
-        raise InputError(f"the start of {', '.join(np.array(parameters)[logs])} must be > 0 (fitted in logarithms), "
-                         f"got {theta0[logs].tolist()}")
+        raise InputError(
+            f"the start of {', '.join(np.array(parameters)[logs])} must be > 0 (fitted in logarithms), "
+            f"got {theta0[logs].tolist()}"
+        )
     model = _Model(problem, data, parameters, logs, method)
     z0 = np.where(logs, np.log(np.where(logs, theta0, 1.0)), theta0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ValidityWarning)
         # within three decades of the start: a step can never leave the law's range
         span = np.where(logs, np.log(1e3), np.inf)
-        fit = least_squares(model.residuals, z0, jac=model.jacobian, bounds=(z0 - span, z0 + span), method="trf",
-                            x_scale="jac", max_nfev=max_nfev, ftol=ftol, xtol=xtol, gtol=1e-12)
+        fit = least_squares(
+            model.residuals,
+            z0,
+            jac=model.jacobian,
+            bounds=(z0 - span, z0 + span),
+            method="trf",
+            x_scale="jac",
+            max_nfev=max_nfev,
+            ftol=ftol,
+            xtol=xtol,
+            gtol=1e-12,
+        )
         r, Jz, solution = model.evaluate(fit.x)
     theta = np.where(logs, np.exp(fit.x), fit.x)
     J = Jz / np.where(logs, theta, 1.0)  # d r / d theta
@@ -242,10 +305,22 @@ def calibrate(problem, data, parameters=("H",), *, start=None, max_nfev: int = 6
     se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = covariance / np.outer(se, se)
-    return Calibration(parameters, dict(zip(parameters, theta.tolist())), dict(zip(parameters, theta0.tolist())),
-                       dict(zip(parameters, se.tolist())), correlation, covariance, r, float(r @ r) / 2,
-                       bool(fit.success), str(fit.message), int(model.solves), solution, data,
-                       info={"optimality": float(fit.optimality), "nfev": int(fit.nfev), "njev": int(fit.njev or 0)})
+    return Calibration(
+        parameters,
+        dict(zip(parameters, theta.tolist())),
+        dict(zip(parameters, theta0.tolist())),
+        dict(zip(parameters, se.tolist())),
+        correlation,
+        covariance,
+        r,
+        float(r @ r) / 2,
+        bool(fit.success),
+        str(fit.message),
+        int(model.solves),
+        solution,
+        data,
+        info={"optimality": float(fit.optimality), "nfev": int(fit.nfev), "njev": int(fit.njev or 0)},
+    )
 
 
 class _Model:
@@ -315,8 +390,9 @@ class _Model:
         return self.evaluate(z)[1]
 
 
-def calibrate_scenario(scenario, data_path, folder, *, parameters=None, film=None, noise: float = 0.05,
-                       max_distance=None) -> tuple:
+def calibrate_scenario(
+    scenario, data_path, folder, *, parameters=None, film=None, noise: float = 0.05, max_distance=None
+) -> tuple:
     """``dea-opt calibrate``: fit a scenario's parameters to a pressure map CSV and write the results.
 
     Writes ``calibration.json`` (the summary), ``residuals.csv`` (:meth:`Calibration.residual_map`)
@@ -330,19 +406,32 @@ def calibrate_scenario(scenario, data_path, folder, *, parameters=None, film=Non
     from ..scenario import build_problem
 
     if scenario.load_path is not None:
-        raise InputError("calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
-                         "calibrate against one frame written as a static scenario")
+        raise InputError(
+            "calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
+            "calibrate against one frame written as a static scenario"
+        )
     problem = build_problem(scenario)
     names = tuple(parameters) if parameters else problem.law.parameter_names
     data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
     fit = calibrate(problem, data, names)
     folder = Path(folder)
-    files = {"summary": folder / "calibration.json", "residuals": folder / "residuals.csv",
-             "plot": folder / "calibration.png"}
-    film_info = None if data.film is None else {"name": data.film.name, "lower": data.film.lower,
-                                                "upper": data.film.upper}
-    summary = {**fit.summary(), "scenario": scenario.source, "data": str(data_path), "film": film_info,
-               "noise": data.noise, "points": len(data.pressure), "points_matched": int(fit.residuals.size)}
+    files = {
+        "summary": folder / "calibration.json",
+        "residuals": folder / "residuals.csv",
+        "plot": folder / "calibration.png",
+    }
+    film_info = (
+        None if data.film is None else {"name": data.film.name, "lower": data.film.lower, "upper": data.film.upper}
+    )
+    summary = {
+        **fit.summary(),
+        "scenario": scenario.source,
+        "data": str(data_path),
+        "film": film_info,
+        "noise": data.noise,
+        "points": len(data.pressure),
+        "points_matched": int(fit.residuals.size),
+    }
     write_atomic(files["summary"], lambda tmp: tmp.write_text(json.dumps(summary, indent=2, default=float)))
     table = fit.residual_map()
     write_atomic(files["residuals"], lambda tmp: table.to_csv(tmp, index=False))

@@ -33,12 +33,29 @@ PAGE = "formulations/sensitivity.md"
 
 LOADS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
 PER_SPRING = ("thickness", "gap")
-OUTPUTS = ("u", "strain", "pressure", "peak_pressure", "mean_pressure", "contact_force", "contact_moment",
-           "center_of_pressure", "contact_area")
+OUTPUTS = (
+    "u",
+    "strain",
+    "pressure",
+    "peak_pressure",
+    "mean_pressure",
+    "contact_force",
+    "contact_moment",
+    "center_of_pressure",
+    "contact_area",
+)
 #: Outputs' units, for ``Sensitivities.unit``.
-OUTPUT_UNITS = {"u": "mm or rad", "strain": "1", "pressure": "MPa", "peak_pressure": "MPa",
-                "mean_pressure": "MPa", "contact_force": "N", "contact_moment": "N mm",
-                "center_of_pressure": "mm", "contact_area": "mm^2"}
+OUTPUT_UNITS = {
+    "u": "mm or rad",
+    "strain": "1",
+    "pressure": "MPa",
+    "peak_pressure": "MPa",
+    "mean_pressure": "MPa",
+    "contact_force": "N",
+    "contact_moment": "N mm",
+    "center_of_pressure": "mm",
+    "contact_area": "mm^2",
+}
 #: Per-spring parameters give dense (N, N) pressure and strain derivatives up to this many
 #: springs, a ``scipy.sparse.linalg.LinearOperator`` beyond.
 DENSE_LIMIT = 4096
@@ -159,8 +176,9 @@ def _columns(problem, names, eps, strict, law) -> list:
         b, s, dr, du = np.zeros(n), None, np.zeros(len(free)), np.zeros(12)
         if name in law.parameter_names:
             if law_rates is None:
-                law_rates = {k: np.where(strict, v, 0.0) for k, v in
-                             law.stress_derivatives(np.where(strict, eps, 0.0)).items()}
+                law_rates = {
+                    k: np.where(strict, v, 0.0) for k, v in law.stress_derivatives(np.where(strict, eps, 0.0)).items()
+                }
             s = law_rates[name]
         elif name == "thickness_scale":
             b = -eps
@@ -174,16 +192,19 @@ def _columns(problem, names, eps, strict, law) -> list:
                 raise InputError(
                     f"wrt holds {name!r}, which is no parameter of this problem: give the law's parameters "
                     f"{law.parameter_names}, 'thickness_scale', 'thickness', 'gap', the load components {LOADS} "
-                    f"(body 2; 'body1.Fx' for body 1) or a prescribed dof ('body2.uz')")
-            k = (0 if body == "body1" else 6)
+                    f"(body 2; 'body1.Fx' for body 1) or a prescribed dof ('body2.uz')"
+                )
+            k = 0 if body == "body1" else 6
             if dof in LOADS:
                 index = k + LOADS.index(dof)
                 dr = (free == index).astype(float)
             else:
                 index = k + DOFS.index(dof)
                 if dof not in getattr(problem, body).prescribed:
-                    raise InputError(f"wrt holds {name!r}, but {body}.{dof} is not prescribed: only prescribed "
-                                     f"dofs are parameters (free dofs are unknowns, fixed ones are 0)")
+                    raise InputError(
+                        f"wrt holds {name!r}, but {body}.{dof} is not prescribed: only prescribed "
+                        f"dofs are parameters (free dofs are unknowns, fixed ones are 0)"
+                    )
                 du[index] = 1.0
                 b = problem.normal_operator[:, index] / h
         out.append((name, _Columns(b[:, None], None if s is None else s[:, None], dr[:, None], du[:, None])))
@@ -199,8 +220,12 @@ def _groups(columns) -> list:
         s_all = None
         if any(c.s is not None for _, c in scalar):
             s_all = np.hstack([np.zeros_like(c.b) if c.s is None else c.s for _, c in scalar])
-        merged = _Columns(np.hstack([c.b for _, c in scalar]), s_all, np.hstack([c.dr for _, c in scalar]),
-                          np.hstack([c.du for _, c in scalar]))
+        merged = _Columns(
+            np.hstack([c.b for _, c in scalar]),
+            s_all,
+            np.hstack([c.dr for _, c in scalar]),
+            np.hstack([c.du for _, c in scalar]),
+        )
         groups.append(([n for n, _ in scalar], merged))
     groups += [([n], c) for n, c in columns if c.diagonal]
     return groups
@@ -227,11 +252,15 @@ def sensitivities(solution, wrt=("H",), *, area_band: float | None = None, edge:
     Sensitivities
     """
     if not getattr(solution, "success", False):
-        raise InputError(f"sensitivities need a certified solution; this one has status "
-                         f"{getattr(solution, 'status', '?')!r} (certificate not passed)")
+        raise InputError(
+            f"sensitivities need a certified solution; this one has status "
+            f"{getattr(solution, 'status', '?')!r} (certificate not passed)"
+        )
     if getattr(getattr(solution, "problem", None), "kinematics", "small") == "finite":
-        raise InputError("sensitivities are derivatives of the small kinematics of Eq. (9)-(11); a solution of "
-                         "kinematics='finite' has none here: differentiate a small-kinematics solve")
+        raise InputError(
+            "sensitivities are derivatives of the small kinematics of Eq. (9)-(11); a solution of "
+            "kinematics='finite' has none here: differentiate a small-kinematics solve"
+        )
     if isinstance(wrt, str):
         wrt = (wrt,)
     wrt = tuple(wrt)
@@ -283,7 +312,7 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
             along = np.array([res.load_fraction(col.dr[:, j]) for j in range(col.dr.shape[1])])
             for j in np.flatnonzero(along > 1e-7):
                 notes.append(f"{names[j]}: the load moves along a direction no spring resists; no derivative (NaN)")
-        for sign in ((+1, -1) if one_sided else (+1,)):
+        for sign in (+1, -1) if one_sided else (+1,):
             if edge.size:
                 if col.diagonal:
                     be = np.zeros((edge.size, c.shape[1]))
@@ -297,9 +326,11 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
                 dxi, state = -sol, np.zeros((0, c.shape[1]), dtype=bool)
             bad = np.flatnonzero(lost & ~(along > 1e-7))
             way = "" if not one_sided else (" as it increases" if sign > 0 else " as it decreases")
-            for name in ([names[0]] if col.diagonal and bad.size else [names[j] for j in bad]):
-                notes.append(f"{name}{way}: the contact resists no motion along the direction it pushes (the "
-                             f"springs would separate or jump); no derivative (NaN)")
+            for name in [names[0]] if col.diagonal and bad.size else [names[j] for j in bad]:
+                notes.append(
+                    f"{name}{way}: the contact resists no motion along the direction it pushes (the "
+                    f"springs would separate or jump); no derivative (NaN)"
+                )
             dxi[:, lost | (along > 1e-7)] = np.nan
             out = _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state, band, sign, peak_set)
             if col.diagonal:
@@ -307,18 +338,32 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
                 states[sign][names[0]] = state
                 continue
             for column, name in enumerate(names):
-                results[sign][name] = {k: (float(v[column]) if np.ndim(v) == 1 else v[:, column])
-                                      for k, v in out.items()}
+                results[sign][name] = {
+                    k: (float(v[column]) if np.ndim(v) == 1 else v[:, column]) for k, v in out.items()
+                }
                 states[sign][name] = state[:, column]
     units = {name: parameter_unit(law, name) for name in wrt}
     made = {}
     for side in (s for s in results if results[s]):
         fields: dict = {k: {n: results[side][n][k] for n in wrt} for k in OUTPUTS}
-        made[side] = Sensitivities(wrt=wrt, units=units, edge=edge, edge_state=states[side], area_band=band[1],
-                                   notes=tuple(dict.fromkeys(notes)), one_sided=one_sided, **fields)
-    if -1 in made and not edge.size and all(
+        made[side] = Sensitivities(
+            wrt=wrt,
+            units=units,
+            edge=edge,
+            edge_state=states[side],
+            area_band=band[1],
+            notes=tuple(dict.fromkeys(notes)),
+            one_sided=one_sided,
+            **fields,
+        )
+    if (
+        -1 in made
+        and not edge.size
+        and all(
             np.allclose(made[+1].peak_pressure[k], made[-1].peak_pressure[k], rtol=1e-12, atol=0, equal_nan=True)
-            for k in wrt):
+            for k in wrt
+        )
+    ):
         del made[-1]  # a shared peak whose springs all change alike: two-sided after all
         object.__setattr__(made[+1], "one_sided", False)
     object.__setattr__(made[+1], "decreasing", made.get(-1, made[+1]))
@@ -410,8 +455,15 @@ def _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state,
         dpeak = np.zeros(q)
     if col.diagonal:
         strain, pressure = _per_spring_fields(n, ATk, dxi, col, sig, tangent, edge, state)
-        squeeze = {"u": du, "peak_pressure": dpeak, "mean_pressure": dmean, "contact_force": dforce,
-                   "contact_moment": dmoment, "center_of_pressure": dcop, "contact_area": darea}
+        squeeze = {
+            "u": du,
+            "peak_pressure": dpeak,
+            "mean_pressure": dmean,
+            "contact_force": dforce,
+            "contact_moment": dmoment,
+            "center_of_pressure": dcop,
+            "contact_area": darea,
+        }
         return {"strain": strain, "pressure": pressure, **squeeze}
     deps = ATk.T @ dxi + col.b
     dp = -sig[:, None] * deps
@@ -419,8 +471,17 @@ def _outputs(solution, problem, col, dxi, T1, ATk, tangent, strict, edge, state,
         dp -= col.s  # zero outside the strict contact
     if edge.size:
         dp[edge] = -tangent[edge, None] * deps[edge] * state
-    return {"u": du, "strain": deps, "pressure": dp, "peak_pressure": dpeak, "mean_pressure": dmean,
-            "contact_force": dforce, "contact_moment": dmoment, "center_of_pressure": dcop, "contact_area": darea}
+    return {
+        "u": du,
+        "strain": deps,
+        "pressure": dp,
+        "peak_pressure": dpeak,
+        "mean_pressure": dmean,
+        "contact_force": dforce,
+        "contact_moment": dmoment,
+        "center_of_pressure": dcop,
+        "contact_area": darea,
+    }
 
 
 def _pressure_rows(rows, strain_rows, col, sig, strict, tangent, edge, state):
@@ -482,7 +543,6 @@ def _per_spring_fields(n, ATk, dxi, col, sig, tangent, edge, state):
     strain = LinearOperator((n, n), matvec=strain_mv, rmatvec=strain_rmv, dtype=float)
     pressure = LinearOperator((n, n), matvec=pressure_mv, rmatvec=pressure_rmv, dtype=float)
     return strain, pressure
-
 
 
 def path_sensitivities(path, wrt=("H",), **options) -> list:

@@ -66,8 +66,11 @@ def finite_array(name, value, unit="") -> np.ndarray:
 
 
 def _positive(name, value):
-    if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not (
-            np.isfinite(value) and value > 0):
+    if (
+        isinstance(value, bool)
+        or not isinstance(value, (int, float, np.integer, np.floating))
+        or not (np.isfinite(value) and value > 0)
+    ):
         raise InputError(f"{name} must be a finite number > 0, got {value!r}")
     return float(value)
 
@@ -139,8 +142,10 @@ class PressureMap:
         table.columns = [str(c).strip().lower() for c in table.columns]
         missing = [c for c in ("x", "y", "z", "p") if c not in table.columns]
         if missing:
-            raise InputError(f"pressure data {path}: needs the columns x, y, z, p (mm, MPa); missing "
-                             f"{', '.join(missing)} (found {', '.join(table.columns) or 'none'})")
+            raise InputError(
+                f"pressure data {path}: needs the columns x, y, z, p (mm, MPa); missing "
+                f"{', '.join(missing)} (found {', '.join(table.columns) or 'none'})"
+            )
         try:
             values = table[["x", "y", "z", "p"]].to_numpy(dtype=float)
         except (TypeError, ValueError):
@@ -151,8 +156,9 @@ class PressureMap:
             raise InputError(f"pressure data {path}: {exc}") from None
 
     @classmethod
-    def from_grid(cls, values, origin, axis_u, axis_v, spacing, film=None, noise: float = 0.05,
-                  max_distance=None) -> PressureMap:
+    def from_grid(
+        cls, values, origin, axis_u, axis_v, spacing, film=None, noise: float = 0.05, max_distance=None
+    ) -> PressureMap:
         """A scanned map: ``values[j, i]`` (MPa, NaN where nothing was read) at the centre of cell
         ``(i, j)`` of a grid on a plane, ``origin + (i + 1/2) du axis_u + (j + 1/2) dv axis_v``.
 
@@ -186,8 +192,10 @@ class PressureMap:
             limit = 2.0 * float(np.sqrt(np.median(layer.areas)))
         keep = distance <= limit
         if not keep.any():
-            raise InputError(f"none of the {len(self.points)} measured points lies within {limit:g} mm of a spring: "
-                             f"are they in the springs' frame and units (mm)?")
+            raise InputError(
+                f"none of the {len(self.points)} measured points lies within {limit:g} mm of a spring: "
+                f"are they in the springs' frame and units (mm)?"
+            )
         return index[keep], np.flatnonzero(keep)
 
     def residuals(self, solution, sens, names, cache) -> tuple:
@@ -203,15 +211,21 @@ class PressureMap:
         floor = self.floor
         raw = solution.pressure[springs]
         model = np.hypot(raw, floor)  # log of a pressure that may be 0: smoothed below the floor
-        jac = np.column_stack([np.asarray(sens.pressure[n])[springs] for n in names]) if names else \
-            np.zeros((len(springs), 0))
+        jac = (
+            np.column_stack([np.asarray(sens.pressure[n])[springs] for n in names])
+            if names
+            else np.zeros((len(springs), 0))
+        )
         dlog = jac * (raw / model**2)[:, None]  # d log(model) / d theta
         noise = self.noise
         read = np.where(state == 0, np.maximum(measured, floor), 1.0)
         r = (np.log(model) - np.log(read)) / noise
         J = dlog / noise
         if self.film is not None or (state != 0).any():
-            for side, limit in ((-1, self.film.lower if self.film else floor), (1, self.film.upper if self.film else 0)):
+            for side, limit in (
+                (-1, self.film.lower if self.film else floor),
+                (1, self.film.upper if self.film else 0),
+            ):
                 rows = state == side
                 if not rows.any():
                     continue

@@ -100,8 +100,12 @@ def nlp_sensitivities(problem, wrt, *, x0=None, tol: float = 1e-14) -> dict:
     volume = ca.DM(layer.areas) * h
     energy = ca.dot(volume, twin.energy_expr(compressed, xp)) - ca.dot(r[free.tolist()], x)
     P = ca.vertcat(*symbols)
-    solver = ca.nlpsol("dea_sensitivity", "ipopt", {"x": xi, "p": P, "f": energy / sc.energy_scale},
-                       {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": tol}})
+    solver = ca.nlpsol(
+        "dea_sensitivity",
+        "ipopt",
+        {"x": xi, "p": P, "f": energy / sc.energy_scale},
+        {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "tol": tol}},
+    )
     u = up + ca.mtimes(ca.DM(np.eye(12)[:, free]), x)
     pressure = -twin.stress_expr(compressed, xp)
     outputs = ca.Function("outputs", [xi, P], [u, pressure])
@@ -113,7 +117,7 @@ def nlp_sensitivities(problem, wrt, *, x0=None, tol: float = 1e-14) -> dict:
     out: dict = {"x": sc.to_u_free(xi_value.reshape(-1))}
     start = 0
     for name, value in zip(wrt, nominal):
-        block = jac[:, start:start + value.size]
+        block = jac[:, start : start + value.size]
         start += value.size
         if value.size == 1:
             out[name] = {"u": block[:12, 0], "pressure": block[12:, 0]}

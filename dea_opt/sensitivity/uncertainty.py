@@ -26,9 +26,14 @@ SCALARS = ("peak_pressure", "mean_pressure", "contact_area", "cop_x", "cop_y", "
 
 def _scalars(solution) -> dict:
     cop = solution.center_of_pressure
-    return {"peak_pressure": solution.peak_pressure, "mean_pressure": solution.mean_pressure,
-            "contact_area": solution.contact_area, "cop_x": float(cop[0]), "cop_y": float(cop[1]),
-            "cop_z": float(cop[2])}
+    return {
+        "peak_pressure": solution.peak_pressure,
+        "mean_pressure": solution.mean_pressure,
+        "contact_area": solution.contact_area,
+        "cop_x": float(cop[0]),
+        "cop_y": float(cop[1]),
+        "cop_z": float(cop[2]),
+    }
 
 
 def _check_std(std) -> dict:
@@ -38,8 +43,11 @@ def _check_std(std) -> dict:
     for name, value in std.items():
         if name in PER_SPRING:
             raise InputError(f"std: {name!r} is a per-spring parameter; give 'thickness_scale' instead")
-        if isinstance(value, bool) or not isinstance(value, (int, float, np.integer, np.floating)) or not (
-                np.isfinite(value) and value >= 0):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, (int, float, np.integer, np.floating))
+            or not (np.isfinite(value) and value >= 0)
+        ):
             raise InputError(f"std[{name!r}] must be a finite number >= 0 (the parameter's units), got {value!r}")
         out[str(name)] = float(value)
     return out
@@ -71,8 +79,17 @@ class Propagation:
         """One row per output: ``output, value, std, relative``."""
         import pandas as pd
 
-        return pd.DataFrame([{"output": k, "value": v, "std": self.output_std[k],
-                              "relative": self.output_std[k] / abs(v) if v else np.nan} for k, v in self.value.items()])
+        return pd.DataFrame(
+            [
+                {
+                    "output": k,
+                    "value": v,
+                    "std": self.output_std[k],
+                    "relative": self.output_std[k] / abs(v) if v else np.nan,
+                }
+                for k, v in self.value.items()
+            ]
+        )
 
 
 def propagate(solution, std) -> Propagation:
@@ -147,8 +164,9 @@ def _draw(problem, rows, x0):
     return out
 
 
-def monte_carlo(problem, std, n: int = 200, *, seed: int = 0, scheduler="synchronous", client=None,
-                chunks: int = 8) -> MonteCarlo:
+def monte_carlo(
+    problem, std, n: int = 200, *, seed: int = 0, scheduler="synchronous", client=None, chunks: int = 8
+) -> MonteCarlo:
     """Solve ``n`` draws of the parameters, independent normals about the problem's values.
 
     Parameters
@@ -198,7 +216,7 @@ def monte_carlo(problem, std, n: int = 200, *, seed: int = 0, scheduler="synchro
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ValidityWarning)
         x0 = solve(problem, "newton").u[problem.free_indices]
-    groups = [rows[i::max(1, int(chunks))] for i in range(min(max(1, int(chunks)), n))]
+    groups = [rows[i :: max(1, int(chunks))] for i in range(min(max(1, int(chunks)), n))]
     tasks = [dask.delayed(_draw)(problem, group, x0) for group in groups]
     if client is not None:
         results = client.compute(tasks, sync=True)
@@ -206,5 +224,6 @@ def monte_carlo(problem, std, n: int = 200, *, seed: int = 0, scheduler="synchro
         results = dask.compute(*tasks, scheduler=scheduler)
     table = pd.DataFrame([row for group in results for row in group])
     good = table[table["success"]]
-    return MonteCarlo(table, {k: float(good[k].mean()) for k in SCALARS},
-                      {k: float(good[k].std(ddof=1)) for k in SCALARS})
+    return MonteCarlo(
+        table, {k: float(good[k].mean()) for k in SCALARS}, {k: float(good[k].std(ddof=1)) for k in SCALARS}
+    )

@@ -173,8 +173,9 @@ def _client(scheduler, workers):
     # Dask's default (64 kB) fixes glibc's thresholds, so that every array of a few hundred
     # kB is mapped and unmapped afresh; a case of the knee took 1.6 times as long.
     with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
-        cluster = LocalCluster(n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0",
-                               silence_logs=logging.ERROR)
+        cluster = LocalCluster(
+            n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
+        )
     return Client(cluster), cluster
 
 
@@ -198,14 +199,27 @@ def check_outputs(outputs) -> tuple | None:
         raise InputError(f"outputs must be a list of {', '.join(FORMATS)} (or 'none'), got {outputs!r}")
     unknown = [p for p in outputs if p not in FORMATS]
     if unknown:
-        raise InputError(f"outputs (--outputs) must be among {', '.join(FORMATS)} (or 'none'), got "
-                         f"{', '.join(map(repr, unknown))}")
+        raise InputError(
+            f"outputs (--outputs) must be among {', '.join(FORMATS)} (or 'none'), got {', '.join(map(repr, unknown))}"
+        )
     return tuple(dict.fromkeys(outputs))
 
 
-def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = None, workers: int = 2,
-              method: str | None = None, retry_failed: bool = False, progress: bool = False,
-              on_row=None, on_report=None, log: bool = True, outputs=None) -> SweepResult:
+def run_sweep(
+    scenario_path,
+    sets,
+    output_dir=None,
+    *,
+    scheduler: str | None = None,
+    workers: int = 2,
+    method: str | None = None,
+    retry_failed: bool = False,
+    progress: bool = False,
+    on_row=None,
+    on_report=None,
+    log: bool = True,
+    outputs=None,
+) -> SweepResult:
     """Run every case of the ``--set`` product whose row is missing or stale.
 
     Parameters
@@ -262,8 +276,9 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
     hashes = FileHashes()
     keys = {}
     for case in cases:  # every case must be a valid scenario before anything starts
-        keys[case.id] = content_key(parse_case(scenario_path, text, case.overrides), sha, case.overrides, method,
-                                    hashes, outputs)
+        keys[case.id] = content_key(
+            parse_case(scenario_path, text, case.overrides), sha, case.overrides, method, hashes, outputs
+        )
     out = Path(output_dir).expanduser().resolve() if output_dir is not None else base.output_dir() / "sweep"
     if out.exists() and not out.is_dir():
         raise InputError(f"the sweep's output folder {out} is a file")
@@ -285,12 +300,17 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
         todo.append(case)
         if reason is not None:
             recomputed[case.id] = reason
-    result = SweepResult(table=None, results_path=out / RESULTS_NAME, cases=[c.id for c in cases],
-                         skipped=skipped, recomputed=recomputed)
+    result = SweepResult(
+        table=None, results_path=out / RESULTS_NAME, cases=[c.id for c in cases], skipped=skipped, recomputed=recomputed
+    )
     if todo and scheduler != "synchronous":
         _require_dask()
-    tasks = [CaseTask(str(out), str(scenario_path), text, sha, case.id, case.overrides, method, retry_failed,
-                      outputs=outputs) for case in todo]
+    tasks = [
+        CaseTask(
+            str(out), str(scenario_path), text, sha, case.id, case.overrides, method, retry_failed, outputs=outputs
+        )
+        for case in todo
+    ]
     with routed_to_log(out / LOG_NAME) if log else contextlib.nullcontext() as logfile:
         for case_key, reason in recomputed.items():
             line = f"case {case_key}: {reason}; recomputing"
@@ -298,8 +318,14 @@ def run_sweep(scenario_path, sets, output_dir=None, *, scheduler: str | None = N
                 logfile.write(line + "\n")
             if on_report is not None:
                 on_report(line)
-        bar = tqdm(total=len(cases), initial=len(skipped), desc="sweep", unit="case", file=sys.stdout,
-                   disable=None if progress else True)
+        bar = tqdm(
+            total=len(cases),
+            initial=len(skipped),
+            desc="sweep",
+            unit="case",
+            file=sys.stdout,
+            disable=None if progress else True,
+        )
         publisher = journal.TablePublisher(out)
         overrides = {c.id: c.overrides for c in cases}
 
@@ -361,4 +387,3 @@ def _execute(tasks: list, scheduler, workers: int, arrived) -> None:
         client.close()
         if cluster is not None:
             cluster.close()
-

@@ -74,8 +74,10 @@ def make_cases(sets) -> list[Case]:
     keys = [key for key, _ in parsed]
     duplicated = {k for k in keys if keys.count(k) > 1}
     if duplicated:
-        raise InputError(f"--set names {', '.join(sorted(duplicated))} more than once; give all its values in one "
-                         f"--set, separated by commas")
+        raise InputError(
+            f"--set names {', '.join(sorted(duplicated))} more than once; give all its values in one "
+            f"--set, separated by commas"
+        )
     return [Case(dict(zip(keys, values))) for values in itertools.product(*(v for _, v in parsed))]
 
 
@@ -91,8 +93,7 @@ def read_text(path: Path) -> tuple[str, str]:
 
 def parse_case(scenario_path: Path, text: str, overrides: dict):
     """The scenario of a case, parsed from ``text`` (the file's contents) as ``load_scenario`` would."""
-    return parse_scenario(text, name=str(scenario_path), base_dir=scenario_path.resolve().parent,
-                          overrides=overrides)
+    return parse_scenario(text, name=str(scenario_path), base_dir=scenario_path.resolve().parent, overrides=overrides)
 
 
 def with_outputs(scenario, outputs):
@@ -102,8 +103,16 @@ def with_outputs(scenario, outputs):
     return scenario.model_copy(update={"output": scenario.output.model_copy(update={"formats": list(outputs)})})
 
 
-def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None, *, text: str | None = None,
-             key: ContentKey | None = None, outputs=None) -> dict:
+def run_case(
+    scenario_path,
+    overrides: dict,
+    case_dir,
+    method: str | None = None,
+    *,
+    text: str | None = None,
+    key: ContentKey | None = None,
+    outputs=None,
+) -> dict:
     """Run one case and write its outputs into ``case_dir``; never raises.
 
     Parameters
@@ -150,17 +159,26 @@ def run_case(scenario_path, overrides: dict, case_dir, method: str | None = None
         scenario = with_outputs(scenario, outputs)
         # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
         outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False, force=True)
-        row |= {"status": str(outcome.status), "exit_code": outcome.exit_code, "message": outcome.message,
-                **outcome.headline,
-                "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings)}
+        row |= {
+            "status": str(outcome.status),
+            "exit_code": outcome.exit_code,
+            "message": outcome.message,
+            **outcome.headline,
+            "warnings": " | ".join(" ".join(w.split()) for w in outcome.warnings),
+        }
     except DeaError as exc:
         row |= {"status": str(RunStatus.ERROR), "message": " ".join(str(exc).split())}
     except Exception as exc:  # noqa: BLE001 - one broken case must not end the sweep
         last = traceback.extract_tb(exc.__traceback__)[-1]
         where = f"{Path(last.filename).name}:{last.lineno}"
         row |= {"status": str(RunStatus.ERROR), "message": f"{type(exc).__name__}: {exc} ({where})"}
-    row |= {"wall_time": time.perf_counter() - start, "output_dir": str(case_dir),
-            "finished": time.strftime("%Y-%m-%dT%H:%M:%S"), "pid": os.getpid(), **columns}
+    row |= {
+        "wall_time": time.perf_counter() - start,
+        "output_dir": str(case_dir),
+        "finished": time.strftime("%Y-%m-%dT%H:%M:%S"),
+        "pid": os.getpid(),
+        **columns,
+    }
     return row
 
 
@@ -213,8 +231,14 @@ def work_claimed(task: CaseTask) -> dict:
     out = Path(task.out)
     path = Path(task.scenario_path)
     try:
-        key = content_key(parse_case(path, task.scenario_text, task.overrides), task.scenario_sha256, task.overrides,
-                          task.method, _HASHES, task.outputs)
+        key = content_key(
+            parse_case(path, task.scenario_text, task.overrides),
+            task.scenario_sha256,
+            task.overrides,
+            task.method,
+            _HASHES,
+            task.outputs,
+        )
     except DeaError:
         key = None  # run_case records the error
     previous = journal.read_case_record(out, task.case_id)
@@ -224,8 +248,15 @@ def work_claimed(task: CaseTask) -> dict:
             pointer = journal.append(out, record)
             journal.write_case_record(out, task.case_id, record, int(previous.get("runs", 1)), pointer)
         return {"outcome": "adopted", "row": record}
-    row = run_case(path, task.overrides, out / "cases" / task.case_id, task.method, text=task.scenario_text, key=key,
-                   outputs=task.outputs)
+    row = run_case(
+        path,
+        task.overrides,
+        out / "cases" / task.case_id,
+        task.method,
+        text=task.scenario_text,
+        key=key,
+        outputs=task.outputs,
+    )
     pointer = journal.append(out, row)
     record = json.loads(journal.line_of(row))
     journal.write_case_record(out, task.case_id, record, int(previous.get("runs", 0)) + 1, pointer)

@@ -113,6 +113,7 @@ def claim(out, case_id: str, *, wait: bool = False):
 
 # --- the journal ------------------------------------------------------------------------
 
+
 def _plain(value):
     """JSON for numpy scalars and paths (the rows come from pandas and numpy)."""
     if hasattr(value, "item"):
@@ -155,7 +156,7 @@ def append(out, record: dict) -> list:
             offset = os.fstat(fd).st_size
             view = memoryview(line)
             while view:
-                view = view[os.write(fd, view):]
+                view = view[os.write(fd, view) :]
             os.fsync(fd)
         finally:
             os.close(fd)
@@ -185,11 +186,15 @@ def _parse(data: bytes, path: Path) -> dict:
         try:
             record = json.loads(raw.decode("utf-8"))
         except (UnicodeDecodeError, ValueError) as exc:
-            raise InputError(f"the sweep journal {path} cannot be read: line {number} is not a JSON record "
-                             f"({exc}); {_MOVE_AWAY} (or delete that line)") from None
+            raise InputError(
+                f"the sweep journal {path} cannot be read: line {number} is not a JSON record "
+                f"({exc}); {_MOVE_AWAY} (or delete that line)"
+            ) from None
         if not isinstance(record, dict) or not isinstance(record.get("case_id"), str):
-            raise InputError(f"the sweep journal {path} cannot be read: line {number} is not a case record "
-                             f"(expected a JSON object with a string case_id); {_MOVE_AWAY}")
+            raise InputError(
+                f"the sweep journal {path} cannot be read: line {number} is not a case record "
+                f"(expected a JSON object with a string case_id); {_MOVE_AWAY}"
+            )
         records[record["case_id"]] = record
     return records
 
@@ -205,6 +210,7 @@ def read_records(out) -> dict:
 
 
 # --- the table --------------------------------------------------------------------------
+
 
 def results_table(records: dict):
     """A DataFrame with one row per case (nested fields such as ``inputs`` stay in the journal)."""
@@ -264,16 +270,17 @@ def check_results_csv(path):
     if not path.is_file() or not path.read_bytes().strip():
         return pd.DataFrame()
     journal = path.with_name(JOURNAL_NAME)
-    hint = (f"move it away (dea-opt rewrites it from the journal {journal.name})" if journal.is_file()
-            else _MOVE_AWAY)
+    hint = f"move it away (dea-opt rewrites it from the journal {journal.name})" if journal.is_file() else _MOVE_AWAY
     try:
         table = pd.read_csv(path, dtype={"case_id": str})
     except (UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         reason = "it is not UTF-8 text" if isinstance(exc, UnicodeDecodeError) else str(exc).strip()
         raise InputError(f"the results table {path} cannot be read ({reason}); {hint}") from None
     if "case_id" not in table.columns:
-        raise InputError(f"the results table {path} has no case_id column (columns: "
-                         f"{', '.join(map(str, table.columns[:8]))}); it is not a dea-opt sweep table; {hint}")
+        raise InputError(
+            f"the results table {path} has no case_id column (columns: "
+            f"{', '.join(map(str, table.columns[:8]))}); it is not a dea-opt sweep table; {hint}"
+        )
     if table["case_id"].isna().any():
         row = int(table["case_id"].isna().to_numpy().argmax()) + 2
         raise InputError(f"the results table {path} has a row without case_id (line {row}); {hint}")
@@ -317,6 +324,7 @@ def read_results(path):
 
 
 # --- one record per case ----------------------------------------------------------------
+
 
 def _case_record_path(out, case_id: str) -> Path:
     return Path(out) / _STATE / "records" / f"{case_id}.json"

@@ -125,13 +125,24 @@ class ContentKey:
         """The fields a row keeps: ``key``, ``scenario_sha256``, ``dea_opt_version``, ``method_option``,
         ``outputs_option`` and ``inputs`` (``{key path: [file name, SHA-256]}``; the journal keeps
         it, sweep.csv does not)."""
-        return {"key": self.digest, "scenario_sha256": self.scenario, "dea_opt_version": self.version,
-                "method_option": self.method, "outputs_option": self.outputs,
-                "inputs": {k: [name, h] for k, name, h in self.inputs}}
+        return {
+            "key": self.digest,
+            "scenario_sha256": self.scenario,
+            "dea_opt_version": self.version,
+            "method_option": self.method,
+            "outputs_option": self.outputs,
+            "inputs": {k: [name, h] for k, name, h in self.inputs},
+        }
 
 
-def content_key(scenario, scenario_sha256: str, overrides: dict, method: str | None = None,
-                hashes: FileHashes | None = None, outputs=None) -> ContentKey:
+def content_key(
+    scenario,
+    scenario_sha256: str,
+    overrides: dict,
+    method: str | None = None,
+    hashes: FileHashes | None = None,
+    outputs=None,
+) -> ContentKey:
     """The :class:`ContentKey` of a loaded ``scenario`` (overrides already applied).
 
     Parameters
@@ -151,9 +162,14 @@ def content_key(scenario, scenario_sha256: str, overrides: dict, method: str | N
     """
     hashes = hashes or FileHashes()
     inputs = tuple(sorted((where, path.name, hashes(path)) for where, path in input_files(scenario).items()))
-    return ContentKey(scenario=scenario_sha256, inputs=inputs,
-                      overrides=json.dumps(overrides, sort_keys=True, separators=(",", ":")),
-                      method=method, version=__version__, outputs=None if outputs is None else ",".join(outputs))
+    return ContentKey(
+        scenario=scenario_sha256,
+        inputs=inputs,
+        overrides=json.dumps(overrides, sort_keys=True, separators=(",", ":")),
+        method=method,
+        version=__version__,
+        outputs=None if outputs is None else ",".join(outputs),
+    )
 
 
 def stale_reason(record: dict, key: ContentKey) -> str | None:
@@ -181,10 +197,13 @@ def stale_reason(record: dict, key: ContentKey) -> str | None:
             reasons.append(f"the input file {where} ({now[where][0]}) changed since its row was computed")
     if record.get("outputs_option") != key.outputs:
         was, now_outputs = record.get("outputs_option"), key.outputs
-        reasons.append(f"it wrote the outputs {was or '(the scenario default)'}, now "
-                       f"{now_outputs or '(the scenario default)'}")
+        reasons.append(
+            f"it wrote the outputs {was or '(the scenario default)'}, now {now_outputs or '(the scenario default)'}"
+        )
     if record.get("method_option") != key.method:
         was, now_method = record.get("method_option"), key.method
-        reasons.append(f"it was solved with --method {was or '(the scenario default)'}, now "
-                       f"{now_method or '(the scenario default)'}")
+        reasons.append(
+            f"it was solved with --method {was or '(the scenario default)'}, now "
+            f"{now_method or '(the scenario default)'}"
+        )
     return "; ".join(reasons) or "its content key differs"

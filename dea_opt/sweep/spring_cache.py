@@ -87,6 +87,7 @@ def mesh_part(files, scale: float, read):
 
 # --- keys --------------------------------------------------------------------------------
 
+
 def _feed(digest, value) -> None:
     """Add ``value`` to ``digest`` unambiguously (type tag, shape, dtype and bytes)."""
     import trimesh
@@ -129,11 +130,13 @@ def cast_key(mesh1, mesh2, pose, options: dict) -> str:
     from ..mesh.raycast import _engine
 
     resolved = {**options, "engine": _engine(options.get("engine", "auto"))}
-    return _digest(FORMAT, __version__, mesh1, mesh2, resolved, np.eye(4) if pose is None else
-                   np.asarray(pose, dtype=float))
+    return _digest(
+        FORMAT, __version__, mesh1, mesh2, resolved, np.eye(4) if pose is None else np.asarray(pose, dtype=float)
+    )
 
 
 # --- entries -----------------------------------------------------------------------------
+
 
 def _read_entry(path: Path, key: str):
     """The arrays and warnings of an entry, or None when it is missing, unreadable or another key's."""
@@ -152,9 +155,15 @@ def _write_entry(path: Path, key: str, springs, caught: list) -> None:
     from ..io.atomic import write_atomic
 
     layer = springs.layer
-    arrays = {"sel": layer.source_face, "gap": layer.gap, "hit_face": springs.hit_face,
-              "hit_point2": layer.target_points, "h1": springs.thickness1, "h2": springs.thickness2,
-              "outcome": springs.outcome}
+    arrays = {
+        "sel": layer.source_face,
+        "gap": layer.gap,
+        "hit_face": springs.hit_face,
+        "hit_point2": layer.target_points,
+        "h1": springs.thickness1,
+        "h2": springs.thickness2,
+        "outcome": springs.outcome,
+    }
 
     def write(tmp: Path) -> None:
         with open(tmp, "wb") as handle:
@@ -214,8 +223,19 @@ def cast(mesh1, mesh2, *, pose=None, **options):
         if entry is not None:
             _STATS["hits_disk"] += 1
             arrays, caught = entry
-            springs = assemble_cast(m1, m2, T, resolved, arrays["sel"], arrays["gap"], arrays["hit_face"],
-                                    arrays["hit_point2"], arrays["h1"], arrays["h2"], arrays["outcome"])
+            springs = assemble_cast(
+                m1,
+                m2,
+                T,
+                resolved,
+                arrays["sel"],
+                arrays["gap"],
+                arrays["hit_face"],
+                arrays["hit_point2"],
+                arrays["h1"],
+                arrays["h2"],
+                arrays["outcome"],
+            )
             _replay(caught)
         else:
             _STATS["casts"] += 1

@@ -55,8 +55,7 @@ def _load(name):
 def compact_png(source: Path) -> bytes:
     """``source`` as a 256-colour PNG (median-cut palette, no dithering)."""
     with Image.open(source) as image:
-        palette = image.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT,
-                                                dither=Image.Dither.NONE)
+        palette = image.convert("RGB").quantize(colors=256, method=Image.Quantize.MEDIANCUT, dither=Image.Dither.NONE)
     buffer = io.BytesIO()
     palette.save(buffer, format="PNG", optimize=True)
     return buffer.getvalue()

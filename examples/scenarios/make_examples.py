@@ -38,8 +38,15 @@ def write_joint_reaction(path, frames: int = 21) -> None:
     table = hip_gait_load(frames)
     rows = ["\t".join(STO_COLUMNS)]
     for _, row in table.iterrows():
-        values = [row["time"], -row["Fx"], -row["Fy"], -row["Fz"], -row["Mx"] / 1000, -row["My"] / 1000,
-                  -row["Mz"] / 1000]
+        values = [
+            row["time"],
+            -row["Fx"],
+            -row["Fy"],
+            -row["Fz"],
+            -row["Mx"] / 1000,
+            -row["My"] / 1000,
+            -row["Mz"] / 1000,
+        ]
         rows.append("\t".join(f"{v + 0.0:.6f}" for v in values))  # + 0.0: no "-0.000000"
     Path(path).write_text(STO_HEADER.format(rows=len(table)) + "\n".join(rows) + "\n")
 
