@@ -456,7 +456,7 @@ def test_a_library_warning_outside_a_run_is_one_line(tmp_path, monkeypatch):
     original = scenario_package.load_scenario
 
     def noisy(*args, **kwargs):  # before the run starts: no output folder to log into yet
-        warnings.warn("a library's future change", FutureWarning, stacklevel=2)
+        warnings.warn("a library's future change", FutureWarning, stacklevel=1)
         return original(*args, **kwargs)
 
     monkeypatch.setattr(scenario_package, "load_scenario", noisy)
