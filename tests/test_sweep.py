@@ -82,6 +82,7 @@ def test_cases_are_the_cartesian_product_with_stable_ids():
         make_cases(["law.H=1", "law.H=2"])
 
 
+@pytest.mark.slow
 def test_resume_runs_only_the_missing_cases(scenario, tmp_path):
     out = tmp_path / "sweep"
     first = run_sweep(scenario, FOUR, out, scheduler="synchronous")
