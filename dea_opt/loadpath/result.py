@@ -220,9 +220,9 @@ class PathResult:
         """The per-frame table as CSV (floats in their shortest round-trip text)."""
         return write_data(path, self.table.to_csv(index=False, lineterminator="\n", float_format=None))
 
-    def to_json(self, path, extra: dict | None = None) -> Path:
-        """:meth:`summary` (plus ``extra``) as JSON."""
-        return write_json({**self.summary(), **(extra or {})}, path)
+    def to_json(self, path, extra: dict | None = None, summary: dict | None = None) -> Path:
+        """:meth:`summary` (plus ``extra``) as JSON; ``summary``: one the caller already has."""
+        return write_json({**(self.summary() if summary is None else summary), **(extra or {})}, path)
 
     def to_pvd(self, path) -> Path:
         """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame.
@@ -287,13 +287,16 @@ class PathResult:
         # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
         return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title, anatomy=anatomy)
 
-    def write(self, directory, formats=FORMATS, extra_summary: dict | None = None, anatomy=None) -> dict:
+    def write(
+        self, directory, formats=FORMATS, extra_summary: dict | None = None, anatomy=None, summary: dict | None = None
+    ) -> dict:
         """Write the outputs into ``directory``; returns ``{name: path}``.
 
         ``csv``: ``frames.csv``; ``json``: ``summary.json``; ``vtk``: ``series.pvd`` (the
         frames written while solving, or ``series_frames/`` written now from the kept
         solutions) and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``, in the
-        anatomical frame ``anatomy`` when given.
+        anatomical frame ``anatomy`` when given. ``summary``: :meth:`summary`, when the caller
+        already has it (it is computed once).
         """
         directory = Path(directory)
         unknown = set(formats) - set(FORMATS)
@@ -316,6 +319,6 @@ class PathResult:
                 from ..anatomy import AnatomicalFrame
 
                 extra.setdefault("anatomy", AnatomicalFrame.from_dict(anatomy).as_dict())
-            self.to_json(files["summary"], extra)
+            self.to_json(files["summary"], extra, summary=summary)
         self.files.update(files)
         return files

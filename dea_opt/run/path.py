@@ -71,8 +71,8 @@ def run_path_outputs(
     extra = {"title": scenario.title, **(extra_summary or {})}
     if recast is not None:
         extra["recast"] = recast
-    files = result.write(out, formats, extra_summary=extra, anatomy=anatomy)
     summary = result.summary()
+    files = result.write(out, formats, extra_summary=extra, anatomy=anatomy, summary=summary)
     validity = summary["validity"]
     outside = validity["frames_outside_validity"]
     checks = validity["failed_checks"]
