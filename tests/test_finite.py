@@ -16,8 +16,8 @@ from scipy.spatial.transform import Rotation
 
 import dea_opt as d
 from dea_opt import largemotion
-from dea_opt.formulations import _finite_geometry as G
-from dea_opt.formulations._finite_system import FiniteSystem
+from dea_opt.formulations._parts import finite_geometry as G
+from dea_opt.formulations._parts.finite_system import FiniteSystem
 from dea_opt.formulations.finite import Targets
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 

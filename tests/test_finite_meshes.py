@@ -18,7 +18,7 @@ import pytest
 
 import dea_opt as d
 from dea_opt import mesh as M
-from dea_opt.formulations._finite_geometry import (
+from dea_opt.formulations._parts.finite_geometry import (
     Targets,
     evaluate,
     rotation,

@@ -26,7 +26,7 @@ A formulation is a module (or any object with these attributes):
 
 Nothing outside this package names a formulation: ``dea_opt.solve`` (``auto``'s fallback is
 :func:`fallback_for`), load paths, studies and scenarios ask the functions below. The option
-and capability declarations live in :mod:`dea_opt.formulations._options`.
+and capability declarations live in :mod:`dea_opt.formulations._parts.options`.
 """
 
 from __future__ import annotations
@@ -34,7 +34,7 @@ from __future__ import annotations
 from importlib import import_module
 
 from ..errors import InputError
-from ._options import Capabilities, Option, Variant, validate
+from ._parts.options import Capabilities, Option, Variant, validate
 from .energy import FormulationResult, SpringSystem, start_vector
 
 #: name -> module, or its import path (imported on first use: cvxpy and CasADi are heavy).

@@ -5,11 +5,11 @@ a :class:`FiniteSystem` holds the springs (points, normals, areas, thickness), e
 target on body 2 as a plane or a sphere (:class:`Targets`), body 2's reference point, its free
 and prescribed coordinates (translation of the reference and rotation vector, ``u[6:12]``, taken
 as an exact rotation) and the load; :func:`solve` finds the equilibrium of the free coordinates
-by Newton with the consistent tangent (:mod:`~dea_opt.formulations._finite_newton`) for those
+by Newton with the consistent tangent (:mod:`~dea_opt.formulations._parts.finite_newton`) for those
 targets and returns an :class:`InnerResult` (``u_free``, the springs' state at the answer, the
 solver's status), which ``dea_opt`` certifies. The gap of each spring is the one to its target
-at the current pose (:mod:`~dea_opt.formulations._finite_geometry`); forces, residual and
-tangent are :mod:`~dea_opt.formulations._finite_system`'s.
+at the current pose (:mod:`~dea_opt.formulations._parts.finite_geometry`); forces, residual and
+tangent are :mod:`~dea_opt.formulations._parts.finite_system`'s.
 
 What knows meshes, problems and poses lives outside this package: :mod:`dea_opt.largemotion`
 builds the arrays from a ``ContactProblem(..., kinematics="finite")``, alternates solve and
@@ -23,10 +23,10 @@ from __future__ import annotations
 import numpy as np
 
 from ..status import Status
-from ._finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
-from ._finite_newton import InnerResult
-from ._finite_system import FiniteSystem, State, generalized
-from ._options import Capabilities, Option
+from ._parts.finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
+from ._parts.finite_newton import InnerResult
+from ._parts.finite_system import FiniteSystem, State, generalized
+from ._parts.options import Capabilities, Option
 from .energy import SpringSystem, modulus_scale, resistance, start_vector
 
 __all__ = [
@@ -187,7 +187,7 @@ def solve(system: FiniteSystem, law, T, energy_scale: float, *, x0=None, cold=No
     **options
         :data:`OPTIONS` (the re-casting ones are :mod:`dea_opt.largemotion`'s and ignored here).
     """
-    from . import _finite_newton
+    from ._parts import finite_newton as _finite_newton
 
     x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
     cold = x0 is None if cold is None else cold

@@ -4,7 +4,7 @@ Written math: ``formulations/finite_nlp.md``. The same arrays as
 :mod:`~dea_opt.formulations.finite` (a :class:`~dea_opt.formulations.finite.FiniteSystem`: springs,
 targets, body 2's coordinates, the load; exact rotation, gaps at the current pose, forces along
 the springs), solved by IPOPT on a conservative surrogate re-centred at each outer iteration,
-built in CasADi with its own derivatives (:mod:`~dea_opt.formulations._finite_ipopt`); the
+built in CasADi with its own derivatives (:mod:`~dea_opt.formulations._parts.finite_ipopt`); the
 springs are constrained to compression and their forces are the multipliers. Newton and IPOPT
 agree to 1e-6 on every test problem (``tests/test_finite.py``).
 """
@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._options import Capabilities, Option, Variant
+from ._parts.options import Capabilities, Option, Variant
 from .finite import RECAST_OPTIONS, FiniteModel, InnerResult
 
 __all__ = ["CAPABILITIES", "OPTIONS", "Model", "solve"]
@@ -57,7 +57,7 @@ def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, **options)
     start); ``options`` are :data:`OPTIONS` (the re-casting ones are ignored here). The springs'
     stresses IPOPT reports (its multipliers) are ``info["stress"]``.
     """
-    from . import _finite_ipopt
+    from ._parts import finite_ipopt as _finite_ipopt
 
     x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
     if not len(system.free):

@@ -19,7 +19,7 @@ import time
 import numpy as np
 
 from ..status import Status
-from ._options import Capabilities, Option, validate
+from ._parts.options import Capabilities, Option, validate
 from .energy import (
     CRUSHED_MESSAGE,
     UNRESISTED,
@@ -142,7 +142,7 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     return None, None, max_evaluations
 
 
-#: The options of :class:`NewtonModel` (checked by :func:`~dea_opt.formulations._options.validate`).
+#: The options of :class:`NewtonModel` (checked by :func:`~dea_opt.formulations._parts.options.validate`).
 OPTIONS = (
     Option(
         "xtol",

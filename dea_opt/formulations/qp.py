@@ -21,7 +21,7 @@ import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
-from ._options import Capabilities, Option, Variant, validate
+from ._parts.options import Capabilities, Option, Variant, validate
 from .energy import (
     FormulationResult,
     SpringSystem,

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .energy import UNRESISTED, unresisted
-from .newton import _line_search
+from ..energy import UNRESISTED, unresisted
+from ..newton import _line_search
 
 _WOLFE_CURVATURE = 0.9
 _WOLFE_CURVATURE_SAFE = 0.01

@@ -20,7 +20,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = ["Gaps", "Targets", "evaluate", "left_jacobian", "pose_matrix", "rotation", "rotation_and_jacobian"]
 

@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ._finite_geometry import (
+from .finite_geometry import (
     Targets,
     evaluate,
     jacobian_transpose_derivative,

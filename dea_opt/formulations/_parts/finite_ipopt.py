@@ -16,7 +16,7 @@ gradient of ``Phi_k`` at ``x_k`` is the physical residual, so ``x_k`` is the min
 when it is an equilibrium; ``x_{k+1} = argmin Phi_k`` contracts to it. Springs are constrained to
 compression as in :mod:`~dea_opt.formulations.nlp` (``form="constrained"``: their forces are the
 multipliers) or enter through ``min(eps, 0)`` (``form="reduced"``). Nothing is shared with the
-Newton of :mod:`~dea_opt.formulations._finite_newton` but the targets and the law.
+Newton of :mod:`~dea_opt.formulations._parts.finite_newton` but the targets and the law.
 """
 
 from __future__ import annotations
@@ -26,11 +26,11 @@ import time
 
 import numpy as np
 
-from ..errors import InputError
-from ._finite_geometry import FACING
-from ._finite_newton import InnerResult
-from ._finite_system import generalized
-from .nlp import _casadi
+from ...errors import InputError
+from ..nlp import _casadi
+from .finite_geometry import FACING
+from .finite_newton import InnerResult
+from .finite_system import generalized
 
 _TERMS = 16  # Taylor terms of the rotation's coefficients: exact to rounding below 120 degrees
 _CRUSH_MARGIN = 1e-9

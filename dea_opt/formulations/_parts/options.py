@@ -13,7 +13,7 @@ from dataclasses import dataclass
 from numbers import Integral, Real
 from typing import Any
 
-from ..errors import InputError
+from ...errors import InputError
 
 __all__ = ["Capabilities", "Option", "Variant", "validate"]
 
