@@ -19,8 +19,6 @@ from __future__ import annotations
 import ast
 import graphlib
 import importlib
-import io
-import tokenize
 import tomllib
 from pathlib import Path
 
@@ -29,8 +27,8 @@ import pytest
 import dea_opt
 
 PACKAGE = Path(dea_opt.__file__).resolve().parent
-#: Modules stay under this many lines of code (the project's guide says "~500"; see code_lines).
-MAX_LINES = 500
+#: Modules stay under this many lines, formatted by ruff (the project's guide says "~500").
+MAX_LINES = 520
 #: Function-level imports allowed to close a cycle, and why.
 CALL_TIME_FRONTS = {
     # SpringLayer.from_meshes is a front to dea_opt.mesh, which builds SpringLayer objects.
@@ -202,36 +200,8 @@ def test_the_rule_of_the_formulations_would_see_a_function_level_import(tmp_path
 
 @pytest.mark.parametrize("name", sorted(MODULES))
 def test_modules_are_small(name):
-    lines = code_lines(MODULES[name].read_text(encoding="utf-8"))
-    assert lines <= MAX_LINES, f"{name} has {lines} lines of code; split it (the guide's limit is ~{MAX_LINES})"
-
-
-def code_lines(source: str) -> int:
-    """The lines that hold code: not blank, not only a comment, not a docstring (the formatter
-    spreads one call over several lines; a docstring or a comment is not what makes a module big)."""
-    docstrings = set()
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)) and node.body:
-            first = node.body[0]
-            if (
-                isinstance(first, ast.Expr)
-                and isinstance(first.value, ast.Constant)
-                and isinstance(first.value.value, str)
-            ):
-                docstrings.update(range(first.lineno, (first.end_lineno or first.lineno) + 1))
-    lines = set()
-    for token in tokenize.generate_tokens(io.StringIO(source).readline):
-        if token.type not in _NOT_CODE:
-            lines.update(range(token.start[0], token.end[0] + 1))
-    return len(lines - docstrings)
-
-
-_NOT_CODE = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT, tokenize.ENDMARKER}
-
-
-def test_code_lines_count_code_only():
-    source = '"""A module."""\n\n# a comment\nx = f(\n    1,\n    2,\n)\n\n\ndef g():\n    """Doc\n    string."""\n    return x  # why\n'
-    assert code_lines(source) == 6  # x = f( / 1, / 2, / ) / def g(): / return x
+    lines = MODULES[name].read_text(encoding="utf-8").count("\n")
+    assert lines <= MAX_LINES, f"{name} has {lines} lines; split it (the guide's limit is ~500)"
 
 
 def test_version_is_the_projects():
