@@ -12,7 +12,6 @@ tests/test_validity.py tests that warning).
 
 from __future__ import annotations
 
-import time
 import warnings
 from contextlib import contextmanager
 
@@ -291,7 +290,6 @@ def test_many_springs_newton(n):
     nx, ny = (1000, 100) if n == 100_000 else (1000, 1000)
     layer = plate_layer(40.0, 10.0, nx, ny, thickness=2.0)
     law = d.LinearLaw(20.0)
-    start = time.perf_counter()
     centred = d.ContactProblem(layer, law, load=d.Load((0, 0, -400.0), point=(0, 0, 0)), free=("uz", "rx", "ry"))
     s = solve(centred, "newton")
     np.testing.assert_allclose(s.pressure, 1.0, rtol=1e-9)
@@ -302,7 +300,6 @@ def test_many_springs_newton(n):
         s = solve(lifted, "newton")
         assert s.peak_pressure == pytest.approx(2 * P / (3 * L * (B / 2 - e)), rel=5e-3)
         assert abs(s.contact_area / L - 3 * (B / 2 - e)) <= B / nx + 1e-9
-    assert time.perf_counter() - start < 20.0
 
 
 # --- duplicate springs ------------------------------------------------------------------

@@ -10,6 +10,7 @@ import sys
 import time
 from pathlib import Path
 
+import distributed  # noqa: E402, F401 - a dev dependency: the sweeps need it
 import pandas as pd
 import pytest
 from typer.testing import CliRunner
@@ -25,8 +26,6 @@ from dea_opt.sweep import (
     read_results,
     run_sweep,
 )
-
-pytest.importorskip("dask.distributed")
 
 # A small hip under a 5-frame gait: about a second per case with its outputs.
 SCENARIO = """\
