@@ -76,6 +76,35 @@ def _casadi():
     return casadi
 
 
+def ipopt_solver(name: str, nlp: dict, tol: float, max_iter: int, ipopt_options: dict | None = None):
+    """CasADi's IPOPT solver of ``nlp`` with dea-opt's settings (quiet, adaptive barrier, no bound
+    relaxation), ``ipopt_options`` on top; options IPOPT rejects are an :class:`InputError`."""
+    ca = _casadi()
+    options = {
+        "print_time": False,
+        "error_on_fail": False,
+        # IPOPT answers an evaluation outside a law's domain by cutting its step; the
+        # NaN that triggered it is expected, not news.
+        "show_eval_warnings": False,
+        "ipopt": {
+            "print_level": 0,
+            "sb": "yes",
+            "tol": tol,
+            "max_iter": max_iter,
+            "mu_strategy": "adaptive",
+            "bound_relax_factor": 0.0,
+            **(ipopt_options or {}),
+        },
+    }
+    try:
+        return ca.nlpsol(name, "ipopt", nlp, options)
+    except RuntimeError as exc:
+        # IPOPT checks its options when the solver is built: an unknown name or a value
+        # out of range is the caller's input, not a solver failure.
+        reason = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
+        raise InputError(f"ipopt_options {ipopt_options or {}} were rejected by IPOPT: {reason}") from None
+
+
 class NLPModel:
     """A compiled IPOPT problem of one spring system, re-solvable for new loads.
 
@@ -137,31 +166,8 @@ class NLPModel:
             self.lbg = self.ubg = np.zeros(0)
             self.lbx, self.ubx = np.full(k, -np.inf), np.full(k, np.inf)
             nlp = {"x": xi, "p": r, "f": stored - ca.dot(r, xi)}
-        options = {
-            "print_time": False,
-            "error_on_fail": False,
-            # IPOPT answers an evaluation outside a law's domain by cutting its step; the
-            # NaN that triggered it is expected, not news.
-            "show_eval_warnings": False,
-            "ipopt": {
-                "print_level": 0,
-                "sb": "yes",
-                "tol": tol,
-                "max_iter": max_iter,
-                "mu_strategy": "adaptive",
-                "bound_relax_factor": 0.0,
-                # AMD ordering: the dense dof columns of A make MUMPS's default ordering slow.
-                "mumps_pivot_order": 0,
-                **(ipopt_options or {}),
-            },
-        }
-        try:
-            self.solver = ca.nlpsol("dea_nlp", "ipopt", nlp, options)
-        except RuntimeError as exc:
-            # IPOPT checks its options when the solver is built: an unknown name or a value
-            # out of range is the caller's input, not a solver failure.
-            reason = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
-            raise InputError(f"ipopt_options {ipopt_options or {}} were rejected by IPOPT: {reason}") from None
+        # AMD ordering: the dense dof columns of A make MUMPS's default ordering slow.
+        self.solver = ipopt_solver("dea_nlp", nlp, tol, max_iter, {"mumps_pivot_order": 0, **(ipopt_options or {})})
         self.build_time = time.perf_counter() - start
 
     def _start(self, x0):

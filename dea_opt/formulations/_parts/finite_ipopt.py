@@ -27,7 +27,7 @@ import time
 import numpy as np
 
 from ...errors import InputError
-from ..nlp import _casadi
+from ..nlp import _casadi, ipopt_solver
 from .finite_geometry import FACING
 from .finite_newton import InnerResult
 from .finite_system import generalized
@@ -99,25 +99,7 @@ class _Surrogate:
             self.lbx, self.ubx = np.full(k, -_STEP_BOUND), np.full(k, _STEP_BOUND)
             self.lbg = self.ubg = np.zeros(0)
             nlp = {"x": xi, "p": params, "f": energy - ca.dot(load, xi)}
-        options = {
-            "print_time": False,
-            "error_on_fail": False,
-            "show_eval_warnings": False,
-            "ipopt": {
-                "print_level": 0,
-                "sb": "yes",
-                "tol": tol,
-                "max_iter": max_iter,
-                "mu_strategy": "adaptive",
-                "bound_relax_factor": 0.0,
-                **(ipopt_options or {}),
-            },
-        }
-        try:
-            self.solver = ca.nlpsol("dea_finite_nlp", "ipopt", nlp, options)
-        except RuntimeError as exc:
-            reason = str(exc).strip().splitlines()[-1].split(": ", 1)[-1]
-            raise InputError(f"ipopt_options {ipopt_options or {}} were rejected by IPOPT: {reason}") from None
+        self.solver = ipopt_solver("dea_finite_nlp", nlp, tol, max_iter, ipopt_options)
         self.gap_jacobian = ca.Function("gap_jacobian", [xi, base], [ca.jacobian(self._gaps(ca, y), xi)])
         self._warm = None
 
