@@ -20,7 +20,8 @@ The modules: :mod:`~dea_opt.io.atomic` (the atomic writer), :mod:`~dea_opt.io.su
 (the contact surface as a mesh with cell data), :mod:`~dea_opt.io.vtk` (VTK files),
 :mod:`~dea_opt.io.tables` (CSV: results, springs and numeric tables),
 :mod:`~dea_opt.io.summary` (JSON), :mod:`~dea_opt.io.plots` (pressure maps),
-:mod:`~dea_opt.io.cycle` (cycle and exposure plots), :mod:`~dea_opt.io.mapframe` (the frame a
+:mod:`~dea_opt.io.cycle` (cycle and exposure plots), :mod:`~dea_opt.io.pictures` (pictures drawn
+in a second process while a run writes its other files), :mod:`~dea_opt.io.mapframe` (the frame a
 map is drawn in: anatomical or best-fit), :mod:`~dea_opt.io.draw` (vector or raster drawing),
 :mod:`~dea_opt.io.triangulate` (a surface through the springs of a layer without a mesh),
 :mod:`~dea_opt.io.vtkxml` (the streamed VTK XML writer), :mod:`~dea_opt.io.results`

@@ -288,7 +288,13 @@ class PathResult:
         return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title, anatomy=anatomy)
 
     def write(
-        self, directory, formats=FORMATS, extra_summary: dict | None = None, anatomy=None, summary: dict | None = None
+        self,
+        directory,
+        formats=FORMATS,
+        extra_summary: dict | None = None,
+        anatomy=None,
+        summary: dict | None = None,
+        pictures=None,
     ) -> dict:
         """Write the outputs into ``directory``; returns ``{name: path}``.
 
@@ -296,20 +302,44 @@ class PathResult:
         frames written while solving, or ``series_frames/`` written now from the kept
         solutions) and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``, in the
         anatomical frame ``anatomy`` when given. ``summary``: :meth:`summary`, when the caller
-        already has it (it is computed once).
+        already has it (it is computed once). ``pictures``: a
+        :class:`~dea_opt.io.pictures.PictureWorker` to draw the PNGs in while the other files are
+        written (the same pictures, drawn here if it fails).
         """
         directory = Path(directory)
         unknown = set(formats) - set(FORMATS)
         if unknown:
             raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
         files = {}
+        jobs = {}
+        if "png" in formats and pictures is not None:
+            jobs["cycle_plot"] = pictures.submit(
+                "dea_opt.io.cycle",
+                "plot_cycle",
+                self.table,
+                directory / "cycle.png",
+                regions=self.regions or None,
+                anatomy=anatomy,
+            )
+            # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
+            jobs["exposure_map"] = pictures.submit(
+                "dea_opt.io.cycle",
+                "plot_exposure",
+                self.problem.layer,
+                self.exposure,
+                directory / "exposure.png",
+                moving=self.moving,
+                anatomy=anatomy,
+            )
         if "csv" in formats:
             files["table"] = self.to_csv(directory / "frames.csv")
         if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):
             files["series"] = self.to_pvd(directory / "series.pvd")
         if "vtk" in formats:
             files["exposure_vtk"] = self.exposure_to_vtk(directory / "exposure.vtu")
-        if "png" in formats:
+        if "png" in formats and jobs:
+            files.update({name: pictures.result(number) for name, number in jobs.items()})
+        elif "png" in formats:
             files["cycle_plot"] = self.plot_cycle(directory / "cycle.png", anatomy=anatomy)
             files["exposure_map"] = self.plot_exposure(directory / "exposure.png", anatomy=anatomy)
         if "json" in formats:

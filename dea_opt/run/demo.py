@@ -21,7 +21,7 @@ import numpy as np
 from .log import captured
 from .outcome import RunOutcome
 from .path import run_path_outputs
-from .runner import check_method, publish_run, run_info, solve_options
+from .runner import check_method, picture_worker, publish_run, run_info, solve_options
 
 __all__ = ["DEMO_DOME", "DEMO_SCENARIO", "demo_comparison", "demo_scenario", "hip_regions", "run_demo"]
 
@@ -200,7 +200,7 @@ def run_demo(
     out = check_output_folder(Path(output_dir) if output_dir is not None else Path.cwd() / "dea-opt-demo", force)
     method = check_method(method, scenario.solve.method)
     start = time.perf_counter()
-    with captured() as messages:
+    with captured() as messages, picture_worker(scenario) as pictures:
         problem = build_problem(scenario)
         problem = problem.with_layer(replace(problem.layer, labels=hip_regions(problem.layer, scenario.output.anatomy)))
         options = solve_options(scenario.solve, method, problem.law)
@@ -222,6 +222,7 @@ def run_demo(
                 folder,
                 progress,
                 extra_summary={"comparison": rows, "scenario": DEMO_SCENARIO},
+                pictures=pictures,
             )
             if compare:
                 outcome.files["comparison"] = comparison

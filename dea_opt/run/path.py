@@ -15,7 +15,16 @@ def _frames_text(frames) -> str:
 
 
 def run_path_outputs(
-    scenario, problem, method, options, out, progress, extra_summary=None, stop: bool = False, cast=None
+    scenario,
+    problem,
+    method,
+    options,
+    out,
+    progress,
+    extra_summary=None,
+    stop: bool = False,
+    cast=None,
+    pictures=None,
 ) -> RunOutcome:
     """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller).
 
@@ -24,7 +33,8 @@ def run_path_outputs(
     grow with frames x springs. When the springs were cast from meshes (``cast``, or the
     meshes of a path with poses), the peak frame is solved once more and its springs re-cast
     at its solved pose (:func:`peak_recast`): its ``dropped_springs`` check is evaluated and
-    the re-cast force goes into ``summary.json`` (``recast``).
+    the re-cast force goes into ``summary.json`` (``recast``). ``pictures``: a
+    :class:`~dea_opt.io.pictures.PictureWorker` that draws the PNGs while the rest is written.
     """
     from ..loadpath import solve_path
     from ..scenario import pose_caster, read_load_path
@@ -72,7 +82,7 @@ def run_path_outputs(
     if recast is not None:
         extra["recast"] = recast
     summary = result.summary()
-    files = result.write(out, formats, extra_summary=extra, anatomy=anatomy, summary=summary)
+    files = result.write(out, formats, extra_summary=extra, anatomy=anatomy, summary=summary, pictures=pictures)
     validity = summary["validity"]
     outside = validity["frames_outside_validity"]
     checks = validity["failed_checks"]

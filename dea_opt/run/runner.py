@@ -9,7 +9,7 @@ from .outcome import RunOutcome
 from .path import run_path_outputs
 from .static import run_static
 
-__all__ = ["check_method", "publish_run", "run_info", "run_scenario", "solve_options"]
+__all__ = ["check_method", "picture_worker", "publish_run", "run_info", "run_scenario", "solve_options"]
 
 
 def solve_options(section, method: str, law) -> dict:
@@ -116,19 +116,33 @@ def run_scenario(
 
     method = check_method(method, scenario.solve.method)
     out = check_output_folder(scenario.output_dir(output_dir), force)
-    with captured() as messages:
+    with captured() as messages, picture_worker(scenario) as pictures:
         problem, cast = build_problem_cast(scenario)
         options = solve_options(scenario.solve, method, problem.law)
 
         def solve_and_write(folder):
             if scenario.load_path is None:
                 return run_static(scenario, problem, method, options, folder, cast)
-            return run_path_outputs(scenario, problem, method, options, folder, progress, stop=stop_on_error, cast=cast)
+            return run_path_outputs(
+                scenario, problem, method, options, folder, progress, stop=stop_on_error, cast=cast, pictures=pictures
+            )
 
         outcome = publish_run(
             scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "run", method)
         )
     return outcome
+
+
+def picture_worker(scenario):
+    """A :class:`~dea_opt.io.pictures.PictureWorker` when the run draws a load path's pictures
+    (it imports matplotlib while the run casts and solves), else a context that gives None."""
+    from contextlib import nullcontext
+
+    if scenario.load_path is None or "png" not in scenario.output.formats:
+        return nullcontext(None)
+    from ..io.pictures import PictureWorker
+
+    return PictureWorker()
 
 
 def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, info: dict) -> RunOutcome:

@@ -1,0 +1,115 @@
+"""Pictures drawn in a second process (``dea_opt.io.pictures``): the same files as drawn in the
+run's own process, the same errors, and nothing left behind however the worker or the run ends."""
+
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+
+import numpy as np
+import pytest
+
+import dea_opt as d
+from dea_opt.geometry import plate_layer
+from dea_opt.io.pictures import PictureWorker
+from dea_opt.loadpath import solve_path
+
+LOADS = np.array([[0.0, 0.0, -400.0, 0.0, m, 0.0] for m in (-1500.0, 0.0, 1500.0)])
+
+
+@pytest.fixture(scope="module")
+def path():
+    problem = d.ContactProblem(plate_layer(40.0, 10.0, 40, 10, thickness=2.0), d.LinearLaw(10.0), free=("uz", "ry"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return solve_path(problem, LOADS, times=[0.0, 0.1, 0.2], method="newton")
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    # a zombie (exited, not yet reaped) is no longer running
+    try:
+        with open(f"/proc/{pid}/stat") as handle:
+            return handle.read().split(")")[-1].split()[0] != "Z"
+    except FileNotFoundError:
+        return False
+
+
+def test_the_worker_draws_the_same_files_as_the_run(path, tmp_path):
+    here = path.write(tmp_path / "here", formats=("png",))
+    with PictureWorker() as pictures:
+        there = path.write(tmp_path / "there", formats=("png",), pictures=pictures)
+        pids = [drawer.process.pid for drawer in pictures._drawers if drawer.process is not None]
+        folder = pictures._folder
+    assert pids, "the worker did not start"
+    assert set(here) == set(there) == {"cycle_plot", "exposure_map"}
+    for name in here:
+        assert there[name].parent == tmp_path / "there"
+        assert there[name].read_bytes() == here[name].read_bytes(), name
+    assert folder is not None and not os.path.exists(folder), "the job files were left behind"
+
+
+def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_path):
+    broken = path.table.drop(columns=["time"])
+    from dea_opt.io.cycle import plot_cycle
+
+    with pytest.raises(Exception) as here:
+        plot_cycle(broken, tmp_path / "a.png")
+    with PictureWorker() as pictures:
+        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", broken, tmp_path / "b.png")
+        with pytest.raises(type(here.value)):
+            pictures.result(number)
+    assert not (tmp_path / "b.png").exists()
+
+
+def test_a_dead_worker_leaves_the_pictures_to_the_run(path, tmp_path):
+    with PictureWorker() as pictures:
+        process = pictures._drawers[0].process
+        assert process is not None
+        process.kill()
+        process.wait()
+        files = path.write(tmp_path, formats=("png",), pictures=pictures)
+    assert files["cycle_plot"].stat().st_size > 1000
+    assert files["exposure_map"].stat().st_size > 1000
+
+
+def test_a_worker_killed_mid_job_leaves_the_picture_to_the_run(path, tmp_path):
+    with PictureWorker() as pictures:
+        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", path.table, tmp_path / "c.png")
+        pictures._drawers[0].process.send_signal(signal.SIGKILL)
+        assert pictures.result(number) == tmp_path / "c.png"
+    assert (tmp_path / "c.png").stat().st_size > 1000
+
+
+def test_only_picture_functions_run_in_the_worker(tmp_path):
+    with PictureWorker() as pictures, pytest.raises(ValueError, match="picture worker runs functions of"):
+        pictures.result(pictures.submit("os", "remove", str(tmp_path / "x")))
+
+
+def test_the_worker_ends_when_its_run_is_killed(tmp_path):
+    script = (
+        "import sys, time\n"
+        "from dea_opt.io.pictures import PictureWorker\n"
+        "w = PictureWorker()\n"
+        "print(w._drawers[0].process.pid, flush=True)\n"
+        "time.sleep(60)\n"
+    )
+    run = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)
+    try:
+        worker = int(run.stdout.readline())
+        assert _alive(worker)
+        run.kill()
+        run.wait()
+        deadline = time.monotonic() + 30
+        while _alive(worker) and time.monotonic() < deadline:
+            time.sleep(0.1)
+        assert not _alive(worker), "the picture worker outlived the run that was killed"
+    finally:
+        run.kill()
