@@ -143,3 +143,32 @@ def test_a_sweep_runs_on_a_scheduler_and_two_workers_started_apart(tmp_path):
             except subprocess.TimeoutExpired:
                 os.killpg(process.pid, signal.SIGKILL)
                 process.wait(timeout=10)
+
+
+@pytest.mark.slow
+def test_the_local_cluster_runs_cases_on_one_thread_without_the_profiler():
+    """What a sweep's LocalCluster gives each case: one thread, OpenBLAS on one thread, glibc's
+    own malloc thresholds, and no statistical profiler sampling the case's stack."""
+    from dea_opt.sweep import _client
+
+    client, cluster = _client(None, 2)
+    try:
+
+        def probe(dask_worker):
+            import os
+
+            import dask
+
+            return (
+                dask_worker.state.nthreads,
+                os.environ.get("OPENBLAS_NUM_THREADS"),
+                os.environ.get("MALLOC_TRIM_THRESHOLD_"),
+                dask.config.get("distributed.worker.profile.enabled"),
+            )
+
+        seen = client.run(probe)
+    finally:
+        client.close()
+        cluster.close()
+    assert len(seen) == 2
+    assert set(seen.values()) == {(1, "1", None, False)}

@@ -108,7 +108,10 @@ class PathResult:
 
     def failures(self) -> list[dict]:
         """``[{frame, time, status, message}]`` of every failed frame."""
-        rows = self.table.loc[~self.table["success"], ["frame", "time", "status", "message"]]
+        failed = ~self.table["success"].to_numpy(dtype=bool)
+        if not failed.any():
+            return []
+        rows = self.table.loc[failed, ["frame", "time", "status", "message"]]
         return [
             {"frame": int(r["frame"]), "time": float(r["time"]), "status": r["status"], "message": r["message"]}
             for r in rows.to_dict("records")
@@ -133,7 +136,11 @@ class PathResult:
         table = self.table
         outside = self.frames_outside_validity
         checks: dict = {}
-        for row in table.loc[table["success"] & ~table["valid"]].to_dict("records"):
+        mask = (table["success"] & ~table["valid"]).to_numpy(dtype=bool)
+        # Only the columns read below, and only when a frame is outside: to_dict of every column
+        # of every frame was most of a sweep case's summary.
+        columns = [c for c in table.columns if c == "frame" or c.startswith("validity_")]
+        for row in table.loc[mask, columns].to_dict("records") if mask.any() else []:
             for name in filter(None, str(row["validity_failed"]).split(";")):
                 entry = checks.setdefault(name, {"frames": [], "worst": -math.inf, "worst_frame": None})
                 entry["frames"].append(int(row["frame"]))

@@ -171,8 +171,16 @@ def _client(scheduler, workers):
     # dashboard_address=":0": the scheduler's HTTP server on a free port, so that two sweeps
     # (or a sweep and a notebook) never fight over port 8787. MALLOC_TRIM_THRESHOLD_ unset:
     # Dask's default (64 kB) fixes glibc's thresholds, so that every array of a few hundred
-    # kB is mapped and unmapped afresh; a case of the knee took 1.6 times as long.
-    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+    # kB is mapped and unmapped afresh; a case of the knee took 1.6 times as long. The workers'
+    # statistical profiler off: it samples every thread's stack every 10 ms, and the knee's
+    # cases took 5 to 10 % longer with it on two workers of a 2-core machine (no one reads a
+    # sweep's profile).
+    with dask.config.set(
+        {
+            "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
+            "distributed.worker.profile.enabled": False,
+        }
+    ):
         cluster = LocalCluster(
             n_workers=workers, threads_per_worker=1, processes=True, dashboard_address=":0", silence_logs=logging.ERROR
         )
