@@ -63,7 +63,7 @@ def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_pat
     with pytest.raises(Exception) as here:
         plot_cycle(broken, tmp_path / "a.png")
     with PictureWorker() as pictures:
-        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", broken, tmp_path / "b.png")
+        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", (broken, tmp_path / "b.png"))
         with pytest.raises(type(here.value)):
             pictures.result(number)
     assert not (tmp_path / "b.png").exists()
@@ -82,7 +82,7 @@ def test_a_dead_worker_leaves_the_pictures_to_the_run(path, tmp_path):
 
 def test_a_worker_killed_mid_job_leaves_the_picture_to_the_run(path, tmp_path):
     with PictureWorker() as pictures:
-        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", path.table, tmp_path / "c.png")
+        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "c.png"))
         pictures._drawers[0].process.send_signal(signal.SIGKILL)
         assert pictures.result(number) == tmp_path / "c.png"
     assert (tmp_path / "c.png").stat().st_size > 1000
@@ -90,7 +90,7 @@ def test_a_worker_killed_mid_job_leaves_the_picture_to_the_run(path, tmp_path):
 
 def test_only_picture_functions_run_in_the_worker(tmp_path):
     with PictureWorker() as pictures, pytest.raises(ValueError, match="picture worker runs functions of"):
-        pictures.result(pictures.submit("os", "remove", str(tmp_path / "x")))
+        pictures.result(pictures.submit("os", "remove", (str(tmp_path / "x"),)))
 
 
 def test_the_worker_ends_when_its_run_is_killed(tmp_path):

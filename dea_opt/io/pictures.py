@@ -29,7 +29,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["PictureWorker"]
+__all__ = ["DrawHere", "PictureWorker"]
 
 #: The modules a worker may run functions of.
 _MODULES = ("dea_opt.io.cycle", "dea_opt.io.plots")
@@ -39,6 +39,25 @@ def _call(module: str, function: str, args, kwargs):
     if module not in _MODULES:
         raise ValueError(f"a picture worker runs functions of {_MODULES}, not {module!r}")
     return getattr(importlib.import_module(module), function)(*args, **kwargs)
+
+
+class DrawHere:
+    """:class:`PictureWorker`'s interface, drawing in this process: each job when its result is
+    asked for."""
+
+    def __init__(self):
+        self._jobs: list = []
+
+    def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
+        self._jobs.append((module, function, tuple(args), dict(kwargs or {})))
+        return len(self._jobs) - 1
+
+    def result(self, number: int):
+        return _call(*self._jobs[number])
+
+    def draw(self, job: tuple):
+        """Run ``job`` ``(module, function, args, kwargs)`` now; its value."""
+        return self.result(self.submit(*job))
 
 
 class _Drawer:
@@ -118,12 +137,12 @@ class PictureWorker:
         env.setdefault("MPLBACKEND", "Agg")
         self._drawers = [_Drawer(env) for _ in range(max(1, int(processes)))]
 
-    def submit(self, module: str, function: str, *args, **kwargs) -> int:
+    def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
         """Queue ``module.function(*args, **kwargs)``; returns the job's number for :meth:`result`.
 
         The job goes to a worker as a file (its name through the pipe), so that handing it
         over never waits for the worker to finish drawing the one before."""
-        job = (module, function, args, kwargs)
+        job = (module, function, tuple(args), dict(kwargs or {}))
         number = len(self._jobs)
         drawer = self._drawers[number % len(self._drawers)]
         place = None

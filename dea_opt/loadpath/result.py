@@ -15,6 +15,7 @@ import numpy as np
 
 from ..errors import InputError, ValidityWarning
 from ..io.atomic import write_data
+from ..io.pictures import DrawHere
 from ..io.summary import write_json
 from ..problem import ContactProblem
 from .exposure import Exposure
@@ -283,16 +284,21 @@ class PathResult:
     def plot_cycle(self, path, title: str | None = None, anatomy=None) -> Path:
         """Applied force and moment, pressure, contact area and the regions' force shares over
         the path (PNG); failed frames and frames outside validity marked."""
-        from ..io.cycle import plot_cycle
-
-        return plot_cycle(self.table, path, title=title, regions=self.regions or None, anatomy=anatomy)
+        return DrawHere().draw(self._cycle_job(path, title, anatomy))
 
     def plot_exposure(self, path, title: str | None = None, anatomy=None) -> Path:
         """The exposure map: pressure-time integral and time above the threshold (PNG)."""
-        from ..io.cycle import plot_exposure
+        return DrawHere().draw(self._exposure_job(path, title, anatomy))
 
+    def _cycle_job(self, path, title=None, anatomy=None) -> tuple:
+        """The cycle plot as a job of :mod:`dea_opt.io.pictures`: ``(module, function, args, kwargs)``."""
+        kwargs = {"title": title, "regions": self.regions or None, "anatomy": anatomy}
+        return "dea_opt.io.cycle", "plot_cycle", (self.table, path), kwargs
+
+    def _exposure_job(self, path, title=None, anatomy=None) -> tuple:
         # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
-        return plot_exposure(self.problem.layer, self.exposure, path, moving=self.moving, title=title, anatomy=anatomy)
+        kwargs = {"moving": self.moving, "title": title, "anatomy": anatomy}
+        return "dea_opt.io.cycle", "plot_exposure", (self.problem.layer, self.exposure, path), kwargs
 
     def write(
         self,
@@ -318,37 +324,18 @@ class PathResult:
         if unknown:
             raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
         files = {}
+        drawer = DrawHere() if pictures is None else pictures
         jobs = {}
-        if "png" in formats and pictures is not None:
-            jobs["cycle_plot"] = pictures.submit(
-                "dea_opt.io.cycle",
-                "plot_cycle",
-                self.table,
-                directory / "cycle.png",
-                regions=self.regions or None,
-                anatomy=anatomy,
-            )
-            # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
-            jobs["exposure_map"] = pictures.submit(
-                "dea_opt.io.cycle",
-                "plot_exposure",
-                self.problem.layer,
-                self.exposure,
-                directory / "exposure.png",
-                moving=self.moving,
-                anatomy=anatomy,
-            )
+        if "png" in formats:  # handed over first: a PictureWorker draws them while the rest is written
+            jobs["cycle_plot"] = drawer.submit(*self._cycle_job(directory / "cycle.png", anatomy=anatomy))
+            jobs["exposure_map"] = drawer.submit(*self._exposure_job(directory / "exposure.png", anatomy=anatomy))
         if "csv" in formats:
             files["table"] = self.to_csv(directory / "frames.csv")
         if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):
             files["series"] = self.to_pvd(directory / "series.pvd")
         if "vtk" in formats:
             files["exposure_vtk"] = self.exposure_to_vtk(directory / "exposure.vtu")
-        if "png" in formats and jobs:
-            files.update({name: pictures.result(number) for name, number in jobs.items()})
-        elif "png" in formats:
-            files["cycle_plot"] = self.plot_cycle(directory / "cycle.png", anatomy=anatomy)
-            files["exposure_map"] = self.plot_exposure(directory / "exposure.png", anatomy=anatomy)
+        files.update({name: drawer.result(number) for name, number in jobs.items()})
         if "json" in formats:
             files["summary"] = directory / "summary.json"
             extra = {**(extra_summary or {}), "files": {k: str(v) for k, v in files.items()}}
