@@ -148,7 +148,8 @@ def test_a_sweep_runs_on_a_scheduler_and_two_workers_started_apart(tmp_path):
 @pytest.mark.slow
 def test_the_local_cluster_runs_cases_on_one_thread_without_the_profiler():
     """What a sweep's LocalCluster gives each case: one thread, OpenBLAS on one thread, glibc's
-    own malloc thresholds, and no statistical profiler sampling the case's stack."""
+    own malloc thresholds, no statistical profiler sampling the case's stack, and Dask's periodic
+    checks once a second."""
     from dea_opt.sweep import _client
 
     client, cluster = _client(None, 2)
@@ -164,6 +165,8 @@ def test_the_local_cluster_runs_cases_on_one_thread_without_the_profiler():
                 os.environ.get("OPENBLAS_NUM_THREADS"),
                 os.environ.get("MALLOC_TRIM_THRESHOLD_"),
                 dask.config.get("distributed.worker.profile.enabled"),
+                dask.config.get("distributed.admin.tick.interval"),
+                dask.config.get("distributed.worker.memory.monitor-interval"),
             )
 
         seen = client.run(probe)
@@ -171,4 +174,4 @@ def test_the_local_cluster_runs_cases_on_one_thread_without_the_profiler():
         client.close()
         cluster.close()
     assert len(seen) == 2
-    assert set(seen.values()) == {(1, "1", None, False)}
+    assert set(seen.values()) == {(1, "1", None, False, "1s", "1s")}

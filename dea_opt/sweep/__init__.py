@@ -172,13 +172,18 @@ def _client(scheduler, workers):
     # (or a sweep and a notebook) never fight over port 8787. MALLOC_TRIM_THRESHOLD_ unset:
     # Dask's default (64 kB) fixes glibc's thresholds, so that every array of a few hundred
     # kB is mapped and unmapped afresh; a case of the knee took 1.6 times as long. The workers'
-    # statistical profiler off: it samples every thread's stack every 10 ms, and the knee's
-    # cases took 5 to 10 % longer with it on two workers of a 2-core machine (no one reads a
-    # sweep's profile).
+    # statistical profiler off, and the periodic checks of every Dask process (the event loop's
+    # tick, the memory and system monitors) ten to fifty times less often: with every core
+    # running a case each wake-up takes a core from one, and on two workers of a 2-core
+    # machine the knee's cases took 5 to 10 % longer with the profiler on and 4 to 5 % longer
+    # with Dask's intervals (no one reads a sweep's profile or its dashboard).
     with dask.config.set(
         {
             "distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None,
             "distributed.worker.profile.enabled": False,
+            "distributed.admin.tick.interval": "1s",
+            "distributed.admin.system-monitor.interval": "5s",
+            "distributed.worker.memory.monitor-interval": "1s",
         }
     ):
         cluster = LocalCluster(
