@@ -69,7 +69,10 @@ def surface_solution():
     problem = d.ContactProblem(
         layer, d.LinearLaw(20.0), force=(0, 0, -100), moment=(0, 150, 0), reference=(0, 0, 20), free=("uz", "rx", "ry")
     )
-    solution = d.solve(problem, "newton")
+    # It tilts about 4.5 degrees, past the small kinematics' 3: certified, and marked outside validity.
+    with pytest.warns(d.ValidityWarning, match="rotation"):
+        solution = d.solve(problem, "newton")
+    assert solution.success and not solution.validity.valid
     assert 0 < solution.in_contact.sum() < len(layer)
     return solution
 
