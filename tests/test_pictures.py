@@ -30,15 +30,12 @@ def path():
 
 
 def _alive(pid: int) -> bool:
+    """Whether ``pid`` still runs (a zombie, exited but not yet reaped, does not)."""
+    import psutil
+
     try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return False
-    # a zombie (exited, not yet reaped) is no longer running
-    try:
-        with open(f"/proc/{pid}/stat") as handle:
-            return handle.read().split(")")[-1].split()[0] != "Z"
-    except FileNotFoundError:
+        return psutil.Process(pid).status() != psutil.STATUS_ZOMBIE
+    except psutil.NoSuchProcess:
         return False
 
 
@@ -113,3 +110,9 @@ def test_the_worker_ends_when_its_run_is_killed(tmp_path):
         assert not _alive(worker), "the picture worker outlived the run that was killed"
     finally:
         run.kill()
+
+
+def test_pictures_that_are_no_worker_are_a_named_error(path, tmp_path):
+    with pytest.raises(d.InputError, match="pictures must be a dea_opt.io.pictures.PictureWorker"):
+        path.write(tmp_path, formats=("png",), pictures="yes please")
+    assert not any(tmp_path.iterdir())

@@ -323,6 +323,12 @@ class PathResult:
         unknown = set(formats) - set(FORMATS)
         if unknown:
             raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
+        if pictures is not None and not (
+            callable(getattr(pictures, "submit", None)) and callable(getattr(pictures, "result", None))
+        ):
+            raise InputError(
+                f"pictures must be a dea_opt.io.pictures.PictureWorker (or None: drawn here), got {type(pictures).__name__}"
+            )
         files = {}
         drawer = DrawHere() if pictures is None else pictures
         jobs = {}
