@@ -116,3 +116,23 @@ def test_pictures_that_are_no_worker_are_a_named_error(path, tmp_path):
     with pytest.raises(d.InputError, match="pictures must be a dea_opt.io.pictures.PictureWorker"):
         path.write(tmp_path, formats=("png",), pictures="yes please")
     assert not any(tmp_path.iterdir())
+
+
+def test_a_run_of_a_load_path_draws_in_a_worker_and_a_static_run_does_not(tmp_path, monkeypatch):
+    from dea_opt.run.runner import picture_worker
+    from dea_opt.scenario import load_scenario
+
+    text = (
+        'title = "t"\n[geometry]\nkind = "plate"\nnx = 10\nny = 4\n[law]\nkind = "linear"\nH = 10.0\n'
+        '[body2]\nfree = ["uz"]\n'
+    )
+    static = tmp_path / "static.toml"
+    static.write_text(text + "[load]\nforce = [0.0, 0.0, -10.0]\n")
+    gait = tmp_path / "gait.toml"
+    gait.write_text(text + '[load_path]\nbuiltin = "hip_gait"\nframes = 3\n')
+    with picture_worker(load_scenario(static)) as none:
+        assert none is None
+    with picture_worker(load_scenario(gait)) as worker:
+        assert isinstance(worker, PictureWorker)
+    with picture_worker(load_scenario(gait), background=False) as none:
+        assert none is None

@@ -217,3 +217,18 @@ def test_sweep_command(scenario, tmp_path):
     assert "2 case(s) run, 0 already finished" in result.stdout
     table = pd.read_csv(tmp_path / "s" / RESULTS_NAME)
     assert list(table["law.H"]) == [5, 10] or sorted(table["law.H"]) == [5, 10]
+
+
+def test_a_sweeps_cases_draw_their_pictures_in_their_own_process(scenario, tmp_path, monkeypatch):
+    """A sweep keeps every core busy with cases: no second process per case for the PNGs."""
+    import dea_opt.io.pictures as pictures
+
+    def no_worker(*args, **kwargs):
+        raise AssertionError("a sweep's case started a PictureWorker")
+
+    monkeypatch.setattr(pictures, "PictureWorker", no_worker)
+    result = run_sweep(scenario, ["law.H=5,10"], tmp_path / "sweep", scheduler="synchronous")
+    assert (result.table["status"] == "ok").all()
+    for row in result.table.itertuples():
+        assert (Path(row.output_dir) / "cycle.png").stat().st_size > 1000
+        assert (Path(row.output_dir) / "exposure.png").stat().st_size > 1000

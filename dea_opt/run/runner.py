@@ -78,6 +78,7 @@ def run_scenario(
     progress: bool = False,
     force: bool = False,
     stop_on_error: bool = False,
+    background_pictures: bool = True,
 ) -> RunOutcome:
     """Solve a scenario and publish its outputs into one folder.
 
@@ -96,6 +97,11 @@ def run_scenario(
     stop_on_error : bool
         A load path stops at its first frame without a certified answer (a DeaError, and
         nothing published) instead of recording it and going on.
+    background_pictures : bool
+        Draw a load path's PNGs in a second process while the run solves and writes
+        (:class:`~dea_opt.io.pictures.PictureWorker`): for a single run, which leaves a core idle.
+        A sweep's cases run one per core and draw in their own process (Matplotlib imported
+        once per worker, not once per case).
 
     Returns
     -------
@@ -116,7 +122,7 @@ def run_scenario(
 
     method = check_method(method, scenario.solve.method)
     out = check_output_folder(scenario.output_dir(output_dir), force)
-    with captured() as messages, picture_worker(scenario) as pictures:
+    with captured() as messages, picture_worker(scenario, background_pictures) as pictures:
         problem, cast = build_problem_cast(scenario)
         options = solve_options(scenario.solve, method, problem.law)
 
@@ -133,12 +139,13 @@ def run_scenario(
     return outcome
 
 
-def picture_worker(scenario):
+def picture_worker(scenario, background: bool = True):
     """A :class:`~dea_opt.io.pictures.PictureWorker` when the run draws a load path's pictures
-    (it imports matplotlib while the run casts and solves), else a context that gives None."""
+    (it imports matplotlib while the run casts and solves) and ``background``, else a context
+    that gives None (the pictures are drawn in the run's process)."""
     from contextlib import nullcontext
 
-    if scenario.load_path is None or "png" not in scenario.output.formats:
+    if not background or scenario.load_path is None or "png" not in scenario.output.formats:
         return nullcontext(None)
     from ..io.pictures import PictureWorker
 

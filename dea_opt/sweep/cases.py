@@ -158,7 +158,10 @@ def run_case(
         columns = (key or content_key(scenario, sha, overrides, method, _HASHES, outputs)).columns()
         scenario = with_outputs(scenario, outputs)
         # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
-        outcome = run_scenario(scenario, output_dir=case_dir, method=method, progress=False, force=True)
+        # Pictures drawn here: the sweep's workers keep every core busy with cases.
+        outcome = run_scenario(
+            scenario, output_dir=case_dir, method=method, progress=False, force=True, background_pictures=False
+        )
         row |= {
             "status": str(outcome.status),
             "exit_code": outcome.exit_code,
