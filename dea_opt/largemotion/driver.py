@@ -252,7 +252,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
-    if cold and loaded and method == "finite" and tracker is not None:
+    if cold and loaded and method == "finite" and tracker is not None and frame is None:
+        # (the small system is the layer's at its cast pose: no guess for another frame)
         x, cold = _predicted(small, law, x)
     inner, rounds, history, stable = None, 0, [], True
     while True:
