@@ -43,7 +43,7 @@ def test_the_worker_draws_the_same_files_as_the_run(path, tmp_path):
     here = path.write(tmp_path / "here", formats=("png",))
     with PictureWorker() as pictures:
         there = path.write(tmp_path / "there", formats=("png",), pictures=pictures)
-        pids = [drawer.process.pid for drawer in pictures._drawers if drawer.process is not None]
+        pids = [pictures._drawer.process.pid] if pictures._drawer.process is not None else []
         folder = pictures._folder
     assert pids, "the worker did not start"
     assert set(here) == set(there) == {"cycle_plot", "exposure_map"}
@@ -68,7 +68,7 @@ def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_pat
 
 def test_a_dead_worker_leaves_the_pictures_to_the_run(path, tmp_path):
     with PictureWorker() as pictures:
-        process = pictures._drawers[0].process
+        process = pictures._drawer.process
         assert process is not None
         process.kill()
         process.wait()
@@ -80,7 +80,7 @@ def test_a_dead_worker_leaves_the_pictures_to_the_run(path, tmp_path):
 def test_a_worker_killed_mid_job_leaves_the_picture_to_the_run(path, tmp_path):
     with PictureWorker() as pictures:
         number = pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "c.png"))
-        pictures._drawers[0].process.send_signal(signal.SIGKILL)
+        pictures._drawer.process.send_signal(signal.SIGKILL)
         assert pictures.result(number) == tmp_path / "c.png"
     assert (tmp_path / "c.png").stat().st_size > 1000
 
@@ -95,7 +95,7 @@ def test_the_worker_ends_when_its_run_is_killed(tmp_path):
         "import sys, time\n"
         "from dea_opt.io.pictures import PictureWorker\n"
         "w = PictureWorker()\n"
-        "print(w._drawers[0].process.pid, flush=True)\n"
+        "print(w._drawer.process.pid, flush=True)\n"
         "time.sleep(60)\n"
     )
     run = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True)

@@ -117,61 +117,53 @@ class _Drawer:
 
 
 class PictureWorker:
-    """Python processes that draw pictures; :meth:`submit` jobs, then :meth:`result`.
+    """A second Python process that draws pictures; :meth:`submit` jobs, then :meth:`result`.
 
-    Start it early (``PictureWorker()``): the processes import matplotlib while the caller
+    Start it early (``PictureWorker()``): the process imports matplotlib while the caller
     works. Use it as a context manager, or call :meth:`close`.
-
-    Parameters
-    ----------
-    processes : int
-        Worker processes; job ``k`` is drawn by process ``k % processes``.
     """
 
-    def __init__(self, processes: int = 1):
+    def __init__(self):
         self._jobs: list = []
         self._folder: str | None = None
         package = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package, env.get("PYTHONPATH")) if p)
         env.setdefault("MPLBACKEND", "Agg")
-        self._drawers = [_Drawer(env) for _ in range(max(1, int(processes)))]
+        self._drawer = _Drawer(env)
 
     def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
         """Queue ``module.function(*args, **kwargs)``; returns the job's number for :meth:`result`.
 
-        The job goes to a worker as a file (its name through the pipe), so that handing it
+        The job goes to the worker as a file (its name through the pipe), so that handing it
         over never waits for the worker to finish drawing the one before."""
         job = (module, function, tuple(args), dict(kwargs or {}))
-        number = len(self._jobs)
-        drawer = self._drawers[number % len(self._drawers)]
         place = None
-        if drawer.process is not None:
+        if self._drawer.process is not None:
             try:
                 if self._folder is None:
                     self._folder = tempfile.mkdtemp(prefix="dea-opt-pictures-")
-                path = os.path.join(self._folder, f"job{number}.pickle")
+                path = os.path.join(self._folder, f"job{len(self._jobs)}.pickle")
                 with open(path, "wb") as handle:
                     pickle.dump(job, handle, protocol=pickle.HIGHEST_PROTOCOL)
-                place = drawer.send(path)
+                place = self._drawer.send(path)
             except (OSError, pickle.PicklingError, TypeError, AttributeError):
                 place = None
-        self._jobs.append((job, drawer, place))
-        return number
+        self._jobs.append((job, place))
+        return len(self._jobs) - 1
 
     def result(self, number: int):
         """The value of job ``number``: the worker's, or, if the worker failed, the job run here."""
-        job, drawer, place = self._jobs[number]
+        job, place = self._jobs[number]
         if place is not None:
-            answer = drawer.answer(place)
+            answer = self._drawer.answer(place)
             if answer is not None and answer[0] == "ok":
                 return answer[1]
         return _call(*job)
 
     def close(self) -> None:
-        """End the workers (each finishes the job it is drawing first) and remove the job files."""
-        for drawer in self._drawers:
-            drawer.stop()
+        """End the worker (it finishes the job it is drawing first) and remove the job files."""
+        self._drawer.stop()
         if self._folder is not None:
             shutil.rmtree(self._folder, ignore_errors=True)
             self._folder = None
@@ -183,7 +175,7 @@ class PictureWorker:
         self.close()
 
     def __del__(self):
-        if hasattr(self, "_drawers"):
+        if hasattr(self, "_drawer"):
             self.close()
 
 
