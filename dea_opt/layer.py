@@ -160,6 +160,30 @@ class SpringLayer:
         set_(self, "target_normals", _readonly(normals))
         set_(self, "target_faces", _readonly(faces.astype(np.int64)))
 
+    @classmethod
+    def _checked(cls, points, normals, areas, thickness, gap, source_face, surface, labels, targets) -> SpringLayer:
+        """A layer of arrays already checked by a layer or a cast: copied read-only, not checked again
+        (a finite-kinematics solve re-casts its springs many times). ``surface`` is another
+        layer's (checked, read-only); ``targets`` is ``(target_points, target_normals,
+        target_faces)`` or None."""
+        layer = object.__new__(cls)
+        values = {
+            "points": points,
+            "normals": normals,
+            "areas": areas,
+            "thickness": thickness,
+            "gap": gap,
+            "source_face": source_face,
+            "labels": labels,
+        }
+        if targets is not None:
+            values.update(zip(_TARGETS, targets))
+        for name in ("points", "normals", "areas", "thickness", "gap", "source_face", "labels", *_TARGETS):
+            value = values.get(name)
+            object.__setattr__(layer, name, None if value is None else _readonly(np.array(value)))
+        object.__setattr__(layer, "surface", surface)
+        return layer
+
     @property
     def has_targets(self) -> bool:
         """Whether the springs know their targets on mesh 2 (layers cast from meshes)."""

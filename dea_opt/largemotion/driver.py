@@ -28,6 +28,7 @@ from ..formulations.finite import (
     Targets,
     evaluate,
     scale,
+    small_system,
     status_of,
 )
 from ..kinematics import DOFS
@@ -57,6 +58,10 @@ def resolve_targets(problem) -> tuple[Targets, object]:
                 f"{len(layer)}: pass the cast the layer came from (ContactProblem(cast.layer, ..., "
                 f"targets=cast))"
             )
+        if layer is cast.layer:  # the cast's own targets give its gaps (they are where its rays met)
+            own = cast.layer
+            pose = np.asarray(cast.pose, dtype=float)
+            return Targets.cast_planes(own.target_points, own.target_normals, pose, own.target_faces), cast
         targets = Targets.from_layer(cast.layer, pose=cast.pose)
     else:
         targets = given
@@ -107,11 +112,12 @@ def build_system(problem, targets) -> FiniteSystem:
     )
 
 
-def scaled_directions(problem, system, law) -> tuple[np.ndarray, float, SpringSystem]:
+def scaled_directions(system, law) -> tuple[np.ndarray, float, SpringSystem]:
     """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.energy.scaling`,
-    from the resistance of the problem's small system at zero displacement (held directions left
-    out), sized by the larger of the load and the overlap of the current springs' exact gaps."""
-    small = problem.system()
+    from the resistance of the springs' small system at zero displacement (held directions left
+    out; :func:`~dea_opt.formulations.finite.small_system`: the springs of this solve at body 2's
+    base pose, exact gaps), sized by the larger of the load and the overlap of those gaps."""
+    small = small_system(system, law)
     T, E0 = scale(small.resistance.basis(law.modulus), small.load, system, law)
     return T, E0, small
 
@@ -241,7 +247,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     if tracker is not None:
         system = tracker.springs_of(system)  # a load path's previous frame's springs, or the cast's
     law = problem.law
-    T, E0, small = scaled_directions(problem, system, law)
+    T, E0, small = scaled_directions(system, law)
     unresisted, cone = load_checks or (None, None)
     loaded = bool(small.load.any() and small.n_dofs)
     if loaded and unresisted is not None:
@@ -252,8 +258,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
-    if cold and loaded and method == "finite" and tracker is not None and frame is None:
-        # (the small system is the layer's at its cast pose: no guess for another frame)
+    if cold and loaded and method == "finite" and tracker is not None:
         x, cold = _predicted(small, law, x)
     inner, rounds, history, stable = None, 0, [], True
     while True:
@@ -281,6 +286,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     return _solution(
         problem,
         system,
+        small,
         law,
         inner,
         method,
@@ -312,7 +318,7 @@ def _inner(method, system, law, T, E0, x, cold, opts):
     return formulations.get(method).solve(system, law, T, E0, x0=x, cold=cold, **opts)
 
 
-def _solution(problem, system, law, inner, method, tracker, certificate_tol, build, solve_time, history):
+def _solution(problem, system, small, law, inner, method, tracker, certificate_tol, build, solve_time, history):
     state = inner.state
     targets = system.targets
     final = problem
@@ -341,7 +347,7 @@ def _solution(problem, system, law, inner, method, tracker, certificate_tol, bui
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
     dropped = None if tracker is None else tracker.counts["dropped"]
     message = inner.message
-    held = problem.system().resistance.describe(problem.free_names) if len(system.free) else []
+    held = small.resistance.describe(problem.free_names) if len(system.free) else []
     if held:
         # As for the small kinematics: directions no spring resists at zero displacement take no
         # motion and carry no load (the minimum-norm answer).

@@ -26,35 +26,61 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..formulations.finite import Targets
-from ..mesh import Mesh1, cast_faces, off_face, recast
+from ..mesh import FaceCast, Mesh1, Mesh2, cast_faces, measure, recast
 
 __all__ = ["MeshTracker"]
 
 
 class _Springs:
-    """The springs' per-spring arrays, in one order (faces of mesh 1, their targets on mesh 2)."""
+    """The springs' per-spring arrays, in one order (faces of mesh 1 with their points, normals and
+    areas, their targets on mesh 2 in its own frame, thicknesses, and the far face of mesh 2 each
+    ``h2`` was measured to)."""
+
+    FIELDS = ("faces1", "points", "normals", "areas", "h1", "h2", "q", "m", "faces2", "measured", "gap", "far2")
 
     def __init__(self, layer, h1, h2):
         # copies: the layer's arrays are read-only, these are updated in place
         self.faces1 = np.array(layer.source_face, dtype=np.int64)
+        self.points, self.normals = np.array(layer.points, dtype=float), np.array(layer.normals, dtype=float)
+        self.areas = np.array(layer.areas, dtype=float)
         self.h1, self.h2 = np.array(h1, dtype=float), np.array(h2, dtype=float)
         self.q = np.array(layer.target_points, dtype=float)  # mesh 2's own frame
         self.m = np.array(layer.target_normals, dtype=float)
         self.faces2 = np.array(layer.target_faces, dtype=np.int64)
         self.measured = self.q.copy()  # where each h2 was measured (own frame)
         self.gap = np.array(layer.gap, dtype=float)
+        self.far2 = np.full(len(self.faces1), -2, dtype=np.int64)  # not known yet
 
     def keep(self, index) -> None:
-        for name in ("faces1", "h1", "h2", "q", "m", "faces2", "measured", "gap"):
-            setattr(self, name, getattr(self, name)[index])
+        index = np.flatnonzero(index) if np.asarray(index).dtype == bool else index
+        for name in self.FIELDS:
+            setattr(self, name, np.take(getattr(self, name), index, axis=0))
 
-    def extend(self, faces1, h1, h2, q, m, faces2, gap) -> None:
-        self.faces1 = np.concatenate([self.faces1, faces1])
-        self.h1, self.h2 = np.concatenate([self.h1, h1]), np.concatenate([self.h2, h2])
-        self.q, self.m = np.vstack([self.q, q]), np.vstack([self.m, m])
-        self.faces2 = np.concatenate([self.faces2, faces2])
-        self.measured = np.vstack([self.measured, q])
-        self.gap = np.concatenate([self.gap, gap])
+    def extend(self, mesh1, fresh, new) -> None:
+        """Add the springs ``new`` (bool) of the :class:`~dea_opt.mesh.FaceCast` ``fresh``."""
+        faces = fresh.faces[new]
+        more = {
+            "faces1": faces,
+            "points": np.take(mesh1.centroids, faces, axis=0),
+            "normals": np.take(mesh1.normals, faces, axis=0),
+            "areas": np.take(mesh1.areas, faces),
+            "h1": fresh.h1[new],
+            "h2": fresh.h2[new],
+            "q": fresh.q[new],
+            "m": fresh.m[new],
+            "faces2": fresh.faces2[new],
+            "measured": fresh.q[new],
+            "gap": fresh.gap[new],
+            "far2": fresh.far2[new],
+        }
+        for name in self.FIELDS:
+            setattr(self, name, np.concatenate([getattr(self, name), more[name]]))
+
+
+def _joined(casts) -> FaceCast:
+    """The :class:`~dea_opt.mesh.FaceCast` of several, one after the other."""
+    names = ("faces", "outcome", "q", "m", "faces2", "gap", "h1", "h2", "far2")
+    return FaceCast(casts[0].cast, *(np.concatenate([getattr(c, name) for c in casts]) for name in names))
 
 
 @dataclass
@@ -88,7 +114,7 @@ class MeshTracker:
         self.cast = cast
         self.frame = np.asarray(cast.pose, dtype=float)
         self.recast_shift, self.full_shift, self.thickness_tol = recast_shift, full_shift, thickness_tol
-        self.mesh1 = Mesh1.of(cast)
+        self.mesh1, self.mesh2 = Mesh1.of(cast), Mesh2.of(cast)
         self._take(cast)
         self._first_layer = cast.layer
         self.begin()
@@ -97,6 +123,9 @@ class MeshTracker:
         """Start from a whole cast (the first, or a full re-cast)."""
         self.cast, self.full = cast, np.asarray(cast.pose, dtype=float)
         self.springs = _Springs(cast.layer, cast.thickness1, cast.thickness2)
+        # per face of mesh 1, the face of mesh 2 its ray met first at the last cast (-1: unknown)
+        self.met = np.full(len(cast.mesh1.faces), -1, dtype=np.int64)
+        self.met[self.springs.faces1] = self.springs.faces2
         # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
         self._layer = cast.layer if not hasattr(self, "_first_layer") else None
         self.dropped_faces = np.asarray(cast.dropped.faces["overlap"], dtype=np.int64)
@@ -120,8 +149,7 @@ class MeshTracker:
 
     def targets(self) -> Targets:
         s = self.springs
-        n = len(s.faces1)
-        return Targets(s.q, s.m, np.zeros(n), np.zeros(n, bool), self.frame, s.faces2)
+        return Targets.cast_planes(s.q, s.m, self.frame, s.faces2)
 
     @property
     def thickness(self) -> np.ndarray:
@@ -139,43 +167,26 @@ class MeshTracker:
     def layer_with_gap(self, gap):
         """The springs as a :class:`~dea_opt.layer.SpringLayer` with gaps ``gap`` (N,), or those of
         the last update's pose (None)."""
-        if gap is not None:
-            from ..layer import SpringLayer
+        if gap is None and self._layer is not None:
+            return self._layer
+        from ..layer import SpringLayer
 
-            s, m1 = self.springs, self.cast.mesh1
-            normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
-            return SpringLayer(
-                m1.triangles_center[s.faces1],
-                normals,
-                m1.area_faces[s.faces1],
-                self.thickness,
-                gap,
-                source_face=s.faces1,
-                surface=(m1.vertices, m1.faces),
-                labels=self._labels(s.faces1),
-                target_points=s.q,
-                target_normals=s.m,
-                target_faces=s.faces2,
-            )
-        if self._layer is None:
-            from ..layer import SpringLayer
-
-            s, m1 = self.springs, self.cast.mesh1
-            normals = -m1.face_normals[s.faces1] if self.cast.options["flip"] else m1.face_normals[s.faces1]
-            self._layer = SpringLayer(
-                m1.triangles_center[s.faces1],
-                normals,
-                m1.area_faces[s.faces1],
-                self.thickness,
-                s.gap,
-                source_face=s.faces1,
-                surface=(m1.vertices, m1.faces),
-                labels=self._labels(s.faces1),
-                target_points=s.q,
-                target_normals=s.m,
-                target_faces=s.faces2,
-            )
-        return self._layer
+        s = self.springs
+        # every array comes from the checked meshes and the rules of a cast
+        layer = SpringLayer._checked(
+            s.points,
+            s.normals,
+            s.areas,
+            self.thickness,
+            s.gap if gap is None else gap,
+            s.faces1,
+            self._first_layer.surface,
+            self._labels(s.faces1),
+            (s.q, s.m, s.faces2),
+        )
+        if gap is None:
+            self._layer = layer
+        return layer
 
     def _labels(self, faces):
         """The labels of faces ``faces`` of mesh 1: the first layer's own (a scenario's regions, the
@@ -197,7 +208,7 @@ class MeshTracker:
 
             if getattr(self, "_label_tree", None) is None:
                 self._label_tree = cKDTree(first.points)
-            index[missing] = self._label_tree.query(self.cast.mesh1.triangles_center[faces[missing]])[1]
+            index[missing] = self._label_tree.query(self.mesh1.centroids[faces[missing]])[1]
         return labels[index]
 
     def _lose(self, reason: str, count: int) -> None:
@@ -213,13 +224,21 @@ class MeshTracker:
             return self._recast_all(system, state, pose)
         springs, options = self.springs, self.cast.options
         gaps = state.gaps
-        left = off_face(gaps.hit, gaps.valid, springs.faces2, pose, self.cast.mesh2)
-        own = (np.nan_to_num(gaps.hit) - pose[:3, 3]) @ pose[:3, :3]
-        moved = ~left & (np.linalg.norm(own - springs.measured, axis=1) > self.recast_shift)
+        R, shift = pose[:3, :3], pose[:3, 3]
+        # the hits in mesh 2's own frame, as rows (3, N): R^T (p + s n - shift)
+        rows = system.planes
+        pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
+        along = np.where(gaps.valid, gaps.s, 0.0)
+        ownT = R.T @ (pT - shift[:, None]) + along * (R.T @ nT)
+        left = ~(self.mesh2.planes.inside(ownT, springs.faces2, rows=True) & gaps.valid)
+        own = ownT.T
+        shifted = ownT - springs.measured.T
+        moved = ~left & (np.einsum("ij,ij->j", shifted, shifted) > self.recast_shift**2)
         beyond = ~left & (gaps.s > options["max_gap"])
         loaded = state.eps < 0
         before_faces, before_h = springs.faces2.copy(), self.thickness.copy()
-        # 1. Springs whose hit left its face: cast again, allowed the overlap they have now.
+        # 1. Springs whose hit left its face: met again (followed across mesh 2's edges, else cast),
+        #    allowed the overlap they have now.
         index = np.flatnonzero(left)
         again = cast_faces(
             self.cast,
@@ -227,44 +246,66 @@ class MeshTracker:
             springs.faces1[index],
             np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
             self.mesh1,
+            self.mesh2,
+            met=springs.faces2[index],
+            thickness=False,
         )
+        self.met[springs.faces1[index]] = again.first2
         found = again.spring
         at = index[found]
         springs.q[at], springs.m[at], springs.faces2[at] = again.q[found], again.m[found], again.faces2[found]
-        springs.h2[at], springs.measured[at], springs.gap[at] = again.h2[found], again.q[found], again.gap[found]
+        springs.measured[at], springs.gap[at] = again.q[found], again.gap[found]
         for reason, count in again.reasons(~found).items():
             self._lose(reason, count)
-        # 2. Springs whose hit moved on its face: their thickness where the hit is now.
-        stay = np.flatnonzero(moved & ~beyond)
-        if len(stay):
-            springs.h2[stay] = again.thickness2_at(springs.faces2[stay], own[stay])
-            springs.measured[stay] = own[stay]
         on = np.flatnonzero(~left)
         springs.gap[on] = np.where(gaps.valid[on], gaps.s[on], springs.gap[on])
-        self._lose("gap", int(beyond.sum()))
+        # 2. Their thickness where the hits are now, and that of springs whose hit moved on its face.
+        stay = np.flatnonzero(moved & ~beyond)
+        springs.measured[stay] = own[stay]
+        remeasure = np.concatenate([at, stay])
         keep = ~beyond
         keep[index[~found]] = False
-        springs.keep(keep)
+        if len(remeasure):
+            h2, springs.far2[remeasure] = self.mesh2.thickness(
+                options["thickness2"], springs.faces2[remeasure], springs.measured[remeasure], springs.far2[remeasure]
+            )
+            springs.h2[remeasure] = h2
+            total = springs.h1[remeasure] + h2
+            bad = remeasure[~(np.isfinite(total) & (total > 0))]
+            keep[bad] = False
+            self._lose("thickness", len(bad))
+        self._lose("gap", int(beyond.sum()))
+        if not keep.all():
+            springs.keep(keep)
         # 3. The faces next to the springs, ring after ring while springs come into range there.
-        gained, dropped, tried = 0, [], np.zeros(len(self.cast.mesh1.faces), dtype=bool)
+        gained, dropped, tried = 0, [], np.zeros(len(self.mesh1.areas), dtype=bool)
         tried[springs.faces1] = True
-        ring = self._ring(springs.faces1, tried)
+        width = 3
+        (ring, guess), grown = self._ring(springs.faces1, springs.faces2, tried, width), []
         while len(ring):
             tried[ring] = True
-            fresh = cast_faces(self.cast, pose, ring, self._allowed(ring, pose), self.mesh1)
-            new = fresh.spring
-            springs.extend(
-                fresh.faces[new],
-                fresh.h1[new],
-                fresh.h2[new],
-                fresh.q[new],
-                fresh.m[new],
-                fresh.faces2[new],
-                fresh.gap[new],
+            fresh = cast_faces(
+                self.cast,
+                pose,
+                ring,
+                self._allowed(ring, pose),
+                self.mesh1,
+                self.mesh2,
+                met=guess,
+                thickness=False,
             )
+            self.met[ring] = fresh.first2
+            new = fresh.spring
+            grown.append(fresh.subset(new))
             dropped.append(fresh.faces[fresh.dropped])
-            gained += int(new.sum())
-            ring = self._ring(fresh.faces[new], tried)
+            width = min(2 * width, 24)
+            ring, guess = self._ring(fresh.faces[new], fresh.faces2[new], tried, width)
+        if grown:
+            fresh = grown[0] if len(grown) == 1 else _joined(grown)
+            measure(fresh, self.mesh1, self.mesh2)
+            new = fresh.spring
+            springs.extend(self.mesh1, fresh, new)
+            gained = int(new.sum())
         self.dropped_faces = np.concatenate(dropped) if dropped else np.zeros(0, dtype=np.int64)
         self.counts.update(dropped=len(self.dropped_faces), updates=self.counts["updates"] + 1)
         self.counts["gained"] += gained
@@ -290,8 +331,9 @@ class MeshTracker:
     def _recast_all(self, system, state, pose):
         new = recast(self.cast, pose)
         self.counts["recasts"] += 1
+        own = (np.nan_to_num(state.gaps.hit) - pose[:3, 3]) @ pose[:3, :3]
         self.counts["left_face"] += int(
-            off_face(state.gaps.hit, state.gaps.valid, self.springs.faces2, pose, self.cast.mesh2).sum()
+            (~(self.mesh2.planes.inside(own, self.springs.faces2) & state.gaps.valid)).sum()
         )
         self.counts["gained"] += len(new.gained)
         for reason, faces in new.lost.items():
@@ -303,15 +345,8 @@ class MeshTracker:
 
     def springs_of(self, system):
         """``system`` with this tracker's springs and targets (the load and coordinates kept)."""
-        s, m1 = self.springs, self.cast.mesh1
-        normals = m1.face_normals[s.faces1]
-        return system.with_springs(
-            m1.triangles_center[s.faces1],
-            -normals if self.cast.options["flip"] else normals,
-            m1.area_faces[s.faces1],
-            self.thickness,
-            self.targets(),
-        )
+        s = self.springs
+        return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets())
 
     def _moved(self, pose, since) -> float:
         """How far (mm) the springs' hits on body 2 moved between ``since`` and ``pose``."""
@@ -321,45 +356,40 @@ class MeshTracker:
         shift = hits @ (pose[:3, :3] - since[:3, :3]).T + (pose[:3, 3] - since[:3, 3])
         return float(np.sqrt(np.einsum("ij,ij->i", shift, shift).max()))
 
-    def _ring(self, faces1, tried, rings: int = 3) -> np.ndarray:
-        """The faces of mesh 1 within ``rings`` edges of ``faces1`` not ``tried`` yet."""
-        start, neighbours = self._neighbours()
-        out, current = [], np.asarray(faces1, dtype=np.int64)
+    def _ring(self, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
+        """``(faces, guess)``: the faces of mesh 1 within ``rings`` edges of ``faces1`` not ``tried``
+        yet, and for each a face of mesh 2 to follow its ray from: what it met at its last cast,
+        else what the face of ``faces1`` it was reached from met (``met``, (K,))."""
+        table = self.mesh1.neighbours
+        width = table.shape[1]
         seen = tried.copy()
+        reached = np.full(len(seen), -1, dtype=np.int64)
+        out, current, guess = [], np.asarray(faces1, dtype=np.int64), np.asarray(met, dtype=np.int64)
         for _ in range(rings):
             if not len(current):
                 break
-            counts = start[current + 1] - start[current]
-            offsets = np.arange(counts.sum()) - np.repeat(np.cumsum(counts) - counts, counts)
-            near = neighbours[np.repeat(start[current], counts) + offsets]
-            fresh = np.zeros(len(seen), dtype=bool)
-            fresh[near] = True
-            fresh &= ~seen
-            current = np.flatnonzero(fresh)
-            seen |= fresh
-            out.append(current)
-        return np.concatenate(out) if out else np.zeros(0, dtype=np.int64)
-
-    def _neighbours(self):
-        """Mesh 1's faces sharing an edge, as compressed rows ``(start (F + 1,), neighbours)``."""
-        mesh = self.cast.mesh1
-        cache = getattr(mesh, "_cache", None)  # trimesh empties it when the mesh changes
-        csr = cache["dea_opt_face_neighbours"] if cache is not None else None
-        if csr is None:
-            pairs = np.asarray(mesh.face_adjacency, dtype=np.int64)
-            both = np.concatenate([pairs, pairs[:, ::-1]])
-            both = both[np.argsort(both[:, 0], kind="stable")]
-            csr = (np.searchsorted(both[:, 0], np.arange(len(mesh.faces) + 1)), both[:, 1])
-            if cache is not None:
-                cache["dea_opt_face_neighbours"] = csr
-        return csr
+            near = np.take(table, current, axis=0).ravel()
+            ok = near >= 0
+            near, via = near[ok], np.repeat(guess, width)[ok]
+            fresh = ~seen[near]
+            reached[near[fresh]] = via[fresh]
+            seen[near[fresh]] = True
+            current = np.flatnonzero(reached >= 0)
+            guess = reached[current]
+            reached[current] = -1
+            out.append((current, guess))
+        if not out:
+            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+        faces = np.concatenate([f for f, _ in out])
+        guess = np.concatenate([g for _, g in out])
+        own = self.met[faces]
+        return faces, np.where(own >= 0, own, guess)
 
     def _allowed(self, faces, pose) -> np.ndarray:
         """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it since
         the last whole cast (the window following the pose, as in :func:`dea_opt.mesh.recast`)."""
-        m1, options = self.cast.mesh1, self.cast.options
-        point = m1.triangles_center[faces]
-        normal = -m1.face_normals[faces] if options["flip"] else m1.face_normals[faces]
+        point = np.take(self.mesh1.centroids, faces, axis=0)
+        normal = np.take(self.mesh1.normals, faces, axis=0)
         motion = pose @ np.linalg.inv(self.full)
         toward = -np.einsum("ij,ij->i", normal, point @ motion[:3, :3].T + motion[:3, 3] - point)
-        return options["max_overlap"] + np.maximum(toward, 0.0)
+        return self.cast.options["max_overlap"] + np.maximum(toward, 0.0)

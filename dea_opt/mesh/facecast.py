@@ -5,8 +5,16 @@ Written math: ``formulations/finite.md`` ("Re-casting"). The same decisions as
 ``-allowed <= gap <= max_gap``, within ``max_angle`` of facing, rejected behind mesh 1's own far
 side, thickness measured through each cartilage) for the faces of mesh 1 a caller asks about
 (the springs of a finite-kinematics solve that follow body 2, :mod:`dea_opt.largemotion`), so
-that keeping springs up to date costs rays in proportion to what moved. What lies behind each
-face of mesh 1 does not depend on the pose and is measured once per face.
+that keeping springs up to date costs rays in proportion to what moved.
+
+What does not depend on the pose is measured once per mesh and kept with it (:class:`Mesh1`,
+:class:`Mesh2`, in the mesh's trimesh cache, emptied when the mesh changes): behind each face of
+mesh 1 its far side and thickness; each face of mesh 2 as a plane and a barycentric map; and, per
+face of mesh 2, the face of the far side its inward ray met last (:class:`FarSide`), so that a
+thickness measured again where a hit moved is one plane intersection while that ray stays on
+the same far face (a ray cast only when it leaves it). A cast of a few hundred faces is called
+many times in a solve, so these are plain arrays: reading a trimesh property checks the mesh's
+hash every time.
 """
 
 from __future__ import annotations
@@ -16,12 +24,56 @@ import math
 import numpy as np
 
 from .._checks.thresholds import ANGLE_SLACK
-from .raycast import _caster, _first_per_ray, _self_epsilon
+from .raycast import _caster, _engine, _first_per_ray, _self_epsilon
 from .springs import LOST_REASONS, _outcomes, _thickness
+from .walk import Planes, Walker, dot
 
-__all__ = ["FaceCast", "Mesh1", "cast_faces", "off_face"]
+__all__ = ["FaceCast", "FarSide", "Mesh1", "Mesh2", "cast_faces", "measure", "off_face"]
 
 _SPRING = -1
+
+
+def _cached(mesh, key, build):
+    """``build()`` kept in ``mesh``'s trimesh cache under ``key`` (built again once the mesh changed)."""
+    cache = getattr(mesh, "_cache", None)
+    found = cache[key] if cache is not None else None
+    if found is None:
+        found = build()
+        if cache is not None:
+            cache[key] = found
+    return found
+
+
+class _FirstHit:
+    """The first crossing of a mesh along rays, from their origins on: Embree's first-hit query
+    called directly (the scene kept, no check of the mesh's hash per call), the distance taken
+    in float64 to the plane of the face it reports; the numpy grid without Embree."""
+
+    def __init__(self, mesh, engine, planes: Planes):
+        self.mesh, self.engine, self.planes = mesh, engine, planes
+        self.scene = None
+        if _engine(engine) == "embree":
+            intersector = _caster(mesh, engine).intersector
+            self.scene = intersector._scene  # trimesh's wrapper: float32, scaled to the mesh's box
+
+    def __call__(self, origins, directions, t_min: float = 0.0):
+        """``(face, t)`` of the first crossing with ``t > t_min`` per ray (-1 and NaN where none)."""
+        n = len(origins)
+        if self.scene is None or not n:
+            return _caster(self.mesh, self.engine).nearest(origins, directions, t_min, np.inf)
+        start = origins + t_min * directions if t_min else origins
+        first = np.asarray(self.scene.run(start, directions.astype(np.float32)), dtype=np.int64)
+        face, dist = np.full(n, -1, dtype=np.int64), np.full(n, np.nan)
+        found = np.flatnonzero(first >= 0)
+        t = self.planes.distance(first[found], origins[found], directions[found])
+        good = t > t_min
+        face[found[good]], dist[found[good]] = first[found[good]], t[good]
+        again = found[~good]  # float32 traversal met the starting face itself: every crossing
+        if len(again):
+            face[again], dist[again] = _caster(self.mesh, self.engine)._nearest_of_all(
+                origins[again], directions[again], t_min, np.inf
+            )
+        return face, dist
 
 
 class Mesh1:
@@ -33,24 +85,41 @@ class Mesh1:
 
     @classmethod
     def of(cls, cast) -> Mesh1:
-        mesh = cast.mesh1
-        cache = getattr(mesh, "_cache", None)
         key = f"dea_opt_finite_mesh1_{bool(cast.options['flip'])}_{cast.options['engine']}"
-        found = cache[key] if cache is not None else None
-        if found is None:
-            found = cls(cast)
-            if cache is not None:
-                cache[key] = found
-        return found
+        return _cached(cast.mesh1, key, lambda: cls(cast))
 
     def __init__(self, cast):
         m1, options = cast.mesh1, cast.options
         self.mesh, self.options = m1, options
-        self.centroids = np.asarray(m1.triangles_center)
-        self.normals = -np.asarray(m1.face_normals) if options["flip"] else np.asarray(m1.face_normals)
+        self.centroids = np.array(m1.triangles_center, dtype=float)
+        normals = np.array(m1.face_normals, dtype=float)
+        self.face_normals = normals  # as the mesh has them (a back face's orientation)
+        self.normals = -normals if options["flip"] else normals
+        self.areas = np.array(m1.area_faces, dtype=float)
+        self.eps = _self_epsilon(m1)
         n = len(m1.faces)
         self.back_face = np.full(n, -2, dtype=np.int64)  # -2: not measured yet
         self.depth = np.full(n, np.inf)
+        self._thickness = np.full(n, np.nan)
+        self._measured = np.zeros(n, dtype=bool)
+
+    @property
+    def neighbours(self) -> np.ndarray:
+        """``(F, K)``: the faces sharing an edge with each face (trimesh's ``face_adjacency``), padded
+        with -1 (``K`` = 3 on a manifold mesh)."""
+        table = getattr(self, "_neighbours", None)
+        if table is None:
+            n = len(self.areas)
+            pairs = np.asarray(self.mesh.face_adjacency, dtype=np.int64).reshape(-1, 2)
+            both = np.concatenate([pairs, pairs[:, ::-1]])
+            both = both[np.argsort(both[:, 0], kind="stable")]
+            start = np.searchsorted(both[:, 0], np.arange(n + 1))
+            counts = np.diff(start)
+            table = np.full((n, max(int(counts.max(initial=0)), 1)), -1, dtype=np.int64)
+            column = np.arange(len(both)) - np.repeat(start[:-1], counts)
+            table[both[:, 0], column] = both[:, 1]
+            self._neighbours = table
+        return table
 
     def behind(self, faces) -> tuple[np.ndarray, np.ndarray]:
         """``(back_face, depth)`` of ``faces``: the first crossing of mesh 1 behind each, its far side."""
@@ -58,19 +127,121 @@ class Mesh1:
         if len(todo):
             todo = np.unique(todo)
             face, depth = _caster(self.mesh, self.options["engine"]).nearest(
-                self.centroids[todo], -self.normals[todo], _self_epsilon(self.mesh), np.inf
+                self.centroids[todo], -self.normals[todo], self.eps, np.inf
             )
             self.back_face[todo] = face
             self.depth[todo] = np.where(face >= 0, depth, np.inf)
         return self.back_face[faces], self.depth[faces]
 
+    def thickness(self, faces) -> np.ndarray:
+        """Body 1's cartilage thickness at ``faces`` by the cast's ``thickness1`` (measured once a face)."""
+        todo = faces[~self._measured[faces]]
+        if len(todo):
+            todo = np.unique(todo)
+            spec = self.options["thickness1"]
+            through = None
+            if spec is None:  # the crossing behind the face, where it leaves the layer
+                back, depth = self.behind(todo)
+                leaves = np.einsum("ij,ij->i", self.face_normals[back.clip(0)], -self.normals[todo]) > 0
+                through = np.where((back >= 0) & leaves, depth, np.nan)
+            self._thickness[todo] = _thickness(
+                spec, self.mesh, todo, self.centroids[todo], -self.normals[todo], self.options["engine"], through
+            )
+            self._measured[todo] = True
+        return self._thickness[faces]
+
+
+class FarSide:
+    """Per face of mesh 2, the face of a surface met along its inward normal: the cartilage's own
+    far side (``leaving``: the crossing must leave the surface) or a bone mesh.
+
+    A hit that moved on its face is measured again by intersecting its ray with the plane of
+    the far face met last; where that point leaves the far face (or none was met yet) the ray
+    is cast. The far side of a cartilage layer is a sheet a few mm away, so nearly every ray
+    stays on its far face while its hit moves by less than a face.
+    """
+
+    def __init__(self, surface, engine, leaving: bool, n_faces: int, planes: Planes | None = None):
+        self.planes = Planes(surface) if planes is None else planes
+        self.first = _FirstHit(surface, engine, self.planes)
+        self.walker = Walker(self.planes)
+        self.leaving = leaving
+        self.face = np.full(n_faces, -2, dtype=np.int64)  # -2: none met yet
+
+    def thickness(self, faces, points, directions, guess=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(t, far)``: the distance from ``points`` (K, 3) on faces ``faces`` (K,) of mesh 2 along
+        ``directions`` (their inward normals) to the far side, NaN where the ray meets none (or
+        enters it), and the far face met (-1: none). ``guess`` (K,) are far faces to try first
+        (a spring's last one; -2 for none), else the last met from each face."""
+        planes = self.planes
+        far = self.face[faces] if guess is None else np.where(guess >= -1, guess, self.face[faces])
+        t = np.full(len(faces), np.nan)
+        known = np.flatnonzero(far >= 0)
+        if len(known):
+            face, d, on = self.walker.follow(far[known], points[known], directions[known])
+            on &= d > planes.eps
+            t[known[on]] = d[on]
+            far[known] = np.where(on, face, -2)
+        cast = np.flatnonzero(far < 0)
+        if len(cast):
+            face, d = self.first(points[cast], directions[cast], planes.eps)
+            self.face[faces[cast]] = face
+            far[cast] = face
+            t[cast] = d
+        if self.leaving:
+            met = far >= 0
+            leaves = np.zeros(len(faces), dtype=bool)
+            leaves[met] = dot(np.take(planes.normals, far[met], axis=0), directions[met]) > 0
+            t = np.where(leaves, t, np.nan)
+        return t, far
+
+
+class Mesh2:
+    """Mesh 2 as a cast at any pose sees it, in its own frame: planes, barycentric maps, the
+    first-hit query, and what lies behind its faces (:class:`FarSide`). One per mesh and engine,
+    kept like :class:`Mesh1`."""
+
+    @classmethod
+    def of(cls, cast) -> Mesh2:
+        return _cached(cast.mesh2, f"dea_opt_finite_mesh2_{cast.options['engine']}", lambda: cls(cast.mesh2, cast))
+
+    def __init__(self, mesh, cast):
+        self.mesh, self.engine = mesh, cast.options["engine"]
+        self.planes = Planes(mesh)
+        self.first = _FirstHit(mesh, self.engine, self.planes)
+        self.walker = Walker(self.planes)
+        self._far: dict = {}
+
+    def far_side(self, spec) -> FarSide:
+        """The :class:`FarSide` of a ``thickness2`` given as None (through mesh 2) or a bone mesh."""
+        key = id(spec)
+        found = self._far.get(key)
+        if found is None or found[0] is not spec:
+            n = len(self.planes.offset)
+            side = FarSide(self.mesh, self.engine, True, n, self.planes) if spec is None else None
+            found = (spec, side or FarSide(spec, self.engine, False, n))
+            self._far[key] = found
+        return found[1]
+
+    def thickness(self, spec, faces, points, guess=None) -> tuple[np.ndarray, np.ndarray]:
+        """``(h2, far)``: body 2's cartilage thickness at ``points`` (own frame) on ``faces``, by
+        ``thickness2``, and the far faces met (:meth:`FarSide.thickness`; -1 where not measured)."""
+        if spec is None or not isinstance(spec, (float, np.ndarray)):
+            directions = -np.take(self.planes.normals, faces, axis=0)
+            return self.far_side(spec).thickness(faces, points, directions, guess)
+        far = np.full(len(faces), -1, dtype=np.int64)
+        return (np.full(len(faces), spec) if isinstance(spec, float) else spec[faces]), far
+
 
 class FaceCast:
     """What the rays of some faces of mesh 1 met: a spring or the reason for none, per face."""
 
-    def __init__(self, cast, faces, outcome, q, m, faces2, gap, h1, h2):
+    def __init__(self, cast, faces, outcome, q, m, faces2, gap, h1, h2, far2=None):
         self.cast, self.faces, self.outcome = cast, faces, outcome
         self.q, self.m, self.faces2, self.gap, self.h1, self.h2 = q, m, faces2, gap, h1, h2
+        # the far face of mesh 2 each thickness was measured to (-1: none; -2: not measured)
+        self.far2 = np.full(len(faces), -2, dtype=np.int64) if far2 is None else far2
+        self.first2 = np.full(len(faces), -1, dtype=np.int64)  # what each ray met first (cast_faces)
 
     @property
     def spring(self) -> np.ndarray:
@@ -92,6 +263,7 @@ class FaceCast:
             self.gap[index],
             self.h1[index],
             self.h2[index],
+            self.far2[index],
         )
 
     def reasons(self, mask) -> dict:
@@ -101,87 +273,159 @@ class FaceCast:
 
     def thickness2_at(self, faces2, points) -> np.ndarray:
         """Body 2's cartilage thickness measured from ``points`` (own frame) on ``faces2``."""
-        m2, options = self.cast.mesh2, self.cast.options
-        return _thickness(options["thickness2"], m2, faces2, points, -m2.face_normals[faces2], options["engine"])
+        return Mesh2.of(self.cast).thickness(self.cast.options["thickness2"], faces2, points)[0]
 
 
-def _crossings(m2, engine, origins, directions, look, max_gap, depth, eps1):
-    """``(ray, face, t, cos)``: the crossings of mesh 2 facing the rays, from ``-look`` to ``max_gap``.
+class _Crossings:
+    """The crossings of mesh 2 a cast judges for K rays: ``ray``, ``face``, ``t``, ``cos`` (one entry
+    a crossing), ``unique`` (at most one a ray), and ``first`` (K,): the face a ray met first, when it
+    faces the ray (-1 otherwise), from which the ray can be followed at the next pose."""
 
-    One first-hit query per ray; where the first crossing is a face facing the ray in front of
-    mesh 1's own far side (a smooth cartilage surface met once, the usual case) it is the only
+    def __init__(self, ray, face, t, cos, unique, first):
+        self.ray, self.face, self.t, self.cos, self.unique, self.first = ray, face, t, cos, unique, first
+
+
+def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, met=None) -> _Crossings:
+    """The crossings of mesh 2 facing the rays, from ``-look`` to ``max_gap``.
+
+    The first crossing from ``-look`` on: followed across mesh 2's edges from ``met`` (K,) where
+    given (>= 0), cast (one first-hit query) for the others and where the walk finds nothing
+    facing the ray ahead of ``-look``. Where the first crossing is a face facing the ray in front
+    of mesh 1's own far side (a smooth cartilage surface met once, the usual case) it is the only
     candidate, else the ray is cast again for all its crossings (as the cast does for every ray).
     """
-    caster = _caster(m2, engine)
-    eps = _self_epsilon(m2)
+    eps = mesh2.planes.eps
     start, stop = -(look + eps), np.maximum(max_gap, look) + eps
-    first, t = caster.nearest(origins + start[:, None] * directions, directions, 0.0, np.inf)
-    t = t + start
+    k = len(origins)
+    first, t = np.full(k, -1, dtype=np.int64), np.full(k, np.nan)
+    cos = np.zeros(k)
+    known = np.zeros(k, dtype=bool)
+    if met is not None and (met >= 0).any():
+        walk = np.flatnonzero(met >= 0)
+        face, dist, found = mesh2.walker.follow(met[walk], origins[walk], directions[walk])
+        c = -dot(np.take(mesh2.planes.normals, face, axis=0), directions[walk])
+        with np.errstate(invalid="ignore"):
+            good = found & (c > 0) & (dist >= start[walk])
+        walk = walk[good]
+        first[walk], t[walk], cos[walk], known[walk] = face[good], dist[good], c[good], True
+    todo = np.flatnonzero(~known)
+    if len(todo):
+        face, dist = mesh2.first(origins[todo] + start[todo, None] * directions[todo], directions[todo])
+        first[todo], t[todo] = face, dist + start[todo]
+        hit = todo[face >= 0]
+        cos[hit] = -dot(np.take(mesh2.planes.normals, first[hit], axis=0), directions[hit])
     found = first >= 0
-    cos = np.zeros(len(first))
-    cos[found] = -np.einsum("ij,ij->i", m2.face_normals[first[found]], directions[found])
-    simple = found & (cos > 0) & (t <= stop) & ~(-t >= depth - eps1)
-    missed = ~found | (t > stop)  # nothing ahead inside the window: no hit at all
+    with np.errstate(invalid="ignore"):
+        simple = found & (cos > 0) & (t <= stop) & ~(-t >= depth - eps1)
+        missed = ~found | (t > stop)  # nothing ahead inside the window: no hit at all
     again = np.flatnonzero(~simple & ~missed)
-    ray, face, dist = np.flatnonzero(simple), first[simple], t[simple]
-    if len(again):
-        more_ray, more_face, more_t = caster.hits(origins[again], directions[again], start[again], stop[again])
-        ray = np.concatenate([ray, again[more_ray]])
-        face, dist = np.concatenate([face, more_face]), np.concatenate([dist, more_t])
-    cosine = -np.einsum("ij,ij->i", m2.face_normals[face], directions[ray])
-    facing = cosine > 0
-    return ray[facing], face[facing], dist[facing], cosine[facing]
+    ray = np.flatnonzero(simple)
+    facing_first = np.where(found & (cos > 0), first, -1)
+    if not len(again):
+        return _Crossings(ray, first[ray], t[ray], cos[ray], True, facing_first)
+    caster = _caster(mesh2.mesh, mesh2.engine)
+    more_ray, more_face, more_t = caster.hits(origins[again], directions[again], start[again], stop[again])
+    more_cos = -dot(np.take(mesh2.planes.normals, more_face, axis=0), directions[again[more_ray]])
+    facing = more_cos > 0
+    return _Crossings(
+        np.concatenate([ray, again[more_ray[facing]]]),
+        np.concatenate([first[ray], more_face[facing]]),
+        np.concatenate([t[ray], more_t[facing]]),
+        np.concatenate([cos[ray], more_cos[facing]]),
+        False,
+        facing_first,
+    )
 
 
-def cast_faces(cast, pose, faces, allowed, mesh1: Mesh1) -> FaceCast:
+def _empty(cast, faces) -> FaceCast:
+    k = len(faces)
+    return FaceCast(
+        cast,
+        faces,
+        np.full(k, LOST_REASONS.index("no_hit"), dtype=np.int8),
+        np.full((k, 3), np.nan),
+        np.full((k, 3), np.nan),
+        np.full(k, -1, dtype=np.int64),
+        np.full(k, np.nan),
+        np.full(k, np.nan),
+        np.full(k, np.nan),
+        np.full(k, -2, dtype=np.int64),
+    )
+
+
+def _rays(pose, faces, mesh1: Mesh1):
+    """The rays of faces ``faces`` of mesh 1 in mesh 2's own frame at ``pose``: ``(origins, directions)``."""
+    R, shift = pose[:3, :3], pose[:3, 3]
+    return (np.take(mesh1.centroids, faces, axis=0) - shift) @ R, np.take(mesh1.normals, faces, axis=0) @ R
+
+
+def measure(out: FaceCast, mesh1: Mesh1, mesh2: Mesh2, far=None) -> None:
+    """The thicknesses of ``out``'s springs (``far``, (K,): the far faces to try first); a spring
+    whose thickness cannot be measured, or is not positive, is none (outcome ``thickness``)."""
+    sel = np.flatnonzero(out.spring)
+    if not len(sel):
+        return
+    out.h1[sel] = mesh1.thickness(out.faces[sel])
+    out.h2[sel], out.far2[sel] = mesh2.thickness(
+        out.cast.options["thickness2"], out.faces2[sel], out.q[sel], None if far is None else far[sel]
+    )
+    total = out.h1[sel] + out.h2[sel]
+    bad = ~(np.isfinite(total) & (total > 0))
+    out.outcome[sel[bad]] = LOST_REASONS.index("thickness")
+
+
+def cast_faces(
+    cast, pose, faces, allowed, mesh1: Mesh1, mesh2: Mesh2 | None = None, *, met=None, far=None, thickness=True
+) -> FaceCast:
     """Cast the faces ``faces`` of mesh 1 (K,) onto mesh 2 at ``pose`` (4x4), each ray allowed the
-    overlap ``allowed`` (K,), by the rules of :func:`dea_opt.mesh.cast_springs`."""
-    m2, options = cast.mesh2, cast.options
-    engine, max_gap = options["engine"], options["max_gap"]
+    overlap ``allowed`` (K,), by the rules of :func:`dea_opt.mesh.cast_springs`.
+
+    ``met`` (K,): the faces of mesh 2 the rays met first at a pose nearby (-1: none known); a ray
+    is followed from there across mesh 2's edges (:class:`~dea_opt.mesh.walk.Walker`: a smooth
+    surface met once) and cast only where that finds nothing facing it. ``far`` (K,): the far
+    faces each thickness was last measured to (-2: none). Without ``thickness`` the springs'
+    thicknesses are left to :func:`measure` (NaN). ``FaceCast.first2`` holds what each ray met
+    first, for the next call's ``met``.
+    """
+    mesh2 = Mesh2.of(cast) if mesh2 is None else mesh2
+    options = cast.options
+    max_gap = options["max_gap"]
     faces = np.asarray(faces, dtype=np.int64)
     k = len(faces)
-    outcome = np.full(k, LOST_REASONS.index("no_hit"), dtype=np.int8)
-    q, m = np.full((k, 3), np.nan), np.full((k, 3), np.nan)
-    faces2, gap = np.full(k, -1, dtype=np.int64), np.full(k, np.nan)
-    h1, h2 = np.full(k, np.nan), np.full(k, np.nan)
+    out = _empty(cast, faces)
+    out.first2 = np.full(k, -1, dtype=np.int64)
     if not k:
-        return FaceCast(cast, faces, outcome, q, m, faces2, gap, h1, h2)
-    back_face, depth = mesh1.behind(faces)
+        return out
+    _, depth = mesh1.behind(faces)
     look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
-    R, shift = pose[:3, :3], pose[:3, 3]
-    origins = (mesh1.centroids[faces] - shift) @ R
-    directions = mesh1.normals[faces] @ R
-    ray, face, t, cos = _crossings(m2, engine, origins, directions, look, max_gap, depth, _self_epsilon(mesh1.mesh))
-    through = -t >= depth[ray] - _self_epsilon(mesh1.mesh)
+    origins, directions = _rays(pose, faces, mesh1)
+    crossings = _crossings(mesh2, origins, directions, look, max_gap, depth, mesh1.eps, met)
+    out.first2 = crossings.first
+    ray, face, t, cos = crossings.ray, crossings.face, crossings.t, crossings.cos
+    through = -t >= depth[ray] - mesh1.eps
     window = (t >= -allowed[ray]) & (t <= max_gap)
     rejected = np.zeros(k, dtype=bool)
     rejected[ray[through & window]] = True
     inside = window & ~through
-    pick = _first_per_ray(ray[inside], np.abs(t[inside]), k)
+    if crossings.unique:  # one crossing a ray (the usual case): no sort
+        pick = np.full(k, -1, dtype=np.int64)
+        pick[ray[inside]] = np.arange(int(inside.sum()))
+    else:
+        pick = _first_per_ray(ray[inside], np.abs(t[inside]), k)
     has = np.flatnonzero(pick >= 0)
     hit = np.flatnonzero(inside)[pick[has]]
     aligned = cos[hit] >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
-    outcome = _outcomes(k, ray, t, cos, ~through & ~window, rejected, allowed, options)
-    outcome[has] = np.where(aligned, _SPRING, LOST_REASONS.index("angle"))
+    if (~inside).any():
+        out.outcome = _outcomes(k, ray, t, cos, ~through & ~window, rejected, allowed, options)
+    out.outcome[has[~aligned]] = LOST_REASONS.index("angle")
     sel, hit = has[aligned], hit[aligned]
-    if len(sel):
-        gap[sel], faces2[sel] = t[hit], face[hit]
-        q[sel] = origins[sel] + t[hit][:, None] * directions[sel]
-        m[sel] = m2.face_normals[face[hit]]
-        spec1 = options["thickness1"]
-        through1 = None
-        if spec1 is None:  # the crossing behind the face, where it leaves the layer
-            mesh = mesh1.mesh
-            leaves = np.einsum("ij,ij->i", mesh.face_normals[back_face[sel].clip(0)], -mesh1.normals[faces[sel]]) > 0
-            through1 = np.where((back_face[sel] >= 0) & leaves, depth[sel], np.nan)
-        h1[sel] = _thickness(
-            spec1, mesh1.mesh, faces[sel], mesh1.centroids[faces[sel]], -mesh1.normals[faces[sel]], engine, through1
-        )
-        h2[sel] = _thickness(options["thickness2"], m2, faces2[sel], q[sel], -m2.face_normals[faces2[sel]], engine)
-        total = h1[sel] + h2[sel]
-        bad = ~(np.isfinite(total) & (total > 0))
-        outcome[sel[bad]] = LOST_REASONS.index("thickness")
-    return FaceCast(cast, faces, outcome, q, m, faces2, gap, h1, h2)
+    out.outcome[sel] = _SPRING
+    out.gap[sel], out.faces2[sel] = t[hit], face[hit]
+    out.q[sel] = origins[sel] + t[hit][:, None] * directions[sel]
+    out.m[sel] = np.take(mesh2.planes.normals, face[hit], axis=0)
+    if thickness:
+        measure(out, mesh1, mesh2, far)
+    return out
 
 
 def off_face(hits, valid, faces, transform, mesh2, tolerance: float = 1e-9) -> np.ndarray:
@@ -190,18 +434,10 @@ def off_face(hits, valid, faces, transform, mesh2, tolerance: float = 1e-9) -> n
     ``hits`` (N, 3, world frame) are taken back to mesh 2's own frame by ``transform`` (its
     pose, 4x4) and their barycentric coordinates in faces ``faces`` (N,) computed; a coordinate
     below ``-tolerance`` puts a hit outside. Springs whose ray misses its plane (``~valid``)
-    count as off.
+    count as off. ``mesh2`` is a trimesh or a :class:`Mesh2`.
     """
+    planes = mesh2.planes if isinstance(mesh2, Mesh2) else Planes(mesh2)
     R, shift = transform[:3, :3], transform[:3, 3]
     own = (np.nan_to_num(hits) - shift) @ R
-    tri = np.asarray(mesh2.triangles)[faces]
-    a, e1, e2 = tri[:, 0], tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
-    w = own - a
-    d11, d12, d22 = (np.einsum("ij,ij->i", e1, e1), np.einsum("ij,ij->i", e1, e2), np.einsum("ij,ij->i", e2, e2))
-    w1, w2 = np.einsum("ij,ij->i", w, e1), np.einsum("ij,ij->i", w, e2)
-    det = d11 * d22 - d12 * d12
-    with np.errstate(divide="ignore", invalid="ignore"):
-        b1 = (d22 * w1 - d12 * w2) / det
-        b2 = (d11 * w2 - d12 * w1) / det
-    inside = (b1 >= -tolerance) & (b2 >= -tolerance) & (b1 + b2 <= 1 + tolerance)
-    return ~(inside & valid)
+    with np.errstate(invalid="ignore"):
+        return ~(planes.inside(own, faces, tolerance) & valid)

@@ -175,11 +175,14 @@ class _EmbreeCaster:
         self.intersector = intersector
 
     def hits(self, origins, directions, t0, t1):
-        t0 = np.asarray(t0, dtype=float)
-        start = origins + (t0[:, None] if t0.ndim else t0) * directions
-        ray, face, t = _all_hits(self.intersector, start, directions)
-        t = t + (t0[ray] if t0.ndim else t0)
-        keep = t <= (np.asarray(t1)[ray] if np.ndim(t1) else t1)
+        """All crossings with ``t0 <= t <= t1`` (scalars or (R,)): ``(ray, face, t)``."""
+        n = len(origins)
+        t0 = np.broadcast_to(np.asarray(t0, dtype=float), (n,))
+        t1 = np.broadcast_to(np.asarray(t1, dtype=float), (n,))
+        start = origins + t0[:, None] * directions
+        ray, face, t = _all_hits(self.intersector, start, directions, t1 - t0)
+        t = t + t0[ray]
+        keep = t <= t1[ray]
         return ray[keep], face[keep], t[keep]
 
     def nearest(self, origins, directions, t_min, t_max):
@@ -261,23 +264,69 @@ def _caster(mesh, engine: str):
     return _EmbreeCaster(intersector)
 
 
-def _all_hits(intersector, origins: np.ndarray, directions: np.ndarray):
-    """Every crossing of the rays ``origins + t directions`` (t >= 0) with the mesh.
+def _all_hits(intersector, origins: np.ndarray, directions: np.ndarray, reach=None):
+    """Every crossing of the rays ``origins + t directions`` (t >= 0) with the mesh, up to ``reach``
+    (R,) along each ray when given (mm; the crossings beyond it may be left out).
 
     Returns ``(ray, face, t)``: the ray index, the face index and the distance along the
-    (unit) direction, each of shape (H,).
+    (unit) direction, each of shape (H,). The crossings are trimesh's
+    ``intersects_id(multiple_hits=True)``'s: the same queries, each from just past the last
+    crossing (and twice as far past it when Embree met the same face again), run here so that a
+    ray stops once it is past ``reach`` instead of crossing everything behind (up to 100 times).
     """
+    from trimesh import intersections, util
+
     empty = (np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64), np.zeros(0))
     if not len(origins):
         return empty
-    face, ray, location = intersector.intersects_id(origins, directions, multiple_hits=True, return_locations=True)
-    if not len(face):
+    mesh = intersector.mesh
+    scene = intersector._scene
+    ray_origins = np.array(origins, dtype=np.float64)
+    ray_directions = util.unitize(np.array(directions, dtype=np.float64))
+    base_offset = max(1e-8, mesh.scale * 1e-6)  # trimesh's ray offset (factor 1e-6, floor 1e-8)
+    ray_offsets = ray_directions * base_offset
+    plane_origins = mesh.triangles[:, 0, :]
+    plane_normals = mesh.face_normals
+    last_hit = np.full(len(ray_origins), -1, dtype=np.int64)
+    live = np.arange(len(ray_origins))
+    out_ray, out_face, out_location = [], [], []
+    for _ in range(100):
+        query = scene.run(ray_origins[live], ray_directions[live])
+        hit = query != -1
+        if not hit.any():
+            break
+        hit_rays, hit_tris = live[hit], query[hit]
+        dupe = last_hit[hit_rays] == hit_tris
+        last_hit[hit_rays] = hit_tris
+        ok_rays, ok_tris, dupe_rays = hit_rays[~dupe], hit_tris[~dupe], hit_rays[dupe]
+        new_origins, valid = intersections.planes_lines(
+            plane_origins=plane_origins[ok_tris],
+            plane_normals=plane_normals[ok_tris],
+            line_origins=ray_origins[ok_rays],
+            line_directions=ray_directions[ok_rays],
+        )
+        ok_rays, ok_tris = ok_rays[valid], ok_tris[valid]
+        out_location.append(new_origins)
+        out_face.append(ok_tris)
+        out_ray.append(ok_rays)
+        ray_origins[ok_rays] = new_origins + ray_offsets[ok_rays]
+        ray_offsets[ok_rays] = ray_directions[ok_rays] * base_offset
+        ray_offsets[dupe_rays] *= 2.0
+        ray_origins[dupe_rays] += ray_offsets[dupe_rays]
+        live = np.concatenate([ok_rays, dupe_rays])
+        if reach is not None:
+            # crossings come in order along a ray: one past its reach has no more to give
+            past = np.einsum("ij,ij->i", new_origins - origins[ok_rays], directions[ok_rays]) > reach[ok_rays]
+            live = np.concatenate([ok_rays[~past], dupe_rays])
+        if not len(live):
+            break
+    if not out_ray:
         return empty
-    ray = np.asarray(ray, dtype=np.int64)
-    location = np.asarray(location, dtype=float).reshape(-1, 3)
+    ray = np.concatenate(out_ray)
+    location = np.concatenate(out_location).reshape(-1, 3)
     # distance recomputed in float64 from the hit's plane point (Embree works in float32)
     t = np.einsum("ij,ij->i", location - origins[ray], directions[ray])
-    return ray, np.asarray(face, dtype=np.int64), t
+    return ray, np.concatenate(out_face).astype(np.int64), t
 
 
 def _first_per_ray(ray: np.ndarray, key: np.ndarray, n_rays: int) -> np.ndarray:

@@ -17,12 +17,23 @@ with ``h_i = p_i + s_i n_i`` the hit and ``m_i'`` the target's normal there. Len
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
 from ...errors import InputError
 
-__all__ = ["Gaps", "Targets", "evaluate", "left_jacobian", "pose_matrix", "rotation", "rotation_and_jacobian"]
+__all__ = [
+    "Gaps",
+    "PlaneRows",
+    "Targets",
+    "evaluate",
+    "plane_gaps",
+    "left_jacobian",
+    "pose_matrix",
+    "rotation",
+    "rotation_and_jacobian",
+]
 
 #: ``|n . m'|`` below which a ray runs along its target (no gap): the target turned away.
 FACING = 1e-9
@@ -74,7 +85,13 @@ def left_jacobian(theta) -> np.ndarray:
 
 
 def rotation_and_jacobian(theta) -> tuple[np.ndarray, np.ndarray]:
-    return rotation(theta), left_jacobian(theta)
+    """``(R, J)`` of :func:`rotation` and :func:`left_jacobian`, from one evaluation of the coefficients."""
+    theta = np.asarray(theta)
+    a, b, c = _coefficients(theta)
+    W = _hat(theta)
+    W2 = W @ W
+    eye = np.eye(3)
+    return eye + a * W + b * W2, eye + b * W + c * W2
 
 
 def jacobian_transpose_derivative(theta, moment) -> np.ndarray:
@@ -157,7 +174,32 @@ class Targets:
 
     def with_frame(self, frame) -> Targets:
         """The same targets with body 2's own frame placed by ``frame`` (4x4) at zero displacement."""
-        return Targets(self.points, self.normals, self.radius, self.concave, np.asarray(frame, dtype=float), self.faces)
+        frame = np.asarray(frame, dtype=float)
+        if frame.shape != (4, 4):
+            raise InputError(f"targets.frame must have shape (4, 4), got {frame.shape}")
+        targets = object.__new__(Targets)  # the rest was checked when these targets were made
+        for name in ("points", "normals", "radius", "concave", "faces"):
+            object.__setattr__(targets, name, getattr(self, name))
+        object.__setattr__(targets, "frame", frame)
+        return targets
+
+    @classmethod
+    def cast_planes(cls, points, normals, frame, faces) -> Targets:
+        """The tangent planes of faces of mesh 2 met by a cast: ``points`` (N, 3) on them, their unit
+        ``normals`` (N, 3) in mesh 2's own frame, placed by ``frame`` (4x4). Not checked again: a
+        cast measured them (a solve re-casts springs many times)."""
+        n = len(points)
+        targets = object.__new__(cls)
+        for name, value in (
+            ("points", points),
+            ("normals", normals),
+            ("radius", np.zeros(n)),
+            ("concave", np.zeros(n, bool)),
+            ("frame", frame),
+            ("faces", faces),
+        ):
+            object.__setattr__(targets, name, value)
+        return targets
 
     # --- constructors -------------------------------------------------------------------
     @classmethod
@@ -252,7 +294,6 @@ def _recover_frame(own, world) -> np.ndarray:
     return T
 
 
-@dataclass(frozen=True, eq=False)
 class Gaps:
     """The springs' gaps at one pose.
 
@@ -261,19 +302,27 @@ class Gaps:
     s : ndarray (N,)
         Gap along each spring's ray (mm); ``inf`` where it misses its target (open).
     hit : ndarray (N, 3)
-        ``p + s n`` (world frame, mm); NaN where missed.
+        ``p + s n`` (world frame, mm); NaN where missed. Computed when first read (a line
+        search reads only the gaps).
     m : ndarray (N, 3)
-        The target's unit outward normal at the hit (world frame).
+        The target's unit outward normal at the hit (world frame); ``mT`` is the same as rows (3, N).
     along : ndarray (N,)
         ``n . m`` (< 0 where the target faces the spring).
     valid : ndarray of bool (N,)
     """
 
-    s: np.ndarray
-    hit: np.ndarray
-    m: np.ndarray
-    along: np.ndarray
-    valid: np.ndarray
+    def __init__(self, s, mT, along, points, normals):
+        self.s, self.mT, self.along = s, mT, along
+        self.valid = np.isfinite(s)
+        self._points, self._normals = points, normals
+
+    @property
+    def m(self) -> np.ndarray:
+        return self.mT.T
+
+    @cached_property
+    def hit(self) -> np.ndarray:
+        return self._points + np.where(self.valid, self.s, np.nan)[:, None] * self._normals
 
     def rows(self, centre) -> np.ndarray:
         """``b_i = [m; (h - c') x m] / (n . m)`` (6, N): ``ds_i`` per unit translation of body 2's
@@ -286,49 +335,69 @@ class Gaps:
         return out
 
 
+class PlaneRows:
+    """Plane targets and their springs as rows (3, N), for the passes of :func:`plane_gaps`.
+
+    Every pass over the springs reads one contiguous row per component: on (N, 3) arrays the
+    same dot products take several times longer (strided reads, and a temporary per product).
+    ``qm`` is ``q_i . m_i``, which no rotation changes.
+    """
+
+    def __init__(self, targets: Targets, points, normals, pT=None, nT=None):
+        self.pT = np.ascontiguousarray(np.asarray(points, dtype=float).T) if pT is None else pT
+        self.nT = np.ascontiguousarray(np.asarray(normals, dtype=float).T) if nT is None else nT
+        self.mT = np.ascontiguousarray(targets.normals.T)
+        qT = np.ascontiguousarray(targets.points.T)
+        self.qm = np.einsum("ij,ij->j", qT, self.mT)
+        self.points, self.normals = points, normals
+
+
+def plane_gaps(rows: PlaneRows, transform) -> Gaps:
+    """:func:`evaluate` for targets that are all planes, on their :class:`PlaneRows`.
+
+    ``s_i = (R q_i + t - p_i) . R m_i / (n_i . R m_i) = (q_i . m_i + t . m_i' - p_i . m_i') / (n_i . m_i')``.
+    """
+    R, shift = transform[:3, :3], transform[:3, 3]
+    mT = R @ rows.mT
+    along = np.einsum("ij,ij->j", rows.nT, mT)
+    ahead = rows.qm + shift @ mT
+    ahead -= np.einsum("ij,ij->j", rows.pT, mT)
+    s = np.full(len(along), MISSED)
+    np.divide(ahead, along, out=s, where=along < -FACING)
+    return Gaps(s, mT, along, rows.points, rows.normals)
+
+
 def evaluate(targets: Targets, points, normals, transform) -> Gaps:
     """The gaps of springs ``(points, normals)`` to ``targets`` moved by ``transform`` (4x4: body 2's
     own frame to the world, i.e. the displacement composed with ``targets.frame``)."""
+    plane = targets.is_plane
+    if plane.all():
+        return plane_gaps(PlaneRows(targets, points, normals), transform)
     R, shift = transform[:3, :3], transform[:3, 3]
     n_springs = len(points)
     s = np.full(n_springs, MISSED)
     m = np.zeros((n_springs, 3))
     along = np.zeros(n_springs)
-    plane = targets.is_plane
-    if plane.all():
-        _plane(targets.points, targets.normals, points, normals, R, shift, s, m, along, slice(None))
-    else:
-        for rows in (np.flatnonzero(plane), np.flatnonzero(~plane)):
-            if not len(rows):
-                continue
-            if plane[rows[0]]:
-                _plane(
-                    targets.points[rows],
-                    targets.normals[rows],
-                    points[rows],
-                    normals[rows],
-                    R,
-                    shift,
-                    s,
-                    m,
-                    along,
-                    rows,
-                )
-            else:
-                _sphere(
-                    targets.points[rows] @ R.T + shift,
-                    targets.radius[rows],
-                    targets.concave[rows],
-                    points[rows],
-                    normals[rows],
-                    s,
-                    m,
-                    along,
-                    rows,
-                )
-    valid = np.isfinite(s)
-    hit = points + np.where(valid, s, np.nan)[:, None] * normals
-    return Gaps(s, hit, m, along, valid)
+    for rows in (np.flatnonzero(plane), np.flatnonzero(~plane)):
+        if not len(rows):
+            continue
+        if plane[rows[0]]:
+            _plane(
+                targets.points[rows], targets.normals[rows], points[rows], normals[rows], R, shift, s, m, along, rows
+            )
+        else:
+            _sphere(
+                targets.points[rows] @ R.T + shift,
+                targets.radius[rows],
+                targets.concave[rows],
+                points[rows],
+                normals[rows],
+                s,
+                m,
+                along,
+                rows,
+            )
+    return Gaps(s, np.ascontiguousarray(m.T), along, points, normals)
 
 
 def _plane(q, mq, p, n, R, shift, s, m, along, rows) -> None:

@@ -20,9 +20,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .finite_geometry import (
+    Gaps,
+    PlaneRows,
     Targets,
     evaluate,
     jacobian_transpose_derivative,
+    plane_gaps,
     rotation_and_jacobian,
 )
 
@@ -58,11 +61,24 @@ class FiniteSystem:
     base: np.ndarray
     force: np.ndarray
     moment: np.ndarray
-    cross: np.ndarray = field(init=False, repr=False)
+    #: ``a_i`` about the origin as rows (6, N): ``[n_i; p_i x n_i]``, one matrix-vector product
+    #: gives the springs' resultant and moment.
+    arms: np.ndarray = field(init=False, repr=False)
+    #: The springs and their plane targets as rows (None when some target is a sphere).
+    planes: PlaneRows | None = field(init=False, repr=False)
 
     def __post_init__(self):
+        pT = np.ascontiguousarray(np.asarray(self.points, dtype=float).T)
+        nT = np.ascontiguousarray(np.asarray(self.normals, dtype=float).T)
+        arms = np.empty((6, len(self.points)))
+        arms[:3] = nT
         # p x n once: the moment about c' is sum f (p x n) - c' x sum f n
-        object.__setattr__(self, "cross", np.cross(self.points, self.normals))
+        arms[3] = pT[1] * nT[2] - pT[2] * nT[1]
+        arms[4] = pT[2] * nT[0] - pT[0] * nT[2]
+        arms[5] = pT[0] * nT[1] - pT[1] * nT[0]
+        planes = PlaneRows(self.targets, self.points, self.normals, pT, nT) if self.targets.is_plane.all() else None
+        object.__setattr__(self, "arms", arms)
+        object.__setattr__(self, "planes", planes)
 
     def __len__(self) -> int:
         return len(self.points)
@@ -73,13 +89,21 @@ class FiniteSystem:
         y[self.free] = u_free
         return y
 
-    def transform(self, y) -> np.ndarray:
-        """Body 2's own frame to the world at ``y``: the displacement composed with ``targets.frame``."""
-        R, _ = rotation_and_jacobian(y[3:6])
+    def transform(self, y, R=None) -> np.ndarray:
+        """Body 2's own frame to the world at ``y``: the displacement composed with ``targets.frame``
+        (``R``, the rotation of ``y[3:6]``, when already known)."""
+        if R is None:
+            R, _ = rotation_and_jacobian(y[3:6])
         D = np.eye(4)
         D[:3, :3] = R
         D[:3, 3] = self.reference + y[:3] - R @ self.reference
         return D @ self.targets.frame
+
+    def gaps(self, transform) -> Gaps:
+        """The springs' gaps to their targets moved by ``transform`` (:meth:`transform`)."""
+        if self.planes is not None:
+            return plane_gaps(self.planes, transform)
+        return evaluate(self.targets, self.points, self.normals, transform)
 
     def with_load(self, force, moment) -> FiniteSystem:
         return FiniteSystem(
@@ -113,18 +137,18 @@ class State:
 
     def __init__(self, system: FiniteSystem, y, law, bilateral: bool = False):
         self.system, self.y, self.law, self.bilateral = system, y, law, bilateral
-        _, self.J = rotation_and_jacobian(y[3:6])
+        R, self.J = rotation_and_jacobian(y[3:6])
         self.centre = system.reference + y[:3]
-        self.gaps = evaluate(system.targets, system.points, system.normals, system.transform(y))
+        self.gaps = system.gaps(system.transform(y, R))
         self.eps = self.gaps.s / system.thickness
         with np.errstate(over="ignore", invalid="ignore"):
             self.sigma = law.stress(self.eps if bilateral else np.minimum(self.eps, 0.0))
         if bilateral:
             self.sigma = np.where(self.gaps.valid, self.sigma, 0.0)
-        f = system.areas * self.sigma
-        self.force_sum = f @ system.normals
-        moment = f @ system.cross - np.cross(self.centre, self.force_sum)
-        self.spring = np.concatenate([self.force_sum, moment])  # sum f a_i, spatial, about c'
+        spring = system.arms @ (system.areas * self.sigma)  # sum f a_i about the origin
+        self.force_sum = spring[:3]
+        spring[3:] -= np.cross(self.centre, self.force_sum)
+        self.spring = spring  # sum f a_i, spatial, about c'
         self.net = self.spring - np.concatenate([system.force, system.moment])
         self.residual6 = np.concatenate([self.net[:3], self.J.T @ self.net[3:]])
         self.load6 = np.concatenate([system.force, self.J.T @ system.moment])
@@ -143,17 +167,24 @@ class State:
         """``r(y)`` on the free coordinates (N, N mm)."""
         return self.residual6[self.system.free]
 
+    def _shift(self) -> np.ndarray:
+        """``L`` (6, 6): the rows ``[n; p x n]`` about the origin to ``[n; (p - c') x n]`` about ``c'``."""
+        L = np.eye(6)
+        L[3:, :3] = -_hat(self.centre)
+        return L
+
     def force_rows(self) -> np.ndarray:
         """``a_i = [n_i; (p_i - c') x n_i]`` (6, N): spring ``i``'s force direction and moment arm."""
-        s = self.system
-        return np.vstack([s.normals.T, (s.cross - np.cross(self.centre, s.normals)).T])
+        return self._shift() @ self.system.arms
 
     def tangent(self, rows=None, weights=None) -> np.ndarray:
         """``dr/dy`` on the free coordinates (m, m): the consistent tangent.
 
         ``sum_i k_i a_i b_i^T`` over the compressed springs (``k_i = S_i sigma'(eps_i) / h_i``,
         ``b_i`` the gap's derivative), the lever arm moving with the reference, mapped by
-        ``blockdiag(I, J)``, plus the derivative of ``J^T`` against the net moment.
+        ``blockdiag(I, J)``, plus the derivative of ``J^T`` against the net moment. With
+        ``a_i = L [n_i; p_i x n_i]`` and ``b_i = L [m_i; z_i x m_i] / (n_i . m_i)`` (``L`` moving
+        moments from the origin to ``c'``) the sum is ``L G L^T``, ``G`` one 6 x 6 product.
         """
         s, gaps = self.system, self.gaps
         if rows is None:
@@ -162,9 +193,22 @@ class State:
         if weights is None:
             eps = self.eps[rows] if self.bilateral else np.minimum(self.eps[rows], 0.0)
             weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
-        A = self.force_rows()[:, rows]
-        B = _rows(gaps, rows, self.centre)
-        K = (A * weights) @ B.T
+        # Every spring in one pass, those outside ``rows`` with weight 0 (no gathers of rows).
+        w = np.zeros(len(s))
+        w[rows] = weights / gaps.along[rows]
+        gap = np.where(w != 0.0, gaps.s, 0.0)
+        m = gaps.mT
+        planes = s.planes
+        pT, nT = (planes.pT, planes.nT) if planes is not None else (s.points.T, s.normals.T)
+        hit = pT + gap * nT
+        V = np.empty((6, len(s)))
+        V[:3] = m
+        V[3] = hit[1] * m[2] - hit[2] * m[1]
+        V[4] = hit[2] * m[0] - hit[0] * m[2]
+        V[5] = hit[0] * m[1] - hit[1] * m[0]
+        G = (s.arms * w) @ V.T
+        L = self._shift()
+        K = L @ G @ L.T
         K[3:, :3] += _hat(self.force_sum)  # the lever arm p - c' shortens as the reference moves
         M = np.eye(6)
         M[3:, 3:] = self.J
@@ -182,25 +226,18 @@ class State:
         rows = np.flatnonzero(gaps.valid)
         eps = np.minimum(self.eps[rows], 0.0)
         weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
-        A = self.force_rows()[:, rows]
+        U = s.arms[:, rows]
         M = np.eye(6)
         M[3:, 3:] = self.J
-        A = M.T @ A
-        A = A[s.free]
-        return (A * weights) @ A.T
+        ML = (M.T @ self._shift())[s.free]
+        return ML @ ((U * weights) @ U.T) @ ML.T
 
 
 def generalized(state) -> np.ndarray:
     """Each spring's force direction on body 2's six coordinates, ``blockdiag(I, J)^T a_i`` (6, N)."""
-    A = state.force_rows()
-    A[3:] = state.J.T @ A[3:]
-    return A
-
-
-def _rows(gaps, rows, centre) -> np.ndarray:
-    m, hit, along = gaps.m[rows], gaps.hit[rows], gaps.along[rows]
-    scale = 1.0 / along
-    return np.vstack([(m * scale[:, None]).T, (np.cross(hit - centre, m) * scale[:, None]).T])
+    M = np.eye(6)
+    M[3:, 3:] = state.J.T
+    return (M @ state._shift()) @ state.system.arms
 
 
 def _hat(v) -> np.ndarray:
