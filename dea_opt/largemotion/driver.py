@@ -39,6 +39,7 @@ from .tracker import MeshTracker
 __all__ = ["plan", "solve"]
 
 _GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
+_PREDICTOR_TOL = 1e-8  # the small kinematics' answer as a start (it is off by the rotation squared)
 
 
 def resolve_targets(problem) -> tuple[Targets, object]:
@@ -260,24 +261,17 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     x = np.zeros(len(system.free)) if cold else x0
     if cold and loaded and method == "finite" and tracker is not None:
         x, cold = _predicted(small, law, x)
-    inner, rounds, history, stable = None, 0, [], True
+    inner, history = None, []
+    stable, rounds = True, [0]
     while True:
         inner = _inner(method, system, law, T, E0, x, cold, opts)
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
         if tracker is None or not inner.success:
             break
-        if rounds >= opts["max_recasts"]:
-            stable = False  # an equilibrium of these springs; another update might still change them
-            inner.message += f"; the springs still changed after {rounds} updates (max_recasts)"
-            break
-        update = tracker.update(system, inner.state)
-        if update is None:
-            break
-        rounds += 1
-        system = update.system
-        if not update.resolve and method == "finite":
-            inner.state = update.state  # only springs that carry nothing changed: the same equilibrium
+        after = _bring_up_to_date(tracker, system, inner, method, opts["max_recasts"], rounds)
+        system, resolve, stable = after
+        if not resolve:
             break
     if tracker is not None:
         tracker.counts["stable"] = stable
@@ -298,6 +292,39 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     )
 
 
+def _bring_up_to_date(tracker, system, inner, method, max_recasts, rounds) -> tuple:
+    """``(system, resolve, stable)``: the springs brought up to date at ``inner``'s pose.
+
+    Partial updates (the springs the solve has) while they change a loaded spring, then one
+    complete update (also the faces next to the springs, :meth:`MeshTracker.update`) at the pose
+    where a partial one changed nothing that carries load; ``resolve`` when the equilibrium must be
+    solved again. Newton keeps its answer when only springs that carry nothing changed; IPOPT
+    solves again after any change. At most ``max_recasts`` updates that changed the springs in a
+    solve (``rounds``, a one-element list, counts them; ``stable`` False beyond: an equilibrium of
+    these springs; another update might still change them).
+    """
+    state = inner.state
+    while True:
+        if rounds[0] >= max_recasts:
+            inner.message += f"; the springs still changed after {rounds[0]} updates (max_recasts)"
+            return system, False, False
+        update = tracker.update(system, state, complete=tracker.complete)
+        complete = tracker.complete  # (the tracker makes a short step's update complete)
+        if update is None:
+            if complete:
+                return system, False, True
+            tracker.complete = True  # nothing changed that carries load: now the whole of it
+            continue
+        rounds[0] += 1
+        system, state = update.system, update.state
+        if update.resolve or method != "finite":
+            return system, True, True
+        inner.state = state  # only springs that carry nothing changed: the same equilibrium
+        if complete:
+            return system, False, True
+        tracker.complete = True
+
+
 def _predicted(small, law, x):
     """``(x, cold)``: the start of a cold Newton solve of springs that follow mesh 2, the answer of the
     small kinematics (their equilibrium to first order in the rotation) when it has one, else ``x``.
@@ -307,7 +334,7 @@ def _predicted(small, law, x):
     (:mod:`~dea_opt.largemotion.tracker`) starts from there (``formulations/finite.md``, "Newton")."""
     from ..formulations import newton as small_newton
 
-    guess = small_newton.solve(small, law)
+    guess = small_newton.solve(small, law, gtol=_PREDICTOR_TOL, xtol=_PREDICTOR_TOL)  # a start: no finer
     if guess.success and guess.u_free.shape == x.shape and np.isfinite(guess.u_free).all():
         return np.array(guess.u_free, dtype=float), False
     return x, True

@@ -26,7 +26,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..formulations.finite import Targets
-from ..mesh import FaceCast, Mesh1, Mesh2, cast_faces, measure, recast
+from ..mesh import FaceCast, Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
+from ..mesh.walk import ON_FACE
 
 __all__ = ["MeshTracker"]
 
@@ -137,6 +138,8 @@ class MeshTracker:
 
         if frame is not None:
             self.frame = np.asarray(check_pose(frame, "frame"), dtype=float)
+        self.complete = False  # the next update is partial (see update)
+        self.last = None  # the pose of the last update
         self.counts = {
             "recasts": 0,
             "updates": 0,
@@ -216,12 +219,20 @@ class MeshTracker:
             self.lost[reason] = self.lost.get(reason, 0) + int(count)
             self.counts["lost"] += int(count)
 
-    def update(self, system, state):
+    def update(self, system, state, complete: bool = True):
         """After a converged solve: the system with its springs brought up to date at the solved pose,
-        or None when nothing changed."""
+        or None when nothing changed. A partial update (not ``complete``) keeps the springs it has
+        up to date and picks up none: the faces next to them, where springs come into the window,
+        are cast only in a complete update (at the window's far edge they carry nothing, so a
+        solve's intermediate poses need not look there)."""
         pose = system.transform(state.y)
-        if self._moved(pose, self.full) > self.full_shift:
+        since_full, since_last = self._moved(pose, self.full, self.last)
+        self.last = pose
+        if since_full > self.full_shift:
+            self.complete = True
             return self._recast_all(system, state, pose)
+        # a step shorter than the thickness' tolerance changes nothing a partial update would see
+        complete = self.complete = complete or since_last <= self.recast_shift
         springs, options = self.springs, self.cast.options
         gaps = state.gaps
         R, shift = pose[:3, :3], pose[:3, 3]
@@ -230,7 +241,8 @@ class MeshTracker:
         pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
         along = np.where(gaps.valid, gaps.s, 0.0)
         ownT = R.T @ (pT - shift[:, None]) + along * (R.T @ nT)
-        left = ~(self.mesh2.planes.inside(ownT, springs.faces2, rows=True) & gaps.valid)
+        bary = self.mesh2.planes.barycentric(ownT, springs.faces2, rows=True)
+        left = ~((bary.min(axis=0) >= -ON_FACE) & gaps.valid)
         own = ownT.T
         shifted = ownT - springs.measured.T
         moved = ~left & (np.einsum("ij,ij->j", shifted, shifted) > self.recast_shift**2)
@@ -240,15 +252,14 @@ class MeshTracker:
         # 1. Springs whose hit left its face: met again (followed across mesh 2's edges, else cast),
         #    allowed the overlap they have now.
         index = np.flatnonzero(left)
-        again = cast_faces(
+        again = follow_faces(
             self.cast,
             pose,
             springs.faces1[index],
+            self.mesh2.planes.beyond(springs.faces2[index], bary[:, index]),
             np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
             self.mesh1,
             self.mesh2,
-            met=springs.faces2[index],
-            thickness=False,
         )
         self.met[springs.faces1[index]] = again.first2
         found = again.spring
@@ -277,37 +288,10 @@ class MeshTracker:
         self._lose("gap", int(beyond.sum()))
         if not keep.all():
             springs.keep(keep)
-        # 3. The faces next to the springs, ring after ring while springs come into range there.
-        gained, dropped, tried = 0, [], np.zeros(len(self.mesh1.areas), dtype=bool)
-        tried[springs.faces1] = True
-        width = 3
-        (ring, guess), grown = self._ring(springs.faces1, springs.faces2, tried, width), []
-        while len(ring):
-            tried[ring] = True
-            fresh = cast_faces(
-                self.cast,
-                pose,
-                ring,
-                self._allowed(ring, pose),
-                self.mesh1,
-                self.mesh2,
-                met=guess,
-                thickness=False,
-            )
-            self.met[ring] = fresh.first2
-            new = fresh.spring
-            grown.append(fresh.subset(new))
-            dropped.append(fresh.faces[fresh.dropped])
-            width = min(2 * width, 24)
-            ring, guess = self._ring(fresh.faces[new], fresh.faces2[new], tried, width)
-        if grown:
-            fresh = grown[0] if len(grown) == 1 else _joined(grown)
-            measure(fresh, self.mesh1, self.mesh2)
-            new = fresh.spring
-            springs.extend(self.mesh1, fresh, new)
-            gained = int(new.sum())
-        self.dropped_faces = np.concatenate(dropped) if dropped else np.zeros(0, dtype=np.int64)
-        self.counts.update(dropped=len(self.dropped_faces), updates=self.counts["updates"] + 1)
+        # 3. The faces next to the springs, ring after ring while springs come into range there
+        #    (their window's edge: only in a complete update).
+        gained = self._grow(pose, None if complete else self._NEAR)
+        self.counts["updates"] += 1
         self.counts["gained"] += gained
         self.counts["left_face"] += len(index)
         self._layer = None
@@ -327,6 +311,60 @@ class MeshTracker:
         moved_loaded = (changed[kept_index] | thicker) & (loaded[keep] | (after.eps[:kept] < 0))
         resolve = bool((changed & loaded).any() or moved_loaded.any() or (after.eps[kept:] < 0).any())
         return Update(new_system, after, resolve)
+
+    #: Gap (mm) within which springs border the contact in a partial update: the faces next to
+    #: them may carry load at the next equilibrium (an edge of the contact, where the surfaces
+    #: turn past ``max_angle`` or the window cut the layer).
+    _NEAR = 0.5
+
+    def _grow(self, pose, near=None) -> int:
+        """Cast the faces next to the springs at ``pose``, ring after ring (each twice as wide as
+        the last, at most 24 faces) while springs come into range there; add those springs. The
+        number gained; what the window dropped there is kept for the count. With ``near`` (mm),
+        only next to springs with a gap below it, and on from new springs below it (a partial
+        update: the contact's edges, not the window's far edge).
+
+        A ring's rays are followed from what they, or the face they were reached from, met
+        (:func:`~dea_opt.mesh.follow_faces`); those a walk cannot settle are cast together once
+        the walks find no more springs, and the rings go on from any springs found there."""
+        springs = self.springs
+        dropped, tried = [], np.zeros(len(self.mesh1.areas), dtype=bool)
+        tried[springs.faces1] = True
+        width = 3
+        seeds = slice(None) if near is None else springs.gap < near
+        (ring, guess), grown, unsettled = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width), [], []
+        while len(ring) or unsettled:
+            if len(ring):
+                tried[ring] = True
+                allowed = self._allowed(ring, pose)
+                fresh = follow_faces(self.cast, pose, ring, guess, allowed, self.mesh1, self.mesh2, cast_rest=False)
+                open_ = fresh.outcome == -2
+                if open_.any():
+                    unsettled.append(fresh.faces[open_])
+            else:  # every walk settled: cast what they could not, together
+                faces = np.concatenate(unsettled)
+                unsettled = []
+                fresh = cast_faces(
+                    self.cast, pose, faces, self._allowed(faces, pose), self.mesh1, self.mesh2, thickness=False
+                )
+            self.met[fresh.faces] = fresh.first2
+            new = fresh.spring
+            grown.append(fresh.subset(new))
+            dropped.append(fresh.faces[fresh.dropped])
+            width = min(2 * width, 24)
+            if near is not None:
+                new = new & (fresh.gap < near)
+            ring, guess = self._ring(fresh.faces[new], fresh.faces2[new], tried, width)
+        if near is None:
+            self.dropped_faces = np.concatenate(dropped) if dropped else np.zeros(0, dtype=np.int64)
+            self.counts["dropped"] = len(self.dropped_faces)
+        if not grown:
+            return 0
+        fresh = grown[0] if len(grown) == 1 else _joined(grown)
+        measure(fresh, self.mesh1, self.mesh2)
+        new = fresh.spring
+        springs.extend(self.mesh1, fresh, new)
+        return int(new.sum())
 
     def _recast_all(self, system, state, pose):
         new = recast(self.cast, pose)
@@ -348,13 +386,20 @@ class MeshTracker:
         s = self.springs
         return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets())
 
-    def _moved(self, pose, since) -> float:
-        """How far (mm) the springs' hits on body 2 moved between ``since`` and ``pose``."""
+    def _moved(self, pose, since, last=None) -> tuple[float, float]:
+        """How far (mm) the springs' hits on body 2 moved between ``since`` and ``pose``, and between
+        ``last`` and ``pose`` (inf without ``last``)."""
         hits = self.springs.q
         if not len(hits):
-            return 0.0
-        shift = hits @ (pose[:3, :3] - since[:3, :3]).T + (pose[:3, 3] - since[:3, 3])
-        return float(np.sqrt(np.einsum("ij,ij->i", shift, shift).max()))
+            return 0.0, 0.0
+        rows = np.ascontiguousarray(hits.T)
+        moved = []
+        for p in (since,) if last is None else (since, last):
+            change = pose - p
+            shift = change[:3, :3] @ rows
+            shift += change[:3, 3:]
+            moved.append(float(np.sqrt((shift[0] * shift[0] + shift[1] * shift[1] + shift[2] * shift[2]).max())))
+        return moved[0], moved[1] if last is not None else np.inf
 
     def _ring(self, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
         """``(faces, guess)``: the faces of mesh 1 within ``rings`` edges of ``faces1`` not ``tried``

@@ -35,7 +35,7 @@ to date) and :mod:`~dea_opt.mesh.both_ways`.
 """
 
 from .both_ways import TwoWaySprings, springs_both_ways
-from .facecast import FaceCast, Mesh1, Mesh2, cast_faces, measure, off_face
+from .facecast import FaceCast, Mesh1, Mesh2, cast_faces, follow_faces, measure, off_face
 from .raycast import ENGINES, surface_thickness
 from .readers import LOADERS, as_mesh, concatenate_meshes, load_mesh
 from .recast import (
@@ -77,6 +77,7 @@ __all__ = [
     "as_mesh",
     "body_pose",
     "cast_faces",
+    "follow_faces",
     "measure",
     "cast_springs",
     "check_pose",

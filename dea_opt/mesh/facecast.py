@@ -26,9 +26,9 @@ import numpy as np
 from .._checks.thresholds import ANGLE_SLACK
 from .raycast import _caster, _engine, _first_per_ray, _self_epsilon
 from .springs import LOST_REASONS, _outcomes, _thickness
-from .walk import Planes, Walker, dot
+from .walk import Planes, Walker, dot, dot3
 
-__all__ = ["FaceCast", "FarSide", "Mesh1", "Mesh2", "cast_faces", "measure", "off_face"]
+__all__ = ["FaceCast", "FarSide", "Mesh1", "Mesh2", "cast_faces", "follow_faces", "measure", "off_face"]
 
 _SPRING = -1
 
@@ -95,6 +95,7 @@ class Mesh1:
         normals = np.array(m1.face_normals, dtype=float)
         self.face_normals = normals  # as the mesh has them (a back face's orientation)
         self.normals = -normals if options["flip"] else normals
+        self.rows = np.ascontiguousarray(np.vstack([self.centroids.T, self.normals.T]))  # (6, F)
         self.areas = np.array(m1.area_faces, dtype=float)
         self.eps = _self_epsilon(m1)
         n = len(m1.faces)
@@ -425,6 +426,60 @@ def cast_faces(
     out.m[sel] = np.take(mesh2.planes.normals, face[hit], axis=0)
     if thickness:
         measure(out, mesh1, mesh2, far)
+    return out
+
+
+def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, cast_rest: bool = True) -> FaceCast:
+    """:func:`cast_faces` (without thicknesses) for rays that each have a face of mesh 2 to follow
+    from (``met``, (K,): what they, or a face next to them, met first at a pose nearby).
+
+    A ray whose walk (:class:`~dea_opt.mesh.walk.Walker`) ends on a face facing it, ahead of the
+    back of its window and in front of mesh 1's far side, has that face as its first crossing,
+    the only candidate of a cast (:func:`cast_faces`, a smooth surface met once), and is judged
+    by the same rules here with no ray cast. The others are cast (``cast_rest``), or left with
+    outcome -2 for the caller to cast with others.
+    """
+    options = cast.options
+    max_gap, eps2 = options["max_gap"], mesh2.planes.eps
+    faces = np.asarray(faces, dtype=np.int64)
+    k = len(faces)
+    out = _empty(cast, faces)
+    out.first2 = np.full(k, -1, dtype=np.int64)
+    if not k:
+        return out
+    R, shift = pose[:3, :3], pose[:3, 3]
+    rays = np.take(mesh1.rows, faces, axis=1)
+    oT, dT = R.T @ (rays[:3] - shift[:, None]), R.T @ rays[3:]
+    face, t, found = mesh2.walker.follow(met, oT, dT, rows=True)
+    cos = -dot3(np.take(mesh2.planes.records, face, axis=1)[:3], dT)
+    _, depth = mesh1.behind(faces)
+    look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
+    with np.errstate(invalid="ignore"):
+        met_facing = found & (cos > 0)
+        ahead = met_facing & (t >= -(look + eps2))
+        beyond = ahead & (t > np.maximum(max_gap, look) + eps2)  # nothing in the window: no hit
+        simple = ahead & ~beyond & ~(-t >= depth - mesh1.eps)
+        window = simple & (t >= -allowed) & (t <= max_gap)
+        aligned = cos >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
+    out.first2[met_facing] = face[met_facing]
+    outcome = out.outcome
+    outcome[simple & (t > max_gap)] = LOST_REASONS.index("gap")
+    with np.errstate(invalid="ignore"):
+        outcome[simple & (t < -allowed) & aligned] = LOST_REASONS.index("overlap")
+    outcome[window & ~aligned] = LOST_REASONS.index("angle")
+    sel = np.flatnonzero(window & aligned)
+    outcome[sel] = _SPRING
+    out.gap[sel], out.faces2[sel] = t[sel], face[sel]
+    out.q[sel] = (oT[:, sel] + t[sel] * dT[:, sel]).T
+    out.m[sel] = np.take(mesh2.planes.normals, face[sel], axis=0)
+    rest = np.flatnonzero(~(simple | beyond))
+    if len(rest):
+        if not cast_rest:
+            outcome[rest] = -2
+            return out
+        again = cast_faces(cast, pose, faces[rest], allowed[rest], mesh1, mesh2, met=None, thickness=False)
+        for name in ("outcome", "q", "m", "faces2", "gap", "first2"):
+            getattr(out, name)[rest] = getattr(again, name)
     return out
 
 

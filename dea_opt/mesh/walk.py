@@ -17,7 +17,7 @@ import numpy as np
 
 from .raycast import _self_epsilon
 
-__all__ = ["Planes", "Walker", "dot"]
+__all__ = ["Planes", "Walker", "dot", "dot3"]
 
 #: Barycentric slack (relative to the face) inside which a point still lies on a face.
 ON_FACE = 1e-9
@@ -60,17 +60,24 @@ class Planes:
         self._faces = np.asarray(mesh.faces, dtype=np.int64)
         self._across: np.ndarray | None = None
 
-    def barycentric(self, points, faces) -> np.ndarray:
-        """``(b0, b1, b2)`` (3, K) of ``points`` (K, 3) in faces ``faces`` (K,) (on their planes)."""
-        return _barycentric(np.take(self.records, faces, axis=1), np.ascontiguousarray(np.asarray(points).T))
+    def barycentric(self, points, faces, rows: bool = False) -> np.ndarray:
+        """``(b0, b1, b2)`` (3, K) of ``points`` (K, 3), or (3, K) with ``rows``, in faces ``faces`` (K,)
+        (on their planes)."""
+        points = points if rows else np.ascontiguousarray(np.asarray(points).T)
+        return _barycentric(np.take(self.records, faces, axis=1), points)
+
+    def beyond(self, faces, bary) -> np.ndarray:
+        """The face across the edge a point left each face through: opposite its lowest barycentric
+        coordinate (``bary``, (3, K)); the face itself where that edge is the boundary."""
+        across = self.across.ravel()[
+            3 * np.asarray(faces, dtype=np.int64) + np.nan_to_num(bary, nan=0.0).argmin(axis=0)
+        ]
+        return np.where(across >= 0, across, faces)
 
     def inside(self, points, faces, tolerance: float = ON_FACE, rows: bool = False) -> np.ndarray:
         """Whether ``points`` (K, 3), or (3, K) with ``rows``, lie within faces ``faces`` (K,)
         (barycentric, with ``tolerance``)."""
-        if rows:
-            b = _barycentric(np.take(self.records, faces, axis=1), points)
-        else:
-            b = self.barycentric(points, faces)
+        b = self.barycentric(points, faces, rows)
         return np.minimum(np.minimum(b[0], b[1]), b[2]) >= -tolerance
 
     def distance(self, faces, origins, directions) -> np.ndarray:
@@ -104,7 +111,7 @@ class Planes:
         return self._across
 
 
-def _dot3(a, b) -> np.ndarray:
+def dot3(a, b) -> np.ndarray:
     """Column-wise dot products of (3, K) rows."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
@@ -112,8 +119,8 @@ def _dot3(a, b) -> np.ndarray:
 def _barycentric(records, points) -> np.ndarray:
     """``(b0, b1, b2)`` (3, K) of ``points`` (3, K) in the faces of ``records`` (12, K)."""
     out = np.empty((3, records.shape[1]))
-    out[1] = _dot3(records[4:7], points) - records[7]
-    out[2] = _dot3(records[8:11], points) - records[11]
+    out[1] = dot3(records[4:7], points) - records[7]
+    out[2] = dot3(records[8:11], points) - records[11]
     out[0] = 1.0 - out[1] - out[2]
     return out
 
@@ -124,23 +131,27 @@ class Walker:
     def __init__(self, planes: Planes, steps: int = 4):
         self.planes, self.steps = planes, steps
 
-    def follow(self, faces, origins, directions) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(face, t, found)``: for rays ``origins + t directions`` (K, 3) that met faces ``faces``
-        (K,) before, the face whose plane the ray crosses inside it, at most ``steps`` edges away,
-        and the distance there; ``found`` False where the walk left the mesh or ran out of steps."""
+    def follow(self, faces, origins, directions, rows: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(face, t, found)``: for rays ``origins + t directions`` (K, 3), or (3, K) with ``rows``,
+        that met faces ``faces`` (K,) before, the face whose plane the ray crosses inside it, at
+        most ``steps`` edges away, and the distance there; ``found`` False where the walk left the
+        mesh or ran out of steps."""
         records, across = self.planes.records, self.planes.across.ravel()
         face = np.array(faces, dtype=np.int64)
         t = np.full(len(face), np.nan)
         found = np.zeros(len(face), dtype=bool)
-        oT = np.ascontiguousarray(np.asarray(origins, dtype=float).T)
-        dT = np.ascontiguousarray(np.asarray(directions, dtype=float).T)
+        if rows:
+            oT, dT = origins, directions
+        else:
+            oT = np.ascontiguousarray(np.asarray(origins, dtype=float).T)
+            dT = np.ascontiguousarray(np.asarray(directions, dtype=float).T)
         active = np.arange(len(face))
         o, d = oT, dT
         for step in range(self.steps + 1):
             f = face[active]
             r = np.take(records, f, axis=1)
             with np.errstate(divide="ignore", invalid="ignore"):
-                dist = (r[3] - _dot3(r[0:3], o)) / _dot3(r[0:3], d)
+                dist = (r[3] - dot3(r[0:3], o)) / dot3(r[0:3], d)
             b = _barycentric(r, o + dist * d)
             low = np.minimum(np.minimum(b[0], b[1]), b[2])
             ok = np.isfinite(dist)
