@@ -45,6 +45,7 @@ __all__ = [
     "generalized",
     "left_jacobian",
     "pose_matrix",
+    "rms_radius",
     "rotation",
     "scale",
     "small_system",
@@ -111,7 +112,7 @@ VARIANT = None
 _NEWTON = ("xtol", "gtol", "max_iter", "extended_start")
 
 
-def scale(T1, load, system: FiniteSystem, law) -> tuple[np.ndarray, float]:
+def scale(T1, load, system: FiniteSystem, law, e0=None) -> tuple[np.ndarray, float]:
     """``(T, E0)``: the scaled directions ``T = T1 s`` of the small kinematics' scaling (see
     ``formulations/finite.md``, "Newton") and the energy scale ``E0 = s^2``, ``s`` the larger of the load's size ``|T1^T load|`` and
     the overlap of the springs' exact gaps at ``system.base``.
@@ -122,9 +123,11 @@ def scale(T1, load, system: FiniteSystem, law) -> tuple[np.ndarray, float]:
         The resisted directions, K0-orthonormal at unit scale (``SpringSystem.resistance.basis``).
     load : ndarray (m,)
         The load on the free coordinates (N, N mm).
+    e0 : ndarray (N,), optional
+        The springs' strains at ``system.base``, when already known (else evaluated).
     """
     s_load = float(np.linalg.norm(T1.T @ load)) if np.size(load) else 0.0
-    e0 = system.state(system.base, law).eps
+    e0 = system.state(system.base, law).eps if e0 is None else e0
     overlap = np.minimum(np.where(np.isfinite(e0), e0, 0.0), 0.0)
     volume = system.areas * system.thickness * modulus_scale(law.modulus)
     s = max(s_load, float(np.linalg.norm(np.sqrt(volume) * overlap)))
@@ -142,7 +145,7 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
     free = system.free
     AT = np.ascontiguousarray(generalized(state)[free] / system.thickness)
     volume = system.areas * system.thickness
-    radius = float(np.sqrt(np.mean(np.sum((system.points - system.reference) ** 2, axis=1)))) if len(system) else 1.0
+    radius = rms_radius(system) if len(system) else 1.0
     lengths = np.where(free < 3, 1.0, max(radius, 1e-12))
     factor = np.asarray(np.linalg.qr((AT * np.sqrt(volume)).T, mode="r")) if AT.size else np.zeros((0, len(free)))
     e0 = np.where(np.isfinite(state.eps), state.eps, 1e300)
@@ -151,6 +154,15 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
     )
     small.__dict__["resistance"] = resistance(small)
     return small
+
+
+def rms_radius(system: FiniteSystem) -> float:
+    """The springs' RMS distance from body 2's reference at zero displacement (mm)."""
+    rows = system.points.T if system.planes is None else system.planes.pT
+    c = system.reference
+    squared = rows[0] * rows[0] + rows[1] * rows[1] + rows[2] * rows[2]
+    mean = rows.mean(axis=1)
+    return float(np.sqrt(max(float(squared.mean()) - 2.0 * float(c @ mean) + float(c @ c), 0.0)))
 
 
 def status_of(native: str, success: bool, system: FiniteSystem, state) -> Status:

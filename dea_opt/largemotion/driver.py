@@ -27,6 +27,7 @@ from ..formulations.finite import (
     FiniteSystem,
     Targets,
     evaluate,
+    rms_radius,
     scale,
     small_system,
     status_of,
@@ -119,7 +120,7 @@ def scaled_directions(system, law) -> tuple[np.ndarray, float, SpringSystem]:
     out; :func:`~dea_opt.formulations.finite.small_system`: the springs of this solve at body 2's
     base pose, exact gaps), sized by the larger of the load and the overlap of those gaps."""
     small = small_system(system, law)
-    T, E0 = scale(small.resistance.basis(law.modulus), small.load, system, law)
+    T, E0 = scale(small.resistance.basis(law.modulus), small.load, system, law, small.e0)
     return T, E0, small
 
 
@@ -349,9 +350,10 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     state = inner.state
     targets = system.targets
     final = problem
+    at_zero = system.state(system.base, law)  # the free coordinates at zero
     if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):
         # The springs of the solved pose, with their gaps at zero displacement (from the same targets).
-        s0 = evaluate(targets, system.points, system.normals, targets.frame).s
+        s0 = evaluate(targets, system.points, system.normals, targets.frame).s if system.base.any() else at_zero.gaps.s
         s0 = np.clip(np.where(np.isfinite(s0), s0, 1e9), -1e9, 1e9)
         final = replace(problem, layer=tracker.layer_with_gap(s0), targets=targets)
     layer = final.layer
@@ -361,11 +363,10 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     with np.errstate(invalid="ignore", over="ignore"):
         pressure = 0.0 - law.stress(np.minimum(state.eps, 0.0))
     reported = -pressure if inner.info.get("stress") is None else inner.info["stress"]
-    radius = final.layer_radius[1]
+    radius = max(rms_radius(system), 1e-12)  # final.layer_radius[1], from the springs' rows
     lengths = np.where(system.free < 3, 1.0, radius)
     stiffness = float(np.sum(layer.areas / layer.thickness))
-    at_zero = system.state(system.base, law).eps
-    cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero, certificate_tol)
+    cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero.eps, certificate_tol)
     success = bool(finite and cert.passed and np.isfinite(pressure).all())
     info = {k: v for k, v in inner.info.items() if k != "stress"}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)

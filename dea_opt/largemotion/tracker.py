@@ -198,9 +198,12 @@ class MeshTracker:
         first = self._first_layer
         if first.labels is None:
             return None
-        own = self.cast.options.get("labels")
-        if own is not None and np.array_equal(np.asarray(own)[first.source_face], first.labels):
-            return np.asarray(own)[faces]
+        if not hasattr(self, "_face_labels"):  # decided once: the first layer's labels never change
+            own = self.cast.options.get("labels")
+            same = own is not None and np.array_equal(np.asarray(own)[first.source_face], first.labels)
+            self._face_labels = np.asarray(own) if same else None
+        if self._face_labels is not None:
+            return self._face_labels[faces]
         labels = np.asarray(first.labels)
         where = np.full(len(self.cast.mesh1.faces), -1, dtype=np.int64)
         where[first.source_face] = np.arange(len(first.source_face))
@@ -339,7 +342,8 @@ class MeshTracker:
                 allowed = self._allowed(ring, pose)
                 fresh = follow_faces(self.cast, pose, ring, guess, allowed, self.mesh1, self.mesh2, cast_rest=False)
                 open_ = fresh.outcome == -2
-                if open_.any():
+                # a partial update casts no ray: what a walk cannot settle waits for the complete one
+                if open_.any() and near is None:
                     unsettled.append(fresh.faces[open_])
             else:  # every walk settled: cast what they could not, together
                 faces = np.concatenate(unsettled)

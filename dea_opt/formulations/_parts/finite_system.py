@@ -125,8 +125,15 @@ class FiniteSystem:
         )
 
     def state(self, y, law, bilateral: bool = False) -> State:
-        """Everything at ``y`` that the residual needs (one pass over the springs)."""
-        return State(self, np.asarray(y, dtype=float), law, bilateral)
+        """Everything at ``y`` that the residual needs (one pass over the springs). The last one is
+        kept: a solve starts where the update of its springs evaluated them."""
+        y = np.array(y, dtype=float)  # a copy: the state keeps it
+        last = self.__dict__.get("_last")
+        if last is not None and last.law is law and last.bilateral == bilateral and np.array_equal(last.y, y):
+            return last
+        state = State(self, y, law, bilateral)
+        object.__setattr__(self, "_last", state)
+        return state
 
 
 class State:
