@@ -113,7 +113,7 @@ class Planes:
 
 def dot3(a, b) -> np.ndarray:
     """Column-wise dot products of (3, K) rows."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+    return np.einsum("ij,ij->j", a, b)
 
 
 def _barycentric(records, points) -> np.ndarray:

@@ -16,6 +16,7 @@ with ``h_i = p_i + s_i n_i`` the hit and ``m_i'`` the target's normal there. Len
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -94,17 +95,44 @@ def rotation_and_jacobian(theta) -> tuple[np.ndarray, np.ndarray]:
     return eye + a * W + b * W2, eye + b * W + c * W2
 
 
+def _coefficient_slopes(tau: float) -> tuple[float, float, float, float]:
+    """``(b, c, db/dtau, dc/dtau)`` of :func:`_coefficients` at ``tau = theta . theta`` (real):
+    the Taylor series below ``tau = 0.1`` (the closed forms cancel there), else the closed forms."""
+    if tau < 0.1:
+        # b = sum_k (-tau)^k / (2k + 2)!, c = sum_k (-tau)^k / (2k + 3)!; d(-tau)^k/dtau = -k (-tau)^(k-1)
+        b = c = db = dc = 0.0
+        term_b, term_c, power, previous = 0.5, 1.0 / 6.0, 1.0, 0.0
+        for k in range(9):
+            b += term_b * power
+            c += term_c * power
+            db -= k * term_b * previous
+            dc -= k * term_c * previous
+            previous, power = power, power * -tau
+            term_b /= (2 * k + 3) * (2 * k + 4)
+            term_c /= (2 * k + 4) * (2 * k + 5)
+        return b, c, db, dc
+    t = math.sqrt(tau)
+    a, co = math.sin(t) / t, math.cos(t)
+    b, c = (1.0 - co) / tau, (1.0 - a) / tau
+    return b, c, (0.5 * a - b) / tau, -((co - a) / (2.0 * tau) + c) / tau
+
+
 def jacobian_transpose_derivative(theta, moment) -> np.ndarray:
-    """``D[:, j] = d/dtheta_j (J(theta)^T moment)`` (3, 3), exact by complex steps (no subtraction)."""
+    """``D[:, j] = d/dtheta_j (J(theta)^T moment)`` (3, 3), in closed form.
+
+    With ``W = [theta]x``, ``J^T M = M - b theta x M + c (theta (theta . M) - tau M)``, so
+    ``D = b [M]x + c ((theta . M) I + theta M^T - 2 M theta^T)
+    + 2 (c' (theta (theta . M) - tau M) - b' theta x M) theta^T`` (``'``: the derivative in ``tau``).
+    """
     theta = np.asarray(theta, dtype=float)
     moment = np.asarray(moment, dtype=float)
-    h = 1e-30
-    out = np.empty((3, 3))
-    for j in range(3):
-        step = theta.astype(complex)
-        step[j] += 1j * h
-        out[:, j] = (left_jacobian(step).T @ moment).imag / h
-    return out
+    tau = float(theta @ theta)
+    b, c, db, dc = _coefficient_slopes(tau)
+    tm = float(theta @ moment)
+    cross = np.cross(theta, moment)
+    D = b * _hat(moment) + c * (tm * np.eye(3) + np.outer(theta, moment) - 2.0 * np.outer(moment, theta))
+    D += 2.0 * np.outer(dc * (theta * tm - tau * moment) - db * cross, theta)
+    return D
 
 
 def pose_matrix(u6, reference) -> np.ndarray:

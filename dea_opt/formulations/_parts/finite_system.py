@@ -154,7 +154,7 @@ class State:
             self.sigma = np.where(self.gaps.valid, self.sigma, 0.0)
         spring = system.arms @ (system.areas * self.sigma)  # sum f a_i about the origin
         self.force_sum = spring[:3]
-        spring[3:] -= np.cross(self.centre, self.force_sum)
+        spring[3:] -= _hat(self.centre) @ self.force_sum
         self.spring = spring  # sum f a_i, spatial, about c'
         self.net = self.spring - np.concatenate([system.force, system.moment])
         self.residual6 = np.concatenate([self.net[:3], self.J.T @ self.net[3:]])
