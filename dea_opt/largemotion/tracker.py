@@ -27,7 +27,7 @@ import numpy as np
 
 from ..formulations.finite import Targets
 from ..mesh import FaceCast, Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
-from ..mesh.walk import ON_FACE
+from ..mesh.walk import ON_FACE, dot3
 
 __all__ = ["MeshTracker"]
 
@@ -127,6 +127,7 @@ class MeshTracker:
         # per face of mesh 1, the face of mesh 2 its ray met first at the last cast (-1: unknown)
         self.met = np.full(len(cast.mesh1.faces), -1, dtype=np.int64)
         self.met[self.springs.faces1] = self.springs.faces2
+        self._slot = np.zeros(len(cast.mesh1.faces), dtype=np.int64)
         # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
         self._layer = cast.layer if not hasattr(self, "_first_layer") else None
         self.dropped_faces = np.asarray(cast.dropped.faces["overlap"], dtype=np.int64)
@@ -338,7 +339,6 @@ class MeshTracker:
         (ring, guess), grown, unsettled = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width), [], []
         while len(ring) or unsettled:
             if len(ring):
-                tried[ring] = True
                 allowed = self._allowed(ring, pose)
                 fresh = follow_faces(self.cast, pose, ring, guess, allowed, self.mesh1, self.mesh2, cast_rest=False)
                 open_ = fresh.outcome == -2
@@ -407,25 +407,22 @@ class MeshTracker:
 
     def _ring(self, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
         """``(faces, guess)``: the faces of mesh 1 within ``rings`` edges of ``faces1`` not ``tried``
-        yet, and for each a face of mesh 2 to follow its ray from: what it met at its last cast,
-        else what the face of ``faces1`` it was reached from met (``met``, (K,))."""
+        yet (now marked tried), and for each a face of mesh 2 to follow its ray from: what it met
+        at its last cast, else what the face of ``faces1`` it was reached from met (``met``, (K,))."""
         table = self.mesh1.neighbours
         width = table.shape[1]
-        seen = tried.copy()
-        reached = np.full(len(seen), -1, dtype=np.int64)
+        slot = self._slot  # scratch (F,): where a face stands in this step's candidates
         out, current, guess = [], np.asarray(faces1, dtype=np.int64), np.asarray(met, dtype=np.int64)
         for _ in range(rings):
             if not len(current):
                 break
             near = np.take(table, current, axis=0).ravel()
-            ok = near >= 0
-            near, via = near[ok], np.repeat(guess, width)[ok]
-            fresh = ~seen[near]
-            reached[near[fresh]] = via[fresh]
-            seen[near[fresh]] = True
-            current = np.flatnonzero(reached >= 0)
-            guess = reached[current]
-            reached[current] = -1
+            new = (near >= 0) & ~tried[near.clip(0)]
+            near, via = near[new], np.repeat(guess, width)[new]
+            slot[near] = np.arange(len(near))
+            first = slot[near] == np.arange(len(near))  # one entry a face (the last one written)
+            current, guess = near[first], via[first]
+            tried[current] = True
             out.append((current, guess))
         if not out:
             return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
@@ -437,8 +434,8 @@ class MeshTracker:
     def _allowed(self, faces, pose) -> np.ndarray:
         """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it since
         the last whole cast (the window following the pose, as in :func:`dea_opt.mesh.recast`)."""
-        point = np.take(self.mesh1.centroids, faces, axis=0)
-        normal = np.take(self.mesh1.normals, faces, axis=0)
+        rays = np.take(self.mesh1.rows, faces, axis=1)  # (6, K): centroids, normals
         motion = pose @ np.linalg.inv(self.full)
-        toward = -np.einsum("ij,ij->i", normal, point @ motion[:3, :3].T + motion[:3, 3] - point)
+        moved = (motion[:3, :3] - np.eye(3)) @ rays[:3] + motion[:3, 3:]
+        toward = -dot3(rays[3:], moved)
         return self.cast.options["max_overlap"] + np.maximum(toward, 0.0)
