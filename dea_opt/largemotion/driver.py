@@ -41,6 +41,7 @@ __all__ = ["plan", "solve"]
 
 _GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
 _PREDICTOR_TOL = 1e-8  # the small kinematics' answer as a start (it is off by the rotation squared)
+_LOOSE = 1e-6  # the scaled residual a solve that an update of the springs follows stops at
 
 
 def resolve_targets(problem) -> tuple[Targets, object]:
@@ -264,14 +265,27 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         x, cold = _predicted(small, law, x)
     inner, history = None, []
     stable, rounds = True, [0]
+    # Solves that the springs' update follows stop at _LOOSE: it moves the springs, and the solve
+    # after it starts there; the pose the last update checks is solved to the options' tolerance.
+    loose = tracker is not None and method == "finite"
+    loose_opts = {**opts, "gtol": max(opts["gtol"], _LOOSE), "xtol": max(opts["xtol"], _LOOSE)} if loose else opts
+
+    def tighten(system, inner):
+        reached = inner.info.get("residual_history") or [np.inf]
+        if inner.info.get("loose") and inner.success and not reached[-1] <= opts["gtol"]:
+            inner = _inner(method, system, law, T, E0, inner.u_free, False, opts)
+            history.extend(inner.info.get("residual_history", []))
+        return inner
+
     while True:
-        inner = _inner(method, system, law, T, E0, x, cold, opts)
+        inner = _inner(method, system, law, T, E0, x, cold, loose_opts)
+        inner.info["loose"] = loose
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
         if tracker is None or not inner.success:
             break
-        after = _bring_up_to_date(tracker, system, inner, method, opts["max_recasts"], rounds)
-        system, resolve, stable = after
+        system, inner, resolve, stable = _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten)
+        x = inner.u_free
         if not resolve:
             break
     if tracker is not None:
@@ -293,36 +307,44 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     )
 
 
-def _bring_up_to_date(tracker, system, inner, method, max_recasts, rounds) -> tuple:
-    """``(system, resolve, stable)``: the springs brought up to date at ``inner``'s pose.
+def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> tuple:
+    """``(system, inner, resolve, stable)``: the springs brought up to date at ``inner``'s pose.
 
     Partial updates (the springs the solve has) while they change a loaded spring, then one
     complete update (also the faces next to the springs, :meth:`MeshTracker.update`) at the pose
     where a partial one changed nothing that carries load; ``resolve`` when the equilibrium must be
     solved again. Newton keeps its answer when only springs that carry nothing changed; IPOPT
-    solves again after any change. At most ``max_recasts`` updates that changed the springs in a
-    solve (``rounds``, a one-element list, counts them; ``stable`` False beyond: an equilibrium of
-    these springs; another update might still change them).
+    solves again after any change. A complete update checks a pose solved to the options'
+    tolerance (``tighten``: ``inner`` solved again from its answer when it stopped short). At
+    most ``max_recasts`` updates that changed the springs in a solve (``rounds``, a one-element
+    list, counts them; ``stable`` False beyond: an equilibrium of these springs; another update
+    might still change them).
     """
-    state = inner.state
+    max_recasts = opts["max_recasts"]
     while True:
         if rounds[0] >= max_recasts:
+            inner = tighten(system, inner)
             inner.message += f"; the springs still changed after {rounds[0]} updates (max_recasts)"
-            return system, False, False
-        update = tracker.update(system, state, complete=tracker.complete)
-        complete = tracker.complete  # (the tracker makes a short step's update complete)
+            return system, inner, False, False
+        complete = tracker.complete or tracker.short_step(system.transform(inner.state.y))
+        if complete:
+            inner = tighten(system, inner)
+            if not inner.success:
+                return system, inner, False, True
+        tracker.complete = complete
+        update = tracker.update(system, inner.state, complete=complete)
         if update is None:
             if complete:
-                return system, False, True
+                return system, inner, False, True
             tracker.complete = True  # nothing changed that carries load: now the whole of it
             continue
         rounds[0] += 1
-        system, state = update.system, update.state
+        system = update.system
         if update.resolve or method != "finite":
-            return system, True, True
-        inner.state = state  # only springs that carry nothing changed: the same equilibrium
+            return system, inner, True, True
+        inner.state = update.state  # only springs that carry nothing changed: the same equilibrium
         if complete:
-            return system, False, True
+            return system, inner, False, True
         tracker.complete = True
 
 
@@ -368,7 +390,7 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     stiffness = float(np.sum(layer.areas / layer.thickness))
     cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero.eps, certificate_tol)
     success = bool(finite and cert.passed and np.isfinite(pressure).all())
-    info = {k: v for k, v in inner.info.items() if k != "stress"}
+    info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
     status = status_of(inner.status, success, system, state)
     if tracker is not None:

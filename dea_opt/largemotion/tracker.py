@@ -230,13 +230,11 @@ class MeshTracker:
         are cast only in a complete update (at the window's far edge they carry nothing, so a
         solve's intermediate poses need not look there)."""
         pose = system.transform(state.y)
-        since_full, since_last = self._moved(pose, self.full, self.last)
+        since_full, _ = self._moved(pose, self.full)
         self.last = pose
         if since_full > self.full_shift:
             self.complete = True
             return self._recast_all(system, state, pose)
-        # a step shorter than the thickness' tolerance changes nothing a partial update would see
-        complete = self.complete = complete or since_last <= self.recast_shift
         springs, options = self.springs, self.cast.options
         gaps = state.gaps
         R, shift = pose[:3, :3], pose[:3, 3]
@@ -389,6 +387,11 @@ class MeshTracker:
         """``system`` with this tracker's springs and targets (the load and coordinates kept)."""
         s = self.springs
         return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets())
+
+    def short_step(self, pose) -> bool:
+        """Whether the hits moved no more than ``recast_shift`` since the last update (a partial
+        update would see nothing there, so the next one may as well be complete)."""
+        return self.last is not None and self._moved(pose, self.last)[0] <= self.recast_shift
 
     def _moved(self, pose, since, last=None) -> tuple[float, float]:
         """How far (mm) the springs' hits on body 2 moved between ``since`` and ``pose``, and between
