@@ -146,3 +146,6 @@ class SpringCast:
     options: dict = field(default_factory=dict)
     outcome: np.ndarray | None = field(default=None, repr=False)
     """Per face of mesh 1: -1 for a spring, else the index of its reason in :data:`LOST_REASONS`."""
+    met: np.ndarray | None = field(default=None, repr=False)
+    """Per face of mesh 1: the face of mesh 2 its ray met first facing it in the cast's range (-1:
+    none), where springs that follow body 2 start looking at another pose (None: not kept)."""

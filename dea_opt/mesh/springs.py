@@ -190,6 +190,9 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
     cos = -np.einsum("ij,ij->i", m2.face_normals[face], directions2[ray])
     keep = cos > 0
     ray, face, t, cos = ray[keep], face[keep], t[keep], cos[keep]
+    # What each ray met first facing it (a face of mesh 2 to follow it from at another pose).
+    first = _first_per_ray(ray, t, n_faces)
+    met = np.where(first >= 0, face[first.clip(0)], -1) if len(face) else np.full(n_faces, -1, dtype=np.int64)
     # A hit behind mesh 1's own far side (or on it) went back through the spring layer: rejected.
     through = -t >= depth[ray] - _self_epsilon(m1)
     window = (t >= -allowed[ray]) & (t <= max_gap)
@@ -229,13 +232,14 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
         sel, gap, hit_face, hit_point2 = sel[good], gap[good], hit_face[good], hit_point2[good]
         h1, h2, total = h1[good], h2[good], total[good]
 
-    return assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome)
+    return assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome, met)
 
 
-def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome) -> SpringCast:
+def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome, met=None) -> SpringCast:
     """The :class:`SpringCast` of what the rays found: the faces of mesh 1 with a spring
     (``sel``), their gaps, the faces of mesh 2 met and where (in mesh 2's frame), the two
-    thicknesses, and every face's outcome. A sweep's cache keeps these arrays and nothing else."""
+    thicknesses, and every face's outcome (and, optionally, the face of mesh 2 each ray met first
+    facing it). A sweep's cache keeps these arrays and nothing else."""
     normals = -m1.face_normals if options["flip"] else m1.face_normals
     face_labels = options["labels"]
     layer = SpringLayer(
@@ -253,7 +257,8 @@ def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, ou
     )
     hit_point = hit_point2 @ T[:3, :3].T + T[:3, 3]
     dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
-    return SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome))
+    met = None if met is None else _readonly(np.asarray(met, dtype=np.int64))
+    return SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome), met)
 
 
 def _outcomes(n_faces, ray, t, cos, outside, rejected, allowed, options) -> np.ndarray:
