@@ -322,33 +322,25 @@ class MeshTracker:
     def _grow(self, pose, near=None) -> int:
         """Cast the faces next to the springs at ``pose``, ring after ring (each twice as wide as
         the last, at most 24 faces) while springs come into range there; add those springs. The
-        number gained; what the window dropped there is kept for the count. With ``near`` (mm),
-        only next to springs with a gap below it, and on from new springs below it (a partial
-        update: the contact's edges, not the window's far edge).
+        number gained; what the window dropped there is kept for the count.
 
-        A ring's rays are followed from what they, or the face they were reached from, met
-        (:func:`~dea_opt.mesh.follow_faces`); those a walk cannot settle are cast together once
-        the walks find no more springs, and the rings go on from any springs found there."""
+        With ``near`` (mm), a partial update: only next to springs with a gap below it, and on
+        from new springs below it (the contact's edges, not the window's far edge), with no ray
+        cast: each ring's rays are followed from what they, or the face they were reached from,
+        met (:func:`~dea_opt.mesh.follow_faces`), and what a walk cannot settle waits for the
+        complete update, which casts its rings (:func:`~dea_opt.mesh.cast_faces`)."""
         springs = self.springs
         dropped, tried = [], np.zeros(len(self.mesh1.areas), dtype=bool)
         tried[springs.faces1] = True
         width = 3
         seeds = slice(None) if near is None else springs.gap < near
-        (ring, guess), grown, unsettled = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width), [], []
-        while len(ring) or unsettled:
-            if len(ring):
-                allowed = self._allowed(ring, pose)
+        (ring, guess), grown = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width), []
+        while len(ring):
+            allowed = self._allowed(ring, pose)
+            if near is None:
+                fresh = cast_faces(self.cast, pose, ring, allowed, self.mesh1, self.mesh2, thickness=False)
+            else:
                 fresh = follow_faces(self.cast, pose, ring, guess, allowed, self.mesh1, self.mesh2, cast_rest=False)
-                open_ = fresh.outcome == -2
-                # a partial update casts no ray: what a walk cannot settle waits for the complete one
-                if open_.any() and near is None:
-                    unsettled.append(fresh.faces[open_])
-            else:  # every walk settled: cast what they could not, together
-                faces = np.concatenate(unsettled)
-                unsettled = []
-                fresh = cast_faces(
-                    self.cast, pose, faces, self._allowed(faces, pose), self.mesh1, self.mesh2, thickness=False
-                )
             self.met[fresh.faces] = fresh.first2
             new = fresh.spring
             grown.append(fresh.subset(new))

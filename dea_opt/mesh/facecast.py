@@ -26,7 +26,7 @@ import numpy as np
 from .._checks.thresholds import ANGLE_SLACK
 from .raycast import _caster, _engine, _first_per_ray, _self_epsilon
 from .springs import LOST_REASONS, _outcomes, _thickness
-from .walk import Planes, Walker, dot, dot3
+from .walk import Planes, Walker, dot
 
 __all__ = ["FaceCast", "FarSide", "Mesh1", "Mesh2", "cast_faces", "follow_faces", "measure", "off_face"]
 
@@ -451,7 +451,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     rays = np.take(mesh1.rows, faces, axis=1)
     oT, dT = R.T @ (rays[:3] - shift[:, None]), R.T @ rays[3:]
     face, t, found = mesh2.walker.follow(met, oT, dT, rows=True)
-    cos = -dot3(np.take(mesh2.planes.records, face, axis=1)[:3], dT)
+    cos = -dot(np.take(mesh2.planes.normals, face, axis=0), dT.T)
     _, depth = mesh1.behind(faces)
     look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
     with np.errstate(invalid="ignore"):
