@@ -324,11 +324,11 @@ class MeshTracker:
         the last, at most 24 faces) while springs come into range there; add those springs. The
         number gained; what the window dropped there is kept for the count.
 
-        With ``near`` (mm), a partial update: only next to springs with a gap below it, and on
-        from new springs below it (the contact's edges, not the window's far edge), with no ray
-        cast: each ring's rays are followed from what they, or the face they were reached from,
-        met (:func:`~dea_opt.mesh.follow_faces`), and what a walk cannot settle waits for the
-        complete update, which casts its rings (:func:`~dea_opt.mesh.cast_faces`)."""
+        With ``near`` (mm), a partial update: one ring next to the springs with a gap below it
+        (the contact's edges, not the window's far edge), with no ray cast: its rays are followed
+        from what they, or the face they were reached from, met (:func:`~dea_opt.mesh.follow_faces`);
+        what lies beyond, and what a walk cannot settle, waits for the complete update, which
+        casts its rings (:func:`~dea_opt.mesh.cast_faces`)."""
         springs = self.springs
         dropped, tried = [], np.zeros(len(self.mesh1.areas), dtype=bool)
         tried[springs.faces1] = True
@@ -347,7 +347,7 @@ class MeshTracker:
             dropped.append(fresh.faces[fresh.dropped])
             width = min(2 * width, 24)
             if near is not None:
-                new = new & (fresh.gap < near)
+                break  # one ring: what lies beyond waits for the complete update
             ring, guess = self._ring(fresh.faces[new], fresh.faces2[new], tried, width)
         if near is None:
             self.dropped_faces = np.concatenate(dropped) if dropped else np.zeros(0, dtype=np.int64)
