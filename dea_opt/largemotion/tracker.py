@@ -37,7 +37,22 @@ class _Springs:
     areas, their targets on mesh 2 in its own frame, thicknesses, and the far face of mesh 2 each
     ``h2`` was measured to)."""
 
-    FIELDS = ("faces1", "points", "normals", "areas", "h1", "h2", "q", "m", "faces2", "measured", "gap", "far2")
+    FIELDS = (
+        "faces1",
+        "points",
+        "normals",
+        "areas",
+        "h1",
+        "h2",
+        "q",
+        "m",
+        "faces2",
+        "measured",
+        "gap",
+        "far2",
+        "tested",
+        "clear",
+    )
 
     def __init__(self, layer, h1, h2):
         # copies: the layer's arrays are read-only, these are updated in place
@@ -51,6 +66,8 @@ class _Springs:
         self.measured = self.q.copy()  # where each h2 was measured (own frame)
         self.gap = np.array(layer.gap, dtype=float)
         self.far2 = np.full(len(self.faces1), -2, dtype=np.int64)  # not known yet
+        # where each hit was last found on its face, and how far it may move from there on it
+        self.tested, self.clear = self.q.copy(), np.zeros(len(self.faces1))
 
     def keep(self, index) -> None:
         index = np.flatnonzero(index) if np.asarray(index).dtype == bool else index
@@ -73,6 +90,8 @@ class _Springs:
             "measured": fresh.q[new],
             "gap": fresh.gap[new],
             "far2": fresh.far2[new],
+            "tested": fresh.q[new],
+            "clear": np.zeros(int(np.count_nonzero(new))),
         }
         for name in self.FIELDS:
             setattr(self, name, np.concatenate([getattr(self, name), more[name]]))
@@ -243,9 +262,19 @@ class MeshTracker:
         pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
         along = np.where(gaps.valid, gaps.s, 0.0)
         ownT = R.T @ (pT - shift[:, None]) + along * (R.T @ nT)
-        bary = self.mesh2.planes.barycentric(ownT, springs.faces2, rows=True)
-        left = ~((bary.min(axis=0) >= -ON_FACE) & gaps.valid)
         own = ownT.T
+        # Which hits left their face: a hit that moved less than its clearance since it was last
+        # found on its face is still on it; the others are tested (barycentric coordinates).
+        step = ownT - springs.tested.T
+        check = np.flatnonzero(~gaps.valid | (np.einsum("ij,ij->j", step, step) >= springs.clear * springs.clear))
+        bary = self.mesh2.planes.barycentric(ownT[:, check], springs.faces2[check], rows=True)
+        low = bary.min(axis=0)
+        out = ~((low >= -ON_FACE) & gaps.valid[check])
+        left = np.zeros(len(springs.faces1), dtype=bool)
+        left[check] = out
+        stays = check[~out]
+        springs.tested[stays] = own[stays]
+        springs.clear[stays] = self.mesh2.planes.clearance(springs.faces2[stays], low[~out])
         shifted = ownT - springs.measured.T
         moved = ~left & (np.einsum("ij,ij->j", shifted, shifted) > self.recast_shift**2)
         beyond = ~left & (gaps.s > options["max_gap"])
@@ -258,7 +287,7 @@ class MeshTracker:
             self.cast,
             pose,
             springs.faces1[index],
-            self.mesh2.planes.beyond(springs.faces2[index], bary[:, index]),
+            self.mesh2.planes.beyond(springs.faces2[index], bary[:, out]),
             np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
             self.mesh1,
             self.mesh2,
@@ -268,6 +297,7 @@ class MeshTracker:
         at = index[found]
         springs.q[at], springs.m[at], springs.faces2[at] = again.q[found], again.m[found], again.faces2[found]
         springs.measured[at], springs.gap[at] = again.q[found], again.gap[found]
+        springs.tested[at], springs.clear[at] = again.q[found], again.clear[found]
         for reason, count in again.reasons(~found).items():
             self._lose(reason, count)
         on = np.flatnonzero(~left)

@@ -243,6 +243,7 @@ class FaceCast:
         # the far face of mesh 2 each thickness was measured to (-1: none; -2: not measured)
         self.far2 = np.full(len(faces), -2, dtype=np.int64) if far2 is None else far2
         self.first2 = np.full(len(faces), -1, dtype=np.int64)  # what each ray met first (cast_faces)
+        self.clear = np.zeros(len(faces))  # how far each hit may move on its face (0: not known)
 
     @property
     def spring(self) -> np.ndarray:
@@ -451,6 +452,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     rays = np.take(mesh1.rows, faces, axis=1)
     oT, dT = R.T @ (rays[:3] - shift[:, None]), R.T @ rays[3:]
     face, t, found = mesh2.walker.follow(met, oT, dT, rows=True)
+    margin = mesh2.walker.margin
     cos = -dot(np.take(mesh2.planes.normals, face, axis=0), dT.T)
     _, depth = mesh1.behind(faces)
     look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
@@ -470,6 +472,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     sel = np.flatnonzero(window & aligned)
     outcome[sel] = _SPRING
     out.gap[sel], out.faces2[sel] = t[sel], face[sel]
+    out.clear[sel] = mesh2.planes.clearance(face[sel], margin[sel])
     out.q[sel] = (oT[:, sel] + t[sel] * dT[:, sel]).T
     out.m[sel] = np.take(mesh2.planes.normals, face[sel], axis=0)
     rest = np.flatnonzero(~(simple | beyond))
@@ -478,7 +481,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
             outcome[rest] = -2
             return out
         again = cast_faces(cast, pose, faces[rest], allowed[rest], mesh1, mesh2, met=None, thickness=False)
-        for name in ("outcome", "q", "m", "faces2", "gap", "first2"):
+        for name in ("outcome", "q", "m", "faces2", "gap", "first2", "clear"):
             getattr(out, name)[rest] = getattr(again, name)
     return out
 

@@ -56,6 +56,12 @@ class Planes:
         records[4:7], records[7] = B1.T, dot(B1, self.corner)
         records[8:11], records[11] = B2.T, dot(B2, self.corner)
         self.records = records
+        # the shortest altitude of each face: a point at barycentric coordinates b lies at least
+        # min(b) times it from every edge
+        twice_area = np.linalg.norm(np.cross(e1, e2), axis=1)
+        longest = np.sqrt(np.maximum(np.maximum(d11, d22), dot(e2 - e1, e2 - e1)))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            self.altitude = np.where(longest > 0, twice_area / longest, 0.0)
         self.eps = _self_epsilon(mesh)
         self._faces = np.asarray(mesh.faces, dtype=np.int64)
         self._across: np.ndarray | None = None
@@ -73,6 +79,12 @@ class Planes:
             3 * np.asarray(faces, dtype=np.int64) + np.nan_to_num(bary, nan=0.0).argmin(axis=0)
         ]
         return np.where(across >= 0, across, faces)
+
+    def clearance(self, faces, low) -> np.ndarray:
+        """A lower bound (mm) on the distance in their faces' planes from points with lowest
+        barycentric coordinate ``low`` (K,) to the edges of faces ``faces`` (K,): a point that
+        moves less than it stays in its face (0 where ``low`` is not positive)."""
+        return np.maximum(low, 0.0) * np.take(self.altitude, faces)
 
     def inside(self, points, faces, tolerance: float = ON_FACE, rows: bool = False) -> np.ndarray:
         """Whether ``points`` (K, 3), or (3, K) with ``rows``, lie within faces ``faces`` (K,)
@@ -135,10 +147,12 @@ class Walker:
         """``(face, t, found)``: for rays ``origins + t directions`` (K, 3), or (3, K) with ``rows``,
         that met faces ``faces`` (K,) before, the face whose plane the ray crosses inside it, at
         most ``steps`` edges away, and the distance there; ``found`` False where the walk left the
-        mesh or ran out of steps."""
+        mesh or ran out of steps. ``margin`` (K,) is then each found point's lowest barycentric
+        coordinate in its face (:meth:`Planes.clearance`)."""
         records, across = self.planes.records, self.planes.across.ravel()
         face = np.array(faces, dtype=np.int64)
         t = np.full(len(face), np.nan)
+        self.margin = np.zeros(len(face))  # the lowest barycentric coordinate where found
         found = np.zeros(len(face), dtype=bool)
         if rows:
             oT, dT = origins, directions
@@ -158,6 +172,7 @@ class Walker:
             inside = ok & (low >= -ON_FACE)
             t[active[inside]] = dist[inside]
             found[active[inside]] = True
+            self.margin[active[inside]] = low[inside]
             out = np.flatnonzero(ok & ~inside)
             if step == self.steps or not len(out):
                 break
