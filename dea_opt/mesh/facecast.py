@@ -406,19 +406,25 @@ def cast_faces(
     ray, face, t, cos = crossings.ray, crossings.face, crossings.t, crossings.cos
     through = -t >= depth[ray] - mesh1.eps
     window = (t >= -allowed[ray]) & (t <= max_gap)
-    rejected = np.zeros(k, dtype=bool)
-    rejected[ray[through & window]] = True
     inside = window & ~through
-    if crossings.unique:  # one crossing a ray (the usual case): no sort
-        pick = np.full(k, -1, dtype=np.int64)
-        pick[ray[inside]] = np.arange(int(inside.sum()))
+    aligned_all = cos >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
+    if crossings.unique:  # one crossing a ray (the usual case): the rules of _outcomes, no sort
+        outside = ~through & ~window
+        outcome = out.outcome
+        outcome[ray[outside & (t > max_gap)]] = LOST_REASONS.index("gap")
+        outcome[ray[outside & (t < -allowed[ray]) & aligned_all]] = LOST_REASONS.index("overlap")
+        outcome[ray[through & window]] = LOST_REASONS.index("through_layer")
+        hit = np.flatnonzero(inside)
+        has = ray[hit]
     else:
+        rejected = np.zeros(k, dtype=bool)
+        rejected[ray[through & window]] = True
         pick = _first_per_ray(ray[inside], np.abs(t[inside]), k)
-    has = np.flatnonzero(pick >= 0)
-    hit = np.flatnonzero(inside)[pick[has]]
-    aligned = cos[hit] >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
-    if (~inside).any():
-        out.outcome = _outcomes(k, ray, t, cos, ~through & ~window, rejected, allowed, options)
+        has = np.flatnonzero(pick >= 0)
+        hit = np.flatnonzero(inside)[pick[has]]
+        if (~inside).any():
+            out.outcome = _outcomes(k, ray, t, cos, ~through & ~window, rejected, allowed, options)
+    aligned = aligned_all[hit]
     out.outcome[has[~aligned]] = LOST_REASONS.index("angle")
     sel, hit = has[aligned], hit[aligned]
     out.outcome[sel] = _SPRING
