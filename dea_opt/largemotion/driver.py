@@ -40,7 +40,7 @@ from .tracker import MeshTracker
 __all__ = ["plan", "solve"]
 
 _GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
-_PREDICTOR_TOL = 1e-8  # the small kinematics' answer as a start (it is off by the rotation squared)
+_PREDICTOR_TOL = 1e-2  # the small kinematics' answer as a start (it is off by the rotation squared)
 _LOOSE = 1e-6  # the scaled residual a solve that an update of the springs follows stops at
 
 
@@ -371,6 +371,9 @@ def _inner(method, system, law, T, E0, x, cold, opts):
 def _solution(problem, system, small, law, inner, method, tracker, certificate_tol, build, solve_time, history):
     state = inner.state
     targets = system.targets
+    if tracker is not None:  # the tracker's arrays change with its next update: the answer keeps copies
+        faces = None if targets.faces is None else np.array(targets.faces)
+        targets = Targets.cast_planes(np.array(targets.points), np.array(targets.normals), targets.frame, faces)
     final = problem
     at_zero = system.state(system.base, law)  # the free coordinates at zero
     if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):
