@@ -82,6 +82,19 @@ def test_rotation_and_its_jacobian(theta):
     assert np.allclose(G.jacobian_transpose_derivative(theta, moment), fd, atol=1e-7)
 
 
+@pytest.mark.parametrize("tau", [0.0, 1e-8, 0.0999999, 0.1, 0.1000001, 0.5, 4.0])
+def test_the_derivative_of_j_transpose_m_is_smooth_where_its_series_meets_its_closed_form(tau):
+    # complex steps on J itself (no subtraction) as the reference, on both sides of tau = 0.1
+    theta = np.sqrt(tau) * np.array([0.6, -0.48, 0.64])
+    moment = np.array([3.0, -1.0, 2.0])
+    reference = np.empty((3, 3))
+    for j in range(3):
+        step = theta.astype(complex)
+        step[j] += 1e-30j
+        reference[:, j] = (G.left_jacobian(step).T @ moment).imag / 1e-30
+    assert np.abs(G.jacobian_transpose_derivative(theta, moment) - reference).max() < 1e-13
+
+
 def _random_springs(rng, n=80):
     p = np.column_stack([rng.uniform(-8, 8, n), rng.uniform(-8, 8, n), rng.normal(0, 0.2, n)])
     normal = np.array([0.0, 0.0, 1.0]) + rng.normal(0, 0.1, (n, 3))

@@ -6,17 +6,22 @@ face. After a converged solve the springs are brought up to date at the solved p
 rules of a cast (:func:`dea_opt.mesh.cast_springs`, the window following the pose as in
 :func:`dea_opt.mesh.recast`), on the faces of mesh 1 where anything can have changed:
 
-* the springs whose hit left its face are cast again (a new face, or lost: beyond the window,
-  turned past ``max_angle``, back through body 1's own layer, no face of mesh 2 facing it);
+* the springs whose hit left its face meet mesh 2 again, their rays followed across its edges
+  from where they left (:func:`dea_opt.mesh.follow_faces`), cast where that settles nothing (a
+  new face, or lost: beyond the window, turned past ``max_angle``, back through body 1's own
+  layer, no face of mesh 2 facing it); a hit that moved less than its clearance on its face
+  is not tested;
 * every spring whose hit moved more than ``recast_shift`` since its thickness was measured is
   measured again at its hit; springs beyond ``max_gap`` are dropped (they carry nothing);
 * the faces of mesh 1 next to the springs (the springs' ring) are cast: springs coming into
-  range are picked up there, overlaps deeper than the window counted as dropped.
+  range are picked up there, overlaps deeper than the window counted as dropped. A partial
+  update looks at one ring at the contact's edges and casts no ray; a complete one grows the
+  rings around every spring, the window's far edge included.
 
 Once the hits moved more than ``full_shift`` (5 mm) from where every face was last cast (a
 contact away from the springs could have appeared), the whole mesh is re-cast
-(:func:`dea_opt.mesh.recast`). The solve goes
-on from the same pose until nothing changes; every event is counted.
+(:func:`dea_opt.mesh.recast`). The solve goes on from the same pose until a complete update
+changes nothing that carries load; every event is counted.
 """
 
 from __future__ import annotations

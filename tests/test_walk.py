@@ -1,0 +1,136 @@
+"""Rays followed across a mesh's edges, and the casts of some faces that start from them.
+
+The walk (``dea_opt.mesh.walk``) must give the face and distance Embree's first hit gives, to
+rounding, wherever it settles a ray; a thickness measured by following the far side must be the
+one a ray cast measures; the clearance a hit may move and stay on its face must hold for random
+points; the casts of chosen faces (``cast_faces``, ``follow_faces``) must judge every face as a
+whole cast at the same pose does, on the embedded hip turned by large rotations.
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+
+from dea_opt import mesh as M
+from dea_opt.formulations._parts.finite_geometry import rotation
+from dea_opt.geometry import hip_meshes
+from dea_opt.mesh import facecast, raycast
+from dea_opt.mesh.walk import Planes, Walker
+
+
+@pytest.fixture(scope="module")
+def hip():
+    pair = hip_meshes(step=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+    return pair, cast
+
+
+def _turned(reference, degrees, axis, shift=(0.0, 0.0, 0.0)):
+    T = np.eye(4)
+    R = rotation(np.radians(degrees) * np.asarray(axis, dtype=float) / np.linalg.norm(axis))
+    c = np.asarray(reference, dtype=float)
+    T[:3, :3], T[:3, 3] = R, c - R @ c + np.asarray(shift)
+    return T
+
+
+def test_the_faces_across_each_edge_are_trimesh_s_face_adjacency(hip):
+    pair, _ = hip
+    for mesh in (pair.mesh1, pair.mesh2):
+        across = Planes(mesh).across
+        mine = {tuple(sorted((f, g))) for f, row in enumerate(across) for g in row if g >= 0}
+        theirs = {tuple(sorted(p)) for p in np.asarray(mesh.face_adjacency).tolist()}
+        assert mine == theirs
+        # each face's edge k is opposite its corner k: the neighbour shares the other two corners
+        faces = np.asarray(mesh.faces)
+        for f in range(0, len(faces), 37):
+            for k in range(3):
+                g = across[f, k]
+                if g >= 0:
+                    shared = set(faces[f]) - {faces[f, k]}
+                    assert shared <= set(faces[g])
+
+
+@pytest.mark.parametrize("degrees, settled", [(0.5, 0.9), (3.0, 0.3), (8.0, 0.0)])
+def test_a_walk_from_the_face_met_before_settles_on_embree_s_first_hit(hip, degrees, settled):
+    pair, cast = hip
+    layer = cast.layer
+    T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2), (0.1, -0.2, 0.05))
+    origins = (layer.points - T[:3, 3]) @ T[:3, :3]
+    directions = layer.normals @ T[:3, :3]
+    face, t, found = Walker(Planes(pair.mesh2)).follow(layer.target_faces, origins, directions)
+    assert found.mean() >= settled and found.any()  # a few faces at most: beyond, a ray is cast
+    first, dist = raycast._caster(pair.mesh2, "auto").nearest(origins - 5 * directions, directions, 0.0, np.inf)
+    dist = dist - 5
+    assert np.array_equal(face[found], first[found])
+    assert np.abs(t[found] - dist[found]).max() < 1e-9
+
+
+def test_the_thickness_followed_across_the_far_side_is_the_one_a_ray_measures(hip):
+    pair, cast = hip
+    m2 = pair.mesh2
+    rng = np.random.default_rng(4)
+    faces = rng.integers(0, len(m2.faces), 400)
+    tri = np.asarray(m2.triangles)[faces]
+    b = rng.dirichlet(np.ones(3), len(faces))
+    points = np.einsum("ki,kij->kj", b, tri)
+    directions = -np.asarray(m2.face_normals)[faces]
+    expected = raycast._through(m2, raycast._caster(m2, "auto"), points, directions)
+    side = facecast.FarSide(m2, "auto", True, len(m2.faces))
+    first, far = side.thickness(faces, points, directions)  # every ray cast (nothing known yet)
+    again, _ = side.thickness(faces, points, directions, far)  # every ray walked from its far face
+    # elsewhere on the same faces: the far point moves as much, the walk follows it
+    moved = np.einsum("ki,kij->kj", rng.dirichlet(np.ones(3), len(faces)), tri)
+    moved_expected = raycast._through(m2, raycast._caster(m2, "auto"), moved, directions)
+    walked, _ = side.thickness(faces, moved, directions, far)
+    for got, want in ((first, expected), (again, expected), (walked, moved_expected)):
+        both = np.isfinite(want)
+        assert np.array_equal(np.isfinite(got), both)
+        assert np.abs(got[both] - want[both]).max() < 1e-9
+
+
+def test_a_point_moving_less_than_its_clearance_stays_on_its_face(hip):
+    pair, _ = hip
+    planes = Planes(pair.mesh2)
+    rng = np.random.default_rng(7)
+    faces = rng.integers(0, len(pair.mesh2.faces), 2000)
+    tri = np.asarray(pair.mesh2.triangles)[faces]
+    b = rng.dirichlet(np.ones(3), len(faces))
+    points = np.einsum("ki,kij->kj", b, tri)
+    clearance = planes.clearance(faces, planes.barycentric(points, faces).min(axis=0))
+    assert (clearance > 0).mean() > 0.99
+    # any move in the face's plane shorter than the clearance stays inside
+    e1, e2 = tri[:, 1] - tri[:, 0], tri[:, 2] - tri[:, 0]
+    direction = rng.normal(size=(len(faces), 2))
+    step = direction[:, :1] * e1 + direction[:, 1:] * e2
+    step *= (0.999 * clearance / np.linalg.norm(step, axis=1))[:, None]
+    assert planes.inside(points + step, faces).all()
+
+
+@pytest.mark.parametrize("degrees", [2.0, 6.0])
+def test_casts_of_chosen_faces_judge_every_face_as_a_whole_cast(hip, degrees):
+    pair, cast = hip
+    T = _turned(pair.reference2, degrees, (0.3, 1.0, 0.2), (0.05, 0.05, -0.1))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        whole = M.cast_springs(pair.mesh1, pair.mesh2, pose=T)
+    mesh1, mesh2 = M.Mesh1.of(cast), M.Mesh2.of(cast)
+    faces = np.arange(len(pair.mesh1.faces))
+    allowed = np.full(len(faces), cast.options["max_overlap"])
+    by_cast = M.cast_faces(cast, T, faces, allowed, mesh1, mesh2)
+    met = np.where(cast.met >= 0, cast.met, 0)  # every ray starts a walk somewhere
+    by_walk = M.follow_faces(cast, T, faces, met, allowed, mesh1, mesh2)
+    expected = np.asarray(whole.outcome)
+    for got in (by_cast, by_walk):
+        assert np.array_equal(got.outcome, expected)
+        springs = np.flatnonzero(got.spring)
+        assert np.array_equal(springs, np.asarray(whole.layer.source_face))
+        assert np.array_equal(got.faces2[springs], np.asarray(whole.layer.target_faces))
+        assert np.abs(got.gap[springs] - whole.layer.gap).max() < 1e-9
+    M.measure(by_walk, mesh1, mesh2)
+    springs = by_walk.spring
+    assert np.abs((by_walk.h1 + by_walk.h2)[springs] - whole.layer.thickness).max() < 1e-9
