@@ -32,7 +32,7 @@ import numpy as np
 
 from ..formulations.finite import Targets
 from ..mesh import FaceCast, Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
-from ..mesh.walk import ON_FACE, dot3
+from ..mesh.walk import ON_FACE, dot, dot3
 
 __all__ = ["MeshTracker"]
 
@@ -148,9 +148,15 @@ class MeshTracker:
         """Start from a whole cast (the first, or a full re-cast)."""
         self.cast, self.full = cast, np.asarray(cast.pose, dtype=float)
         self.springs = _Springs(cast.layer, cast.thickness1, cast.thickness2)
-        # per face of mesh 1, the face of mesh 2 its ray met first at the last cast (-1: unknown)
-        self.met = np.full(len(cast.mesh1.faces), -1, dtype=np.int64)
+        # Per face of mesh 1, the face of mesh 2 its ray met first facing it at its last cast, and
+        # where (mesh 2's own frame): -1 and NaN where not known.
+        n = len(cast.mesh1.faces)
+        met, point = getattr(cast, "met", None), getattr(cast, "met_point", None)
+        known = met is not None and point is not None and len(met) == n
+        self.met = np.array(met, dtype=np.int64) if known else np.full(n, -1, dtype=np.int64)
+        self.met_point = np.array(point, dtype=float) if known else np.full((n, 3), np.nan)
         self.met[self.springs.faces1] = self.springs.faces2
+        self.met_point[self.springs.faces1] = self.springs.q
         self._slot = np.zeros(len(cast.mesh1.faces), dtype=np.int64)
         # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
         self._layer = cast.layer if not hasattr(self, "_first_layer") else None
@@ -242,6 +248,35 @@ class MeshTracker:
             index[missing] = self._label_tree.query(self.mesh1.centroids[faces[missing]])[1]
         return labels[index]
 
+    #: mm beyond the window within which a face's tangent-plane gap makes it a candidate: the
+    #: plane of the face its ray met departs from a curved mesh 2 as the hit moves on it.
+    _REACH = 1.0
+
+    def _candidates(self, pose, tried) -> np.ndarray:
+        """The faces of mesh 1 not ``tried`` whose ray met mesh 2 at their last cast (``met``) and
+        whose gap to that face's tangent plane at ``pose`` lies within the window widened by
+        ``_REACH``: where springs most likely came into range."""
+        known = np.flatnonzero((self.met >= 0) & ~tried)
+        if not len(known):
+            return known
+        R, shift = pose[:3, :3], pose[:3, 3]
+        # whole rows gathered (one cache line a face), then the plane's gap along each ray
+        m = np.take(self.mesh2.planes.normals, self.met[known], axis=0)
+        mR = m @ R.T  # the normals at the pose
+        along = dot(np.take(self.mesh1.normals, known, axis=0), mR)
+        ahead = dot(np.take(self.met_point, known, axis=0), m) + mR @ shift
+        ahead -= dot(np.take(self.mesh1.centroids, known, axis=0), mR)
+        options = self.cast.options
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.where(along < 0, ahead / along, np.inf)
+        low = -(options["max_overlap"] + 2.0 * self._REACH)  # the window follows the pose: wide
+        return known[(gap >= low) & (gap <= options["max_gap"] + self._REACH)]
+
+    def _remember(self, faces, fresh) -> None:
+        """Keep what the rays of ``faces`` met first (a :class:`~dea_opt.mesh.FaceCast`'s ``first2``)."""
+        self.met[faces] = fresh.first2
+        self.met_point[faces] = fresh.first_point
+
     def _lose(self, reason: str, count: int) -> None:
         if count:
             self.lost[reason] = self.lost.get(reason, 0) + int(count)
@@ -297,7 +332,7 @@ class MeshTracker:
             self.mesh1,
             self.mesh2,
         )
-        self.met[springs.faces1[index]] = again.first2
+        self._remember(springs.faces1[index], again)
         found = again.spring
         at = index[found]
         springs.q[at], springs.m[at], springs.faces2[at] = again.q[found], again.m[found], again.faces2[found]
@@ -369,14 +404,34 @@ class MeshTracker:
         tried[springs.faces1] = True
         width = 3
         seeds = slice(None) if near is None else springs.gap < near
-        (ring, guess), grown = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width), []
+        grown = []
+        if near is None:  # the faces whose ray met mesh 2 within the window's reach, followed first
+            candidates = self._candidates(pose, tried)
+            if len(candidates):
+                tried[candidates] = True
+                allowed = self._allowed(candidates, pose)
+                fresh = follow_faces(
+                    self.cast, pose, candidates, self.met[candidates], allowed, self.mesh1, self.mesh2, cast_rest=False
+                )
+                open_ = fresh.outcome == -2
+                settled = ~open_
+                self.met[candidates[settled]] = fresh.first2[settled]
+                self.met_point[candidates[settled]] = fresh.first_point[settled]
+                grown.append(fresh.subset(fresh.spring))
+                dropped.append(fresh.faces[fresh.dropped])
+                tried[candidates[open_]] = False  # left to the rings' casts
+        ring, guess = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width)
+        if grown:  # and around the springs the candidates gave
+            more = grown[0]
+            extra, extra_guess = self._ring(more.faces, more.faces2, tried, width)
+            ring, guess = np.concatenate([ring, extra]), np.concatenate([guess, extra_guess])
         while len(ring):
             allowed = self._allowed(ring, pose)
             if near is None:
                 fresh = cast_faces(self.cast, pose, ring, allowed, self.mesh1, self.mesh2, thickness=False)
             else:
                 fresh = follow_faces(self.cast, pose, ring, guess, allowed, self.mesh1, self.mesh2, cast_rest=False)
-            self.met[fresh.faces] = fresh.first2
+            self._remember(fresh.faces, fresh)
             new = fresh.spring
             grown.append(fresh.subset(new))
             dropped.append(fresh.faces[fresh.dropped])
@@ -464,8 +519,8 @@ class MeshTracker:
     def _allowed(self, faces, pose) -> np.ndarray:
         """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it since
         the last whole cast (the window following the pose, as in :func:`dea_opt.mesh.recast`)."""
-        rays = np.take(self.mesh1.rows, faces, axis=1)  # (6, K): centroids, normals
         motion = pose @ np.linalg.inv(self.full)
-        moved = (motion[:3, :3] - np.eye(3)) @ rays[:3] + motion[:3, 3:]
-        toward = -dot3(rays[3:], moved)
+        points = np.take(self.mesh1.centroids, faces, axis=0)  # whole rows: one cache line a face
+        moved = points @ (motion[:3, :3] - np.eye(3)).T + motion[:3, 3]
+        toward = -dot(np.take(self.mesh1.normals, faces, axis=0), moved)
         return self.cast.options["max_overlap"] + np.maximum(toward, 0.0)

@@ -147,5 +147,8 @@ class SpringCast:
     outcome: np.ndarray | None = field(default=None, repr=False)
     """Per face of mesh 1: -1 for a spring, else the index of its reason in :data:`LOST_REASONS`."""
     met: np.ndarray | None = field(default=None, repr=False)
-    """Per face of mesh 1: the face of mesh 2 its ray met first facing it in the cast's range (-1:
-    none), where springs that follow body 2 start looking at another pose (None: not kept)."""
+    """Per face of mesh 1: the face of mesh 2 its ray met first facing it (-1: none), within the
+    window or beyond it, where springs that follow body 2 start looking at another pose (None:
+    not kept)."""
+    met_point: np.ndarray | None = field(default=None, repr=False)
+    """Per face of mesh 1 (F1, 3): where its ray met that face, in mesh 2's own frame (NaN: none)."""

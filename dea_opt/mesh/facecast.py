@@ -243,6 +243,7 @@ class FaceCast:
         # the far face of mesh 2 each thickness was measured to (-1: none; -2: not measured)
         self.far2 = np.full(len(faces), -2, dtype=np.int64) if far2 is None else far2
         self.first2 = np.full(len(faces), -1, dtype=np.int64)  # what each ray met first (cast_faces)
+        self.first_point = np.full((len(faces), 3), np.nan)  # where (mesh 2's own frame)
         self.clear = np.zeros(len(faces))  # how far each hit may move on its face (0: not known)
 
     @property
@@ -280,11 +281,13 @@ class FaceCast:
 
 class _Crossings:
     """The crossings of mesh 2 a cast judges for K rays: ``ray``, ``face``, ``t``, ``cos`` (one entry
-    a crossing), ``unique`` (at most one a ray), and ``first`` (K,): the face a ray met first, when it
-    faces the ray (-1 otherwise), from which the ray can be followed at the next pose."""
+    a crossing), ``unique`` (at most one a ray), and ``first`` (K,) with ``first_t``: the face a ray
+    met first, when it faces the ray (-1 otherwise), and how far along it, from which the ray can be
+    followed at the next pose."""
 
-    def __init__(self, ray, face, t, cos, unique, first):
-        self.ray, self.face, self.t, self.cos, self.unique, self.first = ray, face, t, cos, unique, first
+    def __init__(self, ray, face, t, cos, unique, first, first_t):
+        self.ray, self.face, self.t, self.cos, self.unique = ray, face, t, cos, unique
+        self.first, self.first_t = first, first_t
 
 
 def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, met=None) -> _Crossings:
@@ -324,7 +327,7 @@ def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, me
     ray = np.flatnonzero(simple)
     facing_first = np.where(found & (cos > 0), first, -1)
     if not len(again):
-        return _Crossings(ray, first[ray], t[ray], cos[ray], True, facing_first)
+        return _Crossings(ray, first[ray], t[ray], cos[ray], True, facing_first, t)
     caster = _caster(mesh2.mesh, mesh2.engine)
     more_ray, more_face, more_t = caster.hits(origins[again], directions[again], start[again], stop[again])
     more_cos = -dot(np.take(mesh2.planes.normals, more_face, axis=0), directions[again[more_ray]])
@@ -336,6 +339,7 @@ def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, me
         np.concatenate([cos[ray], more_cos[facing]]),
         False,
         facing_first,
+        t,
     )
 
 
@@ -403,6 +407,8 @@ def cast_faces(
     origins, directions = _rays(pose, faces, mesh1)
     crossings = _crossings(mesh2, origins, directions, look, max_gap, depth, mesh1.eps, met)
     out.first2 = crossings.first
+    known = crossings.first >= 0
+    out.first_point[known] = origins[known] + crossings.first_t[known, None] * directions[known]
     ray, face, t, cos = crossings.ray, crossings.face, crossings.t, crossings.cos
     through = -t >= depth[ray] - mesh1.eps
     window = (t >= -allowed[ray]) & (t <= max_gap)
@@ -470,6 +476,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
         window = simple & (t >= -allowed) & (t <= max_gap)
         aligned = cos >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
     out.first2[met_facing] = face[met_facing]
+    out.first_point[met_facing] = (oT[:, met_facing] + t[met_facing] * dT[:, met_facing]).T
     outcome = out.outcome
     outcome[simple & (t > max_gap)] = LOST_REASONS.index("gap")
     with np.errstate(invalid="ignore"):
@@ -487,7 +494,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
             outcome[rest] = -2
             return out
         again = cast_faces(cast, pose, faces[rest], allowed[rest], mesh1, mesh2, met=None, thickness=False)
-        for name in ("outcome", "q", "m", "faces2", "gap", "first2", "clear"):
+        for name in ("outcome", "q", "m", "faces2", "gap", "first2", "first_point", "clear"):
             getattr(out, name)[rest] = getattr(again, name)
     return out
 

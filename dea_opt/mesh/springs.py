@@ -190,9 +190,7 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
     cos = -np.einsum("ij,ij->i", m2.face_normals[face], directions2[ray])
     keep = cos > 0
     ray, face, t, cos = ray[keep], face[keep], t[keep], cos[keep]
-    # What each ray met first facing it (a face of mesh 2 to follow it from at another pose).
-    first = _first_per_ray(ray, t, n_faces)
-    met = np.where(first >= 0, face[first.clip(0)], -1) if len(face) else np.full(n_faces, -1, dtype=np.int64)
+    met = _first_met(m2, engine, ray, face, t, origins2, directions2, np.maximum(max_gap, look) + eps)
     # A hit behind mesh 1's own far side (or on it) went back through the spring layer: rejected.
     through = -t >= depth[ray] - _self_epsilon(m1)
     window = (t >= -allowed[ray]) & (t <= max_gap)
@@ -235,11 +233,39 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
     return assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome, met)
 
 
+#: How far beyond the window a cast looks for what each ray meets first (mm): farther than the
+#: springs that follow body 2 move before the whole mesh is cast again (``full_shift``, 5 mm).
+_MET_REACH = 10.0
+
+
+def _first_met(m2, engine, ray, face, t, origins2, directions2, stop) -> tuple[np.ndarray, np.ndarray]:
+    """``(face (F1,), point (F1, 3))``: what each ray met first facing it, in mesh 2's own frame
+    (-1 and NaN: nothing), among the crossings of the cast's range (``ray, face, t``, facing)
+    and, for rays with none there, by one first-hit query up to ``_MET_REACH`` beyond ``stop``
+    (F1,): where springs that follow body 2 start looking for the faces of mesh 1 near them at
+    another pose."""
+    n = len(origins2)
+    first = _first_per_ray(ray, t, n)
+    met = np.where(first >= 0, face[first.clip(0)], -1) if len(face) else np.full(n, -1, dtype=np.int64)
+    dist = np.where(first >= 0, t[first.clip(0)], np.nan) if len(face) else np.full(n, np.nan)
+    beyond = np.flatnonzero(met < 0)
+    if len(beyond):
+        start = origins2[beyond] + stop[beyond, None] * directions2[beyond]
+        more, ahead = _caster(m2, engine).nearest(start, directions2[beyond], 0.0, _MET_REACH)
+        found = more >= 0
+        facing = np.zeros(len(beyond), dtype=bool)
+        facing[found] = np.einsum("ij,ij->i", m2.face_normals[more[found]], directions2[beyond][found]) < 0
+        met[beyond[facing]] = more[facing]
+        dist[beyond[facing]] = stop[beyond[facing]] + ahead[facing]
+    return met, origins2 + dist[:, None] * directions2
+
+
 def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome, met=None) -> SpringCast:
     """The :class:`SpringCast` of what the rays found: the faces of mesh 1 with a spring
     (``sel``), their gaps, the faces of mesh 2 met and where (in mesh 2's frame), the two
-    thicknesses, and every face's outcome (and, optionally, the face of mesh 2 each ray met first
-    facing it). A sweep's cache keeps these arrays and nothing else."""
+    thicknesses, and every face's outcome (and, optionally, ``met``: the face of mesh 2 each ray
+    met first facing it and where, :func:`_first_met`). A sweep's cache keeps these arrays and
+    nothing else (not ``met``)."""
     normals = -m1.face_normals if options["flip"] else m1.face_normals
     face_labels = options["labels"]
     layer = SpringLayer(
@@ -257,8 +283,10 @@ def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, ou
     )
     hit_point = hit_point2 @ T[:3, :3].T + T[:3, 3]
     dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
-    met = None if met is None else _readonly(np.asarray(met, dtype=np.int64))
-    return SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome), met)
+    met, met_point = (None, None) if met is None else (_readonly(np.asarray(met[0])), _readonly(np.asarray(met[1])))
+    return SpringCast(
+        layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome), met, met_point
+    )
 
 
 def _outcomes(n_faces, ray, t, cos, outside, rejected, allowed, options) -> np.ndarray:
