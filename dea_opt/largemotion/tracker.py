@@ -32,7 +32,7 @@ import numpy as np
 
 from ..formulations.finite import Targets
 from ..mesh import FaceCast, Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
-from ..mesh.walk import ON_FACE, dot, dot3
+from ..mesh.walk import ON_FACE, dot
 
 __all__ = ["MeshTracker"]
 
