@@ -56,6 +56,7 @@ class Planes:
         records[4:7], records[7] = B1.T, dot(B1, self.corner)
         records[8:11], records[11] = B2.T, dot(B2, self.corner)
         self.records = records
+        self.face_records = np.ascontiguousarray(records.T)  # (F, 12): one record a face
         # the shortest altitude of each face: a point at barycentric coordinates b lies at least
         # min(b) times it from every edge
         twice_area = np.linalg.norm(np.cross(e1, e2), axis=1)
@@ -149,7 +150,7 @@ class Walker:
         most ``steps`` edges away, and the distance there; ``found`` False where the walk left the
         mesh or ran out of steps. ``margin`` (K,) is then each found point's lowest barycentric
         coordinate in its face (:meth:`Planes.clearance`)."""
-        records, across = self.planes.records, self.planes.across.ravel()
+        face_records, across = self.planes.face_records, self.planes.across.ravel()
         face = np.array(faces, dtype=np.int64)
         t = np.full(len(face), np.nan)
         self.margin = np.zeros(len(face))  # the lowest barycentric coordinate where found
@@ -163,7 +164,9 @@ class Walker:
         o, d = oT, dT
         for step in range(self.steps + 1):
             f = face[active]
-            r = np.take(records, f, axis=1)
+            # whole records gathered (96 bytes a face: far fewer cache misses than row by row),
+            # then turned into rows for the passes below
+            r = np.take(face_records, f, axis=0).T
             with np.errstate(divide="ignore", invalid="ignore"):
                 dist = (r[3] - dot3(r[0:3], o)) / dot3(r[0:3], d)
             b = _barycentric(r, o + dist * d)
