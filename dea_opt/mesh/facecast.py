@@ -95,7 +95,6 @@ class Mesh1:
         normals = np.array(m1.face_normals, dtype=float)
         self.face_normals = normals  # as the mesh has them (a back face's orientation)
         self.normals = -normals if options["flip"] else normals
-        self.rows = np.ascontiguousarray(np.vstack([self.centroids.T, self.normals.T]))  # (6, F)
         self.areas = np.array(m1.area_faces, dtype=float)
         self.eps = _self_epsilon(m1)
         n = len(m1.faces)

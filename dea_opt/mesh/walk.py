@@ -33,10 +33,12 @@ class Planes:
     """A triangle mesh's faces as planes and barycentric maps, plain arrays: reading a trimesh
     property checks the mesh's hash every time, and these are read many times a solve.
 
-    ``records`` (12, F) holds, per face, its unit normal ``n`` (3), its plane's offset ``n . v0``,
+    ``records`` (F, 12) holds, per face, its unit normal ``n`` (3), its plane's offset ``n . v0``,
     and the two rows ``B1, B2`` (3 each) with their offsets ``B . v0`` of the barycentric map
-    ``(b1, b2) = (B1 . x - B1 . v0, B2 . x - B2 . v0)``: a pass over K rays gathers one (12, K)
-    block and reads contiguous rows (on (K, 3) arrays the same products take several times longer).
+    ``(b1, b2) = (B1 . x - B1 . v0, B2 . x - B2 . v0)``. A pass over K rays gathers the K records
+    whole (one cache line a face: gathered row by row, the same numbers miss the cache twelve
+    times) and works on them as rows (12, K) (on (K, 3) arrays the products take several times
+    longer).
     """
 
     def __init__(self, mesh):
@@ -51,12 +53,11 @@ class Planes:
             # the Gram matrix's inverse applied to the edges
             B1 = (d22[:, None] * e1 - d12[:, None] * e2) / det[:, None]
             B2 = (d11[:, None] * e2 - d12[:, None] * e1) / det[:, None]
-        records = np.empty((12, len(self.offset)))
-        records[0:3], records[3] = self.normals.T, self.offset
-        records[4:7], records[7] = B1.T, dot(B1, self.corner)
-        records[8:11], records[11] = B2.T, dot(B2, self.corner)
+        records = np.empty((len(self.offset), 12))
+        records[:, 0:3], records[:, 3] = self.normals, self.offset
+        records[:, 4:7], records[:, 7] = B1, dot(B1, self.corner)
+        records[:, 8:11], records[:, 11] = B2, dot(B2, self.corner)
         self.records = records
-        self.face_records = np.ascontiguousarray(records.T)  # (F, 12): one record a face
         # the shortest altitude of each face: a point at barycentric coordinates b lies at least
         # min(b) times it from every edge
         twice_area = np.linalg.norm(np.cross(e1, e2), axis=1)
@@ -71,7 +72,7 @@ class Planes:
         """``(b0, b1, b2)`` (3, K) of ``points`` (K, 3), or (3, K) with ``rows``, in faces ``faces`` (K,)
         (on their planes)."""
         points = points if rows else np.ascontiguousarray(np.asarray(points).T)
-        return _barycentric(np.take(self.records, faces, axis=1), points)
+        return _barycentric(np.take(self.records, faces, axis=0).T, points)
 
     def beyond(self, faces, bary) -> np.ndarray:
         """The face across the edge a point left each face through: opposite its lowest barycentric
@@ -150,7 +151,7 @@ class Walker:
         most ``steps`` edges away, and the distance there; ``found`` False where the walk left the
         mesh or ran out of steps. ``margin`` (K,) is then each found point's lowest barycentric
         coordinate in its face (:meth:`Planes.clearance`)."""
-        face_records, across = self.planes.face_records, self.planes.across.ravel()
+        records, across = self.planes.records, self.planes.across.ravel()
         face = np.array(faces, dtype=np.int64)
         t = np.full(len(face), np.nan)
         self.margin = np.zeros(len(face))  # the lowest barycentric coordinate where found
@@ -166,7 +167,7 @@ class Walker:
             f = face[active]
             # whole records gathered (96 bytes a face: far fewer cache misses than row by row),
             # then turned into rows for the passes below
-            r = np.take(face_records, f, axis=0).T
+            r = np.take(records, f, axis=0).T
             with np.errstate(divide="ignore", invalid="ignore"):
                 dist = (r[3] - dot3(r[0:3], o)) / dot3(r[0:3], d)
             b = _barycentric(r, o + dist * d)
