@@ -202,6 +202,17 @@ class MeshTracker:
         low = -(options["max_overlap"] + 2.0 * self._REACH)  # the window follows the pose: wide
         return known[(gap >= low) & (gap <= options["max_gap"] + self._REACH)]
 
+    def _near_spring(self, faces) -> np.ndarray:
+        """For faces of mesh 1, the face of mesh 2 a spring next to each meets now (-1: none), where
+        its ray most likely meets mesh 2 too."""
+        springs = self.springs
+        met = self._slot  # scratch (F,): here the face of mesh 2 each spring's face meets
+        met[:] = -1
+        met[springs.faces1] = springs.faces2
+        near = np.take(self.mesh1.neighbours, faces, axis=0)
+        found = np.where(near >= 0, met[near.clip(0)], -1)
+        return found.max(axis=1)
+
     def _remember(self, faces, fresh) -> None:
         """Keep what the rays of ``faces`` met first (a :class:`~dea_opt.mesh.FaceCast`'s ``first2``)."""
         self.met[faces] = fresh.first2
@@ -219,7 +230,7 @@ class MeshTracker:
         are cast only in a complete update (at the window's far edge they carry nothing, so a
         solve's intermediate poses need not look there)."""
         pose = system.transform(state.y)
-        since_full, _ = self._moved(pose, self.full)
+        since_full, since_last = self._moved(pose, self.full, self.last)
         self.last = pose
         if since_full > self.full_shift:
             self.complete = True
@@ -292,7 +303,10 @@ class MeshTracker:
             springs.keep(keep)
         # 3. The faces next to the springs, ring after ring while springs come into range there
         #    (their window's edge: only in a complete update).
-        gained = self._grow(pose, None if complete else self._NEAR)
+        if complete:
+            gained = self._grow(pose)
+        else:  # the contact's edges, after a step long enough to move them (else the complete update sees them)
+            gained = self._grow(pose, self._NEAR) if since_last > self._LONG else 0
         self.counts["updates"] += 1
         self.counts["gained"] += gained
         self.counts["left_face"] += len(index)
@@ -318,6 +332,9 @@ class MeshTracker:
     #: them may carry load at the next equilibrium (an edge of the contact, where the surfaces
     #: turn past ``max_angle`` or the window cut the layer).
     _NEAR = 0.5
+    #: A step (mm, the hits' largest motion since the last update) after which a partial update
+    #: looks at the contact's edges.
+    _LONG = 0.05
 
     def _grow(self, pose, near=None) -> int:
         """Cast the faces next to the springs at ``pose``, ring after ring (each twice as wide as
@@ -335,27 +352,36 @@ class MeshTracker:
         width = 3
         seeds = slice(None) if near is None else springs.gap < near
         grown = []
+        known = np.zeros(0, dtype=np.int64)
         if near is None:  # the faces whose ray met mesh 2 within the window's reach, followed first
             candidates = self._candidates(pose, tried)
             if len(candidates):
-                tried[candidates] = True
                 allowed = self._allowed(candidates, pose)
+                start = self._near_spring(candidates)
+                start = np.where(start >= 0, start, self.met[candidates])
                 fresh = follow_faces(
-                    self.cast, pose, candidates, self.met[candidates], allowed, self.mesh1, self.mesh2, cast_rest=False
+                    self.cast, pose, candidates, start, allowed, self.mesh1, self.mesh2, cast_rest=False
                 )
-                open_ = fresh.outcome == -2
-                settled = ~open_
+                settled = fresh.outcome != -2  # the others are left to the rings' casts
                 self.met[candidates[settled]] = fresh.first2[settled]
                 self.met_point[candidates[settled]] = fresh.first_point[settled]
                 grown.append(fresh.subset(fresh.spring))
                 dropped.append(fresh.faces[fresh.dropped])
-                tried[candidates[open_]] = False  # left to the rings' casts
+                tried[candidates[fresh.spring]] = True
+                known = candidates[settled & ~fresh.spring]  # judged: the rings pass them, not cast them
+        is_known = np.zeros(len(tried), dtype=bool)
+        is_known[known] = True
         ring, guess = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width)
         if grown:  # and around the springs the candidates gave
             more = grown[0]
             extra, extra_guess = self._ring(more.faces, more.faces2, tried, width)
             ring, guess = np.concatenate([ring, extra]), np.concatenate([guess, extra_guess])
         while len(ring):
+            if len(known):
+                cast = ~is_known[ring]
+                ring, guess = ring[cast], guess[cast]
+                if not len(ring):
+                    break
             allowed = self._allowed(ring, pose)
             if near is None:
                 fresh = cast_faces(self.cast, pose, ring, allowed, self.mesh1, self.mesh2, thickness=False)
