@@ -72,7 +72,7 @@ class Planes:
         """``(b0, b1, b2)`` (3, K) of ``points`` (K, 3), or (3, K) with ``rows``, in faces ``faces`` (K,)
         (on their planes)."""
         points = points if rows else np.ascontiguousarray(np.asarray(points).T)
-        return _barycentric(np.take(self.records, faces, axis=0).T, points)
+        return _barycentric(np.ascontiguousarray(np.take(self.records, faces, axis=0).T), points)
 
     def beyond(self, faces, bary) -> np.ndarray:
         """The face across the edge a point left each face through: opposite its lowest barycentric
@@ -167,7 +167,7 @@ class Walker:
             f = face[active]
             # whole records gathered (96 bytes a face: far fewer cache misses than row by row),
             # then turned into rows for the passes below
-            r = np.take(records, f, axis=0).T
+            r = np.ascontiguousarray(np.take(records, f, axis=0).T)
             with np.errstate(divide="ignore", invalid="ignore"):
                 dist = (r[3] - dot3(r[0:3], o)) / dot3(r[0:3], d)
             b = _barycentric(r, o + dist * d)
