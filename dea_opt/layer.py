@@ -162,10 +162,11 @@ class SpringLayer:
 
     @classmethod
     def _checked(cls, points, normals, areas, thickness, gap, source_face, surface, labels, targets) -> SpringLayer:
-        """A layer of arrays already checked by a layer or a cast: copied read-only, not checked again
-        (a finite-kinematics solve re-casts its springs many times). ``surface`` is another
-        layer's (checked, read-only); ``targets`` is ``(target_points, target_normals,
-        target_faces)`` or None."""
+        """A layer of arrays already checked by a layer or a cast, not checked again (a
+        finite-kinematics solve re-casts its springs many times): they are made read-only, not
+        copied, so the caller gives arrays nothing else holds. ``surface`` is another layer's
+        (checked, read-only); ``targets`` is ``(target_points, target_normals, target_faces)`` or
+        None."""
         layer = object.__new__(cls)
         values = {
             "points": points,
@@ -180,7 +181,7 @@ class SpringLayer:
             values.update(zip(_TARGETS, targets))
         for name in ("points", "normals", "areas", "thickness", "gap", "source_face", "labels", *_TARGETS):
             value = values.get(name)
-            object.__setattr__(layer, name, None if value is None else _readonly(np.array(value)))
+            object.__setattr__(layer, name, None if value is None else _readonly(np.asarray(value)))
         object.__setattr__(layer, "surface", surface)
         return layer
 

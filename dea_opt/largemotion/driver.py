@@ -95,18 +95,21 @@ def check_bodies(problem) -> None:
         )
 
 
-def build_system(problem, targets) -> FiniteSystem:
+def build_system(problem, targets, tracker=None) -> FiniteSystem:
+    """The :class:`FiniteSystem` of ``problem``'s springs and ``targets``, or of ``tracker``'s springs
+    (a load path's previous frame's, or the cast's) with the problem's body 2 and load."""
     layer, body2 = problem.layer, problem.body2
     free = np.array([DOFS.index(d) for d in body2.free], dtype=int)
     base = np.zeros(6)
     for dof, value in body2.prescribed.items():
         base[DOFS.index(dof)] = value
+    if tracker is not None:
+        s = tracker.springs
+        springs = (s.points, s.normals, s.areas, tracker.thickness, tracker.targets())
+    else:
+        springs = (layer.points, layer.normals, layer.areas, layer.thickness, targets)
     return FiniteSystem(
-        layer.points,
-        layer.normals,
-        layer.areas,
-        layer.thickness,
-        targets,
+        *springs,
         np.asarray(body2.reference, dtype=float),
         free,
         base,
@@ -246,9 +249,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         targets = tracker.targets()
     elif frame is not None:
         targets = targets.with_frame(_check_frame(frame))
-    system = build_system(problem, targets)
-    if tracker is not None:
-        system = tracker.springs_of(system)  # a load path's previous frame's springs, or the cast's
+    system = build_system(problem, targets, tracker)
     law = problem.law
     T, E0, small = scaled_directions(system, law)
     unresisted, cone = load_checks or (None, None)

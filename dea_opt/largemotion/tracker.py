@@ -136,17 +136,18 @@ class MeshTracker:
         from ..layer import SpringLayer
 
         s = self.springs
-        # every array comes from the checked meshes and the rules of a cast
+        # every array comes from the checked meshes and the rules of a cast; the springs' own are
+        # copied (the next update changes them), the others are new
         layer = SpringLayer._checked(
-            s.points,
-            s.normals,
-            s.areas,
+            s.points.copy(),
+            s.normals.copy(),
+            s.areas.copy(),
             self.thickness,
-            s.gap if gap is None else gap,
-            s.faces1,
+            s.gap.copy() if gap is None else np.array(gap),
+            s.faces1.copy(),
             self._first_layer.surface,
             self._labels(s.faces1),
-            (s.q, s.m, s.faces2),
+            (s.q.copy(), s.m.copy(), s.faces2.copy()),
         )
         if gap is None:
             self._layer = layer
