@@ -229,3 +229,36 @@ def test_labels_follow_the_faces_through_updates_and_whole_re_casts():
         layer = solution.problem.layer
         assert set(layer.labels) == {"east", "west"}
         assert (layer.labels == np.where(layer.points[:, 0] > 0, "east", "west")).all()
+
+
+def test_an_answer_keeps_its_springs_when_the_next_frame_moves_them(gait):
+    """The tracker hands its arrays to an answer read-only and copies them before its next update
+    changes them: solving the next frame from the same tracker leaves the answer as it was."""
+    problem, loads, poses = gait["problem"], gait["loads"], gait["poses"]
+    first = quiet(largemotion.solve, problem.with_load(force=loads[2, :3], moment=loads[2, 3:]), "auto", frame=poses[2])
+    layer, targets = first.problem.layer, first.problem.targets
+    held = {
+        name: np.array(getattr(layer, name))
+        for name in (
+            "points",
+            "normals",
+            "areas",
+            "thickness",
+            "gap",
+            "target_points",
+            "target_normals",
+            "target_faces",
+        )
+    }
+    held_targets = (np.array(targets.points), np.array(targets.normals))
+    later = quiet(
+        largemotion.solve,
+        problem.with_load(force=loads[6, :3], moment=loads[6, 3:]),
+        "auto",
+        frame=poses[6],
+        tracker=first.tracker,
+    )
+    assert later.success and later.info["recast"]["left_face"] > 0  # the next frame moved the springs
+    for name, value in held.items():
+        assert np.array_equal(getattr(layer, name), value), name
+    assert np.array_equal(targets.points, held_targets[0]) and np.array_equal(targets.normals, held_targets[1])

@@ -62,7 +62,7 @@ def test_a_walk_from_the_face_met_before_settles_on_embree_s_first_hit(hip, degr
     T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2), (0.1, -0.2, 0.05))
     origins = (layer.points - T[:3, 3]) @ T[:3, :3]
     directions = layer.normals @ T[:3, :3]
-    face, t, found = Walker(Planes(pair.mesh2)).follow(layer.target_faces, origins, directions)
+    face, t, found, _, _ = Walker(Planes(pair.mesh2)).follow(layer.target_faces, origins, directions)
     assert found.mean() >= settled and found.any()  # a few faces at most: beyond, a ray is cast
     first, dist = raycast._caster(pair.mesh2, "auto").nearest(origins - 5 * directions, directions, 0.0, np.inf)
     dist = dist - 5

@@ -372,9 +372,10 @@ def _inner(method, system, law, T, E0, x, cold, opts):
 def _solution(problem, system, small, law, inner, method, tracker, certificate_tol, build, solve_time, history):
     state = inner.state
     targets = system.targets
-    if tracker is not None:  # the tracker's arrays change with its next update: the answer keeps copies
-        faces = None if targets.faces is None else np.array(targets.faces)
-        targets = Targets.cast_planes(np.array(targets.points), np.array(targets.normals), targets.frame, faces)
+    if tracker is not None:  # the tracker's arrays: read-only now, its next update copies them first
+        for held in (targets.points, targets.normals, targets.faces):
+            if held is not None:
+                held.setflags(write=False)
     final = problem
     at_zero = system.state(system.base, law)  # the free coordinates at zero
     if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):

@@ -47,6 +47,14 @@ class Springs:
         # where each hit was last found on its face, and how far it may move from there on it
         self.tested, self.clear = self.q.copy(), np.zeros(len(self.faces1))
 
+    def own(self) -> None:
+        """Copy the arrays a layer was given (:meth:`MeshTracker.layer_with_gap` hands them over
+        read-only rather than copying them: most solves end there): before any change in place."""
+        for name in self.FIELDS:
+            value = getattr(self, name)
+            if not value.flags.writeable:
+                setattr(self, name, value.copy())
+
     def keep(self, index) -> None:
         index = np.flatnonzero(index) if np.asarray(index).dtype == bool else index
         for name in self.FIELDS:

@@ -48,6 +48,22 @@ class Update:
     resolve: bool
 
 
+def _face_labels(cast):
+    """The cast's labels per face of mesh 1 when its layer's labels are those of its faces (None
+    otherwise): decided once a cast (comparing strings costs a third of a millisecond a solve),
+    kept in the cast, whose layer never changes."""
+    key = "_dea_opt_face_labels"
+    if key not in cast.__dict__:
+        own, layer = cast.options.get("labels"), cast.layer
+        same = (
+            own is not None
+            and layer.labels is not None
+            and np.array_equal(np.asarray(own)[layer.source_face], layer.labels)
+        )
+        cast.__dict__[key] = np.asarray(own) if same else None
+    return cast.__dict__[key]
+
+
 class MeshTracker:
     """Keeps a finite-kinematics layer cast against mesh 2 as body 2 moves, and counts the events.
 
@@ -71,7 +87,7 @@ class MeshTracker:
         self.recast_shift, self.full_shift, self.thickness_tol = recast_shift, full_shift, thickness_tol
         self.mesh1, self.mesh2 = Mesh1.of(cast), Mesh2.of(cast)
         self._take(cast)
-        self._first_layer = cast.layer
+        self._first_layer, self._first_cast = cast.layer, cast
         self.begin()
 
     def _take(self, cast) -> None:
@@ -137,17 +153,17 @@ class MeshTracker:
 
         s = self.springs
         # every array comes from the checked meshes and the rules of a cast; the springs' own are
-        # copied (the next update changes them), the others are new
+        # handed over read-only (the next update copies them before it changes them: Springs.own)
         layer = SpringLayer._checked(
-            s.points.copy(),
-            s.normals.copy(),
-            s.areas.copy(),
+            s.points,
+            s.normals,
+            s.areas,
             self.thickness,
-            s.gap.copy() if gap is None else np.array(gap),
-            s.faces1.copy(),
+            s.gap if gap is None else np.asarray(gap, dtype=float),
+            s.faces1,
             self._first_layer.surface,
             self._labels(s.faces1),
-            (s.q.copy(), s.m.copy(), s.faces2.copy()),
+            (s.q, s.m, s.faces2),
         )
         if gap is None:
             self._layer = layer
@@ -160,12 +176,9 @@ class MeshTracker:
         first = self._first_layer
         if first.labels is None:
             return None
-        if not hasattr(self, "_face_labels"):  # decided once: the first layer's labels never change
-            own = self.cast.options.get("labels")
-            same = own is not None and np.array_equal(np.asarray(own)[first.source_face], first.labels)
-            self._face_labels = np.asarray(own) if same else None
-        if self._face_labels is not None:
-            return self._face_labels[faces]
+        per_face = _face_labels(self._first_cast)
+        if per_face is not None:
+            return per_face[faces]
         labels = np.asarray(first.labels)
         where = np.full(len(self.cast.mesh1.faces), -1, dtype=np.int64)
         where[first.source_face] = np.arange(len(first.source_face))
@@ -236,6 +249,7 @@ class MeshTracker:
         if since_full > self.full_shift:
             self.complete = True
             return self._recast_all(system, state, pose)
+        self.springs.own()  # what the last answer holds is left as it was
         springs, options = self.springs, self.cast.options
         gaps = state.gaps
         R, shift = pose[:3, :3], pose[:3, 3]

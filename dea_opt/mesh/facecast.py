@@ -175,24 +175,25 @@ class FarSide:
         (a spring's last one; -2 for none), else the last met from each face."""
         planes = self.planes
         far = self.face[faces] if guess is None else np.where(guess >= -1, guess, self.face[faces])
-        t = np.full(len(faces), np.nan)
+        t, along = np.full(len(faces), np.nan), np.zeros(len(faces))  # along: n . d at the far face
         known = np.flatnonzero(far >= 0)
         if len(known):
-            face, d, on = self.walker.follow(far[known], points[known], directions[known])
-            on &= d > planes.eps
-            t[known[on]] = d[on]
-            far[known] = np.where(on, face, -2)
+            sel = slice(None) if len(known) == len(faces) else known  # usually all: no copies
+            walk = self.walker.follow(far[sel], points[sel], directions[sel])
+            on = walk.found & (walk.t > planes.eps)
+            t[sel] = np.where(on, walk.t, np.nan)
+            far[sel] = np.where(on, walk.face, -2)
+            along[sel] = walk.along
         cast = np.flatnonzero(far < 0)
         if len(cast):
             face, d = self.first(points[cast], directions[cast], planes.eps)
             self.face[faces[cast]] = face
             far[cast] = face
             t[cast] = d
+            hit = face >= 0
+            along[cast[hit]] = dot(np.take(planes.normals, face[hit], axis=0), directions[cast[hit]])
         if self.leaving:
-            met = far >= 0
-            leaves = np.zeros(len(faces), dtype=bool)
-            leaves[met] = dot(np.take(planes.normals, far[met], axis=0), directions[met]) > 0
-            t = np.where(leaves, t, np.nan)
+            t = np.where(along > 0, t, np.nan)  # the ray leaves the surface there (and met one)
         return t, far
 
 
@@ -306,8 +307,8 @@ def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, me
     known = np.zeros(k, dtype=bool)
     if met is not None and (met >= 0).any():
         walk = np.flatnonzero(met >= 0)
-        face, dist, found = mesh2.walker.follow(met[walk], origins[walk], directions[walk])
-        c = -dot(np.take(mesh2.planes.normals, face, axis=0), directions[walk])
+        face, dist, found, _, along = mesh2.walker.follow(met[walk], origins[walk], directions[walk])
+        c = -along
         with np.errstate(invalid="ignore"):
             good = found & (c > 0) & (dist >= start[walk])
         walk = walk[good]
@@ -463,9 +464,8 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     # whole rows gathered (one cache line a face), then the rays as rows (3, K)
     oT = np.ascontiguousarray(((np.take(mesh1.centroids, faces, axis=0) - shift) @ R).T)
     dT = np.ascontiguousarray((np.take(mesh1.normals, faces, axis=0) @ R).T)
-    face, t, found = mesh2.walker.follow(met, oT, dT, rows=True)
-    margin = mesh2.walker.margin
-    cos = -dot(np.take(mesh2.planes.normals, face, axis=0), dT.T)
+    face, t, found, margin, along = mesh2.walker.follow(met, oT, dT, rows=True)
+    cos = -along  # where found
     _, depth = mesh1.behind(faces)
     look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
     with np.errstate(invalid="ignore"):

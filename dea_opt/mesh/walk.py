@@ -13,11 +13,14 @@ edges name.
 
 from __future__ import annotations
 
+import threading
+from typing import NamedTuple
+
 import numpy as np
 
 from .raycast import _self_epsilon
 
-__all__ = ["Planes", "Walker", "dot", "dot3"]
+__all__ = ["Planes", "Walk", "Walker", "dot", "dot3"]
 
 #: Barycentric slack (relative to the face) inside which a point still lies on a face.
 ON_FACE = 1e-9
@@ -67,12 +70,38 @@ class Planes:
         self.eps = _self_epsilon(mesh)
         self._faces = np.asarray(mesh.faces, dtype=np.int64)
         self._across: np.ndarray | None = None
+        self._scratch = threading.local()
+
+    def __getstate__(self) -> dict:
+        state = dict(self.__dict__)
+        del state["_scratch"]  # buffers, and a thread-local does not pickle
+        return state
+
+    def __setstate__(self, state) -> None:
+        self.__dict__.update(state)
+        self._scratch = threading.local()
+
+    def gathered(self, faces) -> np.ndarray:
+        """The records of ``faces`` (K,) as rows (12, K), in buffers kept between calls (per thread:
+        planes are shared through their mesh's cache), valid until the next call. Gathered into
+        fresh arrays, the megabyte of a pass over 1e4 springs is new memory the kernel maps page
+        by page (a page fault every 4 kB, dearer than the pass itself)."""
+        k = len(faces)
+        buffers = getattr(self._scratch, "buffers", None)
+        if buffers is None or buffers[0].shape[0] < k:
+            size = max(k, 2 * (0 if buffers is None else buffers[0].shape[0]), 1024)
+            buffers = (np.empty((size, 12)), np.empty((12, size)))
+            self._scratch.buffers = buffers
+        whole, rows = buffers[0][:k], buffers[1][:, :k]
+        np.take(self.records, faces, axis=0, out=whole)
+        np.copyto(rows, whole.T)
+        return rows
 
     def barycentric(self, points, faces, rows: bool = False) -> np.ndarray:
         """``(b0, b1, b2)`` (3, K) of ``points`` (K, 3), or (3, K) with ``rows``, in faces ``faces`` (K,)
         (on their planes)."""
         points = points if rows else np.ascontiguousarray(np.asarray(points).T)
-        return _barycentric(np.ascontiguousarray(np.take(self.records, faces, axis=0).T), points)
+        return _barycentric(self.gathered(np.asarray(faces, dtype=np.int64)), points)
 
     def beyond(self, faces, bary) -> np.ndarray:
         """The face across the edge a point left each face through: opposite its lowest barycentric
@@ -139,45 +168,60 @@ def _barycentric(records, points) -> np.ndarray:
     return out
 
 
+class Walk(NamedTuple):
+    """Where rays followed across a mesh's edges crossed it (:meth:`Walker.follow`), per ray (K,)."""
+
+    #: The face whose plane the ray crosses inside it (where not ``found``: the last one tried).
+    face: np.ndarray
+    #: The distance along the ray to that crossing (NaN where not ``found``).
+    t: np.ndarray
+    #: False where the walk left the mesh or ran out of steps.
+    found: np.ndarray
+    #: The crossing's lowest barycentric coordinate in its face (:meth:`Planes.clearance`).
+    margin: np.ndarray
+    #: ``n . d``: the face's normal against the ray's direction (its sign: entering or leaving).
+    along: np.ndarray
+
+
 class Walker:
     """Rays followed across a mesh's edges: :meth:`follow` from the faces they met before."""
 
     def __init__(self, planes: Planes, steps: int = 4):
         self.planes, self.steps = planes, steps
 
-    def follow(self, faces, origins, directions, rows: bool = False) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """``(face, t, found)``: for rays ``origins + t directions`` (K, 3), or (3, K) with ``rows``,
-        that met faces ``faces`` (K,) before, the face whose plane the ray crosses inside it, at
-        most ``steps`` edges away, and the distance there; ``found`` False where the walk left the
-        mesh or ran out of steps. ``margin`` (K,) is then each found point's lowest barycentric
-        coordinate in its face (:meth:`Planes.clearance`)."""
-        records, across = self.planes.records, self.planes.across.ravel()
+    def follow(self, faces, origins, directions, rows: bool = False) -> Walk:
+        """For rays ``origins + t directions`` (K, 3), or (3, K) with ``rows``, that met faces
+        ``faces`` (K,) before: the face whose plane each ray crosses inside it, at most ``steps``
+        edges away (:class:`Walk`)."""
+        across = self.planes.across.ravel()
         face = np.array(faces, dtype=np.int64)
-        t = np.full(len(face), np.nan)
-        self.margin = np.zeros(len(face))  # the lowest barycentric coordinate where found
-        found = np.zeros(len(face), dtype=bool)
+        k = len(face)
+        t, margin, along = np.full(k, np.nan), np.zeros(k), np.zeros(k)
+        found = np.zeros(k, dtype=bool)
         if rows:
             oT, dT = origins, directions
         else:
             oT = np.ascontiguousarray(np.asarray(origins, dtype=float).T)
             dT = np.ascontiguousarray(np.asarray(directions, dtype=float).T)
-        active = np.arange(len(face))
+        active = np.arange(k)
         o, d = oT, dT
         for step in range(self.steps + 1):
             f = face[active]
             # whole records gathered (96 bytes a face: far fewer cache misses than row by row),
             # then turned into rows for the passes below
-            r = np.ascontiguousarray(np.take(records, f, axis=0).T)
+            r = self.planes.gathered(f)
+            facing = dot3(r[0:3], d)
             with np.errstate(divide="ignore", invalid="ignore"):
-                dist = (r[3] - dot3(r[0:3], o)) / dot3(r[0:3], d)
+                dist = (r[3] - dot3(r[0:3], o)) / facing
             b = _barycentric(r, o + dist * d)
             low = np.minimum(np.minimum(b[0], b[1]), b[2])
             ok = np.isfinite(dist)
-            inside = ok & (low >= -ON_FACE)
-            t[active[inside]] = dist[inside]
-            found[active[inside]] = True
-            self.margin[active[inside]] = low[inside]
-            out = np.flatnonzero(ok & ~inside)
+            on = low >= -ON_FACE
+            inside = np.flatnonzero(ok & on)
+            settled = active[inside]
+            t[settled], margin[settled], along[settled] = dist[inside], low[inside], facing[inside]
+            found[settled] = True
+            out = np.flatnonzero(ok & ~on)  # (a degenerate face's NaN coordinates too: stepped over)
             if step == self.steps or not len(out):
                 break
             corner = np.where(b[0, out] == low[out], 0, np.where(b[1, out] == low[out], 1, 2))
@@ -187,4 +231,4 @@ class Walker:
             active = active[keep]
             face[active] = nxt[go]
             o, d = np.take(oT, active, axis=1), np.take(dT, active, axis=1)
-        return face, t, found
+        return Walk(face, t, found, margin, along)
