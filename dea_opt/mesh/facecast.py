@@ -99,7 +99,7 @@ class Mesh1:
         self.eps = _self_epsilon(m1)
         n = len(m1.faces)
         self.back_face = np.full(n, -2, dtype=np.int64)  # -2: not measured yet
-        self.depth = np.full(n, np.inf)
+        self.depth = np.full(n, np.nan)  # NaN: not measured yet (inf: nothing behind)
         self._thickness = np.full(n, np.nan)
         self._measured = np.zeros(n, dtype=bool)
 
@@ -132,6 +132,11 @@ class Mesh1:
             self.back_face[todo] = face
             self.depth[todo] = np.where(face >= 0, depth, np.inf)
         return self.back_face[faces], self.depth[faces]
+
+    def depth_behind(self, faces) -> np.ndarray:
+        """The ``depth`` of :meth:`behind` alone (one gather where every face was measured)."""
+        depth = self.depth[faces]
+        return self.behind(faces)[1] if np.isnan(depth).any() else depth
 
     def thickness(self, faces) -> np.ndarray:
         """Body 1's cartilage thickness at ``faces`` by the cast's ``thickness1`` (measured once a face)."""
@@ -466,7 +471,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     dT = np.ascontiguousarray((np.take(mesh1.normals, faces, axis=0) @ R).T)
     face, t, found, margin, along = mesh2.walker.follow(met, oT, dT, rows=True)
     cos = -along  # where found
-    _, depth = mesh1.behind(faces)
+    depth = mesh1.depth_behind(faces)
     look = np.where(np.isfinite(depth), np.maximum(depth, allowed), allowed)
     with np.errstate(invalid="ignore"):
         met_facing = found & (cos > 0)
@@ -476,7 +481,8 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
         window = simple & (t >= -allowed) & (t <= max_gap)
         aligned = cos >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
     out.first2[met_facing] = face[met_facing]
-    out.first_point[met_facing] = (oT[:, met_facing] + t[met_facing] * dT[:, met_facing]).T
+    point = np.ascontiguousarray((oT + t * dT).T)  # where each ray crossed (NaN where it did not)
+    out.first_point = np.where(met_facing[:, None], point, np.nan)
     outcome = out.outcome
     outcome[simple & (t > max_gap)] = LOST_REASONS.index("gap")
     with np.errstate(invalid="ignore"):
@@ -486,7 +492,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     outcome[sel] = _SPRING
     out.gap[sel], out.faces2[sel] = t[sel], face[sel]
     out.clear[sel] = mesh2.planes.clearance(face[sel], margin[sel])
-    out.q[sel] = (oT[:, sel] + t[sel] * dT[:, sel]).T
+    out.q[sel] = point[sel]
     out.m[sel] = np.take(mesh2.planes.normals, face[sel], axis=0)
     rest = np.flatnonzero(~(simple | beyond))
     if len(rest):
