@@ -32,25 +32,30 @@ class Springs:
         "clear",
     )
 
+    #: The arrays an update changes in place (the others only :meth:`keep` and :meth:`extend` change).
+    CHANGED = ("h2", "q", "m", "faces2", "measured", "gap", "far2", "tested", "clear")
+
     def __init__(self, layer, h1, h2):
-        # copies: the layer's arrays are read-only, these are updated in place
-        self.faces1 = np.array(layer.source_face, dtype=np.int64)
-        self.points, self.normals = np.array(layer.points, dtype=float), np.array(layer.normals, dtype=float)
-        self.areas = np.array(layer.areas, dtype=float)
-        self.h1, self.h2 = np.array(h1, dtype=float), np.array(h2, dtype=float)
-        self.q = np.array(layer.target_points, dtype=float)  # mesh 2's own frame
-        self.m = np.array(layer.target_normals, dtype=float)
-        self.faces2 = np.array(layer.target_faces, dtype=np.int64)
-        self.measured = self.q.copy()  # where each h2 was measured (own frame)
-        self.gap = np.array(layer.gap, dtype=float)
+        # the cast's arrays, read-only: copied by the first update that changes them (own)
+        self.faces1 = _held(layer.source_face, np.int64)
+        self.points, self.normals = _held(layer.points, float), _held(layer.normals, float)
+        self.areas = _held(layer.areas, float)
+        self.h1, self.h2 = _held(h1, float), _held(h2, float)
+        self.q = _held(layer.target_points, float)  # mesh 2's own frame
+        self.m = _held(layer.target_normals, float)
+        self.faces2 = _held(layer.target_faces, np.int64)
+        self.measured = self.q  # where each h2 was measured (own frame)
+        self.gap = _held(layer.gap, float)
         self.far2 = np.full(len(self.faces1), -2, dtype=np.int64)  # not known yet
         # where each hit was last found on its face, and how far it may move from there on it
-        self.tested, self.clear = self.q.copy(), np.zeros(len(self.faces1))
+        self.tested, self.clear = self.q, np.zeros(len(self.faces1))
 
     def own(self) -> None:
-        """Copy the arrays a layer was given (:meth:`MeshTracker.layer_with_gap` hands them over
-        read-only rather than copying them: most solves end there): before any change in place."""
-        for name in self.FIELDS:
+        """Copy the arrays held read-only (the cast's, which the springs start from, and those
+        :meth:`MeshTracker.layer_with_gap` handed to an answer: most solves end there) before
+        any change in place. Arrays that share one object are copied apart. Those an update
+        never changes in place (the faces of mesh 1 and what they give) stay shared."""
+        for name in self.CHANGED:
             value = getattr(self, name)
             if not value.flags.writeable:
                 setattr(self, name, value.copy())
@@ -81,6 +86,17 @@ class Springs:
         }
         for name in self.FIELDS:
             setattr(self, name, np.concatenate([getattr(self, name), more[name]]))
+
+
+def _held(values, dtype) -> np.ndarray:
+    """``values`` as an array of ``dtype``, read-only: itself where it already is one (a cast's
+    checked, read-only arrays), else a copy."""
+    array = np.asarray(values, dtype=dtype)
+    if array is values and not array.flags.writeable:
+        return array
+    array = np.array(array)  # another's array, writable: a copy of our own, held read-only too
+    array.setflags(write=False)
+    return array
 
 
 def joined(casts) -> FaceCast:
