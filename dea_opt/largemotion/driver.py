@@ -377,10 +377,11 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
             if held is not None:
                 held.setflags(write=False)
     final = problem
-    at_zero = system.state(system.base, law)  # the free coordinates at zero
+    # the gaps with the free coordinates at zero (no forces needed there)
+    gaps_at_zero = system.gaps(system.transform(system.base)).s
     if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):
         # The springs of the solved pose, with their gaps at zero displacement (from the same targets).
-        s0 = evaluate(targets, system.points, system.normals, targets.frame).s if system.base.any() else at_zero.gaps.s
+        s0 = evaluate(targets, system.points, system.normals, targets.frame).s if system.base.any() else gaps_at_zero
         s0 = np.clip(np.where(np.isfinite(s0), s0, 1e9), -1e9, 1e9)
         final = replace(problem, layer=tracker.layer_with_gap(s0), targets=targets)
     layer = final.layer
@@ -393,7 +394,9 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     radius = max(rms_radius(system), 1e-12)  # final.layer_radius[1], from the springs' rows
     lengths = np.where(system.free < 3, 1.0, radius)
     stiffness = float(np.sum(layer.areas / layer.thickness))
-    cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, at_zero.eps, certificate_tol)
+    cert = certificate(
+        state, law, final.layer, lengths, stiffness, u, reported, gaps_at_zero / system.thickness, certificate_tol
+    )
     success = bool(finite and cert.passed and np.isfinite(pressure).all())
     info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
