@@ -134,3 +134,79 @@ def test_casts_of_chosen_faces_judge_every_face_as_a_whole_cast(hip, degrees):
     M.measure(by_walk, mesh1, mesh2)
     springs = by_walk.spring
     assert np.abs((by_walk.h1 + by_walk.h2)[springs] - whole.layer.thickness).max() < 1e-9
+
+
+def _springs_of(n, seed):
+    """Springs of ``n`` made-up faces, every array numbered by face (as a layer and its cast)."""
+    from types import SimpleNamespace
+
+    from dea_opt.largemotion.springs import Springs
+
+    rng = np.random.default_rng(seed)
+    faces = rng.permutation(10 * n)[:n]
+    layer = SimpleNamespace(
+        source_face=faces,
+        points=faces[:, None] + np.array([0.1, 0.2, 0.3]),
+        normals=faces[:, None] * np.array([1.0, -1.0, 2.0]),
+        areas=faces + 0.5,
+        target_points=faces[:, None] + np.array([1.1, 1.2, 1.3]),
+        target_normals=faces[:, None] * np.array([2.0, 0.0, 1.0]),
+        target_faces=faces + 7,
+        gap=faces - 0.25,
+    )
+    return Springs(layer, faces * 0.01, faces * 0.02), faces
+
+
+def _consistent(springs):
+    """Every array of every spring still belongs to its face (whatever the order)."""
+    f = springs.faces1
+    assert np.array_equal(springs.points, f[:, None] + np.array([0.1, 0.2, 0.3]))
+    assert np.array_equal(springs.normals, f[:, None] * np.array([1.0, -1.0, 2.0]))
+    assert np.array_equal(springs.areas, f + 0.5) and np.array_equal(springs.gap, f - 0.25)
+    assert np.array_equal(springs.h1, f * 0.01) and np.array_equal(springs.h2, f * 0.02)
+    assert np.array_equal(springs.q, f[:, None] + np.array([1.1, 1.2, 1.3]))
+    assert np.array_equal(springs.measured, springs.q) and np.array_equal(springs.tested, springs.q)
+    assert np.array_equal(springs.faces2, f + 7)
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_springs_lost_and_gained_keep_their_arrays_together_and_say_where_they_stood(seed):
+    from types import SimpleNamespace
+
+    springs, faces = _springs_of(500, seed)
+    rng = np.random.default_rng(100 + seed)
+    held = springs.points  # the cast's, read-only: never written
+    assert not held.flags.writeable
+    present = list(faces)
+    for step in range(6):
+        kept = rng.random(len(springs)) > rng.choice([0.0, 0.02, 0.5])
+        before = np.array(springs.faces1)
+        where = springs.keep(kept)
+        assert np.array_equal(springs.faces1, before[where])  # each spring from where it stood
+        assert sorted(springs.faces1) == sorted(before[kept])  # the kept ones, each once
+        _consistent(springs)
+        # gained: more than the room left, now and then
+        k = int(rng.choice([0, 3, 400]))
+        new_faces = 10_000 + 1000 * step + np.arange(k)
+        fresh = SimpleNamespace(
+            faces=new_faces,
+            h1=new_faces * 0.01,
+            h2=new_faces * 0.02,
+            q=new_faces[:, None] + np.array([1.1, 1.2, 1.3]),
+            m=new_faces[:, None] * np.array([2.0, 0.0, 1.0]),
+            faces2=new_faces + 7,
+            gap=new_faces - 0.25,
+            far2=np.full(k, -2),
+        )
+        mesh1 = SimpleNamespace(
+            centroids=np.arange(20_000)[:, None] + np.array([0.1, 0.2, 0.3]),
+            normals=np.arange(20_000)[:, None] * np.array([1.0, -1.0, 2.0]),
+            areas=np.arange(20_000) + 0.5,
+        )
+        count = len(springs)
+        springs.extend(mesh1, fresh, np.ones(k, dtype=bool))
+        assert len(springs) == count + k and np.array_equal(springs.faces1[count:], new_faces)
+        _consistent(springs)
+        present = list(springs.faces1)
+    assert len(set(present)) == len(present)
+    assert np.array_equal(held, faces[:, None] + np.array([0.1, 0.2, 0.3]))  # the cast's arrays untouched

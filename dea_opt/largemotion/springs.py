@@ -13,7 +13,14 @@ __all__ = ["Springs", "joined"]
 class Springs:
     """The springs' per-spring arrays, in one order (faces of mesh 1 with their points, normals and
     areas, their targets on mesh 2 in its own frame, thicknesses, and the far face of mesh 2 each
-    ``h2`` was measured to)."""
+    ``h2`` was measured to).
+
+    Each array is the head of a longer one kept with room to spare: springs lost leave holes
+    that the last springs fill (:meth:`keep`) and springs gained are written after them
+    (:meth:`extend`), neither copying the rest (an update loses and gains a few springs of
+    1e4). The order therefore changes as springs come and go. Written by hand: no library keeps
+    a table of columns that shrinks and grows in place.
+    """
 
     FIELDS = (
         "faces1",
@@ -32,11 +39,8 @@ class Springs:
         "clear",
     )
 
-    #: The arrays an update changes in place (the others only :meth:`keep` and :meth:`extend` change).
-    CHANGED = ("h2", "q", "m", "faces2", "measured", "gap", "far2", "tested", "clear")
-
     def __init__(self, layer, h1, h2):
-        # the cast's arrays, read-only: copied by the first update that changes them (own)
+        # the cast's arrays, read-only: copied by the first update, which changes them (own)
         self.faces1 = _held(layer.source_face, np.int64)
         self.points, self.normals = _held(layer.points, float), _held(layer.normals, float)
         self.areas = _held(layer.areas, float)
@@ -49,24 +53,48 @@ class Springs:
         self.far2 = np.full(len(self.faces1), -2, dtype=np.int64)  # not known yet
         # where each hit was last found on its face, and how far it may move from there on it
         self.tested, self.clear = self.q, np.zeros(len(self.faces1))
+        self._room: dict = {}  # per field, the array whose head it is (once owned)
+
+    def __len__(self) -> int:
+        return len(self.faces1)
 
     def own(self) -> None:
-        """Copy the arrays held read-only (the cast's, which the springs start from, and those
-        :meth:`MeshTracker.layer_with_gap` handed to an answer: most solves end there) before
-        any change in place. Arrays that share one object are copied apart. Those an update
-        never changes in place (the faces of mesh 1 and what they give) stay shared."""
-        for name in self.CHANGED:
-            value = getattr(self, name)
-            if not value.flags.writeable:
-                setattr(self, name, value.copy())
-
-    def keep(self, index) -> None:
-        index = np.flatnonzero(index) if np.asarray(index).dtype == bool else index
+        """Copy every array into one of our own with room to spare when any is held read-only
+        (the cast's, which the springs start from, or what :meth:`MeshTracker.layer_with_gap`
+        handed to an answer: most solves end there), before any change in place. Arrays that
+        share one object are copied apart."""
+        if self._room and all(getattr(self, name).flags.writeable for name in self.FIELDS):
+            return
+        n = len(self)
+        size = n + n // 4 + 256
+        self._room = {}
         for name in self.FIELDS:
-            setattr(self, name, np.take(getattr(self, name), index, axis=0))
+            value = getattr(self, name)
+            room = np.empty((size, *value.shape[1:]), dtype=value.dtype)
+            room[:n] = value
+            self._room[name] = room
+            setattr(self, name, room[:n])
+
+    def keep(self, kept) -> np.ndarray:
+        """Keep the springs ``kept`` (bool, (N,)): the last ones kept fill the holes of those lost.
+        Returns, for each spring now, where it stood before (M,)."""
+        self.own()
+        n = len(kept)
+        lost = np.flatnonzero(~kept)
+        m = n - len(lost)
+        holes = lost[lost < m]
+        movers = np.flatnonzero(kept[m:]) + m
+        for name in self.FIELDS:
+            value = getattr(self, name)
+            value[holes] = value[movers]
+            setattr(self, name, value[:m])
+        where = np.arange(m)
+        where[holes] = movers
+        return where
 
     def extend(self, mesh1, fresh, new) -> None:
         """Add the springs ``new`` (bool) of the :class:`~dea_opt.mesh.FaceCast` ``fresh``."""
+        self.own()
         faces = fresh.faces[new]
         more = {
             "faces1": faces,
@@ -82,10 +110,17 @@ class Springs:
             "gap": fresh.gap[new],
             "far2": fresh.far2[new],
             "tested": fresh.q[new],
-            "clear": np.zeros(int(np.count_nonzero(new))),
+            "clear": np.zeros(len(faces)),
         }
+        n, k = len(self), len(faces)
         for name in self.FIELDS:
-            setattr(self, name, np.concatenate([getattr(self, name), more[name]]))
+            room = self._room[name]
+            if n + k > len(room):  # out of room: a longer array, half again as long
+                longer = np.empty((n + k + (n + k) // 2 + 256, *room.shape[1:]), dtype=room.dtype)
+                longer[:n] = room[:n]
+                self._room[name] = room = longer
+            room[n : n + k] = more[name]
+            setattr(self, name, room[: n + k])
 
 
 def _held(values, dtype) -> np.ndarray:

@@ -314,8 +314,8 @@ class MeshTracker:
             keep[bad] = False
             self._lose("thickness", len(bad))
         self._lose("gap", int(beyond.sum()))
-        if not keep.all():
-            springs.keep(keep)
+        # where each spring stood before (the lost ones' places go to the last springs)
+        before = springs.keep(keep) if not keep.all() else np.arange(len(keep))
         # 3. The faces next to the springs, ring after ring while springs come into range there
         #    (their window's edge: only in a complete update).
         if complete:
@@ -326,8 +326,8 @@ class MeshTracker:
         self.counts["gained"] += gained
         self.counts["left_face"] += len(index)
         self._layer = None
-        kept = int(keep.sum())
-        if not (springs.faces2[:kept] != before_faces[keep]).any() and not gained and keep.all():
+        kept = len(before)
+        if not (springs.faces2[:kept] != before_faces[before]).any() and not gained and keep.all():
             ratio = self.thickness[loaded] / before_h[loaded]
             if not len(ratio) or np.abs(ratio - 1).max() <= self.thickness_tol:
                 return None  # nothing changed
@@ -337,9 +337,8 @@ class MeshTracker:
         changed[index] = True
         changed[:] |= ~keep
         after = new_system.state(state.y, state.law)
-        kept_index = np.flatnonzero(keep)
-        thicker = np.abs(self.thickness[:kept] / before_h[keep] - 1) > self.thickness_tol
-        moved_loaded = (changed[kept_index] | thicker) & (loaded[keep] | (after.eps[:kept] < 0))
+        thicker = np.abs(self.thickness[:kept] / before_h[before] - 1) > self.thickness_tol
+        moved_loaded = (changed[before] | thicker) & (loaded[before] | (after.eps[:kept] < 0))
         resolve = bool((changed & loaded).any() or moved_loaded.any() or (after.eps[kept:] < 0).any())
         return Update(new_system, after, resolve)
 
