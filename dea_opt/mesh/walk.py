@@ -211,9 +211,9 @@ class Walker:
             # then turned into rows for the passes below
             r = self.planes.gathered(f)
             facing = dot3(r[0:3], d)
-            with np.errstate(divide="ignore", invalid="ignore"):
+            with np.errstate(divide="ignore", invalid="ignore"):  # along the plane: inf or NaN
                 dist = (r[3] - dot3(r[0:3], o)) / facing
-            b = _barycentric(r, o + dist * d)
+                b = _barycentric(r, o + dist * d)
             low = np.minimum(np.minimum(b[0], b[1]), b[2])
             ok = np.isfinite(dist)
             on = low >= -ON_FACE
