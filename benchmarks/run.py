@@ -102,7 +102,7 @@ FULL = {
     "study": {"problem": "sphere", "sizes": [1e4, 1e5]},
     "threads": {"core": [("box", "newton", 1e4), ("box", "newton", 1e5), ("box", "newton", 1e6)], "gait": ["newton"]},
     "sensitivity": {"springs": 1e5, "calibration": True},
-    "finite": {"frames": 101, "repeats": 5},
+    "finite": {"frames": 101, "repeats": 20},
     "run": {"repeats": 3, "frames": 51},
     "sweep": {"cases": 200, "workers": 2},
     "bandwidth": {"problem": "box", "springs": 1e6},
