@@ -93,7 +93,8 @@ class Planes:
             buffers = (np.empty((size, 12)), np.empty((12, size)))
             self._scratch.buffers = buffers
         whole, rows = buffers[0][:k], buffers[1][:, :k]
-        np.take(self.records, faces, axis=0, out=whole)
+        # mode 'clip': the faces are valid, and under 'raise' numpy writes to a buffer first
+        np.take(self.records, faces, axis=0, out=whole, mode="clip")
         np.copyto(rows, whole.T)
         return rows
 
