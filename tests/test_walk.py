@@ -210,3 +210,17 @@ def test_springs_lost_and_gained_keep_their_arrays_together_and_say_where_they_s
         present = list(springs.faces1)
     assert len(set(present)) == len(present)
     assert np.array_equal(held, faces[:, None] + np.array([0.1, 0.2, 0.3]))  # the cast's arrays untouched
+
+
+def test_rows_put_through_the_flat_view_are_a_fancy_assignment():
+    from dea_opt.largemotion.springs import put_rows
+
+    rng = np.random.default_rng(3)
+    # contiguous, the head of a longer array (as the tracker keeps them), and a transposed view
+    for rows in (rng.normal(size=(50, 3)), rng.normal(size=(60, 3))[:50], rng.normal(size=(3, 50)).T):
+        expected = np.array(rows)
+        index = rng.choice(50, 17, replace=False)
+        values = rng.normal(size=(17, 3))
+        expected[index] = values
+        put_rows(rows, index, values)
+        assert np.array_equal(rows, expected)

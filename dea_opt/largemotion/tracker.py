@@ -33,7 +33,7 @@ import numpy as np
 from ..formulations.finite import Targets
 from ..mesh import Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
 from ..mesh.walk import ON_FACE, dot
-from .springs import Springs, joined
+from .springs import Springs, joined, put_rows
 
 __all__ = ["MeshTracker"]
 
@@ -102,7 +102,7 @@ class MeshTracker:
         self.met = np.array(met, dtype=np.int64) if known else np.full(n, -1, dtype=np.int64)
         self.met_point = np.array(point, dtype=float) if known else np.full((n, 3), np.nan)
         self.met[self.springs.faces1] = self.springs.faces2
-        self.met_point[self.springs.faces1] = self.springs.q
+        put_rows(self.met_point, self.springs.faces1, self.springs.q)
         self._slot = np.zeros(len(cast.mesh1.faces), dtype=np.int64)
         # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
         self._layer = cast.layer if not hasattr(self, "_first_layer") else None
@@ -230,7 +230,7 @@ class MeshTracker:
     def _remember(self, faces, fresh) -> None:
         """Keep what the rays of ``faces`` met first (a :class:`~dea_opt.mesh.FaceCast`'s ``first2``)."""
         self.met[faces] = fresh.first2
-        self.met_point[faces] = fresh.first_point
+        put_rows(self.met_point, faces, fresh.first_point)
 
     def _lose(self, reason: str, count: int) -> None:
         if count:
@@ -258,7 +258,6 @@ class MeshTracker:
         pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
         along = np.where(gaps.valid, gaps.s, 0.0)
         ownT = R.T @ (pT - shift[:, None]) + along * (R.T @ nT)
-        own = ownT.T
         # Which hits left their face: a hit that moved less than its clearance since it was last
         # found on its face is still on it; the others are tested (barycentric coordinates).
         step = ownT - springs.tested.T
@@ -269,7 +268,7 @@ class MeshTracker:
         left = np.zeros(len(springs.faces1), dtype=bool)
         left[check] = out
         stays = check[~out]
-        springs.tested[stays] = own[stays]
+        put_rows(springs.tested, stays, ownT[:, stays].T)
         springs.clear[stays] = self.mesh2.planes.clearance(springs.faces2[stays], low[~out])
         shifted = ownT - springs.measured.T
         moved = ~left & (np.einsum("ij,ij->j", shifted, shifted) > self.recast_shift**2)
@@ -290,23 +289,29 @@ class MeshTracker:
         )
         self._remember(springs.faces1[index], again)
         found = again.spring
-        at = index[found]
-        springs.q[at], springs.m[at], springs.faces2[at] = again.q[found], again.m[found], again.faces2[found]
-        springs.measured[at], springs.gap[at] = again.q[found], again.gap[found]
-        springs.tested[at], springs.clear[at] = again.q[found], again.clear[found]
+        met = np.flatnonzero(found)
+        at = index[met]
+        hits = np.take(again.q, met, axis=0)
+        for rows_of in (springs.q, springs.measured, springs.tested):
+            put_rows(rows_of, at, hits)
+        put_rows(springs.m, at, np.take(again.m, met, axis=0))
+        springs.faces2[at], springs.gap[at], springs.clear[at] = again.faces2[met], again.gap[met], again.clear[met]
         for reason, count in again.reasons(~found).items():
             self._lose(reason, count)
         on = np.flatnonzero(~left)
         springs.gap[on] = np.where(gaps.valid[on], gaps.s[on], springs.gap[on])
         # 2. Their thickness where the hits are now, and that of springs whose hit moved on its face.
         stay = np.flatnonzero(moved & ~beyond)
-        springs.measured[stay] = own[stay]
+        put_rows(springs.measured, stay, ownT[:, stay].T)
         remeasure = np.concatenate([at, stay])
         keep = ~beyond
         keep[index[~found]] = False
         if len(remeasure):
             h2, springs.far2[remeasure] = self.mesh2.thickness(
-                options["thickness2"], springs.faces2[remeasure], springs.measured[remeasure], springs.far2[remeasure]
+                options["thickness2"],
+                springs.faces2[remeasure],
+                np.take(springs.measured, remeasure, axis=0),
+                springs.far2[remeasure],
             )
             springs.h2[remeasure] = h2
             total = springs.h1[remeasure] + h2
@@ -378,7 +383,8 @@ class MeshTracker:
                 )
                 settled = fresh.outcome != -2  # the others are left to the rings' casts
                 self.met[candidates[settled]] = fresh.first2[settled]
-                self.met_point[candidates[settled]] = fresh.first_point[settled]
+                judged = np.flatnonzero(settled)
+                put_rows(self.met_point, candidates[judged], np.take(fresh.first_point, judged, axis=0))
                 grown.append(fresh.subset(fresh.spring))
                 dropped.append(fresh.faces[fresh.dropped])
                 tried[candidates[fresh.spring]] = True
