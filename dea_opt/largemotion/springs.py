@@ -95,7 +95,9 @@ class Springs:
     def extend(self, mesh1, fresh, new) -> None:
         """Add the springs ``new`` (bool) of the :class:`~dea_opt.mesh.FaceCast` ``fresh``."""
         self.own()
+        new = np.flatnonzero(new)
         faces = fresh.faces[new]
+        q = np.take(fresh.q, new, axis=0)
         more = {
             "faces1": faces,
             "points": np.take(mesh1.centroids, faces, axis=0),
@@ -103,13 +105,13 @@ class Springs:
             "areas": np.take(mesh1.areas, faces),
             "h1": fresh.h1[new],
             "h2": fresh.h2[new],
-            "q": fresh.q[new],
-            "m": fresh.m[new],
+            "q": q,
+            "m": np.take(fresh.m, new, axis=0),
             "faces2": fresh.faces2[new],
-            "measured": fresh.q[new],
+            "measured": q,
             "gap": fresh.gap[new],
             "far2": fresh.far2[new],
-            "tested": fresh.q[new],
+            "tested": q,
             "clear": np.zeros(len(faces)),
         }
         n, k = len(self), len(faces)

@@ -282,7 +282,7 @@ class MeshTracker:
             self.cast,
             pose,
             springs.faces1[index],
-            self.mesh2.planes.beyond(springs.faces2[index], bary[:, out]),
+            self.mesh2.planes.beyond(springs.faces2[index], np.take(bary, np.flatnonzero(out), axis=1)),
             np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
             self.mesh1,
             self.mesh2,

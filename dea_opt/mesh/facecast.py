@@ -261,17 +261,14 @@ class FaceCast:
         return self.outcome == LOST_REASONS.index("overlap")
 
     def subset(self, index) -> FaceCast:
+        """The faces ``index`` selects (a boolean mask or indices): their springs or reasons."""
+        index = np.flatnonzero(index) if np.asarray(index).dtype == bool else index
         return FaceCast(
             self.cast,
-            self.faces[index],
-            self.outcome[index],
-            self.q[index],
-            self.m[index],
-            self.faces2[index],
-            self.gap[index],
-            self.h1[index],
-            self.h2[index],
-            self.far2[index],
+            *(
+                np.take(getattr(self, name), index, axis=0)  # by index: a mask costs twice as much
+                for name in ("faces", "outcome", "q", "m", "faces2", "gap", "h1", "h2", "far2")
+            ),
         )
 
     def reasons(self, mask) -> dict:
