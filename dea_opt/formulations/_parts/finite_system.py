@@ -194,15 +194,21 @@ class State:
         moments from the origin to ``c'``) the sum is ``L G L^T``, ``G`` one 6 x 6 product.
         """
         s, gaps = self.system, self.gaps
-        if rows is None:
-            active = gaps.valid & ((self.eps < 0) | self.bilateral)
-            rows = np.flatnonzero(active)
-        if weights is None:
-            eps = self.eps[rows] if self.bilateral else np.minimum(self.eps[rows], 0.0)
-            weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
         # Every spring in one pass, those outside ``rows`` with weight 0 (no gathers of rows).
-        w = np.zeros(len(s))
-        w[rows] = weights / gaps.along[rows]
+        if rows is None and weights is None:
+            active = gaps.valid & ((self.eps < 0) | self.bilateral)
+            eps = self.eps if self.bilateral else np.minimum(self.eps, 0.0)
+            with np.errstate(invalid="ignore", divide="ignore", over="ignore"):  # open springs: masked
+                k = s.areas * self.law.tangent(np.where(active, eps, 0.0)) / (s.thickness * gaps.along)
+            w = np.where(active, k, 0.0)
+        else:
+            if rows is None:
+                rows = np.flatnonzero(gaps.valid & ((self.eps < 0) | self.bilateral))
+            if weights is None:
+                eps = self.eps[rows] if self.bilateral else np.minimum(self.eps[rows], 0.0)
+                weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
+            w = np.zeros(len(s))
+            w[rows] = weights / gaps.along[rows]
         gap = np.where(w != 0.0, gaps.s, 0.0)
         m = gaps.mT
         planes = s.planes
