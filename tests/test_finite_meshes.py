@@ -235,3 +235,36 @@ def test_the_springs_kept_up_to_date_are_those_of_a_whole_re_cast(knee, knee_sol
     assert np.abs(gaps[i0] - whole.gap[i1]).max() <= 1e-9
     loaded = solution.strain[i0] < 0
     assert np.abs(mine.thickness[i0] / whole.thickness[i1] - 1)[loaded].max() <= 5e-3
+
+
+def test_the_rows_the_tracker_keeps_are_those_its_springs_give(knee_solved):
+    """The tracker keeps its springs' rows (points, normals, arms, targets) up to date through every
+    spring lost, gained and moved to another face, rather than building them for each system: at
+    the answer they are those built afresh from its springs."""
+    solution = knee_solved["newton"]
+    springs = solution.tracker.springs
+    assert (
+        solution.info["recast"]["gained"] and solution.info["recast"]["lost"] and solution.info["recast"]["left_face"]
+    )
+    layer = solution.problem.layer
+    fresh = d.formulations.finite.FiniteSystem(
+        layer.points,
+        layer.normals,
+        layer.areas,
+        layer.thickness,
+        solution.targets,
+        np.zeros(3),
+        np.array([2]),
+        np.zeros(6),
+        np.zeros(3),
+        np.zeros(3),
+    )
+    assert np.array_equal(springs.faces1, layer.source_face)
+    for kept, built in (
+        (springs.pT, fresh.planes.pT),
+        (springs.nT, fresh.planes.nT),
+        (springs.arms, fresh.arms),
+        (springs.mT, fresh.planes.mT),
+        (springs.qm, fresh.planes.qm),
+    ):
+        assert np.allclose(kept, built, rtol=0, atol=1e-12 * np.abs(built).max())

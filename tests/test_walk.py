@@ -157,8 +157,35 @@ def _springs_of(n, seed):
     return Springs(layer, faces * 0.01, faces * 0.02), faces
 
 
+def _rows_agree(springs):
+    """The rows a system passes over, kept up to date, are those built afresh from the arrays."""
+    from dea_opt.formulations.finite import FiniteSystem, Targets
+
+    fresh = FiniteSystem(
+        springs.points,
+        springs.normals,
+        springs.areas,
+        springs.h1 + springs.h2,
+        Targets.cast_planes(springs.q, springs.m, np.eye(4), springs.faces2),
+        np.zeros(3),
+        np.array([2]),
+        np.zeros(6),
+        np.zeros(3),
+        np.zeros(3),
+    )
+    for kept, built in (
+        (springs.pT, fresh.planes.pT),
+        (springs.nT, fresh.planes.nT),
+        (springs.arms, fresh.arms),
+        (springs.mT, fresh.planes.mT),
+        (springs.qm, fresh.planes.qm),
+    ):
+        assert kept.shape == built.shape and np.allclose(kept, built, rtol=0, atol=1e-9 * np.abs(built).max())
+
+
 def _consistent(springs):
     """Every array of every spring still belongs to its face (whatever the order)."""
+    _rows_agree(springs)
     f = springs.faces1
     assert np.array_equal(springs.points, f[:, None] + np.array([0.1, 0.2, 0.3]))
     assert np.array_equal(springs.normals, f[:, None] * np.array([1.0, -1.0, 2.0]))
@@ -184,6 +211,12 @@ def test_springs_lost_and_gained_keep_their_arrays_together_and_say_where_they_s
         where = springs.keep(kept)
         assert np.array_equal(springs.faces1, before[where])  # each spring from where it stood
         assert sorted(springs.faces1) == sorted(before[kept])  # the kept ones, each once
+        _consistent(springs)
+        # some meet mesh 2 anew: another normal there (the rows follow), the hit numbered by face
+        moved = rng.choice(len(springs), min(len(springs), 40), replace=False)
+        f = springs.faces1[moved]
+        springs.retarget(moved, f[:, None] + np.array([1.1, 1.2, 1.3]), f[:, None] * np.array([0.0, 3.0, 1.0]))
+        assert np.array_equal(springs.m[moved], f[:, None] * np.array([0.0, 3.0, 1.0]))
         _consistent(springs)
         # gained: more than the room left, now and then
         k = int(rng.choice([0, 3, 400]))

@@ -105,9 +105,24 @@ def build_system(problem, targets, tracker=None) -> FiniteSystem:
         base[DOFS.index(dof)] = value
     if tracker is not None:
         s = tracker.springs
-        springs = (s.points, s.normals, s.areas, tracker.thickness, tracker.targets())
-    else:
-        springs = (layer.points, layer.normals, layer.areas, layer.thickness, targets)
+        return FiniteSystem.of_rows(
+            s.points,
+            s.normals,
+            s.areas,
+            tracker.thickness,
+            tracker.targets(),
+            s.pT,
+            s.nT,
+            s.arms,
+            s.mT,
+            s.qm,
+            np.asarray(body2.reference, dtype=float),
+            free,
+            base,
+            np.asarray(body2.force, dtype=float),
+            np.asarray(body2.moment, dtype=float),
+        )
+    springs = (layer.points, layer.normals, layer.areas, layer.thickness, targets)
     return FiniteSystem(
         *springs,
         np.asarray(body2.reference, dtype=float),

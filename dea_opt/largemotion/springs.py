@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..formulations._parts.finite_system import arms_of
 from ..mesh import FaceCast
 
 __all__ = ["Springs", "joined", "put_rows"]
@@ -20,6 +21,11 @@ class Springs:
     (:meth:`extend`), neither copying the rest (an update loses and gains a few springs of
     1e4). The order therefore changes as springs come and go. Written by hand: no library keeps
     a table of columns that shrinks and grows in place.
+
+    The rows a :class:`~dea_opt.formulations.finite.FiniteSystem` passes over (:data:`ROWS`:
+    points, normals, arms, target normals as rows (k, N), and ``q . m``) are kept here too, up to
+    date as springs come, go and meet new faces (:meth:`retarget`), rather than built anew
+    for every system.
     """
 
     FIELDS = (
@@ -39,6 +45,14 @@ class Springs:
         "clear",
     )
 
+    #: The rows kept for the systems: ``pT, nT`` (3, N), ``arms`` (6, N), ``mT`` (3, N), ``qm`` (N,).
+    ROWS = ("pT", "nT", "arms", "mT", "qm")
+    pT: np.ndarray
+    nT: np.ndarray
+    arms: np.ndarray
+    mT: np.ndarray
+    qm: np.ndarray
+
     def __init__(self, layer, h1, h2):
         # the cast's arrays, read-only: copied by the first update, which changes them (own)
         self.faces1 = _held(layer.source_face, np.int64)
@@ -54,6 +68,8 @@ class Springs:
         # where each hit was last found on its face, and how far it may move from there on it
         self.tested, self.clear = self.q, np.zeros(len(self.faces1))
         self._room: dict = {}  # per field, the array whose head it is (once owned)
+        self._rows: dict = {}  # per row, the array whose head it is
+        self._append_rows(_rows_of(self.points, self.normals, self.q, self.m), 0)
 
     def __len__(self) -> int:
         return len(self.faces1)
@@ -88,6 +104,10 @@ class Springs:
             value = getattr(self, name)
             value[holes] = value[movers]
             setattr(self, name, value[:m])
+        for name in self.ROWS:
+            value = getattr(self, name)
+            value[..., holes] = value[..., movers]
+            setattr(self, name, value[..., :m])
         where = np.arange(m)
         where[holes] = movers
         return where
@@ -123,6 +143,42 @@ class Springs:
                 self._room[name] = room = longer
             room[n : n + k] = more[name]
             setattr(self, name, room[: n + k])
+        self._append_rows(_rows_of(more["points"], more["normals"], more["q"], more["m"]), n)
+
+    def retarget(self, index, q, m) -> None:
+        """The springs ``index`` (K,) met mesh 2 anew at ``q`` with normals ``m`` (K, 3, own frame)."""
+        self.own()
+        put_rows(self.q, index, q)
+        put_rows(self.m, index, m)
+        self.mT[:, index] = m.T
+        self.qm[index] = _dot(q, m)
+
+    def _append_rows(self, rows, n) -> None:
+        """Write ``rows`` (:data:`ROWS`, K springs each) after the first ``n`` springs."""
+        for name in self.ROWS:
+            value = rows[name]
+            k = value.shape[-1]
+            room = self._rows.get(name)
+            if room is None or n + k > room.shape[-1]:  # out of room: half again as long
+                longer = np.empty((*value.shape[:-1], n + k + (n + k) // 2 + 256))
+                if room is not None:
+                    longer[..., :n] = room[..., :n]
+                self._rows[name] = room = longer
+            room[..., n : n + k] = value
+            setattr(self, name, room[..., : n + k])
+
+
+def _rows_of(points, normals, q, m) -> dict:
+    """:data:`Springs.ROWS` of springs at ``points`` along ``normals`` with plane targets through
+    ``q`` with normals ``m`` (K, 3 each)."""
+    pT = np.ascontiguousarray(np.asarray(points, dtype=float).T)
+    nT = np.ascontiguousarray(np.asarray(normals, dtype=float).T)
+    return {"pT": pT, "nT": nT, "arms": arms_of(pT, nT), "mT": np.asarray(m, dtype=float).T, "qm": _dot(q, m)}
+
+
+def _dot(a, b) -> np.ndarray:
+    """Row-wise dot products of (K, 3) arrays."""
+    return np.einsum("ij,ij->i", np.asarray(a, dtype=float), np.asarray(b, dtype=float))
 
 
 def put_rows(rows, index, values) -> None:

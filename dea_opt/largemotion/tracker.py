@@ -292,9 +292,9 @@ class MeshTracker:
         met = np.flatnonzero(found)
         at = index[met]
         hits = np.take(again.q, met, axis=0)
-        for rows_of in (springs.q, springs.measured, springs.tested):
-            put_rows(rows_of, at, hits)
-        put_rows(springs.m, at, np.take(again.m, met, axis=0))
+        springs.retarget(at, hits, np.take(again.m, met, axis=0))
+        put_rows(springs.measured, at, hits)
+        put_rows(springs.tested, at, hits)
         springs.faces2[at], springs.gap[at], springs.clear[at] = again.faces2[met], again.gap[met], again.clear[met]
         for reason, count in again.reasons(~found).items():
             self._lose(reason, count)
@@ -444,7 +444,8 @@ class MeshTracker:
     def springs_of(self, system):
         """``system`` with this tracker's springs and targets (the load and coordinates kept)."""
         s = self.springs
-        return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets())
+        rows = (s.pT, s.nT, s.arms, s.mT, s.qm)
+        return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets(), rows)
 
     def short_step(self, pose) -> bool:
         """Whether the hits moved no more than ``recast_shift`` since the last update (a partial

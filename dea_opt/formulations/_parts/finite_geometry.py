@@ -379,6 +379,14 @@ class PlaneRows:
         self.qm = np.einsum("ij,ij->j", qT, self.mT)
         self.points, self.normals = points, normals
 
+    @classmethod
+    def of_rows(cls, points, normals, pT, nT, mT, qm) -> PlaneRows:
+        """Rows already at hand (each row contiguous; ``qm`` as in the class docstring)."""
+        rows = object.__new__(cls)
+        rows.pT, rows.nT, rows.mT, rows.qm = pT, nT, mT, qm
+        rows.points, rows.normals = points, normals
+        return rows
+
 
 def plane_gaps(rows: PlaneRows, transform) -> Gaps:
     """:func:`evaluate` for targets that are all planes, on their :class:`PlaneRows`.

@@ -70,15 +70,36 @@ class FiniteSystem:
     def __post_init__(self):
         pT = np.ascontiguousarray(np.asarray(self.points, dtype=float).T)
         nT = np.ascontiguousarray(np.asarray(self.normals, dtype=float).T)
-        arms = np.empty((6, len(self.points)))
-        arms[:3] = nT
-        # p x n once: the moment about c' is sum f (p x n) - c' x sum f n
-        arms[3] = pT[1] * nT[2] - pT[2] * nT[1]
-        arms[4] = pT[2] * nT[0] - pT[0] * nT[2]
-        arms[5] = pT[0] * nT[1] - pT[1] * nT[0]
         planes = PlaneRows(self.targets, self.points, self.normals, pT, nT) if self.targets.is_plane.all() else None
-        object.__setattr__(self, "arms", arms)
+        object.__setattr__(self, "arms", arms_of(pT, nT))
         object.__setattr__(self, "planes", planes)
+
+    @classmethod
+    def of_rows(
+        cls, points, normals, areas, thickness, targets, pT, nT, arms, mT, qm, reference, free, base, force, moment
+    ) -> FiniteSystem:
+        """A system whose springs' rows are already at hand: ``pT, nT`` (3, N), ``arms`` (6, N,
+        :func:`arms_of`), and their plane targets' ``mT`` (3, N) and ``qm`` (N,)
+        (:class:`PlaneRows`), kept up to date by whoever holds them (a tracker's springs change by
+        a few a step), not built again."""
+        system = object.__new__(cls)
+        values = {
+            "points": points,
+            "normals": normals,
+            "areas": areas,
+            "thickness": thickness,
+            "targets": targets,
+            "reference": reference,
+            "free": free,
+            "base": base,
+            "force": force,
+            "moment": moment,
+            "arms": arms,
+            "planes": PlaneRows.of_rows(points, normals, pT, nT, mT, qm),
+        }
+        for name, value in values.items():
+            object.__setattr__(system, name, value)
+        return system
 
     def __len__(self) -> int:
         return len(self.points)
@@ -119,7 +140,27 @@ class FiniteSystem:
             np.asarray(moment, float),
         )
 
-    def with_springs(self, points, normals, areas, thickness, targets) -> FiniteSystem:
+    def with_springs(self, points, normals, areas, thickness, targets, rows: tuple | None = None) -> FiniteSystem:
+        """This body 2 and load with other springs; ``rows`` their rows when at hand (:meth:`of_rows`)."""
+        if rows is not None:
+            pT, nT, arms, mT, qm = rows
+            return FiniteSystem.of_rows(
+                points,
+                normals,
+                areas,
+                thickness,
+                targets,
+                pT,
+                nT,
+                arms,
+                mT,
+                qm,
+                self.reference,
+                self.free,
+                self.base,
+                self.force,
+                self.moment,
+            )
         return FiniteSystem(
             points, normals, areas, thickness, targets, self.reference, self.free, self.base, self.force, self.moment
         )
@@ -244,6 +285,17 @@ class State:
         M[3:, 3:] = self.J
         ML = (M.T @ self._shift())[s.free]
         return ML @ ((U * weights) @ U.T) @ ML.T
+
+
+def arms_of(pT, nT, out=None) -> np.ndarray:
+    """``a_i = [n_i; p_i x n_i]`` (6, K) of springs at ``pT``, along ``nT`` (3, K): the moment about
+    ``c'`` is then ``sum f (p x n) - c' x sum f n`` (the cross products once)."""
+    arms = np.empty((6, pT.shape[1])) if out is None else out
+    arms[:3] = nT
+    arms[3] = pT[1] * nT[2] - pT[2] * nT[1]
+    arms[4] = pT[2] * nT[0] - pT[0] * nT[2]
+    arms[5] = pT[0] * nT[1] - pT[1] * nT[0]
+    return arms
 
 
 def generalized(state) -> np.ndarray:
