@@ -485,12 +485,14 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     with np.errstate(invalid="ignore"):
         outcome[simple & (t < -allowed) & aligned] = LOST_REASONS.index("overlap")
     outcome[window & ~aligned] = LOST_REASONS.index("angle")
-    sel = np.flatnonzero(window & aligned)
+    spring = window & aligned
+    sel = np.flatnonzero(spring)
     outcome[sel] = _SPRING
     out.gap[sel], out.faces2[sel] = t[sel], face[sel]
     out.clear[sel] = mesh2.planes.clearance(face[sel], margin[sel])
-    out.q[sel] = point[sel]
-    out.m[sel] = np.take(mesh2.planes.normals, face[sel], axis=0)
+    # whole arrays where most rays make springs: one pass each rather than a gather and a scatter
+    out.q = np.where(spring[:, None], point, np.nan)
+    out.m = np.where(spring[:, None], np.take(mesh2.planes.normals, face, axis=0), np.nan)
     rest = np.flatnonzero(~(simple | beyond))
     if len(rest):
         if not cast_rest:

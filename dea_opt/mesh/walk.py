@@ -107,9 +107,9 @@ class Planes:
     def beyond(self, faces, bary) -> np.ndarray:
         """The face across the edge a point left each face through: opposite its lowest barycentric
         coordinate (``bary``, (3, K)); the face itself where that edge is the boundary."""
-        across = self.across.ravel()[
-            3 * np.asarray(faces, dtype=np.int64) + np.nan_to_num(bary, nan=0.0).argmin(axis=0)
-        ]
+        b = np.nan_to_num(bary, nan=0.0) if np.isnan(bary).any() else bary
+        corner = np.where((b[0] <= b[1]) & (b[0] <= b[2]), 0, np.where(b[1] <= b[2], 1, 2))  # the first lowest
+        across = self.across.ravel()[3 * np.asarray(faces, dtype=np.int64) + corner]
         return np.where(across >= 0, across, faces)
 
     def clearance(self, faces, low) -> np.ndarray:
