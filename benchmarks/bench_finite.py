@@ -44,6 +44,7 @@ COLUMNS = [
     "finite_s",
     "finite_first_s",
     "ratio",
+    "pair_ratio_median",
     "rotation_deg",
     "small_rotation_deg",
     "updates",
@@ -124,6 +125,8 @@ def solve_case(repeats: int = 20) -> dict:
         "finite_s": min(finite_times),
         "finite_first_s": finite_times[0],
         "ratio": min(finite_times) / min(small_times),
+        # each finite solve against the small one just before it: the machine's slow spells apart
+        "pair_ratio_median": float(np.median(np.array(finite_times) / np.array(small_times))),
         "rotation_deg": float(np.degrees(np.linalg.norm(finite.u[9:12]))),
         "small_rotation_deg": float(np.degrees(np.linalg.norm(small.u[9:12]))),
         "updates": finite.info["recast"]["updates"] + finite.info["recast"]["recasts"],
