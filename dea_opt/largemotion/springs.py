@@ -1,5 +1,7 @@
 """Finite kinematics, re-casting: the per-spring arrays a :class:`~dea_opt.largemotion.MeshTracker`
-keeps up to date, in one order, and the casts it joins."""
+keeps up to date, in one order, and the casts it joins.
+
+Written math: ``formulations/finite.md`` ("Re-casting")."""
 
 from __future__ import annotations
 
