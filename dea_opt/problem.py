@@ -107,6 +107,10 @@ class Body:
         set_(self, "prescribed", MappingProxyType(prescribed))
         set_(self, "free", tuple(d for d in _dof_tuple("free", self.free) if d not in prescribed))
 
+    def __reduce__(self):
+        # the checked values again through the constructor (a mappingproxy does not pickle)
+        return (Body, (self.reference, self.free, self.force, self.moment, dict(self.prescribed)))
+
     def with_load(self, load: Load | None = None, *, force=None, moment=None, point=None) -> Body:
         """A copy carrying ``load`` (or the load made of ``force``, ``moment``, ``point``)."""
         if load is None:

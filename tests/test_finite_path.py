@@ -262,3 +262,30 @@ def test_an_answer_keeps_its_springs_when_the_next_frame_moves_them(gait):
     for name, value in held.items():
         assert np.array_equal(getattr(layer, name), value), name
     assert np.array_equal(targets.points, held_targets[0]) and np.array_equal(targets.normals, held_targets[1])
+
+
+def test_answers_problems_and_casts_pickle_for_another_process():
+    """A researcher's pool of processes sends problems and casts out and answers back: each
+    pickles (a cast after a finite solve too, whose mesh caches hold Embree scenes, built again
+    where unpickled), and the unpickled cast solves to the same answer. A finite answer leaves
+    its tracker behind (the meshes a load path would continue from)."""
+    import pickle
+
+    pair = knee_meshes()
+    cast = quiet(d.mesh.cast_springs, pair.mesh1, pair.mesh2, **pair.options)
+    body = d.Body(reference=pair.reference2, free=("uz", "ry"), force=(0, 0, -500.0), prescribed={"ux": 0.01})
+    problem = d.ContactProblem(cast.layer, d.LinearLaw(H), body2=body, kinematics="finite", targets=cast)
+    finite = quiet(d.solve, problem)
+    small = quiet(d.solve, d.ContactProblem(cast.layer, d.LinearLaw(H), body2=body))
+    assert finite.success and small.success and finite.tracker is not None
+    for answer in (small, finite):
+        again = pickle.loads(pickle.dumps(answer))
+        assert np.array_equal(again.u, answer.u) and np.array_equal(again.pressure, answer.pressure)
+        assert again.problem.body2 == answer.problem.body2 and again.success == answer.success
+    assert pickle.loads(pickle.dumps(finite)).tracker is None
+    assert dict(pickle.loads(pickle.dumps(problem)).body2.prescribed) == {"ux": 0.01}
+    cast_again = pickle.loads(pickle.dumps(cast))
+    elsewhere = quiet(
+        d.solve, d.ContactProblem(cast_again.layer, d.LinearLaw(H), body2=body, kinematics="finite", targets=cast_again)
+    )
+    assert elsewhere.success and np.abs(elsewhere.u - finite.u).max() <= 1e-12 * max(np.abs(finite.u).max(), 1.0)

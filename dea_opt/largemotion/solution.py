@@ -86,6 +86,11 @@ class FiniteSolution(Solution):
     dropped: int | None = None
     tracker: object = field(default=None, repr=False)
 
+    def __getstate__(self) -> dict:
+        # Pickled (sent to another process, saved), the answer leaves its tracker behind: the
+        # meshes and casts a load path's next frame would continue from, tens of MB.
+        return {**self.__dict__, "tracker": None}
+
     @property
     def pose(self) -> np.ndarray:
         """Body 2's mesh pose in body 1's frame (4x4): the exact motion of ``u`` composed with the pose
