@@ -166,7 +166,7 @@ def _cli_command(scenario: Path, out: Path, python_flags=()) -> list:
     entry = (
         [str(script)]
         if script.exists() and not python_flags
-        else [sys.executable, *python_flags, "-c", "import sys; from dea_opt.cli import main; sys.exit(main())"]
+        else [sys.executable, *python_flags, "-c", "from dea_opt.cli import entry; entry()"]
     )
     return [*entry, "run", str(scenario), "--output", str(out), "--quiet", "--force"]
 

@@ -145,6 +145,57 @@ def test_ctrl_c_reports_what_the_folder_holds(tmp_path, published_before):
     assert temporary_files(folder) == []
 
 
+@pytest.mark.parametrize("moment", ["casting", "printing"])
+def test_ctrl_c_outside_the_publication_still_says_what_the_folder_holds(tmp_path, monkeypatch, capsys, moment):
+    """Before the run's folder is staged (casting) or after it published (printing the summary)."""
+    import dea_opt.cli
+    import dea_opt.scenario
+    from dea_opt.cli import EXIT_INTERRUPTED, main
+
+    scenario = tmp_path / "hip.toml"
+    scenario.write_text(PATH_SCENARIO.replace("frames = 24", "frames = 3"))
+    monkeypatch.chdir(tmp_path)
+    assert main(["run", str(scenario), "-q"]) == 0
+    first = read_manifest(tmp_path / "out")
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    if moment == "casting":
+        monkeypatch.setattr(dea_opt.scenario, "build_problem_cast", interrupt)
+    else:
+        monkeypatch.setattr(dea_opt.cli, "_report_outcome", interrupt)
+    capsys.readouterr()
+    assert main(["run", str(scenario), "-q", "--set", "law.H=7"]) == EXIT_INTERRUPTED
+    stderr = capsys.readouterr().err
+    now = read_manifest(tmp_path / "out")
+    assert stderr.startswith("dea-opt: interrupted; ") and "Traceback" not in stderr
+    if moment == "casting":
+        assert "no output of this run was published" in stderr and first["run_id"] in stderr
+        assert now["run_id"] == first["run_id"]
+    else:
+        assert "published before the interrupt" in stderr and now["run_id"] != first["run_id"]
+        assert now["overrides"] == {"law.H": 7}
+    assert check_outputs(tmp_path / "out") == []
+
+
+def test_ctrl_c_inside_a_string_exec_still_exits_130_under_python_m(tmp_path):
+    """CPython 3.11 flags a KeyboardInterrupt that escaped ``exec("...")`` and ``python -m`` then
+    kills itself with SIGINT at exit (return code -2, not the 130 we print)."""
+    (tmp_path / "interrupted_cli.py").write_text(
+        "import dea_opt.scenario\n"
+        "def load(*args, **kwargs):\n"
+        "    exec('raise KeyboardInterrupt')\n"
+        "dea_opt.scenario.load_scenario = load\n"
+        "from dea_opt.cli import entry\n"
+        "entry()\n"
+    )
+    done = subprocess.run(
+        [sys.executable, "-m", "interrupted_cli", "run", "any.toml"], cwd=tmp_path, capture_output=True, text=True
+    )
+    assert done.returncode == 130 and done.stderr.startswith("dea-opt: interrupted; "), done.stderr
+
+
 def test_ctrl_c_during_publication_waits_for_it_and_says_so(tmp_path):
     folder = tmp_path / "out"
     with pytest.raises(RunInterrupted) as info, output_run(folder) as run:
@@ -317,7 +368,10 @@ def test_kill_and_ctrl_c_at_random_moments_never_leave_two_runs_in_one_folder(tm
             elif "complete outputs of the previous run" in stderr:
                 assert manifest is not None and manifest["run_id"] == previous["run_id"]
                 assert previous["run_id"] in stderr
+            elif "no output of this command was published" in stderr:  # before the scenario named the folder
+                assert (manifest or {}).get("run_id") == (previous or {}).get("run_id")
             else:
+                assert "holds no complete outputs" in stderr or "incomplete earlier run" in stderr, stderr
                 assert manifest is None
     print("\n(signal, exit code, manifest after):", outcomes)
     done = _run(["run", scenario, "-q"], tmp_path)  # the next run cleans up and publishes

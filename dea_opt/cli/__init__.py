@@ -41,7 +41,16 @@ from .common import (
     app,
 )
 
-__all__ = ["EXIT_ERROR", "EXIT_INTERRUPTED", "EXIT_OK", "EXIT_OUTSIDE_VALIDITY", "EXIT_UNCERTIFIED", "app", "main"]
+__all__ = [
+    "EXIT_ERROR",
+    "EXIT_INTERRUPTED",
+    "EXIT_OK",
+    "EXIT_OUTSIDE_VALIDITY",
+    "EXIT_UNCERTIFIED",
+    "app",
+    "entry",
+    "main",
+]
 
 
 @app.command()
@@ -264,5 +273,16 @@ def main(argv=None) -> int:
     return 0
 
 
+def entry() -> None:
+    """The process's entry point (the ``dea-opt`` script, ``python -m dea_opt.cli``): exit with
+    :func:`main`'s code. A Ctrl-C after the command ended (while the interpreter shuts down)
+    is ignored: the command's outcome and its exit code stand, published outputs included."""
+    import signal
+
+    code = main()
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    sys.exit(code)
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(main())
+    entry()

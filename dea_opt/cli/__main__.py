@@ -1,7 +1,5 @@
 """``python -m dea_opt.cli``: the same as the ``dea-opt`` command."""
 
-import sys
+from . import entry
 
-from . import main
-
-sys.exit(main())
+entry()

@@ -68,6 +68,9 @@ def _reported(command):
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
+        from ..io.publish import forget_published, published_report
+
+        forget_published()
         try:
             with captured() as messages:
                 try:
@@ -85,7 +88,12 @@ def _reported(command):
             where = f" ({exc.filename})" if exc.filename else ""
             _fail(f"{exc.strerror or exc}{where}")
         except KeyboardInterrupt as exc:
-            report = getattr(exc, "report", None) or "no output of this command was published"
+            # A KeyboardInterrupt that escaped a string ``exec`` (scipy's array_api_compat runs
+            # ``exec("from numpy import *")`` while it imports) leaves CPython's "unhandled
+            # KeyboardInterrupt" flag set, and ``python -m`` then ends by killing itself with
+            # SIGINT in place of our exit code; every string ``exec`` clears the flag first.
+            exec("None")  # noqa: S102
+            report = getattr(exc, "report", None) or published_report() or "no output of this command was published"
             typer.echo(f"dea-opt: interrupted; {report}", err=True)
             raise typer.Exit(EXIT_INTERRUPTED) from None
         except RecursionError:

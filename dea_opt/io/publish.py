@@ -45,8 +45,11 @@ __all__ = [
     "RunInterrupted",
     "check_output_folder",
     "check_outputs",
+    "forget_published",
+    "interrupted_report",
     "output_folder_path",
     "output_run",
+    "published_report",
     "read_manifest",
 ]
 
@@ -276,23 +279,7 @@ class OutputRun:
 
     def state(self) -> str:
         """What the folder holds now, in one sentence (for an interrupted run)."""
-        if self.manifest is not None:
-            return (
-                f"the outputs of this run were published before the interrupt: {self.folder} holds them, "
-                f"complete, listed in {MANIFEST_NAME}"
-            )
-        if self.previous is not None:
-            return (
-                f"no output of this run was published; {self.folder} still holds the complete outputs of the "
-                f"previous run {self.previous.get('run_id')} ({self.previous.get('created')}), listed in "
-                f"{MANIFEST_NAME}"
-            )
-        if (self.folder / INCOMPLETE_NAME).exists():
-            return (
-                f"no output of this run was published; {self.folder} holds an incomplete earlier run "
-                f"({INCOMPLETE_NAME}, no {MANIFEST_NAME}): rerun to complete it"
-            )
-        return f"no output of this run was published; {self.folder} holds no complete outputs"
+        return _holds(self.folder, self.previous, self.manifest)
 
     def publish(self, **summary) -> dict:
         """Rename every staged file into place and write the manifest last; returns the manifest.
@@ -314,6 +301,7 @@ class OutputRun:
             except BaseException:
                 _unlink_all(pending.values())
                 raise
+        _published[self.folder] = self
         if interrupted:
             raise RunInterrupted(self.state())
         return self.manifest or {}
@@ -355,6 +343,52 @@ class OutputRun:
         os.unlink(folder / INCOMPLETE_NAME)
         _fsync_dir(folder)
         self.manifest = manifest
+
+
+def _holds(folder: Path, previous: dict | None, published: dict | None) -> str:
+    """What ``folder`` holds, in one sentence: ``published`` is the manifest this run wrote there
+    (None: it published nothing), ``previous`` the one the folder held before."""
+    if published is not None:
+        return (
+            f"the outputs of this run were published before the interrupt: {folder} holds them, "
+            f"complete, listed in {MANIFEST_NAME}"
+        )
+    if previous is not None:
+        return (
+            f"no output of this run was published; {folder} still holds the complete outputs of the "
+            f"previous run {previous.get('run_id')} ({previous.get('created')}), listed in {MANIFEST_NAME}"
+        )
+    if (folder / INCOMPLETE_NAME).exists():
+        return (
+            f"no output of this run was published; {folder} holds an incomplete earlier run "
+            f"({INCOMPLETE_NAME}, no {MANIFEST_NAME}): rerun to complete it"
+        )
+    return f"no output of this run was published; {folder} holds no complete outputs"
+
+
+#: The runs this process published, by folder: a Ctrl-C that comes after a run published (while
+#: it closes its pictures, prints its summary) must say so, not "nothing was published".
+_published: dict[Path, OutputRun] = {}
+
+
+def forget_published() -> None:
+    """Start a new command: no run of it has published yet."""
+    _published.clear()
+
+
+def published_report() -> str | None:
+    """What the runs this process published since :func:`forget_published` left, or None."""
+    return "; ".join(run.state() for run in _published.values()) or None
+
+
+def interrupted_report(folder) -> str:
+    """What ``folder`` holds, for a Ctrl-C that came outside a run's publication (before it began,
+    or after it ended)."""
+    path = output_folder_path(folder)
+    run = _published.get(path)
+    if run is not None:
+        return run.state()
+    return _holds(path, read_manifest(path), None)
 
 
 def _write_json(path: Path, data: dict) -> None:

@@ -117,25 +117,38 @@ def run_scenario(
     dea_opt.io.publish.RunInterrupted
         Ctrl-C; its ``report`` says what the folder holds.
     """
-    from ..io.publish import check_output_folder
+    from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
     from ..scenario import build_problem_cast
 
     method = check_method(method, scenario.solve.method)
     out = check_output_folder(scenario.output_dir(output_dir), force)
-    with captured() as messages, picture_worker(scenario, background_pictures) as pictures:
-        problem, cast = build_problem_cast(scenario)
-        options = solve_options(scenario.solve, method, problem.law)
+    try:
+        with captured() as messages, picture_worker(scenario, background_pictures) as pictures:
+            problem, cast = build_problem_cast(scenario)
+            options = solve_options(scenario.solve, method, problem.law)
 
-        def solve_and_write(folder):
-            if scenario.load_path is None:
-                return run_static(scenario, problem, method, options, folder, cast)
-            return run_path_outputs(
-                scenario, problem, method, options, folder, progress, stop=stop_on_error, cast=cast, pictures=pictures
+            def solve_and_write(folder):
+                if scenario.load_path is None:
+                    return run_static(scenario, problem, method, options, folder, cast)
+                return run_path_outputs(
+                    scenario,
+                    problem,
+                    method,
+                    options,
+                    folder,
+                    progress,
+                    stop=stop_on_error,
+                    cast=cast,
+                    pictures=pictures,
+                )
+
+            outcome = publish_run(
+                scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "run", method)
             )
-
-        outcome = publish_run(
-            scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "run", method)
-        )
+    except RunInterrupted:
+        raise
+    except KeyboardInterrupt:  # before the publication began (casting) or after it ended (closing)
+        raise RunInterrupted(interrupted_report(out)) from None
     return outcome
 
 
