@@ -196,6 +196,39 @@ def test_ctrl_c_inside_a_string_exec_still_exits_130_under_python_m(tmp_path):
     assert done.returncode == 130 and done.stderr.startswith("dea-opt: interrupted; "), done.stderr
 
 
+def test_ctrl_c_while_dea_opt_starts_exits_130_with_one_line(tmp_path):
+    """The console script imports the package under a handler (``_dea_opt_cli``)."""
+    code = (
+        "import sys\n"
+        "class Interrupting:\n"
+        "    def find_spec(self, name, path=None, target=None):\n"
+        "        if name == 'dea_opt.cli':\n"
+        "            raise KeyboardInterrupt\n"
+        "sys.meta_path.insert(0, Interrupting())\n"
+        "import _dea_opt_cli\n"
+        "_dea_opt_cli.entry()\n"
+    )
+    done = subprocess.run([sys.executable, "-c", code, "run", "any.toml"], capture_output=True, text=True, cwd=ROOT)
+    assert done.returncode == 130, done.stderr
+    assert done.stderr == "dea-opt: interrupted while starting; no output of this command was published\n"
+
+
+def test_ctrl_c_while_the_command_line_is_parsed_says_so(monkeypatch, capsys):
+    """typer turns a KeyboardInterrupt outside a command into a silent exit 130."""
+    import typer
+
+    from dea_opt.cli import EXIT_INTERRUPTED, app, main
+
+    def interrupt(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    # click's Command, as typer uses it (a typer release may carry its own copy of click)
+    command = next(c for c in type(typer.main.get_command(app)).__mro__ if c.__name__ == "Command")
+    monkeypatch.setattr(command, "parse_args", interrupt)
+    assert main(["version"]) == EXIT_INTERRUPTED
+    assert capsys.readouterr().err == "dea-opt: interrupted; no output of this command was published\n"
+
+
 def test_ctrl_c_during_publication_waits_for_it_and_says_so(tmp_path):
     folder = tmp_path / "out"
     with pytest.raises(RunInterrupted) as info, output_run(folder) as run:

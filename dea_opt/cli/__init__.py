@@ -266,11 +266,25 @@ def version():
 
 def main(argv=None) -> int:
     """Console-script entry point (``dea-opt``)."""
+    from ..io.publish import forget_published
+
+    forget_published()  # a new command: no run of it published yet (main may run again in one process)
     try:
         app(args=argv, prog_name="dea-opt", standalone_mode=True)
     except SystemExit as exc:
+        if _interrupted_outside_a_command(exc):
+            from .common import interrupted_message
+
+            typer.echo(interrupted_message(None), err=True)
         return exc.code if isinstance(exc.code, int) else (0 if exc.code is None else EXIT_ERROR)
     return 0
+
+
+def _interrupted_outside_a_command(exc: SystemExit) -> bool:
+    """Ctrl-C while typer parsed the command line or imported a command (typer turns it into a
+    silent exit 130); inside a command, :func:`~dea_opt.cli.common._reported` said what happened."""
+    exit_ = exc.__context__
+    return exc.code == EXIT_INTERRUPTED and exit_ is not None and isinstance(exit_.__cause__, KeyboardInterrupt)
 
 
 def entry() -> None:

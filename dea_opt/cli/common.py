@@ -61,6 +61,20 @@ def _crash_log(exc: BaseException) -> Path | None:
         return None
 
 
+def interrupted_message(exc: KeyboardInterrupt | None) -> str:
+    """The one line a Ctrl-C prints: what the output folder holds (``exc.report`` of a run's
+    :class:`~dea_opt.io.publish.RunInterrupted`; else what the runs of this command published)."""
+    from ..io.publish import published_report
+
+    # A KeyboardInterrupt that escaped a string ``exec`` (scipy's array_api_compat runs
+    # ``exec("from numpy import *")`` while it imports) leaves CPython's "unhandled
+    # KeyboardInterrupt" flag set, and ``python -m`` then ends by killing itself with SIGINT in
+    # place of our exit code; every string ``exec`` clears the flag first.
+    exec("None")
+    report = getattr(exc, "report", None) or published_report() or "no output of this command was published"
+    return f"dea-opt: interrupted; {report}"
+
+
 def _reported(command):
     """Turn every failure into a one-paragraph message on stderr: a DeaError (or an OSError, the
     user's to fix) exits 2, Ctrl-C 130 with what the output folder holds; dea-opt's own warnings
@@ -68,7 +82,7 @@ def _reported(command):
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
-        from ..io.publish import forget_published, published_report
+        from ..io.publish import forget_published
 
         forget_published()
         try:
@@ -88,13 +102,7 @@ def _reported(command):
             where = f" ({exc.filename})" if exc.filename else ""
             _fail(f"{exc.strerror or exc}{where}")
         except KeyboardInterrupt as exc:
-            # A KeyboardInterrupt that escaped a string ``exec`` (scipy's array_api_compat runs
-            # ``exec("from numpy import *")`` while it imports) leaves CPython's "unhandled
-            # KeyboardInterrupt" flag set, and ``python -m`` then ends by killing itself with
-            # SIGINT in place of our exit code; every string ``exec`` clears the flag first.
-            exec("None")  # noqa: S102
-            report = getattr(exc, "report", None) or published_report() or "no output of this command was published"
-            typer.echo(f"dea-opt: interrupted; {report}", err=True)
+            typer.echo(interrupted_message(exc), err=True)
             raise typer.Exit(EXIT_INTERRUPTED) from None
         except RecursionError:
             _fail("the input nests too deeply to be read (RecursionError); simplify it")
