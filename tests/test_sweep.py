@@ -232,3 +232,31 @@ def test_a_sweeps_cases_draw_their_pictures_in_their_own_process(scenario, tmp_p
     for row in result.table.itertuples():
         assert (Path(row.output_dir) / "cycle.png").stat().st_size > 1000
         assert (Path(row.output_dir) / "exposure.png").stat().st_size > 1000
+
+
+def test_ctrl_c_in_a_sweep_says_how_many_cases_are_finished_and_a_rerun_completes_it(tmp_path, monkeypatch):
+    import dea_opt.sweep as sweep_module
+    from dea_opt.io.publish import RunInterrupted
+
+    scenario = tmp_path / "hip.toml"
+    scenario.write_text(LIGHT)
+    out = tmp_path / "sweep"
+    sets = ["law.H=5,10,20"]
+    work, calls = sweep_module.work, []
+
+    def interrupted_at_the_second(task):
+        calls.append(task.case_id)
+        if len(calls) == 2:
+            raise KeyboardInterrupt
+        return work(task)
+
+    monkeypatch.setattr(sweep_module, "work", interrupted_at_the_second)
+    with pytest.raises(RunInterrupted) as info:
+        run_sweep(scenario, sets, out, scheduler="synchronous")
+    report = info.value.report
+    assert "1 of the sweep's 3 cases are finished" in report and "compute the other 2" in report
+    assert [line["case_id"] for line in journal_lines(out)] == calls[:1]
+    assert list(read_results(out / RESULTS_NAME)["case_id"]) == calls[:1]  # the table agrees with the journal
+    monkeypatch.setattr(sweep_module, "work", work)
+    again = run_sweep(scenario, sets, out, scheduler="synchronous")
+    assert again.skipped == calls[:1] and len(again.ran) == 2 and len(again.table) == 3

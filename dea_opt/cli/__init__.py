@@ -144,8 +144,8 @@ def sweep(
     Sweeps may share a folder at once: no case is computed twice and no row is lost. On a
     terminal each finished case is printed with a progress bar; Dask's and Python's
     messages go to sweep.log. A case's status is ok, outside_validity, failed or error;
-    exit 1 when a case failed or hit an error, else 3 when one is outside validity.
-    Needs: pip install dea-opt[distributed].
+    exit 1 when a case failed or hit an error, else 3 when one is outside validity; Ctrl-C
+    exits 130 saying how many cases are finished. Needs: pip install dea-opt[distributed].
     """
     from collections import Counter
 

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, MissingDependencyError
+from ..io.publish import RunInterrupted
 from ..scenario import check_method_name, load_scenario
 from ..status import RunStatus
 from . import journal
@@ -355,10 +356,28 @@ def run_sweep(
 
         try:
             _execute(tasks, scheduler, workers, arrived)
+        except KeyboardInterrupt:
+            stopped = True
+        else:
+            stopped = False
         finally:
             bar.close()
             result.table = publisher.now()
+    if stopped:
+        raise RunInterrupted(_interrupted_report(out, cases)) from None
     return result
+
+
+def _interrupted_report(out: Path, cases) -> str:
+    """What a sweep stopped by Ctrl-C leaves: the cases recorded, and how to compute the others."""
+    recorded = journal.read_records(out)
+    finished = sum(case.id in recorded for case in cases)
+    rest = len(cases) - finished
+    then = f"; rerun the same command to compute the other {rest} (the finished ones are skipped)" if rest else ""
+    return (
+        f"{finished} of the sweep's {len(cases)} cases are finished, their rows in {out / JOURNAL_NAME} and "
+        f"{out / RESULTS_NAME}{then}"
+    )
 
 
 def _execute(tasks: list, scheduler, workers: int, arrived) -> None:
