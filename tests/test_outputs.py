@@ -196,6 +196,21 @@ def test_ctrl_c_inside_a_string_exec_still_exits_130_under_python_m(tmp_path):
     assert done.returncode == 130 and done.stderr.startswith("dea-opt: interrupted; "), done.stderr
 
 
+def test_the_report_of_a_folder_after_its_run_published_says_so_however_it_is_named(tmp_path, monkeypatch):
+    from dea_opt.io.publish import forget_published, interrupted_report
+
+    monkeypatch.chdir(tmp_path)
+    forget_published()
+    assert "holds no complete outputs" in interrupted_report("out")
+    with output_run("out") as run:
+        write_data(run.folder / "a.txt", "new")
+        run.publish()
+    for name in ("out", tmp_path / "out", f"{tmp_path}/out/"):
+        assert "were published before the interrupt" in interrupted_report(name)
+    forget_published()  # another command: the folder holds a previous run
+    assert f"complete outputs of the previous run {run.run_id}" in interrupted_report("out")
+
+
 def test_ctrl_c_while_dea_opt_starts_exits_130_with_one_line(tmp_path):
     """The console script imports the package under a handler (``_dea_opt_cli``)."""
     code = (
