@@ -10,6 +10,7 @@ varus moment, re-cast afresh at ``Solution.pose``, carries the load; Newton and 
 
 from __future__ import annotations
 
+import pickle
 import warnings
 from pathlib import Path
 
@@ -200,6 +201,24 @@ def test_the_knee_re_cast_afresh_at_the_solved_pose_carries_the_load(knee, knee_
     assert np.abs((J.T @ (moment + np.array([0.0, VARUS, 0.0])))[:2]).max() <= 1e-2 * LOAD * radius
     assert np.linalg.norm(force - solution.contact_force) <= 2e-3 * LOAD
     assert np.linalg.norm(moment - solution.contact_moment) <= 1e-2 * LOAD * radius
+
+
+def test_recast_at_solution_compares_a_finite_answer_with_a_fresh_cast_at_its_pose(knee, knee_solved, hip):
+    """What ``dea-opt run`` writes into contact.json's "recast" for finite kinematics: the fresh
+    cast's own sums (written here) agree with the report and carry the load."""
+    solution = knee_solved["newton"]
+    again = M.recast_at_solution(solution, knee["cast"])
+    fresh = M.recast(knee["cast"], solution.pose).cast.layer
+    assert len(again.cast.layer) == len(fresh) == len(solution.problem.layer)
+    pressure = -d.LinearLaw(10.0).stress(np.minimum(fresh.gap / fresh.thickness, 0.0))
+    force = ((pressure * fresh.areas)[:, None] * fresh.normals).sum(axis=0)
+    assert np.allclose(again.force, force, rtol=0, atol=1e-9 * LOAD)
+    assert np.allclose(again.solution_force, solution.contact_force) and abs(force[2] - LOAD) <= 2e-3 * LOAD
+    assert again.force_error <= 2e-3
+    with pytest.raises(d.InputError, match="not kept up to date from this cast"):
+        M.recast_at_solution(solution, hip["cast"])
+    sent = pickle.loads(pickle.dumps(solution))  # another process's answer: no tracker to ask
+    assert sent.tracker is None and M.recast_at_solution(sent, knee["cast"]).force_error == again.force_error
 
 
 def test_the_knee_counts_its_re_casts_and_reports_them_in_validity(knee_solved):

@@ -222,15 +222,34 @@ def recast(cast: SpringCast, pose) -> Recast:
     return Recast(new, cast, lost, gained, pose=T)
 
 
+def _check_finite_cast(solution, cast: SpringCast) -> None:
+    """A finite-kinematics answer's springs were kept up to date from a cast: it must be ``cast``
+    (its tracker says so; a pickled answer has none, and its springs' faces must be faces of
+    ``cast``'s mesh 1 at least)."""
+    tracker = getattr(solution, "tracker", None)
+    faces = solution.problem.layer.source_face
+    if tracker is not None:
+        ok = tracker.cast is cast
+    else:
+        ok = faces is None or not len(faces) or int(np.max(faces)) < len(getattr(cast.mesh1, "faces", ()))
+    if not ok:
+        raise InputError(
+            "the finite-kinematics solution's springs were not kept up to date from this cast: pass the "
+            "SpringCast the problem's targets came from (ContactProblem(cast.layer, ..., targets=cast))"
+        )
+
+
 def recast_at_solution(solution, cast: SpringCast) -> Recast:
     """Re-cast a solution's springs at the pose it solved, and the force they carry there.
 
     Parameters
     ----------
     solution : Solution
-        A solution whose layer is ``cast.layer`` (the springs cast from meshes).
+        A solution whose layer is ``cast.layer`` (the springs cast from meshes), or a
+        finite-kinematics solution whose targets are ``cast`` (its springs, kept up to date as
+        body 2 moved, are then compared with a fresh cast at ``solution.pose``).
     cast : SpringCast
-        The cast that made the solution's layer.
+        The cast that made the solution's layer (or its targets).
 
     Returns
     -------
@@ -248,7 +267,10 @@ def recast_at_solution(solution, cast: SpringCast) -> Recast:
     if not isinstance(cast, SpringCast):
         raise InputError(f"cast must be a SpringCast (from dea_opt.mesh.cast_springs), got {type(cast).__name__}")
     layer = problem.layer
-    if layer is not cast.layer and not (
+    finite = getattr(problem, "kinematics", "small") == "finite"
+    if finite:
+        _check_finite_cast(solution, cast)
+    elif layer is not cast.layer and not (
         len(layer) == len(cast.layer)
         and layer.source_face is not None
         and np.array_equal(layer.source_face, np.asarray(cast.layer.source_face))
@@ -263,7 +285,11 @@ def recast_at_solution(solution, cast: SpringCast) -> Recast:
         raise InputError(f"the solution's u must be 12 finite numbers, got {u!r}")
     c1, c2 = problem.body1.reference, problem.body2.reference
     T1 = body_pose(u[:6], c1)
-    out = recast(cast, np.linalg.inv(T1) @ body_pose(u[6:], c2) @ cast.pose)
+    # Finite kinematics solved the pose itself (body 1 fixed), composed with the pose its targets
+    # were cast at (a load path's frame); the springs it kept up to date are compared with a
+    # fresh cast there: formulations/finite.md, "Checked against a fresh cast".
+    solved = np.asarray(solution.pose, dtype=float) if finite else np.linalg.inv(T1) @ body_pose(u[6:], c2) @ cast.pose
+    out = recast(cast, solved)
     new = out.cast.layer
     strain = np.minimum(new.gap / new.thickness, 0.0)
     pressure = -np.asarray(problem.law.stress(strain), dtype=float)
