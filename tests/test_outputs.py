@@ -440,3 +440,17 @@ def test_a_run_leaves_the_temporary_files_of_a_comparison_or_sweep_below_it_alon
     with output_run(folder) as run:
         run.publish()
     assert busy.exists() and not stale.exists()
+
+
+def test_a_process_that_publishes_run_after_run_keeps_only_the_last_ones_for_its_report(tmp_path):
+    from dea_opt.io import publish
+
+    publish.forget_published()
+    for k in range(publish._PUBLISHED_KEPT + 5):  # a sweep's worker: case after case
+        with output_run(tmp_path / f"case{k}") as run:
+            write_data(run.folder / "a.txt", str(k))
+            run.publish()
+    report = publish.published_report()
+    assert len(publish._published) == publish._PUBLISHED_KEPT
+    assert str(tmp_path / f"case{publish._PUBLISHED_KEPT + 4}") in report and f"{tmp_path / 'case0'} " not in report
+    publish.forget_published()

@@ -301,7 +301,10 @@ class OutputRun:
             except BaseException:
                 _unlink_all(pending.values())
                 raise
+        _published.pop(self.folder, None)
         _published[self.folder] = self
+        while len(_published) > _PUBLISHED_KEPT:  # a worker process publishes case after case
+            _published.pop(next(iter(_published)))
         if interrupted:
             raise RunInterrupted(self.state())
         return self.manifest or {}
@@ -369,6 +372,7 @@ def _holds(folder: Path, previous: dict | None, published: dict | None) -> str:
 #: The runs this process published, by folder: a Ctrl-C that comes after a run published (while
 #: it closes its pictures, prints its summary) must say so, not "nothing was published".
 _published: dict[Path, OutputRun] = {}
+_PUBLISHED_KEPT = 16  # the last ones: a command publishes one run, or a few
 
 
 def forget_published() -> None:
