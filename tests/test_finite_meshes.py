@@ -221,6 +221,31 @@ def test_recast_at_solution_compares_a_finite_answer_with_a_fresh_cast_at_its_po
     assert sent.tracker is None and M.recast_at_solution(sent, knee["cast"]).force_error == again.force_error
 
 
+@pytest.mark.parametrize(
+    "modulus, method", [(0.45, "newton"), (0.45, "nlp"), (0.45, "auto"), (3.0, "newton"), (3.0, "auto")]
+)
+def test_a_load_that_drives_the_femur_through_the_knee_cartilage_fails_as_crushed(knee, modulus, method):
+    """The paper's H (0.3-0.6 MPa) on this thin knee cartilage at 1000 N: the small kinematics
+    crush the layer through (strain -5); at 3 MPa loaded springs leave the model through the
+    layer and Newton finds no equilibrium. Either way the answer says so, and IPOPT is not run
+    to find it out (it took minutes)."""
+    kw = {"force": (0.0, 0.0, -LOAD), "reference": tuple(knee["reference"]), "free": ("uz", "rx", "ry")}
+    law = d.LinearLaw(modulus)
+    problem = d.ContactProblem(knee["cast"].layer, law, kinematics="finite", targets=knee["cast"], **kw)
+    solution = quiet(d.solve, problem, method, strict=False)
+    assert solution.status is d.Status.CRUSHED and not solution.success
+    assert f"H: {modulus:g} MPa" in solution.message and "beyond what this layer can bear" in solution.message
+    small = quiet(d.solve, d.ContactProblem(knee["cast"].layer, law, **kw), strict=False)
+    if modulus < 1.0:  # crushed through the whole thickness already in the small kinematics
+        assert small.strain.min() <= -1.0 and solution.iterations == 0
+    else:
+        assert small.strain.min() > -1.0 and solution.info["recast"]["lost_by_reason"]["through_layer"] > 0
+    if method == "auto":
+        assert "not tried" in solution.info["fallback"]
+    with pytest.raises(d.SolverError, match="crushed"):
+        quiet(d.solve, problem, method)
+
+
 def test_the_knee_counts_its_re_casts_and_reports_them_in_validity(knee_solved):
     solution = knee_solved["newton"]
     counts = solution.info["recast"]

@@ -25,6 +25,7 @@ from ..formulations.finite import (
     ALIASES,
     SHARED,
     FiniteSystem,
+    InnerResult,
     Targets,
     evaluate,
     rms_radius,
@@ -34,6 +35,7 @@ from ..formulations.finite import (
 )
 from ..kinematics import DOFS
 from ..mesh import SpringCast, check_pose
+from ..status import Status
 from .solution import FiniteSolution, certificate
 from .tracker import MeshTracker
 
@@ -223,7 +225,9 @@ def solve(
         name, opts, x0 = steps[0]
         solution = _solve(problem, name, certificate_tol, opts, x0, frame, tracker, load_checks)
         if method == "auto":
-            if not solution.success and len(steps) > 1:
+            if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
+                solution.info["fallback"] = "not tried: the layer is crushed through, a limit of the model"
+            elif not solution.success and len(steps) > 1:
                 reason = (
                     f"{name} ended with status {solution.status!r} and certificate residual "
                     f"{solution.certificate.worst()}"
@@ -277,8 +281,14 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
-    if cold and loaded and method == "finite" and tracker is not None:
-        x, cold = _predicted(small, law, x)
+    if cold and loaded and tracker is not None:
+        guess, unsolved = _predicted(small, law, x)
+        if not unsolved and small.strain_at(guess).min() <= -1.0:
+            tracker.counts["stable"] = True
+            crushed = _crushed_at_start(system, law, guess, small.strain_at(guess).min())
+            return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
+        if method == "finite":
+            x, cold = guess, unsolved
     inner, history = None, []
     stable, rounds = True, [0]
     # Solves that the springs' update follows stop at _LOOSE: it moves the springs, and the solve
@@ -306,6 +316,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
             break
     if tracker is not None:
         tracker.counts["stable"] = stable
+        if tracker.crushed_through and not inner.success:
+            _crushed_through(tracker, inner, law)
     if method == "finite" and not inner.success and loaded and cone is not None:
         cone(problem, small)
     return _solution(
@@ -362,6 +374,35 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
         if complete:
             return system, inner, False, True
         tracker.complete = True
+
+
+def _crushed_at_start(system, law, x, eps) -> InnerResult:
+    """A failed answer at the small kinematics' answer ``x``, which crushes the layer through
+    (``eps <= -1``): with springs that follow mesh 2, body 2 would go through the cartilage
+    (springs lost through the layer, :func:`_crushed_through`); said before any solve, since
+    IPOPT takes minutes to find it out."""
+    return InnerResult(
+        x,
+        system.state(system.coordinates(x), law),
+        False,
+        "crushed",
+        f"the small kinematics on the start pose's springs reach eps = {eps:.3g}: body 2 would go through "
+        f"the cartilage before the load is carried, so the load is beyond what this layer can bear (check the "
+        f"load and its units, and H: {law.modulus:g} MPa here; or use a bounded law such as AteshianLaw)",
+    )
+
+
+def _crushed_through(tracker, inner, law) -> None:
+    """Mark a failed solve ``crushed`` when springs that carried load were lost through the layer
+    on the way (their rays met mesh 2 behind mesh 1's far side: the overlap passed mesh 1's
+    thickness): the load drove body 2 into the layer until springs left the model. IPOPT would
+    meet the same springs, in minutes: ``auto`` does not fall back to it."""
+    inner.status = "crushed"
+    inner.message += (
+        f"; {tracker.crushed_through} springs that carried load were lost through the layer on the way (their "
+        f"rays met mesh 2 behind mesh 1's far side): the load is beyond what this layer can bear (check the "
+        f"load and its units, and H: {law.modulus:g} MPa here; or use a bounded law such as AteshianLaw)"
+    )
 
 
 def _predicted(small, law, x):

@@ -32,6 +32,7 @@ import numpy as np
 
 from ..formulations.finite import Targets
 from ..mesh import Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
+from ..mesh.springs import LOST_REASONS
 from ..mesh.walk import ON_FACE, dot
 from .springs import Springs, joined, put_rows
 
@@ -126,6 +127,7 @@ class MeshTracker:
             "dropped": len(self.dropped_faces),
         }
         self.lost: dict = {}
+        self.crushed_through = 0  # springs lost through the layer while they carried load
 
     def targets(self) -> Targets:
         s = self.springs
@@ -298,6 +300,10 @@ class MeshTracker:
         springs.faces2[at], springs.gap[at], springs.clear[at] = again.faces2[met], again.gap[met], again.clear[met]
         for reason, count in again.reasons(~found).items():
             self._lose(reason, count)
+        gone = np.flatnonzero(~found)
+        if len(gone):
+            through = again.outcome[gone] == LOST_REASONS.index("through_layer")
+            self.crushed_through += int((through & loaded[index[gone]]).sum())
         on = np.flatnonzero(~left)
         springs.gap[on] = np.where(gaps.valid[on], gaps.s[on], springs.gap[on])
         # 2. Their thickness where the hits are now, and that of springs whose hit moved on its face.
@@ -436,6 +442,8 @@ class MeshTracker:
         self.counts["gained"] += len(new.gained)
         for reason, faces in new.lost.items():
             self._lose(reason, len(faces))
+        loaded_faces = self.springs.faces1[state.eps < 0]
+        self.crushed_through += int(np.isin(new.lost.get("through_layer", ()), loaded_faces).sum())
         self._take(new.cast)
         self.counts["dropped"] = len(self.dropped_faces)
         new_system = self.springs_of(system)
