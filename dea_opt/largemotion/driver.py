@@ -283,9 +283,10 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     x = np.zeros(len(system.free)) if cold else x0
     if cold and loaded and tracker is not None:
         guess, unsolved = _predicted(small, law, x)
-        if not unsolved and small.strain_at(guess).min() <= -1.0:
+        deepest = small.strain_at(guess).min()
+        if not unsolved and deepest <= -1.0:
             tracker.counts["stable"] = True
-            crushed = _crushed_at_start(system, law, guess, small.strain_at(guess).min())
+            crushed = _crushed_at_start(system, law, guess, deepest)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
         if method == "finite":
             x, cold = guess, unsolved
@@ -387,8 +388,7 @@ def _crushed_at_start(system, law, x, eps) -> InnerResult:
         False,
         "crushed",
         f"the small kinematics on the start pose's springs reach eps = {eps:.3g}: body 2 would go through "
-        f"the cartilage before the load is carried, so the load is beyond what this layer can bear (check the "
-        f"load and its units, and H: {law.modulus:g} MPa here; or use a bounded law such as AteshianLaw)",
+        f"the cartilage before the load is carried, so {_beyond(law)}",
     )
 
 
@@ -400,8 +400,15 @@ def _crushed_through(tracker, inner, law) -> None:
     inner.status = "crushed"
     inner.message += (
         f"; {tracker.crushed_through} springs that carried load were lost through the layer on the way (their "
-        f"rays met mesh 2 behind mesh 1's far side): the load is beyond what this layer can bear (check the "
-        f"load and its units, and H: {law.modulus:g} MPa here; or use a bounded law such as AteshianLaw)"
+        f"rays met mesh 2 behind mesh 1's far side): {_beyond(law)}"
+    )
+
+
+def _beyond(law) -> str:
+    """What a crushed answer tells the user to check."""
+    return (
+        f"the load is beyond what this layer can bear (check the load and its units, and H: {law.modulus:g} MPa "
+        f"here; or use a bounded law such as AteshianLaw)"
     )
 
 
