@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial import cKDTree
 
 import dea_opt as d
 from dea_opt import mesh as M
@@ -244,6 +245,69 @@ def test_a_load_that_drives_the_femur_through_the_knee_cartilage_fails_as_crushe
         assert "not tried" in solution.info["fallback"]
     with pytest.raises(d.SolverError, match="crushed"):
         quiet(d.solve, problem, method)
+
+
+def _behind_far_side(mesh1, mesh2, faces, normals, depth=3.0):
+    """Which of ``faces`` of mesh 1 have a ray (from the centroid along ``normals``, pointing to body
+    2) that meets a face of the posed ``mesh2`` facing it behind mesh 1's far side, by less than
+    ``depth`` mm: ``(index into faces, that overlap in mm)``. trimesh's own triangle intersector,
+    not dea-opt's casts."""
+    from trimesh.ray.ray_triangle import RayMeshIntersector
+
+    c = mesh1.triangles_center[faces]
+    far, ray, _ = RayMeshIntersector(mesh1).intersects_location(c - 1e-4 * normals, -normals, multiple_hits=True)
+    h1 = np.full(len(faces), np.inf)
+    t = np.einsum("ij,ij->i", far - c[ray], -normals[ray])
+    np.minimum.at(h1, ray, np.where(t > 1e-3, t, np.inf))
+    met, ray, tri = RayMeshIntersector(mesh2).intersects_location(c + 30.0 * normals, -normals, multiple_hits=True)
+    gap = np.einsum("ij,ij->i", met - c[ray], normals[ray])
+    facing = np.einsum("ij,ij->i", mesh2.face_normals[tri], normals[ray]) < 0
+    behind = facing & (gap < -h1[ray]) & (gap > -h1[ray] - depth)
+    overlap = np.zeros(len(faces))
+    np.maximum.at(overlap, ray[behind], -gap[behind])
+    index = np.unique(ray[behind])
+    return index, overlap[index]
+
+
+@pytest.mark.parametrize("law", [d.AteshianLaw(2.0, 0.3), d.LinearLaw(10.0)], ids=["ateshian-2MPa", "linear-10MPa"])
+def test_springs_lost_through_the_layer_in_deep_compression_make_the_answer_invalid(knee, law):
+    """AteshianLaw(2, 0.3) at 1000 N compresses the knee's layer past the tibial cartilage's own
+    thickness (strain -0.65, inside that law's range): the springs there meet the femur behind the
+    tibia's far side, which the cast rejects. The solve still certifies, but the answer leaves out
+    the force of those springs (computed here with trimesh's rays: hundreds of N), so the
+    ``lost_through_layer`` check fails. With H = 10 MPa no spring goes that deep: it passes."""
+    problem = d.ContactProblem(
+        knee["cast"].layer,
+        law,
+        force=(0.0, 0.0, -LOAD),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=knee["cast"],
+    )
+    solution = quiet(d.solve, problem, "newton", strict=False)
+    assert solution.certificate.passed
+    layer, tibia = solution.problem.layer, knee["mesh1"]
+    # the articular faces of the tibia near the answer's springs that are not springs themselves
+    others = np.setdiff1d(np.arange(len(tibia.faces)), layer.source_face)
+    near = cKDTree(layer.points).query(tibia.triangles_center[others])
+    articular = tibia.face_normals[others] @ layer.normals.mean(axis=0) > 0.5
+    others = others[(near[0] < 3.0) & articular]
+    posed = knee["mesh2"].copy()
+    posed.apply_transform(solution.pose)
+    index, overlap = _behind_far_side(tibia, posed, others, tibia.face_normals[others])
+    check = solution.validity["lost_through_layer"]
+    thickness = layer.thickness[near[1][(near[0] < 3.0) & articular][index]]  # of the nearest spring
+    strain = np.maximum(-overlap / thickness, -0.99)
+    missing = float(np.sum(-law.stress(strain) * tibia.area_faces[others[index]]))
+    print(f"\n{law}: {check.describe()}; {len(index)} faces behind the far side carry {missing:.0f} N left out")
+    if isinstance(law, d.AteshianLaw):
+        assert solution.strain.min() > -0.8  # the strain check alone passes
+        assert not solution.validity.valid and [c.name for c in solution.validity.failed] == ["lost_through_layer"]
+        assert 0.8 * len(index) <= check.value <= 1.05 * len(index)
+        assert missing > 0.1 * LOAD and "deeper than mesh 1's cartilage" in check.advice
+    else:
+        assert check.passed and check.value == 0 and len(index) == 0 and solution.validity.valid
 
 
 def test_the_knee_counts_its_re_casts_and_reports_them_in_validity(knee_solved):

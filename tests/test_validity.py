@@ -24,7 +24,17 @@ import dea_opt as d
 from dea_opt.geometry import plate_layer
 from dea_opt.validity import DEFAULT_LIMITS, Check, Validity, ValidityLimits, assess, rotation_gap_error
 
-NAMES = ("strain", "rotation", "gap_error", "extent", "layer_area", "thickness", "peak_pressure", "dropped_springs")
+NAMES = (
+    "strain",
+    "rotation",
+    "gap_error",
+    "extent",
+    "layer_area",
+    "thickness",
+    "peak_pressure",
+    "dropped_springs",
+    "lost_through_layer",
+)
 
 
 def solve_recording(problem, method="newton", **options):
@@ -329,6 +339,8 @@ def test_a_failed_solution_is_not_valid():
         ({"peak_pressure": 0}, "peak_pressure"),
         ({"dropped_springs": -2}, "dropped_springs"),
         ({"dropped_springs": 1.5}, "dropped_springs"),
+        ({"lost_through_layer": -1}, "lost_through_layer"),
+        ({"lost_through_layer": True}, "lost_through_layer"),
     ],
 )
 def test_bad_limits_name_the_field(kwargs, field):
@@ -346,6 +358,15 @@ def test_bad_arguments_to_assess():
         assess(PLATE, np.zeros(12))
     with pytest.raises(d.InputError, match="limits must be a dea_opt.validity.ValidityLimits"):
         assess(problem, np.zeros(12), limits={"rotation": 5})
+    with pytest.raises(
+        d.InputError, match=r"lost_through_layer must be a count of springs \(an integer >= 0\) or None, got 2.5"
+    ):
+        assess(problem, np.zeros(12), lost_through_layer=2.5)
+    # small kinematics keep their springs: nothing is lost through the layer
+    check = assess(problem, np.zeros(12))["lost_through_layer"]
+    assert check.passed and check.value == 0
+    lost = assess(problem, np.zeros(12), lost_through_layer=3, limits=ValidityLimits(lost_through_layer=2))
+    assert lost.failed[-1].name == "lost_through_layer" and "3 spring(s)" in lost.failed[-1].advice
 
     class Odd(d.LinearLaw):
         valid_compression = 30  # a percentage where a fraction is meant
@@ -367,7 +388,7 @@ def test_the_readme_validity_example_runs(capsys):
     for code in blocks:
         exec(compile(code, "README.md", "exec"), namespace)
     line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert line == namespace["solution"].validity.summary() and line.startswith("valid (7 checks passed")
+    assert line == namespace["solution"].validity.summary() and line.startswith("valid (8 checks passed")
     assert namespace["loose"].limits.peak_pressure == 50.0 and namespace["loose"].valid
 
 

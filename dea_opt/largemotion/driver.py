@@ -467,6 +467,10 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     if tracker is not None:
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}
     dropped = None if tracker is None else tracker.counts["dropped"]
+    # closed-form targets (no tracker) lose no spring through a layer
+    through = 0 if tracker is None else tracker.lost_through_layer(system.transform(state.y)) if finite else None
+    if through:
+        info["recast"]["lost_through_layer"] = through
     message = inner.message
     held = small.resistance.describe(problem.free_names) if len(system.free) else []
     if held:
@@ -490,5 +494,6 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
         info=info,
         targets=targets,
         dropped=dropped,
+        lost_through_layer=through,
         tracker=tracker,
     )

@@ -78,12 +78,15 @@ class FiniteSolution(Solution):
     ``problem.layer`` holds the springs of the solved pose (after any re-casts); ``strain`` is
     each spring's gap at that pose over its thickness. ``targets`` are the springs' targets
     (:class:`~dea_opt.formulations.finite.Targets`); ``info`` counts the re-casts and
-    the springs they gained, lost and dropped (``info["recast"]``); ``tracker`` is the re-casting
-    state a load path's next frame continues from.
+    the springs they gained, lost and dropped (``info["recast"]``); ``lost_through_layer`` the
+    loaded springs lost through the layer that still lie behind mesh 1's far side at the solved
+    pose (a validity check); ``tracker`` is the re-casting state a load path's next frame
+    continues from.
     """
 
     targets: Targets | None = None
     dropped: int | None = None
+    lost_through_layer: int | None = None
     tracker: object = field(default=None, repr=False)
 
     def __getstate__(self) -> dict:
@@ -124,11 +127,18 @@ class FiniteSolution(Solution):
 
     @cached_property
     def validity(self):
-        """The validity report at the solved pose, with the springs the window dropped there (when
-        the springs were re-cast from meshes)."""
+        """The validity report at the solved pose, with the springs the window dropped there and
+        those lost through the layer (when the springs were re-cast from meshes)."""
         from ..validity import assess
 
-        return assess(self.problem, self.u, self.strain, self.pressure, dropped=self.dropped)
+        return assess(
+            self.problem,
+            self.u,
+            self.strain,
+            self.pressure,
+            dropped=self.dropped,
+            lost_through_layer=self.lost_through_layer,
+        )
 
     def summary(self) -> dict:
         out = super().summary()

@@ -10,7 +10,7 @@ import numpy as np
 from ..formulations._parts.finite_system import arms_of
 from ..mesh import FaceCast
 
-__all__ = ["Springs", "joined", "put_rows"]
+__all__ = ["Springs", "face_labels", "joined", "put_rows"]
 
 
 class Springs:
@@ -209,3 +209,45 @@ def joined(casts) -> FaceCast:
     """The :class:`~dea_opt.mesh.FaceCast` of several, one after the other."""
     names = ("faces", "outcome", "q", "m", "faces2", "gap", "h1", "h2", "far2")
     return FaceCast(casts[0].cast, *(np.concatenate([getattr(c, name) for c in casts]) for name in names))
+
+
+def _face_labels(cast):
+    """The cast's labels per face of mesh 1 when its layer's labels are those of its faces (None
+    otherwise): decided once a cast (comparing strings costs a third of a millisecond a solve),
+    kept in the cast, whose layer never changes."""
+    key = "_dea_opt_face_labels"
+    if key not in cast.__dict__:
+        own, layer = cast.options.get("labels"), cast.layer
+        same = (
+            own is not None
+            and layer.labels is not None
+            and np.array_equal(np.asarray(own)[layer.source_face], layer.labels)
+        )
+        cast.__dict__[key] = np.asarray(own) if same else None
+    return cast.__dict__[key]
+
+
+def face_labels(cast, centroids, faces):
+    """The labels of faces ``faces`` of mesh 1 for springs that follow ``cast`` (its layer's labels,
+    a scenario's regions or the parts of mesh 2 met; None without): the cast's layer's own where
+    it had the face, else the label of its nearest spring (``centroids``, (F, 3): mesh 1's face
+    centroids). When that layer's labels are the cast's per-face labels, those."""
+    first = cast.layer
+    if first.labels is None:
+        return None
+    per_face = _face_labels(cast)
+    if per_face is not None:
+        return per_face[faces]
+    labels = np.asarray(first.labels)
+    where = np.full(len(cast.mesh1.faces), -1, dtype=np.int64)
+    where[first.source_face] = np.arange(len(first.source_face))
+    index = where[faces]
+    missing = index < 0
+    if missing.any():
+        from scipy.spatial import cKDTree
+
+        key = "_dea_opt_label_tree"  # kept in the cast, as _face_labels
+        if key not in cast.__dict__:
+            cast.__dict__[key] = cKDTree(first.points)
+        index[missing] = cast.__dict__[key].query(centroids[faces[missing]])[1]
+    return labels[index]

@@ -34,7 +34,7 @@ from ..formulations.finite import Targets
 from ..mesh import Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
 from ..mesh.springs import LOST_REASONS
 from ..mesh.walk import ON_FACE, dot
-from .springs import Springs, joined, put_rows
+from .springs import Springs, face_labels, joined, put_rows
 
 __all__ = ["MeshTracker"]
 
@@ -47,22 +47,6 @@ class Update:
     system: object
     state: object
     resolve: bool
-
-
-def _face_labels(cast):
-    """The cast's labels per face of mesh 1 when its layer's labels are those of its faces (None
-    otherwise): decided once a cast (comparing strings costs a third of a millisecond a solve),
-    kept in the cast, whose layer never changes."""
-    key = "_dea_opt_face_labels"
-    if key not in cast.__dict__:
-        own, layer = cast.options.get("labels"), cast.layer
-        same = (
-            own is not None
-            and layer.labels is not None
-            and np.array_equal(np.asarray(own)[layer.source_face], layer.labels)
-        )
-        cast.__dict__[key] = np.asarray(own) if same else None
-    return cast.__dict__[key]
 
 
 class MeshTracker:
@@ -128,6 +112,7 @@ class MeshTracker:
         }
         self.lost: dict = {}
         self.crushed_through = 0  # springs lost through the layer while they carried load
+        self.crushed_faces: list = []  # their faces of mesh 1
 
     def targets(self) -> Targets:
         s = self.springs
@@ -172,27 +157,8 @@ class MeshTracker:
         return layer
 
     def _labels(self, faces):
-        """The labels of faces ``faces`` of mesh 1: the first layer's own (a scenario's regions, the
-        parts of mesh 2 met) where it had the face, else the label of its nearest spring. When the
-        first layer's labels are the cast's per-face labels, those."""
-        first = self._first_layer
-        if first.labels is None:
-            return None
-        per_face = _face_labels(self._first_cast)
-        if per_face is not None:
-            return per_face[faces]
-        labels = np.asarray(first.labels)
-        where = np.full(len(self.cast.mesh1.faces), -1, dtype=np.int64)
-        where[first.source_face] = np.arange(len(first.source_face))
-        index = where[faces]
-        missing = index < 0
-        if missing.any():
-            from scipy.spatial import cKDTree
-
-            if getattr(self, "_label_tree", None) is None:
-                self._label_tree = cKDTree(first.points)
-            index[missing] = self._label_tree.query(self.mesh1.centroids[faces[missing]])[1]
-        return labels[index]
+        """The labels of faces ``faces`` of mesh 1 (:func:`~dea_opt.largemotion.springs.face_labels`)."""
+        return face_labels(self._first_cast, self.mesh1.centroids, faces)
 
     #: mm beyond the window within which a face's tangent-plane gap makes it a candidate: the
     #: plane of the face its ray met departs from a curved mesh 2 as the hit moves on it.
@@ -303,7 +269,7 @@ class MeshTracker:
         gone = np.flatnonzero(~found)
         if len(gone):
             through = again.outcome[gone] == LOST_REASONS.index("through_layer")
-            self.crushed_through += int((through & loaded[index[gone]]).sum())
+            self._crushed(springs.faces1[index[gone[through & loaded[index[gone]]]]])
         on = np.flatnonzero(~left)
         springs.gap[on] = np.where(gaps.valid[on], gaps.s[on], springs.gap[on])
         # 2. Their thickness where the hits are now, and that of springs whose hit moved on its face.
@@ -442,12 +408,32 @@ class MeshTracker:
         self.counts["gained"] += len(new.gained)
         for reason, faces in new.lost.items():
             self._lose(reason, len(faces))
-        loaded_faces = self.springs.faces1[state.eps < 0]
-        self.crushed_through += int(np.isin(new.lost.get("through_layer", ()), loaded_faces).sum())
+        through = np.asarray(new.lost.get("through_layer", ()), dtype=np.int64)
+        self._crushed(through[np.isin(through, self.springs.faces1[state.eps < 0])])
         self._take(new.cast)
         self.counts["dropped"] = len(self.dropped_faces)
         new_system = self.springs_of(system)
         return Update(new_system, new_system.state(state.y, state.law), True)
+
+    def _crushed(self, faces) -> None:
+        """Count ``faces`` of mesh 1, whose springs carried load, as lost through the layer."""
+        self.crushed_through += len(faces)
+        if len(faces):
+            self.crushed_faces.append(np.array(faces, dtype=np.int64))
+
+    def lost_through_layer(self, pose) -> int:
+        """The springs this solve lost through the layer while they carried load whose rays, at
+        mesh 2's ``pose`` (4x4), still meet mesh 2 behind mesh 1's far side: the overlap is deeper
+        than mesh 1's cartilage there, so the lumped layer would still carry them, but the cast
+        cannot place them (the ``lost_through_layer`` validity check)."""
+        if not self.crushed_faces:
+            return 0
+        faces = np.unique(np.concatenate(self.crushed_faces))
+        faces = faces[~np.isin(faces, self.springs.faces1)]
+        if not len(faces):
+            return 0
+        again = cast_faces(self.cast, pose, faces, self._allowed(faces, pose), self.mesh1, self.mesh2, thickness=False)
+        return int((again.outcome == LOST_REASONS.index("through_layer")).sum())
 
     def springs_of(self, system):
         """``system`` with this tracker's springs and targets (the load and coordinates kept)."""

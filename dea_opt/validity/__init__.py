@@ -1,0 +1,103 @@
+"""Is a solved answer inside the model it solved? The validity report of every result.
+
+The certificate (:mod:`dea_opt.solution`) says the answer solves the equations; this module
+says whether those equations still describe cartilage at that answer: the strain within the
+law's range and short of crushing, rotations small enough for the linearised kinematics of
+Eq. (9)-(11) (with the gap error they imply at the springs, computed exactly), sizes and
+pressures that a human joint has (so meshes in metres or loads in the wrong unit are caught),
+the springs the proximity window dropped at the solved pose, and, for finite kinematics, the
+loaded springs lost through the layer (an overlap deeper than mesh 1's cartilage). The
+formulas, the limits and their sources are in ``formulations/validity.md``; the report's types
+are in :mod:`~dea_opt.validity.report`, the checks in :mod:`~dea_opt.validity.checks`.
+
+Every check is one :class:`Check` (name, value, limit, unit, passed, advice); a
+:class:`Validity` holds them all and is valid only if every evaluated check passed. Limits are
+the documented defaults of :class:`ValidityLimits`; pass your own to :func:`assess`.
+Everything is O(N) NumPy: no solve, no mesh query.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..errors import InputError
+from ..problem import ContactProblem
+from .checks import (
+    _dropped_check,
+    _pressure_check,
+    _rotation_checks,
+    _size_checks,
+    _strain_check,
+    _through_layer_check,
+    rotation_gap_error,
+)
+from .report import DEFAULT_LIMITS, Check, Validity, ValidityLimits
+
+__all__ = ["DEFAULT_LIMITS", "Check", "Validity", "ValidityLimits", "assess", "rotation_gap_error"]
+
+
+def assess(
+    problem,
+    u,
+    strain=None,
+    pressure=None,
+    *,
+    limits: ValidityLimits = DEFAULT_LIMITS,
+    dropped: int | None = None,
+    lost_through_layer: int | None = None,
+) -> Validity:
+    """The validity report of ``u`` as an answer to ``problem``.
+
+    Parameters
+    ----------
+    problem : ContactProblem
+    u : array_like, shape (12,)
+        The displacement (mm, rad), body 1 then body 2.
+    strain, pressure : array_like, shape (N,), optional
+        The springs' strain and pressure (MPa) at ``u``; computed from ``problem`` if omitted.
+    limits : ValidityLimits
+        The limits of the checks (documented defaults).
+    dropped : int, optional
+        Springs that carry load at the solved pose but lie outside the proximity window
+        (counted by re-casting at that pose); the check is not evaluated without it.
+    lost_through_layer : int, optional
+        For finite kinematics: springs that carried load and were lost through the layer, still
+        behind mesh 1's far side at the solved pose
+        (:meth:`~dea_opt.largemotion.MeshTracker.lost_through_layer`); without it the check is
+        not evaluated for finite kinematics and passes for small kinematics, which loses no spring.
+
+    Returns
+    -------
+    Validity
+        The checks ``strain``, ``rotation``, ``gap_error``, ``extent``, ``layer_area``,
+        ``thickness``, ``peak_pressure``, ``dropped_springs`` and ``lost_through_layer``, in
+        that order.
+    """
+    if not isinstance(problem, ContactProblem):
+        raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
+    if not isinstance(limits, ValidityLimits):
+        raise InputError(f"limits must be a dea_opt.validity.ValidityLimits, got {type(limits).__name__}")
+    u = np.asarray(u, dtype=float)
+    if u.shape != (12,):
+        raise InputError(f"u must have shape (12,), got shape {u.shape}")
+    n = len(problem.layer)
+    finite = bool(np.isfinite(u).all())
+    if strain is None:
+        strain = problem.strain(u) if finite else np.full(n, np.nan)
+    strain = np.asarray(strain, dtype=float)
+    if pressure is None:
+        with np.errstate(invalid="ignore", over="ignore"):
+            pressure = -problem.law.stress(np.minimum(strain, 0.0))
+    pressure = np.asarray(pressure, dtype=float)
+    for name, arr in (("strain", strain), ("pressure", pressure)):
+        if arr.shape != (n,):
+            raise InputError(f"{name} must have shape ({n},), one value per spring, got shape {arr.shape}")
+    checks = (
+        _strain_check(problem.law, strain, limits),
+        *_rotation_checks(problem, u, limits),
+        *_size_checks(problem.layer, limits),
+        _pressure_check(pressure, limits),
+        _dropped_check(dropped, limits),
+        _through_layer_check(problem, lost_through_layer, limits),
+    )
+    return Validity(checks, limits)

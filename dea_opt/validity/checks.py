@@ -1,0 +1,270 @@
+"""The validity checks, one function each (``formulations/validity.md``): the strain against the
+law's range and crushing, the rotation and the gap error of the small kinematics, the layer's
+sizes, the peak pressure, and the springs the cast dropped or lost through the layer.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..errors import InputError
+from .report import Check, ValidityLimits, _limit
+
+__all__ = ["rotation_gap_error"]
+
+
+_NOT_FINITE = "the value is not finite: the solution failed (see its certificate)"
+
+
+def _strain_check(law, strain, limits: ValidityLimits) -> Check:
+    own = limits.compression if limits.compression is not None else getattr(law, "valid_compression", None)
+    if own is not None:
+        own = _limit(f"{type(law).__name__}.valid_compression", own, 1.0)
+    limit = limits.crushing if own is None else min(own, limits.crushing)
+    value = float(max(-np.min(strain), 0.0)) if len(strain) else 0.0
+    if np.isnan(strain).any():
+        value = math.nan
+    if value <= limit:
+        return Check("strain", value, limit, "", True)
+    return Check("strain", value, limit, "", False, _strain_advice(law, value, limit, limits))
+
+
+def _strain_advice(law, value, limit, limits) -> str:
+    if not math.isfinite(value):
+        return _NOT_FINITE
+    if value >= 1.0:
+        return (
+            "a spring is crushed through its whole thickness (strain <= -1), which is not physical: "
+            "use a bounded law such as AteshianLaw or a smaller load, and check H and the thickness"
+        )
+    if value > limits.crushing:
+        return (
+            f"the cartilage is nearly crushed: past {limits.crushing:.0%} compression only its solid "
+            f"matrix would be left, which no law of a porous layer describes; check the load, H and the "
+            f"thickness"
+        )
+    if getattr(law, "is_linear", False) and limits.compression is None:
+        return (
+            f"beyond the range of the linear law ({limit:.0%} compressive strain, where Volokh, Chao & "
+            f"Armand find it valid): use AteshianLaw, or check the load and H"
+        )
+    return f"beyond the range of {law.describe()} ({limit:.0%} compressive strain): use a law valid there"
+
+
+def _rotation_error_factors(angle: float) -> tuple[float, float]:
+    """``(a, b)`` with ``R - I - W = a W + b W^2`` for the rotation by ``angle`` (rad).
+
+    ``a = sin(t)/t - 1`` (its series below 1e-4, where the difference cancels), ``b =
+    (1 - cos t)/t^2 = 2 sin(t/2)^2 / t^2`` (formulations/validity.md).
+    """
+    if angle == 0.0:
+        return 0.0, 0.5
+    a = -(angle**2) / 6.0 + angle**4 / 120.0 if angle < 1e-4 else math.sin(angle) / angle - 1.0
+    b = 2.0 * (math.sin(0.5 * angle) / angle) ** 2
+    return a, b
+
+
+def rotation_gap_error(problem, u) -> np.ndarray:
+    """Exact minus linearised motion along each spring's normal (mm), shape (N,).
+
+    For body ``k`` rotated by the vector ``theta_k = u[3:6]`` (or ``u[9:12]``) about its
+    reference ``c_k``, the exact motion of a point ``x`` is ``t_k + (R_k - I)(x - c_k)`` and
+    the linearised one of Eq. (9) is ``t_k + theta_k x (x - c_k)``; the result is
+    ``n_i . (e_2(x_i) - e_1(x_i))`` with ``e_k = (R_k - I - [theta_k]x)(x - c_k)``, the error
+    in the spring's gap (formulations/validity.md).
+    """
+    layer = problem.layer
+    u = np.asarray(u, dtype=float)
+    error = np.zeros(len(layer))
+    # The rows of Eq. (11) hold r_k x n already: n . (theta x r) = theta . (r x n) is
+    # -GT[3:6] . theta_1 for body 1 and GT[9:12] . theta_2 for body 2.
+    GT = problem.normal_operator.T
+    n_dot_x = None
+    for sign, body, k in ((-1.0, problem.body1, 3), (1.0, problem.body2, 9)):
+        theta = u[k : k + 3]
+        angle = float(np.linalg.norm(theta))
+        if not math.isfinite(angle):
+            return np.full(len(layer), np.nan)
+        if angle == 0.0:
+            continue
+        a, b = _rotation_error_factors(angle)
+        c = np.asarray(body.reference)
+        if n_dot_x is None:
+            n_dot_x = np.einsum("ij,ij->i", layer.normals, layer.points)
+        n_theta_r = sign * (theta @ GT[k : k + 3])
+        # n . (theta x (theta x r)) = (n . theta)(r . theta) - |theta|^2 (n . r)
+        n_twice = (layer.normals @ theta) * (layer.points @ theta - c @ theta) - angle**2 * (
+            n_dot_x - layer.normals @ c
+        )
+        error += sign * (a * n_theta_r + b * n_twice)
+    return error
+
+
+_KINEMATICS_ADVICE = (
+    "outside the small-rotation kinematics of Eq. (9)-(11): use finite kinematics, "
+    "ContactProblem(..., kinematics='finite') (exact rotations, gaps at the current pose; "
+    "formulations/finite.md), fix the dofs the joint does not move, or reduce the load"
+)
+_FINITE = "finite kinematics take rotations exactly: the small kinematics' error does not apply"
+
+
+def _rotation_checks(problem, u, limits: ValidityLimits) -> tuple[Check, Check]:
+    u = np.asarray(u, dtype=float)
+    degrees = math.degrees(max(float(np.linalg.norm(u[3:6])), float(np.linalg.norm(u[9:12]))))
+    if getattr(problem, "kinematics", "small") == "finite":
+        return (
+            Check("rotation", degrees, limits.rotation, "deg", None, _FINITE),
+            Check("gap_error", math.nan, limits.gap_error, "of thickness", None, _FINITE, (("mm", math.nan),)),
+        )
+    if not np.isfinite(u).all():
+        degrees = math.nan
+    passed = degrees <= limits.rotation
+    advice = "" if passed else _NOT_FINITE if math.isnan(degrees) else (f"the rotation is {_KINEMATICS_ADVICE}")
+    rotation = Check("rotation", degrees, limits.rotation, "deg", passed, advice)
+    layer = problem.layer
+    if not len(layer):
+        return rotation, Check(
+            "gap_error",
+            math.nan,
+            limits.gap_error,
+            "of thickness",
+            None,
+            "the layer has no springs",
+            (("mm", math.nan),),
+        )
+    error = np.abs(rotation_gap_error(problem, u))
+    mm = float(np.max(error))
+    relative = float(np.max(error / layer.thickness))
+    passed = relative <= limits.gap_error
+    advice = (
+        ""
+        if passed
+        else _NOT_FINITE
+        if math.isnan(relative)
+        else (f"the linearised rotation misplaces a spring by {mm:.3g} mm along its normal, {_KINEMATICS_ADVICE}")
+    )
+    return rotation, Check("gap_error", relative, limits.gap_error, "of thickness", passed, advice, (("mm", mm),))
+
+
+def _range_check(name, value, limit, unit, small, large) -> Check:
+    low, high = limit
+    if low <= value <= high:
+        return Check(name, value, limit, unit, True)
+    return Check(name, value, limit, unit, False, small if value < low else large)
+
+
+def _size_checks(layer, limits: ValidityLimits) -> tuple[Check, ...]:
+    names = (
+        ("extent", limits.extent, "mm"),
+        ("layer_area", limits.layer_area, "mm^2"),
+        ("thickness", limits.thickness, "mm"),
+    )
+    if not len(layer):
+        return tuple(Check(n, math.nan, lim, unit, None, "the layer has no springs") for n, lim, unit in names)
+    area = float(layer.areas.sum())
+    # A layer is at least as large as its area says: springs at one point stand for a patch.
+    # One strided pass per coordinate is 10x faster than np.ptp(axis=0) over (N, 3).
+    span = [float(column.max() - column.min()) for column in layer.points.T]
+    extent = max(math.hypot(*span), math.sqrt(area))
+    thickness = float(layer.areas @ layer.thickness / area)
+    metres = "the geometry looks like metres: load meshes with load_mesh(path, scale=1000)"
+    microns = "the geometry looks like micrometres: load meshes with load_mesh(path, scale=0.001)"
+    return (
+        _range_check(
+            "extent",
+            extent,
+            limits.extent,
+            "mm",
+            f"the springs span {extent:.3g} mm where a joint's layer spans 10-100 mm; {metres}",
+            f"the springs span {extent:.3g} mm where a joint's layer spans 10-100 mm; {microns}",
+        ),
+        _range_check(
+            "layer_area",
+            area,
+            limits.layer_area,
+            "mm^2",
+            f"the springs cover {area:.3g} mm^2 where a joint's layer covers 100-10000 mm^2; {metres}",
+            f"the springs cover {area:.3g} mm^2 where a joint's layer covers 100-10000 mm^2; {microns}",
+        ),
+        _range_check(
+            "thickness",
+            thickness,
+            limits.thickness,
+            "mm",
+            f"mean thickness {thickness:.3g} mm where cartilage is 0.5-6 mm thick: give it in mm",
+            f"mean thickness {thickness:.3g} mm where cartilage is 0.5-6 mm thick: give it in mm",
+        ),
+    )
+
+
+def _pressure_check(pressure, limits: ValidityLimits) -> Check:
+    peak = float(np.max(pressure, initial=0.0))
+    passed = peak <= limits.peak_pressure
+    advice = (
+        ""
+        if passed
+        else _NOT_FINITE
+        if math.isnan(peak)
+        else (
+            f"a peak of {peak:.4g} MPa is above what cartilage survives (it fails at about 25-35 MPa; joints see "
+            f"1-20 MPa): check the load's units (N, not body weights), H's (MPa, not kPa or Pa) and the mesh's (mm)"
+        )
+    )
+    return Check("peak_pressure", peak, limits.peak_pressure, "MPa", passed, advice)
+
+
+def _dropped_check(dropped, limits: ValidityLimits) -> Check:
+    if dropped is None:
+        return Check(
+            "dropped_springs",
+            math.nan,
+            limits.dropped_springs,
+            "springs",
+            None,
+            "no count of the springs the proximity window drops at the solved pose was given",
+        )
+    if isinstance(dropped, bool) or not isinstance(dropped, (int, np.integer)) or dropped < 0:
+        raise InputError(f"dropped must be a count of springs (an integer >= 0) or None, got {dropped!r}")
+    passed = bool(dropped <= limits.dropped_springs)
+    advice = (
+        ""
+        if passed
+        else (
+            f"{dropped} spring(s) that carry load at the solved pose lie outside the proximity window: "
+            f"cast the springs with a larger max_gap or max_overlap"
+        )
+    )
+    return Check("dropped_springs", float(dropped), limits.dropped_springs, "springs", passed, advice)
+
+
+def _through_layer_check(problem, lost, limits: ValidityLimits) -> Check:
+    name, limit = "lost_through_layer", limits.lost_through_layer
+    if lost is None:
+        if getattr(problem, "kinematics", "small") != "finite":
+            # the small kinematics keeps the springs of the start pose: the lumped layer carries
+            # every overlap short of its whole thickness (the strain check sees the rest)
+            return Check(name, 0.0, limit, "springs", True)
+        return Check(
+            name,
+            math.nan,
+            limit,
+            "springs",
+            None,
+            "no count of the springs lost through the layer at the solved pose was given",
+        )
+    if isinstance(lost, bool) or not isinstance(lost, (int, np.integer)) or lost < 0:
+        raise InputError(f"lost_through_layer must be a count of springs (an integer >= 0) or None, got {lost!r}")
+    passed = bool(lost <= limit)
+    advice = (
+        ""
+        if passed
+        else (
+            f"{lost} spring(s) that carried load are compressed deeper than mesh 1's cartilage at the solved "
+            f"pose (their rays meet mesh 2 behind mesh 1's far side), so the cast cannot place them and the "
+            f"answer leaves their force out; the layer is nearly crushed there: check the load and its units, "
+            f"H and the thicknesses"
+        )
+    )
+    return Check(name, float(lost), limit, "springs", passed, advice)
