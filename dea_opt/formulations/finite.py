@@ -180,7 +180,9 @@ def status_of(native: str, success: bool, system: FiniteSystem, state) -> Status
     return status
 
 
-def solve(system: FiniteSystem, law, T, energy_scale: float, *, x0=None, cold=None, **options) -> InnerResult:
+def solve(
+    system: FiniteSystem, law, T, energy_scale: float, *, x0=None, cold=None, start_state=None, **options
+) -> InnerResult:
     """The equilibrium of ``system``'s free coordinates for its targets, by Newton.
 
     Parameters
@@ -196,6 +198,8 @@ def solve(system: FiniteSystem, law, T, energy_scale: float, *, x0=None, cold=No
     cold : bool, optional
         ``x0`` is no warm start (the first iteration may take the extended range); by default,
         whether ``x0`` was given.
+    start_state : State, optional
+        ``system.state(system.coordinates(x0), law)``, when the caller has it (not computed again).
     **options
         :data:`OPTIONS` (the re-casting ones are :mod:`dea_opt.largemotion`'s and ignored here).
     """
@@ -208,7 +212,8 @@ def solve(system: FiniteSystem, law, T, energy_scale: float, *, x0=None, cold=No
         return InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
     defaults = {option.name: option.default for option in OPTIONS}
     chosen = {k: options.get(k, defaults[k]) for k in _NEWTON}
-    return _finite_newton.solve(system, law, T, energy_scale, x0=x, cold=cold, **chosen)
+    start = start_state if x0 is not None else None
+    return _finite_newton.solve(system, law, T, energy_scale, x0=x, cold=cold, start_state=start, **chosen)
 
 
 class FiniteModel:

@@ -50,11 +50,11 @@ VARIANT = Variant("form", {"constrained": "IPOPT-finite", "reduced": "IPOPT-fini
 _IPOPT = ("form", "tol", "outer_tol", "max_outer", "max_iter", "ipopt_options")
 
 
-def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, **options) -> InnerResult:
+def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, start_state=None, **options) -> InnerResult:
     """The equilibrium of ``system``'s free coordinates for its targets, by IPOPT.
 
-    As :func:`dea_opt.formulations.finite.solve` (``cold`` is ignored: IPOPT has no extended
-    start); ``options`` are :data:`OPTIONS` (the re-casting ones are ignored here). The springs'
+    As :func:`dea_opt.formulations.finite.solve` (``cold`` and ``start_state`` are ignored: IPOPT
+    has no extended start, and evaluates the springs in CasADi); ``options`` are :data:`OPTIONS` (the re-casting ones are ignored here). The springs'
     stresses IPOPT reports (its multipliers) are ``info["stress"]``.
     """
     from ._parts import finite_ipopt as _finite_ipopt

@@ -300,19 +300,20 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     def tighten(system, inner):
         reached = inner.info.get("residual_history") or [np.inf]
         if inner.info.get("loose") and inner.success and not reached[-1] <= opts["gtol"]:
-            inner = _inner(method, system, law, T, E0, inner.u_free, False, opts)
+            inner = _inner(method, system, law, T, E0, inner.u_free, False, opts, inner.state)
             history.extend(inner.info.get("residual_history", []))
         return inner
 
+    start_state = None  # the state at x of the springs an update brought, which it computed
     while True:
-        inner = _inner(method, system, law, T, E0, x, cold, loose_opts)
+        inner = _inner(method, system, law, T, E0, x, cold, loose_opts, start_state)
         inner.info["loose"] = loose
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
         if tracker is None or not inner.success:
             break
         system, inner, resolve, stable = _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten)
-        x = inner.u_free
+        x, start_state = inner.u_free, inner.state
         if not resolve:
             break
     if tracker is not None:
@@ -369,9 +370,11 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
             continue
         rounds[0] += 1
         system = update.system
+        # the new springs at the solved pose: where the next solve starts, or (when only springs
+        # that carry nothing changed) the same equilibrium
+        inner.state = update.state
         if update.resolve or method != "finite":
             return system, inner, True, True
-        inner.state = update.state  # only springs that carry nothing changed: the same equilibrium
         if complete:
             return system, inner, False, True
         tracker.complete = True
@@ -427,9 +430,10 @@ def _predicted(small, law, x):
     return x, True
 
 
-def _inner(method, system, law, T, E0, x, cold, opts):
-    """The registry's formulation ``method`` on the arrays: its raw answer for these targets."""
-    return formulations.get(method).solve(system, law, T, E0, x0=x, cold=cold, **opts)
+def _inner(method, system, law, T, E0, x, cold, opts, start_state=None):
+    """The registry's formulation ``method`` on the arrays: its raw answer for these targets
+    (``start_state``: the springs' state at ``x``, when known)."""
+    return formulations.get(method).solve(system, law, T, E0, x0=x, cold=cold, start_state=start_state, **opts)
 
 
 def _solution(problem, system, small, law, inner, method, tracker, certificate_tol, build, solve_time, history):

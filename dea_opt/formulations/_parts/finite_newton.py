@@ -112,7 +112,18 @@ def _descent(K, g, material) -> tuple[np.ndarray, bool, str]:
 
 
 def solve(
-    system, law, T, energy_scale, *, x0, xtol=1e-12, gtol=1e-12, max_iter=100, extended_start=True, cold=True
+    system,
+    law,
+    T,
+    energy_scale,
+    *,
+    x0,
+    xtol=1e-12,
+    gtol=1e-12,
+    max_iter=100,
+    extended_start=True,
+    cold=True,
+    start_state=None,
 ) -> InnerResult:
     """Newton's method on the finite-kinematics residual of ``system`` (targets fixed).
 
@@ -128,11 +139,13 @@ def solve(
         Start (mm, rad).
     cold : bool
         ``x0`` is no warm start: the first iteration may use the extended range.
+    start_state : State, optional
+        ``system.state`` at ``x0`` when the caller has it (an update of the springs computes it).
     """
     start = time.perf_counter()
     free = system.free
     x = np.array(x0, dtype=float)
-    state = system.state(system.coordinates(x), law)
+    state = system.state(system.coordinates(x), law) if start_state is None else start_state
     status, message, success = "max_iterations", f"no convergence in {max_iter} iterations", False
     history, evaluations, kinds = [], 0, []
     previous_active = None
