@@ -25,7 +25,6 @@ from ..formulations.finite import (
     ALIASES,
     SHARED,
     FiniteSystem,
-    InnerResult,
     Targets,
     evaluate,
     rms_radius,
@@ -36,6 +35,7 @@ from ..formulations.finite import (
 from ..kinematics import DOFS
 from ..mesh import SpringCast, check_pose
 from ..status import Status
+from .outcome import crushed_at_start, crushed_through, unsettled
 from .solution import FiniteSolution, certificate
 from .tracker import MeshTracker
 
@@ -227,6 +227,8 @@ def solve(
         if method == "auto":
             if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
                 solution.info["fallback"] = "not tried: the layer is crushed through, a limit of the model"
+            elif solution.info.get("recast", {}).get("stable") is False:  # IPOPT's springs are updated alike
+                solution.info["fallback"] = "not tried: the springs did not settle within max_recasts updates"
             elif not solution.success and len(steps) > 1:
                 reason = (
                     f"{name} ended with status {solution.status!r} and certificate residual "
@@ -239,9 +241,14 @@ def solve(
             solution.info["requested"] = "auto"
     if not solution.success and strict:
         worst, value = solution.certificate.worst()
+        residual = (
+            f"certificate residual {worst} = {value:.3g} > {certificate_tol:g}"
+            if not solution.certificate.passed
+            else "its certificate passed for springs not up to date at that pose"
+        )
         raise SolverError(
             f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
-            f"{solution.message}); certificate residual {worst} = {value:.3g} > {certificate_tol:g}",
+            f"{solution.message}); {residual}",
             status=solution.status,
             solution=solution,
         )
@@ -286,7 +293,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         deepest = small.strain_at(guess).min()
         if not unsolved and deepest <= -1.0:
             tracker.counts["stable"] = True
-            crushed = _crushed_at_start(system, law, guess, deepest)
+            crushed = crushed_at_start(system, law, guess, deepest)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
         if method == "finite":
             x, cold = guess, unsolved
@@ -319,7 +326,9 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     if tracker is not None:
         tracker.counts["stable"] = stable
         if tracker.crushed_through and not inner.success:
-            _crushed_through(tracker, inner, law)
+            crushed_through(tracker, inner, law)
+        elif not stable and inner.success:
+            unsettled(inner)
     if method == "finite" and not inner.success and loaded and cone is not None:
         cone(problem, small)
     return _solution(
@@ -354,7 +363,11 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
     while True:
         if rounds[0] >= max_recasts:
             inner = tighten(system, inner)
-            inner.message += f"; the springs still changed after {rounds[0]} updates (max_recasts)"
+            inner.message += (
+                f"; the springs still changed after {rounds[0]} updates (max_recasts)"
+                if rounds[0]
+                else "; the springs were not updated (max_recasts = 0)"
+            )
             return system, inner, False, False
         complete = tracker.complete or tracker.short_step(system.transform(inner.state.y))
         if complete:
@@ -378,41 +391,6 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
         if complete:
             return system, inner, False, True
         tracker.complete = True
-
-
-def _crushed_at_start(system, law, x, eps) -> InnerResult:
-    """A failed answer at the small kinematics' answer ``x``, which crushes the layer through
-    (``eps <= -1``): with springs that follow mesh 2, body 2 would go through the cartilage
-    (springs lost through the layer, :func:`_crushed_through`); said before any solve, since
-    IPOPT takes minutes to find it out."""
-    return InnerResult(
-        x,
-        system.state(system.coordinates(x), law),
-        False,
-        "crushed",
-        f"the small kinematics on the start pose's springs reach eps = {eps:.3g}: body 2 would go through "
-        f"the cartilage before the load is carried, so {_beyond(law)}",
-    )
-
-
-def _crushed_through(tracker, inner, law) -> None:
-    """Mark a failed solve ``crushed`` when springs that carried load were lost through the layer
-    on the way (their rays met mesh 2 behind mesh 1's far side: the overlap passed mesh 1's
-    thickness): the load drove body 2 into the layer until springs left the model. IPOPT would
-    meet the same springs, in minutes: ``auto`` does not fall back to it."""
-    inner.status = "crushed"
-    inner.message += (
-        f"; {tracker.crushed_through} springs that carried load were lost through the layer on the way (their "
-        f"rays met mesh 2 behind mesh 1's far side): {_beyond(law)}"
-    )
-
-
-def _beyond(law) -> str:
-    """What a crushed answer tells the user to check."""
-    return (
-        f"the load is beyond what this layer can bear (check the load and its units, and H: {law.modulus:g} MPa "
-        f"here; or use a bounded law such as AteshianLaw)"
-    )
 
 
 def _predicted(small, law, x):
@@ -464,7 +442,8 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     cert = certificate(
         state, law, final.layer, lengths, stiffness, u, reported, gaps_at_zero / system.thickness, certificate_tol
     )
-    success = bool(finite and cert.passed and np.isfinite(pressure).all())
+    settled = tracker is None or tracker.counts.get("stable", True)
+    success = bool(finite and cert.passed and np.isfinite(pressure).all() and settled)
     info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
     status = status_of(inner.status, success, system, state)

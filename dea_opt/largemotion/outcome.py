@@ -1,0 +1,59 @@
+"""How a finite-kinematics solve that cannot give an answer of the meshes says so.
+
+``crushed`` (:class:`~dea_opt.status.Status`) when the load drives body 2 through the cartilage
+(``formulations/finite.md``, "Limits"), and ``max_iterations`` when the springs did not settle
+within ``max_recasts`` updates. Used by :mod:`~dea_opt.largemotion.driver`.
+"""
+
+from __future__ import annotations
+
+from ..formulations.finite import InnerResult
+
+__all__ = ["crushed_at_start", "crushed_through", "unsettled"]
+
+
+def crushed_at_start(system, law, x, eps) -> InnerResult:
+    """A failed answer at the small kinematics' answer ``x``, which crushes the layer through
+    (``eps <= -1``): with springs that follow mesh 2, body 2 would go through the cartilage
+    (springs lost through the layer, :func:`crushed_through`); said before any solve, since
+    IPOPT takes minutes to find it out."""
+    return InnerResult(
+        x,
+        system.state(system.coordinates(x), law),
+        False,
+        "crushed",
+        f"the small kinematics on the start pose's springs reach eps = {eps:.3g}: body 2 would go through "
+        f"the cartilage before the load is carried, so {_beyond(law)}",
+    )
+
+
+def crushed_through(tracker, inner, law) -> None:
+    """Mark a failed solve ``crushed`` when springs that carried load were lost through the layer
+    on the way (their rays met mesh 2 behind mesh 1's far side: the overlap passed mesh 1's
+    thickness): the load drove body 2 into the layer until springs left the model. IPOPT would
+    meet the same springs, in minutes: ``auto`` does not fall back to it."""
+    inner.status = "crushed"
+    inner.message += (
+        f"; {tracker.crushed_through} springs that carried load were lost through the layer on the way (their "
+        f"rays met mesh 2 behind mesh 1's far side): {_beyond(law)}"
+    )
+
+
+def _beyond(law) -> str:
+    """What a crushed answer tells the user to check."""
+    return (
+        f"the load is beyond what this layer can bear (check the load and its units, and H: {law.modulus:g} MPa "
+        f"here; or use a bounded law such as AteshianLaw)"
+    )
+
+
+def unsettled(inner) -> None:
+    """Mark a converged solve whose springs still changed at the last update allowed
+    (``max_recasts``) as failed, ``max_iterations``: an equilibrium of springs that were not
+    confirmed at its own pose is not an answer of the meshes there (its certificate passes for
+    those springs). ``auto`` does not fall back to IPOPT, whose springs are updated alike."""
+    inner.success, inner.status = False, "max_iterations"
+    inner.message += (
+        ": they were not brought up to date at the solved pose, so the answer is not certified "
+        "for the meshes there (raise max_recasts)"
+    )
