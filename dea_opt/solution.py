@@ -250,6 +250,18 @@ class Solution:
         return self.iterations
 
     @property
+    def failure(self) -> str:
+        """Why this answer is not a success, in one clause ("" when it is): its certificate's worst
+        residual when the certificate failed, else what the solve said (``info["failure"]``: a
+        finite-kinematics answer whose springs were not confirmed at its pose, or a crushed layer)."""
+        if self.success:
+            return ""
+        if not self.certificate.passed:
+            name, value = self.certificate.worst()
+            return f"certificate residual {name} = {value:.3g} > {self.certificate.tolerance:g}"
+        return self.info.get("failure") or f"status {self.status!r}: {self.status.description}"
+
+    @property
     def body1_displacement(self) -> np.ndarray:
         """``(ux, uy, uz, rx, ry, rz)`` of body 1 (mm, rad)."""
         return self.u[:6]

@@ -456,10 +456,9 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     elif not solution.success and not formulations.capabilities(name).checks_load_first:
         _raise_if_unsupported(problem)
     if not solution.success and strict:
-        worst, value = solution.certificate.worst()
         raise SolverError(
             f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
-            f"certificate residual {worst} = {value:.3g} > {certificate_tol:g}. Try method='auto', a tighter "
+            f"{solution.failure}. Try method='auto', a tighter "
             f"solver tolerance, or check the problem for loads no spring resists.",
             status=solution.status,
             solution=solution,

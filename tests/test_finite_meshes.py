@@ -332,8 +332,9 @@ def test_springs_that_did_not_settle_within_max_recasts_fail_as_max_iterations(k
         assert solution.status is d.Status.MAX_ITERATIONS and not solution.success
         assert solution.certificate.passed and solution.info["recast"]["stable"] is False
         assert "not brought up to date at the solved pose" in solution.message and "max_recasts" in solution.message
+        assert solution.failure.startswith("its certificate passed for springs not brought up to date")
     assert solution.method == "finite" and "did not settle" in solution.info["fallback"]
-    with pytest.raises(d.SolverError, match="its certificate passed for springs not up to date"):
+    with pytest.raises(d.SolverError, match="its certificate passed for springs not brought up to date"):
         quiet(d.solve, problem, "newton", max_recasts=0)
     unchecked = quiet(d.solve, problem, "newton", strict=False, max_recasts=0)
     fresh = quiet(

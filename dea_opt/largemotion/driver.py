@@ -240,15 +240,9 @@ def solve(
             solution.info.setdefault("fallback", None)
             solution.info["requested"] = "auto"
     if not solution.success and strict:
-        worst, value = solution.certificate.worst()
-        residual = (
-            f"certificate residual {worst} = {value:.3g} > {certificate_tol:g}"
-            if not solution.certificate.passed
-            else "its certificate passed for springs not up to date at that pose"
-        )
         raise SolverError(
             f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
-            f"{solution.message}); {residual}",
+            f"{solution.message}); {solution.failure}",
             status=solution.status,
             solution=solution,
         )
@@ -449,9 +443,14 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
         state, law, final.layer, lengths, stiffness, u, reported, gaps_at_zero / system.thickness, certificate_tol
     )
     settled = tracker is None or tracker.counts.get("stable", True)
-    success = bool(finite and cert.passed and np.isfinite(pressure).all() and settled)
+    crushed = inner.status == "crushed"
+    success = bool(finite and cert.passed and np.isfinite(pressure).all() and settled and not crushed)
     info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
+    if cert.passed and not settled:
+        info["failure"] = "its certificate passed for springs not brought up to date at the solved pose (max_recasts)"
+    elif cert.passed and crushed:
+        info["failure"] = "its certificate passed, but the layer is crushed: the load is beyond what it can bear"
     status = status_of(inner.status, success, system, state)
     if tracker is not None:
         info["recast"] = {**tracker.counts, "lost_by_reason": dict(tracker.lost)}

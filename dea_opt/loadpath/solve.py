@@ -194,10 +194,9 @@ def _solve_frame(stepper, frame, new_geometry, setup):
         return None, Status.NOT_SUPPORTED, str(exc), exc
     except SolverError as exc:
         return exc.solution, Status.of_error(exc), str(exc), exc
-    name, value = solution.certificate.worst()
     message = (
-        f"{solution.method} returned no certified answer (status {solution.status!r}): certificate "
-        f"residual {name} = {value:.3g} > {solution.certificate.tolerance:g}; {solution.message}"
+        f"{solution.method} returned no certified answer (status {solution.status!r}): {solution.failure}; "
+        f"{solution.message}"
     )
     return solution, solution.status, message, None
 

@@ -58,8 +58,8 @@ def run_static(scenario, problem, method, options, out, cast=None) -> RunOutcome
         )
     else:
         message = (
-            f"{solution.method} returned no certified answer (status {solution.status!r}; {name} = "
-            f"{value:.3g} > {scenario.solve.certificate_tol:g}); the outputs hold the uncertified answer"
+            f"{solution.method} returned no certified answer (status {solution.status!r}; {solution.failure}); "
+            f"the outputs hold the uncertified answer"
         )
     lines = [f"validity: {validity.summary()}"]
     lines += [f"  {check.describe()}" for check in validity.checks]
