@@ -355,7 +355,12 @@ class Solution:
         """
         if self.assessed_validity is not None:
             return self.assessed_validity
-        return assess(self.problem, self.u, self.strain, self.pressure)
+        return assess(self.problem, self.u, self.strain, self.pressure, **self._counts())
+
+    def _counts(self) -> dict:
+        """The counts of springs this answer knows for :func:`~dea_opt.validity.assess` (none; a
+        finite-kinematics answer knows what its updates dropped and lost)."""
+        return {}
 
     def with_validity(self, validity: Validity | None = None, *, dropped: int | None = None, limits=None) -> Solution:
         """A copy of this solution whose :attr:`validity` is ``validity``, or is assessed with
@@ -368,7 +373,7 @@ class Solution:
         dropped : int, optional
             Springs the proximity window drops at the solved pose, e.g.
             ``dea_opt.mesh.recast_at_solution(solution, cast).dropped``: evaluates the
-            ``dropped_springs`` check.
+            ``dropped_springs`` check (a finite-kinematics answer counts its own: this replaces it).
         limits : ValidityLimits, optional
             Default :data:`dea_opt.validity.DEFAULT_LIMITS`.
 
@@ -386,13 +391,16 @@ class Solution:
             if dropped is not None or limits is not None:
                 raise InputError("give validity, or dropped and limits to assess it, not both")
         else:
+            counts = self._counts()
+            if dropped is not None:
+                counts["dropped"] = dropped
             validity = assess(
                 self.problem,
                 self.u,
                 self.strain,
                 self.pressure,
                 limits=DEFAULT_LIMITS if limits is None else limits,
-                dropped=dropped,
+                **counts,
             )
         return replace(self, info=dict(self.info), assessed_validity=validity)
 

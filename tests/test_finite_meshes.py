@@ -27,6 +27,7 @@ from dea_opt.formulations._parts.finite_geometry import (
 )
 from dea_opt.geometry import hip_meshes
 from dea_opt.mesh import off_face
+from dea_opt.validity import ValidityLimits
 
 KNEE = Path(__file__).resolve().parents[2] / "shared" / "data" / "knee"
 FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
@@ -316,6 +317,11 @@ def test_springs_lost_through_the_layer_in_deep_compression_make_the_answer_inva
         assert not solution.validity.valid and [c.name for c in solution.validity.failed] == ["lost_through_layer"]
         assert 0.8 * len(index) <= check.value <= 1.05 * len(index)
         assert missing > 0.1 * LOAD and "deeper than mesh 1's cartilage" in check.advice
+        # other limits keep the answer's own counts
+        loose = solution.with_validity(limits=ValidityLimits(lost_through_layer=10**6))
+        assert loose.validity["lost_through_layer"].value == check.value and loose.validity.valid
+        assert solution.with_validity(dropped=3).validity["dropped_springs"].value == 3
+        assert solution.with_validity().validity["lost_through_layer"].value == check.value
     else:
         assert check.passed and check.value == 0 and len(index) == 0 and solution.validity.valid
 
