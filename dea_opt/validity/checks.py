@@ -215,56 +215,46 @@ def _pressure_check(pressure, limits: ValidityLimits) -> Check:
     return Check("peak_pressure", peak, limits.peak_pressure, "MPa", passed, advice)
 
 
+def _count_check(name, argument, count, limit, missing, advice) -> Check:
+    """A check of a count of springs (``argument``: the name the caller gave it), not evaluated
+    without one (``missing`` says why); ``advice(count)`` says what a count past ``limit`` means."""
+    if count is None:
+        return Check(name, math.nan, limit, "springs", None, missing)
+    if isinstance(count, bool) or not isinstance(count, (int, np.integer)) or count < 0:
+        raise InputError(f"{argument} must be a count of springs (an integer >= 0) or None, got {count!r}")
+    passed = bool(count <= limit)
+    return Check(name, float(count), limit, "springs", passed, "" if passed else advice(count))
+
+
 def _dropped_check(dropped, limits: ValidityLimits) -> Check:
-    if dropped is None:
-        return Check(
-            "dropped_springs",
-            math.nan,
-            limits.dropped_springs,
-            "springs",
-            None,
-            "no count of the springs the proximity window drops at the solved pose was given",
-        )
-    if isinstance(dropped, bool) or not isinstance(dropped, (int, np.integer)) or dropped < 0:
-        raise InputError(f"dropped must be a count of springs (an integer >= 0) or None, got {dropped!r}")
-    passed = bool(dropped <= limits.dropped_springs)
-    advice = (
-        ""
-        if passed
-        else (
-            f"{dropped} spring(s) that carry load at the solved pose lie outside the proximity window: "
+    return _count_check(
+        "dropped_springs",
+        "dropped",
+        dropped,
+        limits.dropped_springs,
+        "no count of the springs the proximity window drops at the solved pose was given",
+        lambda n: (
+            f"{n} spring(s) that carry load at the solved pose lie outside the proximity window: "
             f"cast the springs with a larger max_gap or max_overlap"
-        )
+        ),
     )
-    return Check("dropped_springs", float(dropped), limits.dropped_springs, "springs", passed, advice)
 
 
 def _through_layer_check(problem, lost, limits: ValidityLimits) -> Check:
-    name, limit = "lost_through_layer", limits.lost_through_layer
-    if lost is None:
-        if getattr(problem, "kinematics", "small") != "finite":
-            # the small kinematics keeps the springs of the start pose: the lumped layer carries
-            # every overlap short of its whole thickness (the strain check sees the rest)
-            return Check(name, 0.0, limit, "springs", True)
-        return Check(
-            name,
-            math.nan,
-            limit,
-            "springs",
-            None,
-            "no count of the springs lost through the layer at the solved pose was given",
-        )
-    if isinstance(lost, bool) or not isinstance(lost, (int, np.integer)) or lost < 0:
-        raise InputError(f"lost_through_layer must be a count of springs (an integer >= 0) or None, got {lost!r}")
-    passed = bool(lost <= limit)
-    advice = (
-        ""
-        if passed
-        else (
-            f"{lost} spring(s) that carried load are compressed deeper than mesh 1's cartilage at the solved "
+    if lost is None and getattr(problem, "kinematics", "small") != "finite":
+        # the small kinematics keeps the springs of the start pose: the lumped layer carries
+        # every overlap short of its whole thickness (the strain check sees the rest)
+        lost = 0
+    return _count_check(
+        "lost_through_layer",
+        "lost_through_layer",
+        lost,
+        limits.lost_through_layer,
+        "no count of the springs lost through the layer at the solved pose was given",
+        lambda n: (
+            f"{n} spring(s) that carried load are compressed deeper than mesh 1's cartilage at the solved "
             f"pose (their rays meet mesh 2 behind mesh 1's far side), so the cast cannot place them and the "
             f"answer leaves their force out; the layer is nearly crushed there: check the load and its units, "
             f"H and the thicknesses"
-        )
+        ),
     )
-    return Check(name, float(lost), limit, "springs", passed, advice)
