@@ -83,7 +83,8 @@ _DESCRIPTIONS = {
     "default formulation (Newton), the same answer for every method",
     Status.INACCURATE: "the solver stopped at an answer it doubts (Clarabel's AlmostSolved, cvxpy's "
     "optimal_inaccurate, IPOPT's acceptable level), or claimed one that fails dea-opt's certificate",
-    Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence",
+    Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence; for finite kinematics "
+    "also: the springs still changed at the last update max_recasts allows",
     Status.LINE_SEARCH_FAILED: "no step along the search direction decreased the energy enough (Newton's line "
     "search, IPOPT's failed restoration)",
     Status.STALLED: "no descent direction, or a search direction too small to make progress",
