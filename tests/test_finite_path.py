@@ -9,6 +9,7 @@ with one key, ``[solve] kinematics``.
 
 from __future__ import annotations
 
+import json
 import textwrap
 import warnings
 
@@ -201,6 +202,46 @@ def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):
         ).kinematics
         == "small"
     )
+
+
+def test_a_scenario_sets_max_recasts_for_finite_kinematics_only(tmp_path):
+    """``[solve].max_recasts`` reaches the finite solve (none allowed: the springs are never brought
+    up to date, so the run fails as max_iterations, exit 1); with small kinematics, or below 0, the
+    scenario is refused naming the key (exit 2)."""
+    from typer.testing import CliRunner
+
+    from dea_opt.cli import app
+
+    text = textwrap.dedent("""
+        [geometry]
+        kind = "generator"
+        function = "knee_meshes"
+        [law]
+        kind = "linear"
+        H = 10.0
+        [body2]
+        free = ["uz", "ry"]
+        [load]
+        force = [0, 0, -600.0]
+        moment = [0, 1500.0, 0]
+        [solve]
+        kinematics = "KIND"
+        max_recasts = COUNT
+        [output]
+        formats = ["json"]
+    """)
+    for kind, count, code, said in (
+        ("finite", 0, 1, "max_iterations"),
+        ("small", 2, 2, 'only kinematics = "finite" has'),
+        ("finite", -1, 2, "solve.max_recasts"),
+    ):
+        path = tmp_path / f"{kind}{count}.toml"
+        path.write_text(text.replace("KIND", kind).replace("COUNT", str(count)))
+        result = CliRunner().invoke(app, ["run", str(path), "--output", str(tmp_path / f"out{kind}{count}")])
+        assert result.exit_code == code and said in result.output, result.output
+        assert "Traceback" not in result.output
+    summary = json.loads((tmp_path / "outfinite0" / "contact.json").read_text())
+    assert summary["status"] == "max_iterations" and summary["info"]["recast"]["stable"] is False
 
 
 def test_labels_follow_the_faces_through_updates_and_whole_re_casts():

@@ -18,7 +18,8 @@ def solve_options(section, method: str, law) -> dict:
     The formulation is ``method``, or under ``auto`` the one the registry falls back to for
     ``law`` (:func:`dea_opt.formulations.fallback_for`). ``[solve].tol`` sets the options one
     accuracy setting sets (:func:`~dea_opt.formulations.tolerance_options`), and each other
-    key of ``[solve]`` that names one of its options (``solver``, ``form``) is passed as is.
+    key of ``[solve]`` that names one of its options (``solver``, ``form``; ``max_recasts`` for
+    finite kinematics) is passed as is.
     """
     from .. import formulations
 
@@ -34,7 +35,9 @@ def solve_options(section, method: str, law) -> dict:
                     {
                         o.name: getattr(section, o.name)
                         for o in formulations.options(name)
-                        if not o.tolerance and o.name in ("form",)
+                        if not o.tolerance
+                        and o.name in ("form", "max_recasts")
+                        and getattr(section, o.name) is not None
                     }
                 )
                 out.update(formulations.tolerance_options(name, section.tol))

@@ -356,11 +356,25 @@ class SolveSection(_Section):
         "rotations and gaps at the current pose, springs cast from meshes re-cast as body 2 "
         "moves (method newton and nlp stand for the finite formulations; qp is small only)",
     )
+    max_recasts: Annotated[int, Field(ge=0)] | None = Field(
+        None,
+        description="finite kinematics: updates of the springs after converged solves, at most (default 10); an "
+        "answer whose springs still change at the last one fails as max_iterations",
+    )
     allow_outside_validity: bool = Field(
         False,
         description="exit 0 instead of 3 when an answer is certified but outside its model's validity (for "
         "exploring on purpose; the outputs still say so)",
     )
+
+    @model_validator(mode="after")
+    def _recasts_need_finite(self):
+        if self.max_recasts is not None and self.kinematics != "finite":
+            raise ValueError(
+                f"max_recasts = {self.max_recasts} counts the updates of springs that follow body 2, which "
+                f'only kinematics = "finite" has (kinematics is "{self.kinematics}")'
+            )
+        return self
 
 
 class OutputSection(_Section):
