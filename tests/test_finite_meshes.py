@@ -11,6 +11,7 @@ varus moment, re-cast afresh at ``Solution.pose``, carries the load; Newton and 
 from __future__ import annotations
 
 import pickle
+import re
 import warnings
 from pathlib import Path
 
@@ -256,6 +257,21 @@ def test_a_load_that_drives_the_femur_through_the_knee_cartilage_fails_as_crushe
         assert solution.info["recast"]["updates"] == 1 and solution.validity["lost_through_layer"].value > 0
     with pytest.raises(d.SolverError, match="crushed"):
         quiet(d.solve, problem, method)
+
+
+def test_six_free_dofs_on_the_knee_say_how_far_the_small_kinematics_moved_the_femur(knee):
+    """With every dof free nothing holds the femur's slide and spin (the ligaments are not in the
+    model): the small kinematics slide it 17 mm and turn it 21 deg, where their strains mean
+    little. The crushed answer says so, with the motion, beside the advice on the load."""
+    kw = {"force": (0.0, 0.0, -LOAD), "reference": tuple(knee["reference"])}
+    problem = d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), kinematics="finite", targets=knee["cast"], **kw)
+    solution = quiet(d.solve, problem, "auto", strict=False)
+    small = quiet(d.solve, d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), **kw), strict=False)
+    slide = np.linalg.norm(small.u[6:8])  # across the load (along -z)
+    assert slide > 5.0 and solution.status is d.Status.CRUSHED
+    said = float(re.search(r"uy (-?[0-9.]+) mm", solution.message).group(1))  # the predictor's, to 1e-3
+    assert abs(said - small.u[7]) <= 0.05 * abs(small.u[7]) and "slid or turned far" in solution.message
+    assert "ligaments" in solution.message and "beyond what this layer can bear" in solution.message
 
 
 def _behind_far_side(mesh1, mesh2, faces, normals, depth=3.0):

@@ -7,6 +7,10 @@ within ``max_recasts`` updates. Used by :mod:`~dea_opt.largemotion.driver`.
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from ..formulations.finite import InnerResult
 
 __all__ = ["crushed_at_start", "crushed_through", "unsettled"]
@@ -17,14 +21,47 @@ def crushed_at_start(system, law, x, eps) -> InnerResult:
     (``eps <= -1``): with springs that follow mesh 2, body 2 would go through the cartilage
     (springs lost through the layer, :func:`crushed_through`); said before any solve, since
     IPOPT takes minutes to find it out."""
+    motion, far = _motion(system.free, x, np.asarray(system.force, dtype=float))
+    cause = _beyond(law)
+    if far:  # the small kinematics mean little there: the dofs may be what lets body 2 go
+        cause += (
+            "; or, as body 2 slid or turned far, a free dof lets it go where nothing in the model holds "
+            "it (in a joint, the ligaments): hold those dofs, or give them the loads that hold them"
+        )
     return InnerResult(
         x,
         system.state(system.coordinates(x), law),
         False,
         "crushed",
-        f"the small kinematics on the start pose's springs reach eps = {eps:.3g}: body 2 would go through "
-        f"the cartilage before the load is carried, so {_beyond(law)}",
+        f"the small kinematics on the start pose's springs reach eps = {eps:.3g} ({motion}): body 2 would "
+        f"go through the cartilage before the load is carried, so {cause}",
     )
+
+
+#: Motion of the small kinematics' answer beyond which its strains are not a measure of the
+#: load: a slide across the load (mm) or a turn (degrees) far outside the small rotations it
+#: linearises (sinking along the load is what a load too large does).
+_FAR = (5.0, 10.0)
+
+
+def _motion(free, x, force) -> tuple[str, bool]:
+    """``(text, far)``: body 2's free coordinates ``x`` (mm, rad) as ``"there body 2 moved uz -1.2 mm,
+    ry 4.1 deg"``, and whether it slid across ``force`` (3,) or turned beyond :data:`_FAR`."""
+    from ..kinematics import DOFS
+
+    parts, shift, turn = [], np.zeros(3), 0.0
+    for index, value in zip(free, x):
+        if index < 3:
+            parts.append(f"{DOFS[index]} {value:.3g} mm")
+            shift[index] = value
+        else:
+            degrees = math.degrees(value)
+            parts.append(f"{DOFS[index]} {degrees:.3g} deg")
+            turn = max(turn, abs(degrees))
+    size = float(np.linalg.norm(force))
+    across = shift - (shift @ force) * force / size**2 if size > 0 else shift
+    far = float(np.linalg.norm(across)) > _FAR[0] or turn > _FAR[1]
+    return "there body 2 moved " + ", ".join(parts), far
 
 
 def crushed_through(tracker, inner, law) -> None:
