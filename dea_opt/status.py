@@ -166,7 +166,8 @@ _RUN_DESCRIPTIONS = {
     RunStatus.OUTSIDE_VALIDITY: "every answer passed its certificate, but one lies outside its model's validity "
     "(exit 0 with [solve] allow_outside_validity)",
     RunStatus.CERTIFICATE_FAILED: "an answer (a load path: a frame) has no certificate: the solver's answer failed "
-    "it, or the solver gave up without one",
+    "it, or the solver gave up without one (finite kinematics also: a crushed layer, or springs not brought up "
+    "to date at the answer's pose)",
     RunStatus.LOAD_NOT_SUPPORTED: "every frame without a certificate has a load the springs cannot carry "
     "(frame status load_not_supported)",
     RunStatus.POSE_ERROR: "the frames without a certificate are frames whose springs could not be cast at their pose "
