@@ -111,8 +111,7 @@ class MeshTracker:
             "dropped": len(self.dropped_faces),
         }
         self.lost: dict = {}
-        self.crushed_through = 0  # springs lost through the layer while they carried load
-        self.crushed_faces: list = []  # their faces of mesh 1
+        self.crushed_faces: list = []  # faces of mesh 1 whose springs were lost through the layer while loaded
 
     def targets(self) -> Targets:
         s = self.springs
@@ -417,9 +416,13 @@ class MeshTracker:
 
     def _crushed(self, faces) -> None:
         """Count ``faces`` of mesh 1, whose springs carried load, as lost through the layer."""
-        self.crushed_through += len(faces)
         if len(faces):
             self.crushed_faces.append(np.array(faces, dtype=np.int64))
+
+    @property
+    def crushed_through(self) -> int:
+        """The springs this solve lost through the layer while they carried load."""
+        return sum(len(faces) for faces in self.crushed_faces)
 
     def lost_through_layer(self, pose) -> int:
         """The springs this solve lost through the layer while they carried load whose rays, at
