@@ -163,12 +163,8 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
         assert np.abs(first.u_free - certified.u[[8, 10]]).max() <= 1e-6 * np.abs(certified.u).max()
 
 
-def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):
-    from dea_opt.mesh import SpringCast
-    from dea_opt.run import run_scenario
-    from dea_opt.scenario import build_problem, load_scenario
-
-    text = textwrap.dedent("""
+#: A scenario of the generated knee meshes solved with finite kinematics.
+KNEE_SCENARIO = textwrap.dedent("""
         [geometry]
         kind = "generator"
         function = "knee_meshes"
@@ -184,7 +180,15 @@ def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):
         kinematics = "finite"
         [output]
         formats = ["json"]
-    """)
+""")
+
+
+def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):
+    from dea_opt.mesh import SpringCast
+    from dea_opt.run import run_scenario
+    from dea_opt.scenario import build_problem, load_scenario
+
+    text = KNEE_SCENARIO
     path = tmp_path / "knee.toml"
     path.write_text(text)
     scenario = load_scenario(path)
@@ -212,24 +216,7 @@ def test_a_scenario_sets_max_recasts_for_finite_kinematics_only(tmp_path):
 
     from dea_opt.cli import app
 
-    text = textwrap.dedent("""
-        [geometry]
-        kind = "generator"
-        function = "knee_meshes"
-        [law]
-        kind = "linear"
-        H = 10.0
-        [body2]
-        free = ["uz", "ry"]
-        [load]
-        force = [0, 0, -600.0]
-        moment = [0, 1500.0, 0]
-        [solve]
-        kinematics = "KIND"
-        max_recasts = COUNT
-        [output]
-        formats = ["json"]
-    """)
+    text = KNEE_SCENARIO.replace('kinematics = "finite"', 'kinematics = "KIND"\nmax_recasts = COUNT')
     for kind, count, code, said in (
         ("finite", 0, 1, "max_iterations"),
         ("small", 2, 2, 'only kinematics = "finite" has'),
