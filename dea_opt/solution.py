@@ -305,9 +305,15 @@ class Solution:
 
     @property
     def contact_moment(self) -> np.ndarray:
-        """Resultant moment the springs exert on body 2 about its reference (N mm)."""
-        arm = self.problem.layer.points - np.asarray(self.problem.body2.reference)
+        """Resultant moment the springs exert on body 2 about :attr:`moment_point` (N mm)."""
+        arm = self.problem.layer.points - self.moment_point
         return np.cross(arm, self._normal_forces).sum(axis=0)
+
+    @property
+    def moment_point(self) -> np.ndarray:
+        """The point :attr:`contact_moment` is taken about (mm, body 1's frame): body 2's reference
+        (for finite kinematics, where the motion took it: ``reference + u[6:9]``)."""
+        return np.asarray(self.problem.body2.reference, dtype=float)
 
     @property
     def peak_pressure(self) -> float:

@@ -97,7 +97,7 @@ _DESCRIPTIONS = {
     Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a load path's frame or a study's row "
     "whose solve raised LoadNotSupportedError",
     Status.POSE_ERROR: "the springs could not be cast at a load path frame's pose (none there, or a pose the mesh "
-    "check refuses)",
+    "check refuses), or, with finite kinematics, at the pose a solve reached (none left there)",
     Status.INVALID_INPUT: "an argument or option was rejected before anything was solved: a study's row whose solve "
     "raised InputError",
 }

@@ -79,12 +79,12 @@ def _variant_option(method):
     return next(option for option in formulations.options(method) if option.name == variant.option)
 
 
-def _check_names(methods, solvers, accuracy):
+def _check_names(methods, solvers, accuracy, what="methods"):
     names = formulations.names()
-    methods = [m.strip().lower() for m in methods]
+    methods = [m.strip().lower() if isinstance(m, str) else m for m in methods]
     bad = [m for m in methods if m not in names]
     if bad or not methods:
-        raise InputError(f"methods must be taken from {', '.join(names)}, got {', '.join(bad) or 'none'}")
+        raise InputError(f"{what} must be taken from {', '.join(names)}, got {', '.join(map(str, bad)) or 'none'}")
     bad = [a for a in accuracy if a not in ACCURACY]
     if bad or not accuracy:
         raise InputError(f"accuracy must be taken from {', '.join(ACCURACY)}, got {', '.join(bad) or 'none'}")
@@ -129,12 +129,37 @@ def _variants(method, solvers, forms) -> list[tuple[str, dict]]:
     return [(variant.label(value), {option.name: value}) for value in values]
 
 
+def _resolve(methods, kinematics) -> tuple[list, list]:
+    """``(methods, notes)``: each name as the formulation it runs in ``kinematics`` (for finite
+    kinematics ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``), each once."""
+    resolved, notes = [], []
+    for method in methods:
+        name = formulations.stands_for(method, kinematics)
+        if name != method:
+            notes.append(f"{method} stands for {name} with {kinematics} kinematics")
+        if name not in resolved:
+            resolved.append(name)
+    return resolved, notes
+
+
+def _why_not(method, law, kinematics) -> str | None:
+    """Why ``method`` is skipped for ``law`` in ``kinematics`` (what to use instead), or None."""
+    reason = formulations.why_not(method, law, kinematics)
+    if reason is None or kinematics in formulations.capabilities(method).kinematics:
+        return reason
+    only = " and ".join(formulations.capabilities(method).kinematics)
+    return (
+        f"{method} is a {only}-kinematics method and this problem has kinematics={kinematics!r}: "
+        f"use {formulations.alternatives(law, kinematics, prefix='', auto=False)}"
+    )
+
+
 def _cases(methods, solvers, accuracy, repeat, law, forms=("constrained",), kinematics="small"):
     skipped = []
     cases = []
     for acc in accuracy:
         for method in methods:
-            reason = formulations.why_not(method, law, kinematics)
+            reason = _why_not(method, law, kinematics)
             if reason is not None:
                 if reason not in skipped:
                     skipped.append(reason)
@@ -149,10 +174,26 @@ def _options(method, variant_options: dict, accuracy: Accuracy) -> dict:
     return {**variant_options, **formulations.tolerance_options(method, accuracy.solver_tol)}
 
 
+def _pressure_difference(solution, reference) -> float:
+    """The largest difference of the springs' pressures. Finite kinematics may end on different
+    springs (re-cast at each answer's pose): those cast from meshes are matched by the face they
+    stand on, a spring of one answer only counting with its whole pressure."""
+    a, b = np.asarray(solution.pressure), np.asarray(reference.pressure)
+    fa = getattr(solution.problem.layer, "source_face", None)
+    fb = getattr(reference.problem.layer, "source_face", None)
+    if fa is None or fb is None or np.array_equal(fa, fb):
+        return float(np.abs(a - b).max(initial=0.0)) if a.shape == b.shape else float("nan")
+    union = np.union1d(fa, fb)
+    on_a, on_b = np.zeros(len(union)), np.zeros(len(union))
+    on_a[np.searchsorted(union, fa)] = a
+    on_b[np.searchsorted(union, fb)] = b
+    return float(np.abs(on_a - on_b).max(initial=0.0))
+
+
 def _difference(solution, reference) -> tuple[float, float]:
     if reference is None or not np.isfinite(solution.u).all():
         return float("nan"), float("nan")
-    dp = float(np.abs(solution.pressure - reference.pressure).max(initial=0.0) / max(reference.peak_pressure, 1e-300))
+    dp = _pressure_difference(solution, reference) / max(reference.peak_pressure, 1e-300)
     du = float(np.abs(solution.u - reference.u).max() / max(np.abs(reference.u).max(), 1e-300))
     return dp, du
 
@@ -231,7 +272,8 @@ def _verdict(solution, agrees, accuracy, dp, du) -> str:
         name, value = solution.certificate.worst()
         return f"inaccurate: {name} {value:.1e} > {accuracy.check_tol:g}"
     if agrees is False:
-        return f"disagrees with the reference ({formulations.DEFAULT}): {max(dp, du):.1e} > {accuracy.check_tol:g}"
+        reference = formulations.stands_for(formulations.DEFAULT, solution.problem.kinematics)
+        return f"disagrees with the reference ({reference}): {max(dp, du):.1e} > {accuracy.check_tol:g}"
     return "ok"
 
 
@@ -258,13 +300,16 @@ class StudyResult:
     reference : Solution or None
         The default formulation's (Newton's) solution differences are measured against.
     skipped : list of str
-        Combinations that do not apply (qp with a nonlinear law).
+        Combinations that do not apply (qp with a nonlinear law or finite kinematics), and why.
+    notes : list of str
+        Names that stand for another formulation (``newton`` for ``finite`` with finite kinematics).
     """
 
     table: pd.DataFrame
     summary: pd.DataFrame
     reference: Solution | None = None
     skipped: list = field(default_factory=list)
+    notes: list = field(default_factory=list)
 
     def to_csv(self, directory) -> dict:
         """``compare.csv`` and ``compare_summary.csv`` in ``directory``."""
@@ -308,8 +353,21 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
     """The qpbenchmark-style summary of a study table (see :class:`StudyResult`)."""
     import pandas as pd
 
-    rows = []
-    for (accuracy, method, solver), group in table.groupby(["accuracy", "method", "solver"], sort=False):
+    rows: list = []
+    keys = ["accuracy", "method", "solver"]
+    if not len(table) or not set(keys) <= set(table.columns):  # no run at all: an empty summary
+        return pd.DataFrame(
+            columns=[
+                *keys,
+                "runs",
+                "success_rate",
+                "shifted_gm_time",
+                "relative_time",
+                "worst_residual",
+                "max_d_pressure",
+            ]
+        )
+    for (accuracy, method, solver), group in table.groupby(keys, sort=False):
         success = group["success"].astype(bool)
         times = np.where(success, group["total_time"].astype(float), time_limit)
         rows.append(
@@ -341,6 +399,7 @@ def run_study(
     nlp_forms=("constrained",),
     time_limit: float = TIME_LIMIT,
     progress: bool = False,
+    what: str = "methods",
 ) -> StudyResult:
     """Solve ``problem`` with every method x solver x accuracy setting, ``repeat`` times each.
 
@@ -349,7 +408,9 @@ def run_study(
     problem : ContactProblem
     methods : sequence of str, optional
         Registered formulations (default: every one of :func:`dea_opt.formulations.names` that
-        solves the problem; one named that does not is skipped, with a note).
+        solves the problem; one named that does not is skipped, with a note). For finite
+        kinematics ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp`` (rows and
+        ``notes`` say so).
     solvers : sequence of str
         QP solvers for the formulations a study varies by their ``solver`` option (``qp``;
         cvxpy names). The default list is cut to the installed ones; a solver named
@@ -365,6 +426,8 @@ def run_study(
         Time (s) a failed run counts as in the summary.
     progress : bool
         Show a progress bar (on a terminal).
+    what : str
+        How error messages name ``methods`` (the command line: ``--methods`` or ``solve.methods``).
 
     Returns
     -------
@@ -379,7 +442,7 @@ def run_study(
     Raises
     ------
     InputError
-        Unknown method, solver or accuracy; ``repeat < 1``.
+        Unknown method, solver or accuracy; ``repeat < 1``; no method named solves the problem.
     LoadNotSupportedError
         The load cannot be carried (no method could answer).
     """
@@ -394,7 +457,12 @@ def run_study(
         methods = [
             name for name in formulations.names() if formulations.why_not(name, problem.law, problem.kinematics) is None
         ]
-    methods, solvers, accuracy = _check_names(methods, solvers, accuracy)
+    methods, solvers, accuracy = _check_names(methods, solvers, accuracy, what)
+    methods, notes = _resolve(methods, problem.kinematics)
+    forms = _check_forms(methods, nlp_forms)
+    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms, problem.kinematics)
+    if not cases:
+        raise InputError(f"no method in {what} solves this problem: {'; '.join(skipped)}")
     check_load_supported(problem)
     import warnings
 
@@ -402,12 +470,12 @@ def run_study(
         warnings.simplefilter("ignore")
         solved = solve(problem, formulations.DEFAULT, strict=False)
     reference = solved if solved.success else None
-    forms = _check_forms(methods, nlp_forms)
-    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms, problem.kinematics)
     rows = []
     for acc, method, label, options, r in tqdm(
         cases, desc="compare", unit="run", leave=False, disable=None if progress else True
     ):
         rows.append(_run_one(problem, acc, method, label, options, r, reference))
     table = pd.DataFrame(rows)
-    return StudyResult(table=table, summary=summarize(table, time_limit), reference=reference, skipped=skipped)
+    return StudyResult(
+        table=table, summary=summarize(table, time_limit), reference=reference, skipped=skipped, notes=notes
+    )

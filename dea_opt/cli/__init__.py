@@ -81,9 +81,11 @@ def run(
     3 certified but outside validity ([solve] allow_outside_validity = true: 0).
     """
     from ..run import run_scenario
-    from ..scenario import load_scenario
+    from ..scenario import check_kinematics_method, load_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
+    named = method.strip().lower() if method else None
+    check_kinematics_method(loaded, named, "--method" if named else None)
     outcome = run_scenario(loaded, output, method=method, progress=not quiet, force=force, stop_on_error=stop_on_error)
     _report_outcome(outcome, quiet)
 

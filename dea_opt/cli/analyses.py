@@ -90,6 +90,7 @@ def compare(
         result = run_study(
             problem,
             methods=_split(methods) or section.methods,
+            what="--methods" if _split(methods) else "solve.methods" if section.methods else "methods",
             solvers=_split(solvers) or section.solvers,
             accuracy=_split(accuracy) or section.accuracy,
             repeat=section.repeat if repeat is None else repeat,
@@ -113,6 +114,8 @@ def compare(
         "count as 10 s; relative to the fastest):"
     )
     typer.echo(result.format_summary())
+    for note in result.notes:
+        typer.echo(f"(note: {note})")
     for note in result.skipped:
         typer.echo(f"(skipped: {note})")
     for name, path in files.items():
@@ -194,9 +197,10 @@ def calibrate(
     from ..io.publish import check_output_folder, output_run
     from ..run import run_info
     from ..scenario import load_scenario
-    from ..sensitivity.calibrate import calibrate_scenario
+    from ..sensitivity.calibrate import calibrate_scenario, check_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
+    check_scenario(loaded)  # before the output folder is taken
     bounds = _split(film)
     try:
         film_value = (float(bounds[0]), float(bounds[1])) if bounds and len(bounds) == 2 else film

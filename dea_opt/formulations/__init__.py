@@ -134,14 +134,50 @@ def takes(name: str, law, kinematics: str = "small") -> bool:
     return caps.takes(law) and kinematics in caps.kinematics
 
 
+def stands_for(name: str, kinematics: str = "small") -> str:
+    """The formulation method ``name`` runs in ``kinematics``: for finite kinematics ``newton`` and
+    ``nlp`` stand for ``finite`` and ``finite_nlp`` (:data:`dea_opt.formulations.finite.ALIASES`,
+    while those are registered); any other name is itself."""
+    if kinematics != "finite" or name not in ("newton", "nlp"):
+        return name
+    from .finite import ALIASES
+
+    target = ALIASES.get(name, name)
+    return target if target in FORMULATIONS else name
+
+
+def aliases(kinematics: str = "small") -> dict:
+    """``{name: formulation}`` for the names that stand for another formulation in ``kinematics``."""
+    return {n: t for n in ("newton", "nlp") if n in FORMULATIONS and (t := stands_for(n, kinematics)) != n}
+
+
+def alternatives(law, kinematics: str = "small", *, prefix: str = "method=", auto: bool = True) -> str:
+    """The methods that solve ``law`` in ``kinematics``, for messages: ``method='finite' or
+    method='finite_nlp' (or 'newton' and 'nlp', which stand for 'finite' and 'finite_nlp' here),
+    or 'auto'``."""
+    able = [n for n in FORMULATIONS if takes(n, law, kinematics)]
+    if not able:
+        return "another method"
+    text = " or ".join(f"{prefix}{n!r}" for n in able)
+    alias = {n: t for n, t in aliases(kinematics).items() if t in able}
+    if alias:
+        names_ = " and ".join(repr(n) for n in alias)
+        text += f" (or {names_}, which stand for {' and '.join(repr(t) for t in alias.values())} here)"
+    return text + (", or 'auto'" if auto else "")
+
+
 def check_takes(name: str, law, kinematics: str = "small") -> None:
     """An :class:`InputError` when ``name`` cannot solve ``law`` (naming the methods that can)."""
     if takes(name, law, kinematics):
         return
+    able = alternatives(law, kinematics)
+    solved = capabilities(name).kinematics
+    if kinematics not in solved:
+        only = " and ".join(solved)
+        raise InputError(
+            f"method {name!r} cannot solve {kinematics!r} kinematics: it is a {only}-kinematics method; use {able}"
+        )
     able = " or ".join(f"method={n!r}" for n in FORMULATIONS if takes(n, law, kinematics))
-    if kinematics not in capabilities(name).kinematics:
-        need = f"{kinematics!r} kinematics, which it does not solve"
-        raise InputError(f"method {name!r} cannot solve {need}: use {able or 'another method'}")
     raise InputError(
         f"method {name!r} needs a LinearLaw, got {law.describe()}: use {able or 'another method'} for this law"
     )
@@ -200,6 +236,8 @@ __all__ = [
     "Option",
     "SpringSystem",
     "Variant",
+    "aliases",
+    "alternatives",
     "build",
     "capabilities",
     "check_options",
@@ -211,6 +249,7 @@ __all__ = [
     "options",
     "register",
     "solve",
+    "stands_for",
     "takes",
     "tolerance_options",
     "unregister",

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..status import Status
+from ..status import CERTIFIABLE, Status
 from ._parts.finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
 from ._parts.finite_newton import InnerResult
 from ._parts.finite_system import FiniteSystem, State, generalized
@@ -173,6 +173,8 @@ def status_of(native: str, success: bool, system: FiniteSystem, state) -> Status
         status = Status(native)
     except ValueError:
         status = Status.SOLVER_ERROR
+    if success and status not in CERTIFIABLE:  # certified where the solver doubted it (its word: native_status)
+        status = Status.CONVERGED
     if status is Status.CONVERGED and success and not (system.force.any() or system.moment.any()):
         return Status.PRELOADED if (state.eps < 0).any() else Status.UNLOADED
     if status is Status.CONVERGED and not success:

@@ -9,7 +9,10 @@ to it for a writer function, for ``str``/``bytes`` and for an open file.
 
 Inside :func:`staged` (a run's output folder, :mod:`dea_opt.io.publish`), a finished file is
 not renamed into place: its temporary file waits, complete and fsynced, until the run
-publishes every output at once, so a reader never sees files of two runs as one.
+publishes every output at once, so a reader never sees files of two runs as one. A target
+that is itself a temporary file (one :func:`atomic_path` yielded, handed to a writer in another
+process or drawn later: :class:`dea_opt.io.pictures.PictureFiles`) is filled in place, never
+staged: the one who holds it stages it when its :func:`atomic_path` block ends.
 """
 
 from __future__ import annotations
@@ -116,7 +119,8 @@ def atomic_path(path, *, argument: str = "path"):
             raise InputError(
                 f"{argument}: cannot write in the directory {str(parent)!r} ({exc.strerror or exc})"
             ) from None
-    staging = _staging_of(target)
+    # A temporary file as the target is a reserved one being filled: its holder stages it.
+    staging = None if TEMPORARY_NAME.match(target.name) else _staging_of(target)
     try:
         with contextlib.suppress(OSError):  # a new file keeps the umask's mode
             os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))

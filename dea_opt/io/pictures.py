@@ -16,10 +16,18 @@ files are the same either way.
 Jobs are ``(module, function, args, kwargs)`` of :mod:`dea_opt.io`'s picture functions,
 pickled into files of a temporary folder whose names go through the pipe; the answers come
 back pickled through the other pipe: ``("ok", value)`` or ``("error", text)``.
+
+A run's outputs are staged in the run's process (:func:`dea_opt.io.atomic.staged`), which the
+worker does not see: given the output's own name it would rename its picture straight into the
+output folder, outside the manifest. :class:`PictureFiles` therefore hands the drawer a
+temporary file reserved beside each output (:func:`~dea_opt.io.atomic.atomic_path`) and,
+once the picture is drawn there, stages it (or renames it into place) in the run's process,
+like every other output: published with the others and listed in ``manifest.json``.
 """
 
 from __future__ import annotations
 
+import contextlib
 import importlib
 import os
 import pickle
@@ -29,7 +37,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-__all__ = ["DrawHere", "PictureWorker"]
+from .atomic import atomic_path
+
+__all__ = ["DrawHere", "PictureFiles", "PictureWorker"]
 
 #: The modules a worker may run functions of.
 _MODULES = ("dea_opt.io.cycle", "dea_opt.io.plots")
@@ -177,6 +187,45 @@ class PictureWorker:
     def __del__(self):
         if hasattr(self, "_drawer"):
             self.close()
+
+
+class PictureFiles:
+    """Pictures that are outputs of a run, drawn by ``drawer`` (a :class:`PictureWorker` or
+    :class:`DrawHere`) and written like every other output.
+
+    :meth:`submit` reserves a temporary file beside the output (:func:`~dea_opt.io.atomic.atomic_path`)
+    and hands the drawer the job that draws into it; :meth:`results` waits for the drawings
+    and then stages each file in this process (inside :func:`~dea_opt.io.atomic.staged`; else
+    renames it into place). Use it as a context manager: leaving the block with an error, or
+    without :meth:`results`, removes the reserved files.
+    """
+
+    def __init__(self, drawer):
+        self._drawer = drawer
+        self._files = contextlib.ExitStack()
+        self._jobs: dict = {}
+
+    def submit(self, name: str, target, job) -> None:
+        """Draw output ``name`` into ``target``: ``job(path)`` gives the drawer's job
+        ``(module, function, args, kwargs)`` writing the picture to ``path``."""
+        target = Path(target)
+        reserved = self._files.enter_context(atomic_path(target))
+        self._jobs[name] = (target, self._drawer.submit(*job(reserved)))
+
+    def results(self) -> dict:
+        """``{name: target}`` once every picture is drawn and staged (an error of a drawing is
+        raised, and no picture is kept)."""
+        with self._files:
+            for _, number in self._jobs.values():
+                self._drawer.result(number)
+        files, self._jobs = {name: target for name, (target, _) in self._jobs.items()}, {}
+        return files
+
+    def __enter__(self) -> PictureFiles:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._files.__exit__(*exc)
 
 
 def _warm_up() -> None:

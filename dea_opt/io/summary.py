@@ -74,8 +74,8 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     Builds on :meth:`Solution.summary` (method, status, law, ``n_springs``, peak and mean
     pressure, contact area, centre of pressure, contact force and moment, ``u``,
     iterations, build and solve times, certificate, reactions) and adds ``message``,
-    ``total_normal_force``, ``moment_about`` (the body 2 reference the moment is taken
-    about), ``units``, ``regions``, ``label_codes`` (text labels only), ``info`` and the
+    ``total_normal_force``, ``moment_about`` (the point the moment is taken about: body 2's
+    reference, where the motion took it for finite kinematics), ``units``, ``regions``, ``label_codes`` (text labels only), ``info`` and the
     dea_opt version.
 
     Parameters
@@ -116,7 +116,7 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     out.update(
         message=solution.message,
         total_normal_force=solution.total_normal_force,
-        moment_about=list(solution.problem.body2.reference),
+        moment_about=[float(v) for v in solution.moment_point],
         units=_UNITS,
         regions={name: stats.as_dict() for name, stats in found.items()},
         info=solution.info,

@@ -35,14 +35,14 @@ from ..formulations.finite import (
 from ..kinematics import DOFS
 from ..mesh import SpringCast, check_pose
 from ..status import Status
-from .outcome import crushed_at_start, crushed_through, unsettled
+from .outcome import crushed_at_start, crushed_far, crushed_through, unsettled
 from .solution import FiniteSolution, certificate
+from .start import at_base, near_base, predicted
 from .tracker import MeshTracker
 
 __all__ = ["plan", "solve"]
 
 _GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
-_PREDICTOR_TOL = 1e-2  # the small kinematics' answer as a start (it is off by the rotation squared)
 _LOOSE = 1e-6  # the scaled residual a solve that an update of the springs follows stops at
 
 
@@ -227,6 +227,8 @@ def solve(
         if method == "auto":
             if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
                 solution.info["fallback"] = "not tried: the layer is crushed through, a limit of the model"
+            elif solution.status is Status.POSE_ERROR:  # the meshes' geometry: the same for IPOPT
+                solution.info["fallback"] = "not tried: no spring is left at the pose"
             elif solution.info.get("recast", {}).get("stable") is False:  # IPOPT's springs are updated alike
                 solution.info["fallback"] = "not tried: the springs did not settle within max_recasts updates"
             elif not solution.success and len(steps) > 1:
@@ -279,13 +281,16 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         if method == "finite_nlp" and cone is not None:
             cone(problem, small)
     x0 = start_vector(small, x0)
+    if x0 is not None and small.resistance.null.shape[1]:
+        x0 = x0 - small.resistance.motion_part(x0)  # held directions take no motion, from any start
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
+    far = tracker is not None and not near_base(tracker, system)
     if cold and loaded and tracker is not None:
-        guess, unsolved = _predicted(small, law, x)
+        guess, unsolved = predicted(small, law, x)
         deepest = small.strain_at(guess).min()
-        if not unsolved and deepest <= -1.0:
+        if not unsolved and deepest <= -1.0 and not far:
             tracker.counts["stable"] = True
             crushed = crushed_at_start(system, law, guess, deepest)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
@@ -311,6 +316,17 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         inner.info["loose"] = loose
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
+        if far and not inner.success:
+            # The tangent planes, extrapolated from where the springs were to a base pose far from
+            # it, gave no answer: the springs brought up to date at the base pose, and again.
+            far = False
+            system, failed = at_base(tracker, system, law)
+            if failed is not None:
+                inner = failed
+                break
+            T, E0, small = scaled_directions(system, law)
+            x, cold, start_state = np.zeros(len(system.free)), True, None
+            continue
         if tracker is None or not inner.success:
             break
         system, inner, resolve, stable = _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten)
@@ -329,6 +345,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
             crushed_through(tracker, inner, law)
         elif not stable and inner.success:
             unsettled(inner)
+    if inner.status == "crushed" and np.isfinite(inner.u_free).all():
+        crushed_far(system, inner)
     if method == "finite" and not inner.success and loaded and cone is not None:
         cone(problem, small)
     return _solution(
@@ -376,6 +394,12 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
                 return system, inner, False, True
         tracker.complete = complete
         update = tracker.update(system, inner.state, complete=complete)
+        if update is not None and update.none_left:
+            inner.success = False
+            if not tracker.crushed_through:  # (else crushed, by _solve)
+                inner.status = "pose_error"
+            inner.message += f"; no spring is left at the solved pose ({update.none_left})"
+            return system, inner, False, True
         if update is None:
             if complete:
                 return system, inner, False, True
@@ -391,21 +415,6 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
         if complete:
             return system, inner, False, True
         tracker.complete = True
-
-
-def _predicted(small, law, x):
-    """``(x, cold)``: the start of a cold Newton solve of springs that follow mesh 2, the answer of the
-    small kinematics (their equilibrium to first order in the rotation) when it has one, else ``x``.
-
-    The first finite solve on the springs of the start pose only says where body 2 goes; the
-    small kinematics says it in a third of the time, and the first update of the springs
-    (:mod:`~dea_opt.largemotion.tracker`) starts from there (``formulations/finite.md``, "Newton")."""
-    from ..formulations import newton as small_newton
-
-    guess = small_newton.solve(small, law, gtol=_PREDICTOR_TOL, xtol=_PREDICTOR_TOL)  # a start: no finer
-    if guess.success and guess.u_free.shape == x.shape and np.isfinite(guess.u_free).all():
-        return np.array(guess.u_free, dtype=float), False
-    return x, True
 
 
 def _inner(method, system, law, T, E0, x, cold, opts, start_state=None):

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..formulations.finite import InnerResult
 
-__all__ = ["crushed_at_start", "crushed_through", "unsettled"]
+__all__ = ["crushed_at_start", "crushed_far", "crushed_through", "unsettled"]
 
 
 def crushed_at_start(system, law, x, eps) -> InnerResult:
@@ -24,10 +24,7 @@ def crushed_at_start(system, law, x, eps) -> InnerResult:
     motion, far = _motion(system.free, x, np.asarray(system.force, dtype=float))
     cause = _beyond(law)
     if far:  # the small kinematics mean little there: the dofs may be what lets body 2 go
-        cause += (
-            "; or, as body 2 slid or turned far, a free dof lets it go where nothing in the model holds "
-            "it (in a joint, the ligaments): hold those dofs, or give them the loads that hold them"
-        )
+        cause += _FREE_DOF
     return InnerResult(
         x,
         system.state(system.coordinates(x), law),
@@ -36,6 +33,20 @@ def crushed_at_start(system, law, x, eps) -> InnerResult:
         f"the small kinematics on the start pose's springs reach eps = {eps:.3g} ({motion}): body 2 would "
         f"go through the cartilage before the load is carried, so {cause}",
     )
+
+
+_FREE_DOF = (
+    "; or, as body 2 slid or turned far, a free dof lets it go where nothing in the model holds "
+    "it (in a joint, the ligaments): hold those dofs, or give them the loads that hold them"
+)
+
+
+def crushed_far(system, inner) -> None:
+    """Add to a ``crushed`` answer's message, when body 2 slid across the load or turned far
+    (:data:`_FAR`) on its way, that a free dof may be what let it go (as :func:`crushed_at_start`)."""
+    motion, far = _motion(system.free, inner.u_free, np.asarray(system.force, dtype=float))
+    if far:
+        inner.message += f"; {motion}{_FREE_DOF}"
 
 
 #: Motion of the small kinematics' answer beyond which its strains are not a measure of the

@@ -102,10 +102,9 @@ class FiniteSolution(Solution):
         return pose_matrix(self.u[6:], self.problem.body2.reference) @ frame
 
     @property
-    def contact_moment(self) -> np.ndarray:
-        """Moment the springs exert on body 2 about its reference point at the solved pose (N mm)."""
-        arm = self.problem.layer.points - (np.asarray(self.problem.body2.reference) + self.u[6:9])
-        return np.cross(arm, self._normal_forces).sum(axis=0)
+    def moment_point(self) -> np.ndarray:
+        """Body 2's reference point at the solved pose (mm): what :attr:`contact_moment` is taken about."""
+        return np.asarray(self.problem.body2.reference, dtype=float) + self.u[6:9]
 
     @property
     def reactions(self) -> dict:

@@ -10,7 +10,7 @@ import numpy as np
 from ..formulations._parts.finite_system import arms_of
 from ..mesh import FaceCast
 
-__all__ = ["Springs", "face_labels", "joined", "put_rows"]
+__all__ = ["Springs", "face_labels", "joined", "put_rows", "ring"]
 
 
 class Springs:
@@ -251,3 +251,30 @@ def face_labels(cast, centroids, faces):
             cast.__dict__[key] = cKDTree(first.points)
         index[missing] = cast.__dict__[key].query(centroids[faces[missing]])[1]
     return labels[index]
+
+
+def ring(table, slot, known, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
+    """``(faces, guess)``: the faces of mesh 1 within ``rings`` edges of ``faces1`` not ``tried``
+    yet (now marked tried), and for each a face of mesh 2 to follow its ray from: what it met
+    at its last cast (``known``, (F,), -1 where none), else what the face of ``faces1`` it was
+    reached from met (``met``, (K,)). ``table`` (F, w): each face's neighbours (-1: none);
+    ``slot`` (F,): scratch."""
+    width = table.shape[1]
+    out, current, guess = [], np.asarray(faces1, dtype=np.int64), np.asarray(met, dtype=np.int64)
+    for _ in range(rings):
+        if not len(current):
+            break
+        near = np.take(table, current, axis=0).ravel()
+        new = (near >= 0) & ~tried[near.clip(0)]
+        near, via = near[new], np.repeat(guess, width)[new]
+        slot[near] = np.arange(len(near))
+        first = slot[near] == np.arange(len(near))  # one entry a face (the last one written)
+        current, guess = near[first], via[first]
+        tried[current] = True
+        out.append((current, guess))
+    if not out:
+        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
+    faces = np.concatenate([f for f, _ in out])
+    guess = np.concatenate([g for _, g in out])
+    own = known[faces]
+    return faces, np.where(own >= 0, own, guess)

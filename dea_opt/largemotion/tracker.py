@@ -32,9 +32,9 @@ import numpy as np
 
 from ..formulations.finite import Targets
 from ..mesh import Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
-from ..mesh.springs import LOST_REASONS
+from ..mesh.springs import LOST_REASONS, NoSpringsError
 from ..mesh.walk import ON_FACE, dot
-from .springs import Springs, face_labels, joined, put_rows
+from .springs import Springs, face_labels, joined, put_rows, ring
 
 __all__ = ["MeshTracker"]
 
@@ -47,6 +47,8 @@ class Update:
     system: object
     state: object
     resolve: bool
+    #: Why no spring is left at the pose (a whole re-cast made none): the solve ends there, failed.
+    none_left: str | None = None
 
 
 class MeshTracker:
@@ -78,6 +80,7 @@ class MeshTracker:
     def _take(self, cast) -> None:
         """Start from a whole cast (the first, or a full re-cast)."""
         self.cast, self.full = cast, np.asarray(cast.pose, dtype=float)
+        self.updated_at = self.full  # mesh 2's pose where the springs were last brought up to date
         self.springs = Springs(cast.layer, cast.thickness1, cast.thickness2)
         # Per face of mesh 1, the face of mesh 2 its ray met first facing it at its last cast, and
         # where (mesh 2's own frame): -1 and NaN where not known.
@@ -112,6 +115,11 @@ class MeshTracker:
         }
         self.lost: dict = {}
         self.crushed_faces: list = []  # faces of mesh 1 whose springs were lost through the layer while loaded
+
+    @property
+    def origin(self):
+        """The :class:`~dea_opt.mesh.SpringCast` the springs started from (``cast`` is the last whole re-cast)."""
+        return self._first_cast
 
     def targets(self) -> Targets:
         s = self.springs
@@ -212,7 +220,7 @@ class MeshTracker:
         solve's intermediate poses need not look there)."""
         pose = system.transform(state.y)
         since_full, since_last = self._moved(pose, self.full, self.last)
-        self.last = pose
+        self.last = self.updated_at = pose
         if since_full > self.full_shift:
             self.complete = True
             return self._recast_all(system, state, pose)
@@ -398,7 +406,10 @@ class MeshTracker:
         return int(new.sum())
 
     def _recast_all(self, system, state, pose):
-        new = recast(self.cast, pose)
+        try:
+            new = recast(self.cast, pose)
+        except NoSpringsError as error:
+            return self._none_left(state, error)
         self.counts["recasts"] += 1
         own = (np.nan_to_num(state.gaps.hit) - pose[:3, 3]) @ pose[:3, :3]
         self.counts["left_face"] += int(
@@ -413,6 +424,19 @@ class MeshTracker:
         self.counts["dropped"] = len(self.dropped_faces)
         new_system = self.springs_of(system)
         return Update(new_system, new_system.state(state.y, state.law), True)
+
+    def _none_left(self, state, error) -> Update:
+        """No spring at the pose (a whole re-cast made none, ``error``): every spring is lost, those
+        that carried load through the layer where the rays went back through it (the load drove
+        body 2 through the cartilage). The springs are left as they were; the solve ends failed."""
+        self.counts["recasts"] += 1
+        self._lose("through_layer" if error.through_layer else "no_hit", len(self.springs))
+        if error.through_layer:
+            self._crushed(self.springs.faces1[state.eps < 0])
+            why = f"the rays of {error.through_layer} faces of mesh 1 met mesh 2 only behind mesh 1's far side"
+        else:
+            why = "no face of mesh 1 faces mesh 2 within the proximity window there"
+        return Update(None, state, False, none_left=why)
 
     def _crushed(self, faces) -> None:
         """Count ``faces`` of mesh 1, whose springs carried load, as lost through the layer."""
@@ -444,6 +468,10 @@ class MeshTracker:
         rows = (s.pT, s.nT, s.arms, s.mT, s.qm)
         return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets(), rows)
 
+    def moved_from_update(self, pose) -> float:
+        """How far (mm) the springs' hits on body 2 moved between their last update and ``pose``."""
+        return self._moved(pose, self.updated_at)[0]
+
     def short_step(self, pose) -> bool:
         """Whether the hits moved no more than ``recast_shift`` since the last update (a partial
         update would see nothing there, so the next one may as well be complete)."""
@@ -465,30 +493,8 @@ class MeshTracker:
         return moved[0], moved[1] if last is not None else np.inf
 
     def _ring(self, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
-        """``(faces, guess)``: the faces of mesh 1 within ``rings`` edges of ``faces1`` not ``tried``
-        yet (now marked tried), and for each a face of mesh 2 to follow its ray from: what it met
-        at its last cast, else what the face of ``faces1`` it was reached from met (``met``, (K,))."""
-        table = self.mesh1.neighbours
-        width = table.shape[1]
-        slot = self._slot  # scratch (F,): where a face stands in this step's candidates
-        out, current, guess = [], np.asarray(faces1, dtype=np.int64), np.asarray(met, dtype=np.int64)
-        for _ in range(rings):
-            if not len(current):
-                break
-            near = np.take(table, current, axis=0).ravel()
-            new = (near >= 0) & ~tried[near.clip(0)]
-            near, via = near[new], np.repeat(guess, width)[new]
-            slot[near] = np.arange(len(near))
-            first = slot[near] == np.arange(len(near))  # one entry a face (the last one written)
-            current, guess = near[first], via[first]
-            tried[current] = True
-            out.append((current, guess))
-        if not out:
-            return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
-        faces = np.concatenate([f for f, _ in out])
-        guess = np.concatenate([g for _, g in out])
-        own = self.met[faces]
-        return faces, np.where(own >= 0, own, guess)
+        """:func:`~dea_opt.largemotion.springs.ring` on mesh 1's faces, with what each met at its last cast."""
+        return ring(self.mesh1.neighbours, self._slot, self.met, faces1, met, tried, rings)
 
     def _allowed(self, faces, pose) -> np.ndarray:
         """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it since

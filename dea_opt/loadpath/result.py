@@ -15,7 +15,7 @@ import numpy as np
 
 from ..errors import InputError, ValidityWarning
 from ..io.atomic import write_data
-from ..io.pictures import DrawHere
+from ..io.pictures import DrawHere, PictureFiles
 from ..io.summary import write_json
 from ..problem import ContactProblem
 from .exposure import Exposure
@@ -330,18 +330,21 @@ class PathResult:
                 f"pictures must be a dea_opt.io.pictures.PictureWorker (or None: drawn here), got {type(pictures).__name__}"
             )
         files = {}
-        drawer = DrawHere() if pictures is None else pictures
-        jobs = {}
-        if "png" in formats:  # handed over first: a PictureWorker draws them while the rest is written
-            jobs["cycle_plot"] = drawer.submit(*self._cycle_job(directory / "cycle.png", anatomy=anatomy))
-            jobs["exposure_map"] = drawer.submit(*self._exposure_job(directory / "exposure.png", anatomy=anatomy))
-        if "csv" in formats:
-            files["table"] = self.to_csv(directory / "frames.csv")
-        if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):
-            files["series"] = self.to_pvd(directory / "series.pvd")
-        if "vtk" in formats:
-            files["exposure_vtk"] = self.exposure_to_vtk(directory / "exposure.vtu")
-        files.update({name: drawer.result(number) for name, number in jobs.items()})
+        # The PNGs are drawn into temporary files reserved beside them and staged here once drawn
+        # (a PictureWorker's process does not see this run's staging): published with the rest.
+        with PictureFiles(DrawHere() if pictures is None else pictures) as drawn:
+            if "png" in formats:  # handed over first: a PictureWorker draws them while the rest is written
+                drawn.submit("cycle_plot", directory / "cycle.png", lambda p: self._cycle_job(p, anatomy=anatomy))
+                drawn.submit(
+                    "exposure_map", directory / "exposure.png", lambda p: self._exposure_job(p, anatomy=anatomy)
+                )
+            if "csv" in formats:
+                files["table"] = self.to_csv(directory / "frames.csv")
+            if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):
+                files["series"] = self.to_pvd(directory / "series.pvd")
+            if "vtk" in formats:
+                files["exposure_vtk"] = self.exposure_to_vtk(directory / "exposure.vtu")
+            files.update(drawn.results())
         if "json" in formats:
             files["summary"] = directory / "summary.json"
             extra = {**(extra_summary or {}), "files": {k: str(v) for k, v in files.items()}}

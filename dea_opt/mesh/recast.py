@@ -166,9 +166,11 @@ class Recast:
             f"{self.cast.dropped.describe()}"
         )
         if self.force is not None:
+            error = self.force_error  # NaN when the solution carries no force: no relative error to give
             text += (
                 f"; force {np.array2string(self.force, precision=4)} N against "
-                f"{np.array2string(np.asarray(self.solution_force), precision=4)} N ({self.force_error:.2%})"
+                f"{np.array2string(np.asarray(self.solution_force), precision=4)} N"
+                + (f" ({error:.2%})" if np.isfinite(error) else " (-: the solution carries no force)")
             )
         return text
 
@@ -228,8 +230,8 @@ def _check_finite_cast(solution, cast: SpringCast) -> None:
     ``cast``'s mesh 1 at least)."""
     tracker = getattr(solution, "tracker", None)
     faces = solution.problem.layer.source_face
-    if tracker is not None:
-        ok = tracker.cast is cast
+    if tracker is not None:  # the cast it started from, or its last whole re-cast
+        ok = tracker.origin is cast or tracker.cast is cast
     else:
         ok = faces is None or not len(faces) or int(np.max(faces)) < len(getattr(cast.mesh1, "faces", ()))
     if not ok:

@@ -340,8 +340,22 @@ def _closest_distance(points: np.ndarray, mesh) -> float:
     tree = cKDTree(np.vstack([mesh.vertices, mesh.triangles_center]))
     rough, _ = tree.query(points)
     best = np.argsort(rough)[:64]
-    _, distance, _ = mesh.nearest.on_surface(points[best])
+    try:
+        _, distance, _ = mesh.nearest.on_surface(points[best])
+    except (IndexError, ValueError):  # trimesh's query finds no candidate far away (1e12 mm)
+        return float(np.min(rough))
     return float(distance.min())
+
+
+class NoSpringsError(InputError):
+    """A cast that made no spring (an :class:`~dea_opt.errors.InputError`); ``through_layer``
+    counts the rays whose only hits in the window lay behind mesh 1's own far side (mesh 2 went
+    through mesh 1's layer). A finite-kinematics solve whose pose comes there reports it as a
+    failed answer (:mod:`dea_opt.largemotion.tracker`), not as bad input."""
+
+    def __init__(self, message: str, through_layer: int = 0):
+        super().__init__(message)
+        self.through_layer = through_layer
 
 
 def _raise_no_springs(m2, cos_inside, t_outside, n_rejected, origins2, options):
@@ -374,7 +388,7 @@ def _raise_no_springs(m2, cos_inside, t_outside, n_rejected, origins2, options):
             f"found between the meshes is {_closest_distance(origins2, m2):.4g} mm (check pose, "
             f"flip, units, and that both meshes are in the same frame)"
         )
-    raise InputError(f"mesh1 and mesh2 never face each other within {window}: {detail}")
+    raise NoSpringsError(f"mesh1 and mesh2 never face each other within {window}: {detail}", n_rejected)
 
 
 def springs_from_meshes(

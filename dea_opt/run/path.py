@@ -2,9 +2,14 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from .log import one_line
 from .outcome import RunOutcome
 from .static import recast_solution
+
+if TYPE_CHECKING:
+    from ..solution import Solution
 
 __all__ = ["peak_recast", "run_path_outputs"]
 
@@ -75,7 +80,16 @@ def run_path_outputs(
         def frame_cast(k):
             return cast if caster is None or poses is None else caster(poses[k])
 
-        recast = peak_recast(result, loads, data.body, frame_cast, method, options, scenario.solve.certificate_tol)
+        recast = peak_recast(
+            result,
+            loads,
+            data.body,
+            frame_cast,
+            method,
+            options,
+            scenario.solve.certificate_tol,
+            frame_pose=lambda k: None if poses is None else poses[k],
+        )
         if recast is not None and "error" in recast:
             notes.append(recast["error"])
     extra = {"title": scenario.title, **(extra_summary or {})}
@@ -157,7 +171,9 @@ def run_path_outputs(
     )
 
 
-def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict, certificate_tol: float):
+def peak_recast(
+    result, loads, body: int, frame_cast, method: str, options: dict, certificate_tol: float, frame_pose=None
+):
     """Re-cast the springs at the solved pose of a load path's peak frame (the certified frame of
     the largest peak pressure), and evaluate that frame's ``dropped_springs`` check.
 
@@ -174,7 +190,11 @@ def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict
     loads : list of Load
     body : int
     frame_cast : callable
-        ``k -> SpringCast`` of frame ``k``.
+        ``k -> SpringCast`` of frame ``k`` (small kinematics).
+    frame_pose : callable, optional
+        ``k -> (4, 4) or None``: frame ``k``'s pose of body 2's mesh. With finite kinematics the
+        frame is solved at that pose from the problem's own SpringCast (its ``targets``), which
+        the answer's springs follow and the re-cast starts from.
     method, options, certificate_tol :
         As the path was solved.
 
@@ -195,14 +215,38 @@ def peak_recast(result, loads, body: int, frame_cast, method: str, options: dict
     row = certified["peak_pressure"].idxmax()
     k = int(table.loc[row, "frame"])
     where = {"frame": k, "time": float(table.loc[row, "time"])}
+    finite = getattr(result.problem, "kinematics", "small") == "finite"
+    solution: Solution
     try:
-        cast = frame_cast(k)
-        problem = result.problem.with_layer(cast.layer) if result.moving else result.problem
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ValidityWarning)
-            solution = solve(
-                problem.with_load(loads[k], body=body), method, certificate_tol=certificate_tol, strict=False, **options
-            )
+            if finite:
+                from ..largemotion import solve as solve_finite
+                from ..solver import _check_cone, _check_unresisted
+
+                cast = result.problem.targets
+                frame = None if frame_pose is None else frame_pose(k)
+                problem = result.problem.with_load(loads[k], body=body)
+                checks = (_check_unresisted, _check_cone)
+                solution = solve_finite(
+                    problem,
+                    method,
+                    certificate_tol=certificate_tol,
+                    strict=False,
+                    frame=frame,
+                    load_checks=checks,
+                    **options,
+                )
+            else:
+                cast = frame_cast(k)
+                problem = result.problem.with_layer(cast.layer) if result.moving else result.problem
+                solution = solve(
+                    problem.with_load(loads[k], body=body),
+                    method,
+                    certificate_tol=certificate_tol,
+                    strict=False,
+                    **options,
+                )
     except DeaError as exc:
         return {**where, "error": f"the peak frame {k} was not re-cast at its solved pose: {one_line(str(exc))}"}
     solution, recast = recast_solution(solution, cast)

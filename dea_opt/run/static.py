@@ -87,8 +87,10 @@ def _static_regions(solution) -> list[str]:
     from ..anatomy.regions import regional_statistics
 
     return [
-        f"region {name}: force {r.force:.4g} N ({r.share:.1%} of the total), peak {r.peak_pressure:.4g} MPa, "
-        f"contact area {r.contact_area:.4g} mm^2"
+        f"region {name}: force {r.force:.4g} N"
+        # no share of a total of 0 N (no load): said as "-", not nan%
+        + (f" ({r.share:.1%} of the total)" if np.isfinite(r.share) else " (- of the total: no force carried)")
+        + f", peak {r.peak_pressure:.4g} MPa, contact area {r.contact_area:.4g} mm^2"
         for name, r in regional_statistics(solution).items()
     ]
 

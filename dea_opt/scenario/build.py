@@ -34,6 +34,8 @@ __all__ = [
     "build_problem",
     "build_problem_cast",
     "cast_from_mesh_section",
+    "check_kinematics_method",
+    "key_origin",
     "load_meshes",
     "pose_builder",
     "pose_caster",
@@ -359,7 +361,7 @@ def build_problem(scenario: Scenario, layer=None):
     """
     if layer is None:
         return build_problem_cast(scenario)[0]
-    return _problem(scenario, layer, (None, None), None)
+    return _problem_cast(scenario, layer, (None, None), None)[0]
 
 
 def build_problem_cast(scenario: Scenario) -> tuple:
@@ -368,10 +370,12 @@ def build_problem_cast(scenario: Scenario) -> tuple:
     pose (:func:`dea_opt.mesh.recast_at_solution`); finite kinematics re-casts from it as body 2
     moves."""
     layer, references, cast = build_geometry_cast(scenario.geometry)
-    return _problem(scenario, layer, references, cast), cast
+    return _problem_cast(scenario, layer, references, cast)
 
 
-def _problem(scenario: Scenario, layer, references, cast):
+def _problem_cast(scenario: Scenario, layer, references, cast) -> tuple:
+    """``(problem, cast)``: the cast carries the labels of ``[regions]`` too (the layer it holds is
+    the problem's: finite kinematics re-cast from it, and its answers are checked against it)."""
     from ..problem import ContactProblem, Load
 
     reference1, reference2 = references
@@ -394,4 +398,47 @@ def _problem(scenario: Scenario, layer, references, cast):
             point=None if load.point is None else tuple(load.point),
         )
         problem = problem.with_load(scaled, body=load.body)
-    return problem
+    return problem, cast
+
+
+def check_kinematics_method(scenario: Scenario, method: str | None = None, what: str | None = None) -> None:
+    """A :class:`ScenarioError` when ``method`` (default ``solve.method``; ``what`` names where it
+    came from, e.g. ``--method``) does not solve ``solve.kinematics``: it names both keys, where
+    each came from (the file's line or ``--set``) and the methods that do. For finite kinematics
+    ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``, and pass."""
+    from .. import formulations
+
+    method = scenario.solve.method if method is None else method
+    kinematics = scenario.solve.kinematics
+    if not isinstance(method, str) or method == "auto" or method not in formulations.names():
+        return  # auto solves both; an unknown name is check_method_name's to refuse
+    solved = formulations.capabilities(formulations.stands_for(method, kinematics)).kinematics
+    if kinematics in solved:
+        return
+
+    def origin(key: str) -> str:
+        said = key_origin(scenario, f"solve.{key}")
+        return f" ({said})" if said else ""
+
+    given = f"{what} {method!r}" if what else f"solve.method = {method!r}{origin('method')}"
+    other = next(k for k in ("small", "finite") if k != kinematics)
+    able = formulations.alternatives(build_law(scenario.law), kinematics, prefix="")
+    raise ScenarioError(
+        f"{scenario.source or scenario.title or 'the scenario'}: {given} is a {' and '.join(solved)}-kinematics "
+        f'method and solve.kinematics = "{kinematics}"{origin("kinematics")}: use '
+        f'{f"{what} " if what else "solve.method = "}{able}; or set solve.kinematics = "{other}"'
+    )
+
+
+def key_origin(scenario: Scenario, key: str) -> str:
+    """Where the value of ``key`` (``"solve.kinematics"``) in ``scenario`` came from, for messages:
+    ``"from --set"``, ``"line N"`` of its file, or ``""`` (a default, or a file no longer readable)."""
+    from pathlib import Path
+
+    from .parse import _origin
+
+    try:
+        text = Path(scenario.source).read_text(encoding="utf-8") if scenario.source else ""
+    except (OSError, UnicodeDecodeError):
+        text = ""
+    return _origin(key, tuple(key.split(".")), text, scenario.overrides)

@@ -69,8 +69,14 @@ def decode(data: bytes, name) -> str:
         ) from None
 
 
-def parse_scenario(text: str, *, name: str = "<scenario>", base_dir=None, overrides: dict | None = None) -> Scenario:
-    """Validate scenario TOML ``text``; relative paths resolve against ``base_dir``."""
+def parse_scenario(
+    text: str, *, name: str = "<scenario>", base_dir=None, overrides: dict | None = None, swept=()
+) -> Scenario:
+    """Validate scenario TOML ``text``; relative paths resolve against ``base_dir``.
+
+    ``swept`` names the override keys a sweep gives several values: where ``solve.kinematics``
+    is one, ``solve.max_recasts`` is dropped (with a note) from its small-kinematics cases.
+    """
     if not isinstance(text, str):
         raise ScenarioError(f"scenario text must be a str, got {type(text).__name__}")
     try:
@@ -87,7 +93,7 @@ def parse_scenario(text: str, *, name: str = "<scenario>", base_dir=None, overri
     if overrides:
         data = apply_overrides(data, overrides)
         _check_depth(data, f"{name} with the --set values")
-    notes = _fit_law_to_kind(data, overrides)
+    notes = _fit_law_to_kind(data, overrides) + _fit_solve_to_kinematics(data, swept)
     base_dir = Path.cwd() if base_dir is None else Path(base_dir)
     try:
         scenario = Scenario.model_validate(data, context={"base_dir": base_dir})
@@ -143,6 +149,35 @@ def _fit_law_to_kind(data: dict, overrides: dict) -> list[str]:
     return [f"law kind {kind!r} takes no {', '.join(dropped)}: dropped {names} for this case"]
 
 
+def _fit_solve_to_kinematics(data: dict, swept) -> list[str]:
+    """Drop ``[solve] max_recasts`` from the small-kinematics cases of a sweep over
+    ``solve.kinematics`` (its cases share one ``[solve]`` table, as those of a sweep over law kinds
+    share ``[law]``: :func:`_fit_law_to_kind`); returns the notes.
+
+    Anywhere else (the file, or one ``--set`` value of a run) ``max_recasts`` with small kinematics
+    stays an error, naming where each of the two came from.
+    """
+    solve = data.get("solve")
+    if not isinstance(solve, dict) or "solve.kinematics" not in swept or "max_recasts" not in solve:
+        return []
+    if solve.get("kinematics", "small") != "small":
+        return []
+    del solve["max_recasts"]
+    return ["kinematics 'small' takes no max_recasts: dropped solve.max_recasts for this case"]
+
+
+def _origin(key: str, loc: tuple, text: str, overrides: dict, missing: bool = False) -> str:
+    """Where the value at ``key`` came from: ``from --set``, ``line N``, ``with --set k`` (a table
+    some of whose keys came from ``--set``), or "" when unknown."""
+    if any(key == k or key.startswith((k + ".", k + "[")) for k in overrides):
+        return "from --set"
+    line = None if missing else _find_line(text, loc)
+    inside = [k for k in overrides if key and k.startswith(key + ".")]
+    if inside:  # an error of a whole table, whose keys came from the file and from --set
+        return (f"line {line}, " if line else "") + f"with --set {', '.join(inside)}"
+    return f"line {line}" if line else ""
+
+
 def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, overrides: dict) -> str:
     parts = []
     for error in exc.errors():
@@ -150,12 +185,15 @@ def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, ove
         if error["type"] in ("union_tag_invalid", "union_tag_not_found"):
             loc = (*loc, "kind")
         key = _key_path(loc)
-        line = None if error["type"] == "missing" else _find_line(text, loc)
-        if any(key == k or key.startswith((k + ".", k + "[")) for k in overrides):
-            where = f"{key} (from --set)"
-        else:
-            where = f"{key} (line {line})" if line else (key or "top level")
-        parts.append(f"{where}: {_message(error, loc, data)}")
+        origin = _origin(key, loc, text, overrides, missing=error["type"] == "missing")
+        where = f"{key} ({origin})" if origin else (key or "top level")
+        message = _message(error, loc, data)
+        related = (error.get("ctx") or {}).get("related")
+        if related and loc:  # the message names another key of the table: say where that one came from
+            other = (*loc[:-1], related)
+            other_origin = _origin(_key_path(other), other, text, overrides)
+            message += f" ({other_origin})" if other_origin else ""
+        parts.append(f"{where}: {message}")
     plural = "s" if len(parts) > 1 else ""
     return f"{name} has {len(parts)} error{plural}: " + "; ".join(parts)
 

@@ -17,8 +17,11 @@ from pydantic import (
     ConfigDict,
     Field,
     PrivateAttr,
+    ValidationInfo,
+    field_validator,
     model_validator,
 )
+from pydantic_core import PydanticCustomError
 
 from ..laws import LAWS
 from .fields import (
@@ -367,14 +370,19 @@ class SolveSection(_Section):
         "exploring on purpose; the outputs still say so)",
     )
 
-    @model_validator(mode="after")
-    def _recasts_need_finite(self):
-        if self.max_recasts is not None and self.kinematics != "finite":
-            raise ValueError(
-                f"max_recasts = {self.max_recasts} counts the updates of springs that follow body 2, which "
-                f'only kinematics = "finite" has (kinematics is "{self.kinematics}")'
+    @field_validator("max_recasts")
+    @classmethod
+    def _recasts_need_finite(cls, value, info: ValidationInfo):
+        # A field's error (solve.max_recasts), which names where solve.kinematics came from ("related").
+        kinematics = info.data.get("kinematics")
+        if value is not None and kinematics is not None and kinematics != "finite":
+            raise PydanticCustomError(
+                "needs_finite",
+                "max_recasts = {value} counts the updates of springs that follow body 2, which only "
+                'kinematics = "finite" has; solve.kinematics is "{kinematics}"',
+                {"value": value, "kinematics": kinematics, "related": "kinematics"},
             )
-        return self
+        return value
 
 
 class OutputSection(_Section):

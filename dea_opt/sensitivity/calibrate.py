@@ -261,6 +261,11 @@ def calibrate(
     """
     from scipy.optimize import least_squares
 
+    if getattr(problem, "kinematics", "small") == "finite":
+        raise InputError(
+            "calibrate fits with the sensitivities of the small kinematics (Eq. (9)-(11)), and this problem "
+            "has kinematics='finite': build it with kinematics='small' (a scenario: solve.kinematics = \"small\")"
+        )
     parameters = _check_parameters(problem, parameters)
     data = (data,) if isinstance(data, (PressureMap, ForceDisplacement, ContactData)) else tuple(data)
     if not data or not all(isinstance(x, (PressureMap, ForceDisplacement, ContactData)) for x in data):
@@ -390,6 +395,25 @@ class _Model:
         return self.evaluate(z)[1]
 
 
+def check_scenario(scenario) -> None:
+    """An error unless ``dea-opt calibrate`` can fit ``scenario``: one load (``[load]``) and small
+    kinematics (the fit's Jacobian is the small kinematics' sensitivities); the message names the key."""
+    from ..scenario import ScenarioError, key_origin
+
+    if scenario.solve.kinematics == "finite":
+        origin = key_origin(scenario, "solve.kinematics")
+        raise ScenarioError(
+            f"{scenario.source or 'the scenario'}: calibrate fits with the sensitivities of the small kinematics "
+            f'(Eq. (9)-(11)), and solve.kinematics = "finite"{f" ({origin})" if origin else ""}: set '
+            f'solve.kinematics = "small" (in the file, or --set solve.kinematics=small)'
+        )
+    if scenario.load_path is not None:
+        raise InputError(
+            "calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
+            "calibrate against one frame written as a static scenario"
+        )
+
+
 def calibrate_scenario(
     scenario, data_path, folder, *, parameters=None, film=None, noise: float = 0.05, max_distance=None
 ) -> tuple:
@@ -405,11 +429,7 @@ def calibrate_scenario(
     from ..io.atomic import write_atomic
     from ..scenario import build_problem
 
-    if scenario.load_path is not None:
-        raise InputError(
-            "calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
-            "calibrate against one frame written as a static scenario"
-        )
+    check_scenario(scenario)
     problem = build_problem(scenario)
     names = tuple(parameters) if parameters else problem.law.parameter_names
     data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)

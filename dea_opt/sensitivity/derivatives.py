@@ -260,7 +260,8 @@ def sensitivities(solution, wrt=("H",), *, area_band: float | None = None, edge:
     if getattr(getattr(solution, "problem", None), "kinematics", "small") == "finite":
         raise InputError(
             "sensitivities are derivatives of the small kinematics of Eq. (9)-(11); a solution of "
-            "kinematics='finite' has none here: differentiate a small-kinematics solve"
+            "kinematics='finite' has none here: differentiate a small-kinematics solve (kinematics='small'; "
+            'a scenario: set solve.kinematics = "small")'
         )
     if isinstance(wrt, str):
         wrt = (wrt,)

@@ -52,6 +52,7 @@ from .cases import (
     parse_case,
     read_text,
     run_case,
+    swept_keys,
     work,
 )
 from .journal import JOURNAL_NAME, LOG_NAME, RESULTS_NAME, read_results
@@ -282,6 +283,7 @@ def run_sweep(
     method = _check(workers, method)
     outputs = check_outputs(outputs)
     cases = make_cases(sets)
+    swept = swept_keys(sets)
     if not cases:
         raise InputError("a sweep needs at least one --set KEY=VALUES")
     scenario_path = Path(scenario_path).expanduser().resolve()
@@ -291,7 +293,7 @@ def run_sweep(
     keys = {}
     for case in cases:  # every case must be a valid scenario before anything starts
         keys[case.id] = content_key(
-            parse_case(scenario_path, text, case.overrides), sha, case.overrides, method, hashes, outputs
+            parse_case(scenario_path, text, case.overrides, swept), sha, case.overrides, method, hashes, outputs
         )
     out = Path(output_dir).expanduser().resolve() if output_dir is not None else base.output_dir() / "sweep"
     if out.exists() and not out.is_dir():
@@ -321,7 +323,16 @@ def run_sweep(
         _require_dask()
     tasks = [
         CaseTask(
-            str(out), str(scenario_path), text, sha, case.id, case.overrides, method, retry_failed, outputs=outputs
+            str(out),
+            str(scenario_path),
+            text,
+            sha,
+            case.id,
+            case.overrides,
+            method,
+            retry_failed,
+            outputs=outputs,
+            swept=swept,
         )
         for case in todo
     ]

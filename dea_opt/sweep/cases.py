@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DeaError, InputError, ScenarioError
-from ..scenario import parse_scenario, parse_set
+from ..scenario import check_kinematics_method, parse_scenario, parse_set
 from ..status import RunStatus
 from . import journal, spring_cache
 from .keys import ContentKey, FileHashes, content_key
@@ -27,6 +27,7 @@ __all__ = [
     "parse_case",
     "read_text",
     "run_case",
+    "swept_keys",
     "work",
     "work_claimed",
 ]
@@ -68,6 +69,11 @@ class Case:
         return case_id(self.overrides)
 
 
+def swept_keys(sets) -> tuple:
+    """The keys of ``["law.H=0.3,0.45", "load.scale=1"]`` given several values (``("law.H",)``)."""
+    return tuple(key for key, values in map(parse_set, sets) if len(values) > 1)
+
+
 def make_cases(sets) -> list[Case]:
     """The Cartesian product of ``["law.H=0.3,0.45", "load.scale=1,2"]`` as cases (in order)."""
     parsed = [parse_set(text) for text in sets]
@@ -91,9 +97,13 @@ def read_text(path: Path) -> tuple[str, str]:
     return text, hashlib.sha256(data).hexdigest()
 
 
-def parse_case(scenario_path: Path, text: str, overrides: dict):
-    """The scenario of a case, parsed from ``text`` (the file's contents) as ``load_scenario`` would."""
-    return parse_scenario(text, name=str(scenario_path), base_dir=scenario_path.resolve().parent, overrides=overrides)
+def parse_case(scenario_path: Path, text: str, overrides: dict, swept=()):
+    """The scenario of a case, parsed from ``text`` (the file's contents) as ``load_scenario`` would;
+    ``swept``: the keys the sweep gives several values (:func:`swept_keys`; see
+    :func:`dea_opt.scenario.parse_scenario`)."""
+    return parse_scenario(
+        text, name=str(scenario_path), base_dir=scenario_path.resolve().parent, overrides=overrides, swept=swept
+    )
 
 
 def with_outputs(scenario, outputs):
@@ -112,6 +122,7 @@ def run_case(
     text: str | None = None,
     key: ContentKey | None = None,
     outputs=None,
+    swept=(),
 ) -> dict:
     """Run one case and write its outputs into ``case_dir``; never raises.
 
@@ -130,6 +141,8 @@ def run_case(
     outputs : sequence of str, optional
         The files the case writes (``[output].formats``: csv, json, vtk, png); default the
         scenario's own.
+    swept : sequence of str
+        The keys the sweep gives several values (:func:`swept_keys`).
 
     Returns
     -------
@@ -154,8 +167,9 @@ def run_case(
             text, sha = read_text(path)
         else:
             sha = hashlib.sha256(text.encode("utf-8")).hexdigest()
-        scenario = parse_case(path, text, overrides)
+        scenario = parse_case(path, text, overrides, swept)
         columns = (key or content_key(scenario, sha, overrides, method, _HASHES, outputs)).columns()
+        check_kinematics_method(scenario, method, "--method" if method else None)
         scenario = with_outputs(scenario, outputs)
         # The case folder is the sweep's own (an older dea-opt may have left outputs there without a manifest).
         # Pictures drawn here: the sweep's workers keep every core busy with cases.
@@ -203,6 +217,7 @@ class CaseTask:
     retry_failed: bool = False
     wait: bool = False
     outputs: tuple | None = None
+    swept: tuple = ()
 
 
 def work(task: CaseTask) -> dict:
@@ -235,7 +250,7 @@ def work_claimed(task: CaseTask) -> dict:
     path = Path(task.scenario_path)
     try:
         key = content_key(
-            parse_case(path, task.scenario_text, task.overrides),
+            parse_case(path, task.scenario_text, task.overrides, task.swept),
             task.scenario_sha256,
             task.overrides,
             task.method,
@@ -259,6 +274,7 @@ def work_claimed(task: CaseTask) -> dict:
         text=task.scenario_text,
         key=key,
         outputs=task.outputs,
+        swept=task.swept,
     )
     pointer = journal.append(out, row)
     record = json.loads(journal.line_of(row))

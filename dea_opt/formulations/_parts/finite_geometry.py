@@ -250,18 +250,26 @@ class Targets:
         number): ``concave`` when the springs sit inside them (a socket), else outside (a ball).
         ``n`` broadcasts one sphere to ``n`` springs."""
         centres = np.atleast_2d(_array("centres", centres, None))
-        n = len(centres) if n is None else int(n)
-        centres = np.broadcast_to(centres, (n, 3)).copy() if len(centres) in (1, n) else centres
-        radius = np.broadcast_to(np.asarray(radius, dtype=float), (n,)).copy()
+        if n is None:
+            n = len(centres)
+        elif isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+            raise InputError(f"n must be a whole number of springs >= 0, got {n!r}")
+        n = int(n)
+        if len(centres) not in (1, n):
+            raise InputError(f"centres must be one centre (3,) or one per spring ({n}, 3), got shape {centres.shape}")
+        centres = np.broadcast_to(centres, (n, 3)).copy()
+        radius = _per_spring("radius", radius, float, n)
         if not (np.isfinite(radius).all() and (radius > 0).all()):
             raise InputError(f"radius must be finite and > 0 (mm), got {radius.min() if n else radius}")
-        concave = np.broadcast_to(np.asarray(concave, dtype=bool), (n,)).copy()
+        concave = _per_spring("concave", concave, bool, n)
         return cls(centres, np.zeros((n, 3)), radius, concave, np.eye(4))
 
     @classmethod
     def facing(cls, layer) -> Targets:
         """Each spring's own plane: through ``p + gap n`` with normal ``-n`` (a flat target normal
         to the spring, as for a rigid flat punch on a bed). The default without targets."""
+        if not all(hasattr(layer, name) for name in ("points", "normals", "gap")):
+            raise InputError(f"layer must be a SpringLayer, got {type(layer).__name__}")
         return cls.planes(layer.points + layer.gap[:, None] * layer.normals, -layer.normals)
 
     @classmethod
@@ -288,6 +296,17 @@ class Targets:
             frame,
             np.array(layer.target_faces),
         )
+
+
+def _per_spring(name, value, dtype, n) -> np.ndarray:
+    """``value`` (a number or one per spring) as ``n`` values of ``dtype``."""
+    try:
+        arr = np.asarray(value, dtype=dtype)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be a number or one per spring ({n}), got {type(value).__name__}") from None
+    if arr.ndim > 1 or (arr.ndim == 1 and len(arr) != n):
+        raise InputError(f"{name} must be a number or one per spring ({n},), got shape {arr.shape}")
+    return np.broadcast_to(arr, (n,)).copy()
 
 
 def _array(name, value, ndim) -> np.ndarray:

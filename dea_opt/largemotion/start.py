@@ -1,0 +1,68 @@
+"""Finite kinematics, the start of a solve: the small kinematics' answer as the start of a cold Newton
+solve, whether it may call the layer crushed before any solve, and the springs brought up to date
+at body 2's base pose when a solve from far away gave no answer.
+
+Written math: ``formulations/finite.md`` ("Newton", "Re-casting"). Used by
+:mod:`~dea_opt.largemotion.driver`.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["at_base", "near_base", "predicted"]
+
+_PREDICTOR_TOL = 1e-2  # the small kinematics' answer as a start (it is off by the rotation squared)
+
+#: mm the springs' hits move from their last update to body 2's base pose (a prescribed motion, a
+#: load path's frame) past which the small kinematics on their tangent planes, extrapolated that
+#: far, say too little of the meshes to call the layer crushed before any solve.
+_BASE_SHIFT = 1.0
+
+
+def near_base(tracker, system) -> bool:
+    """Whether body 2's base pose (the free coordinates at zero) lies within :data:`_BASE_SHIFT` of
+    where the springs were last brought up to date: the small kinematics' answer on them may then
+    call the layer crushed before any solve (:func:`~dea_opt.largemotion.outcome.crushed_at_start`).
+    Farther, the solve and its updates find it out (springs lost through the layer, or none left)."""
+    y = system.coordinates(np.zeros(len(system.free)))
+    return not tracker.moved_from_update(system.transform(y)) > _BASE_SHIFT
+
+
+def at_base(tracker, system, law) -> tuple:
+    """``(system, failed)``: the springs brought up to date at body 2's base pose (the free
+    coordinates at zero), by a complete update there (a whole re-cast when that is far from the
+    last one); ``failed`` an :class:`~dea_opt.formulations.finite.InnerResult` (``pose_error``)
+    when no spring is left there, else None."""
+    from ..formulations.finite import InnerResult
+
+    zero = np.zeros(len(system.free))
+    y = system.coordinates(zero)
+    state = system.state(y, law)
+    update = tracker.update(system, state, complete=True)
+    tracker.complete = False  # the solve's own updates start partial again
+    if update is None:
+        return system, None
+    if update.none_left:
+        tracker.counts["stable"] = True
+        tracker.crushed_faces.clear()  # no solve loaded them: the pose was given
+        message = (
+            f"no spring is left at body 2's base pose (its prescribed motion or the frame's pose): {update.none_left}"
+        )
+        return system, InnerResult(zero, state, False, "pose_error", message)
+    return update.system, None
+
+
+def predicted(small, law, x):
+    """``(x, cold)``: the start of a cold Newton solve of springs that follow mesh 2, the answer of the
+    small kinematics (their equilibrium to first order in the rotation) when it has one, else ``x``.
+
+    The first finite solve on the springs of the start pose only says where body 2 goes; the
+    small kinematics says it in a third of the time, and the first update of the springs
+    (:mod:`~dea_opt.largemotion.tracker`) starts from there (``formulations/finite.md``, "Newton")."""
+    from ..formulations import newton as small_newton
+
+    guess = small_newton.solve(small, law, gtol=_PREDICTOR_TOL, xtol=_PREDICTOR_TOL)  # a start: no finer
+    if guess.success and guess.u_free.shape == x.shape and np.isfinite(guess.u_free).all():
+        return np.array(guess.u_free, dtype=float), False
+    return x, True

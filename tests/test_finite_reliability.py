@@ -1,0 +1,203 @@
+"""Finite kinematics at the edges an attacker found: poses with no spring left, large prescribed
+motions, held dofs with a start, statuses of certified answers, re-casts after a whole re-cast,
+the point moments are taken about, and bad inputs to the targets and load paths.
+
+Every equilibrium here is checked in the test: the spring forces ``p_i S_i n_i`` summed (and
+their moments about body 2's reference where the motion took it), against the load.
+"""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dea_opt as d
+from dea_opt import mesh as M
+from dea_opt.errors import InputError
+from dea_opt.formulations.finite import Targets, left_jacobian, pose_matrix
+from dea_opt.geometry import plate_layer, socket_layer
+from dea_opt.status import CERTIFIABLE
+
+KNEE = Path(__file__).resolve().parents[2] / "shared" / "data" / "knee"
+FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
+
+
+def quiet(function, *args, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return function(*args, **kw)
+
+
+def spring_force(solution) -> np.ndarray:
+    """The force the springs exert on body 2 (N), summed here: ``sum p_i S_i n_i``."""
+    layer = solution.problem.layer
+    return (solution.pressure * layer.areas) @ layer.normals
+
+
+@pytest.fixture(scope="module")
+def knee():
+    if not all((KNEE / name).is_file() for name in FILES):
+        pytest.skip(f"the knee meshes are not in {KNEE}")
+    femur = M.load_mesh(KNEE / "femoral_cartilage.stl")
+    medial = M.load_mesh(KNEE / "medial_tibial_cartilage.stl")
+    lateral = M.load_mesh(KNEE / "lateral_tibial_cartilage.stl")
+    tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
+    centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
+    cast = quiet(M.cast_springs, tibia, femur, labels=labels, max_gap=2.0)
+    return cast, 0.5 * (centre[0] + centre[1])
+
+
+def _knee_problem(knee, free=("uz", "ry")):
+    cast, reference = knee
+    return d.ContactProblem(
+        cast.layer, d.LinearLaw(10.0), reference=tuple(reference), free=free, kinematics="finite", targets=cast
+    )
+
+
+def test_a_frame_that_crushes_the_layer_is_a_failed_frame_and_the_path_goes_on(knee):
+    # 200 kN drives the femur through the tibial cartilage: every spring leaves through the layer
+    # at a whole re-cast. That frame fails as crushed; the frames around it are certified.
+    problem = _knee_problem(knee)
+    loads = np.array([[0, 0, -800.0, 0, 0, 0], [0, 0, -200000.0, 0, 0, 0], [0, 0, -800.0, 0, 0, 0]])
+    result = quiet(d.solve_path, problem, loads)
+    table = result.table
+    assert list(table["status"]) == ["converged", "crushed", "converged"]
+    assert list(table["success"]) == [True, False, True]
+    for k in (0, 2):
+        force = spring_force(result.solutions[k])
+        assert abs(force[2] - 800.0) < 1e-4 * 800.0
+
+
+def test_a_frame_whose_pose_leaves_no_spring_is_a_pose_error_and_the_path_goes_on(knee):
+    problem = _knee_problem(knee)
+    loads = np.array([[0, 0, -500.0, 0, 0, 0]] * 3)
+    for shift in (200.0, 1e12):
+        poses = np.array([np.eye(4)] * 3)
+        poses[1, 0, 3] = shift  # the femur far to the side: nothing faces the tibia
+        result = quiet(d.solve_path, problem, loads, poses)
+        assert list(result.table["status"]) == ["converged", "pose_error", "converged"]
+        assert "no spring is left" in str(result.table["message"][1])
+        assert abs(spring_force(result.solutions[2])[2] - 500.0) < 1e-4 * 500.0
+
+
+def test_a_prescribed_slide_is_solved_on_the_springs_of_its_pose_not_called_crushed(knee):
+    # 5 mm of prescribed sliding: the start's tangent planes, extrapolated that far, crushed the
+    # layer in the small kinematics' start. The springs are brought up to date there first.
+    cast, reference = knee
+    body = d.Body(reference=tuple(reference), free=("uz",), prescribed={"uy": 5.0}, force=(0.0, 0.0, -1000.0))
+    problem = d.ContactProblem(cast.layer, d.LinearLaw(10.0), body2=body, kinematics="finite", targets=cast)
+    solution = quiet(d.solve, problem)
+    assert solution.success and solution.status == "converged"
+    assert abs(spring_force(solution)[2] - 1000.0) < 1e-4 * 1000.0
+    assert abs(solution.pose[1, 3] - (cast.pose[1, 3] + 5.0)) < 1e-9
+    # the same pose as a load path's frame gives the same answer
+    frame = pose_matrix([0.0, 5.0, 0.0, 0.0, 0.0, 0.0], reference) @ cast.pose
+    path = quiet(d.solve_path, _knee_problem(knee, free=("uz",)), np.array([[0, 0, -1000.0]]), frame[None])
+    assert abs(path.solutions[0].peak_pressure - solution.peak_pressure) < 1e-6 * solution.peak_pressure
+
+
+def test_recast_at_solution_takes_the_cast_the_springs_started_from_after_a_whole_re_cast(knee):
+    cast, reference = knee
+    problem = _knee_problem(knee)
+    pose = pose_matrix([0, -6.0, 0, 0, 0, 0], reference)  # a 6 mm slide: the hits move past full_shift
+    result = quiet(d.solve_path, problem, np.array([[0, 0, -500.0, 0, 0, 0]]), pose[None])
+    solution = result.solutions[0]
+    assert solution.success and solution.validity.valid
+    assert solution.info["recast"]["recasts"] >= 1  # mesh 1 was cast whole again
+    again = M.recast_at_solution(solution, cast)
+    assert np.linalg.norm(again.force - again.solution_force) < 2e-3 * 500.0
+
+
+def test_contact_json_says_the_moment_is_taken_about_the_moved_reference(knee, tmp_path):
+    cast, reference = knee
+    problem = _knee_problem(knee, free=("uz", "rx", "ry")).with_load(force=(0, 0, -1000.0))
+    solution = quiet(d.solve, problem)
+    d.io.to_json(solution, tmp_path / "contact.json")
+    written = json.loads((tmp_path / "contact.json").read_text())
+    point = np.asarray(reference) + solution.u[6:9]
+    assert np.allclose(written["moment_about"], point, atol=1e-12)
+    layer = solution.problem.layer
+    forces = (solution.pressure * layer.areas)[:, None] * layer.normals
+    moment = np.cross(layer.points - np.asarray(written["moment_about"]), forces).sum(axis=0)
+    assert np.allclose(written["contact_moment"], moment, rtol=1e-9, atol=1e-6)
+    # the load has no moment: along the free rotation vector's components the springs' moment
+    # about that point, mapped by the rotation's Jacobian, is nil (rz held takes the rest)
+    assert np.abs((left_jacobian(solution.u[9:12]).T @ moment)[:2]).max() < 1e-6 * 1000.0 * 30.0
+
+
+def test_a_held_dof_takes_no_motion_from_a_start_that_moves_it():
+    layer = plate_layer(length=30, width=20, nx=15, ny=10, thickness=2.0)
+    problem = d.ContactProblem(
+        layer, d.LinearLaw(10.0), force=(0, 0, -500.0), reference=(0, 0, 0), free=("ux", "uz"), kinematics="finite"
+    )
+    for method in ("newton", "nlp"):
+        solution = quiet(d.solve, problem, method=method, x0=[2.0, 0.0])
+        assert solution.success and solution.info["held"] == ["body2.ux"]
+        assert abs(solution.u[6]) < 1e-12
+        assert abs(spring_force(solution)[2] - 500.0) < 1e-6 * 500.0
+
+
+def test_a_certified_answer_has_a_certifiable_status_whatever_the_solver_said():
+    # IPOPT's outer iterations stop at their limit on a ball in a socket turned 359 degrees
+    # about an off-centre point, at an answer dea-opt certifies: converged (native_status keeps
+    # the solver's word), as for small kinematics.
+    layer = socket_layer(radius=25.0, thickness=2.0, coverage=80, n_rings=10, n_sectors=24)
+    targets = Targets.spheres((0, 0, 0.0), 25.0, n=len(layer.points))
+    axis = np.array([1.0, 0.3, 0.2]) / np.linalg.norm([1.0, 0.3, 0.2])
+    theta = np.radians(359) * axis
+    body = d.Body(
+        reference=(3.0, -2.0, -10.0),
+        free=("ux", "uy", "uz"),
+        force=(50.0, -30.0, -400.0),
+        prescribed={"rx": theta[0], "ry": theta[1], "rz": theta[2]},
+    )
+    problem = d.ContactProblem(layer, d.LinearLaw(10.0), body2=body, kinematics="finite", targets=targets)
+    solution = quiet(d.solve, problem, method="nlp", strict=False)
+    assert solution.success == (solution.status in CERTIFIABLE)
+    if solution.success:
+        assert np.allclose(spring_force(solution), -np.array([50.0, -30.0, -400.0]), atol=1e-4)
+
+
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: Targets.spheres((0, 0, 0), 1.0, n=-1),
+        lambda: Targets.spheres((0, 0, 0), 1.0, n="a"),
+        lambda: Targets.spheres(np.zeros((4, 3)), [1.0, 2.0, 3.0]),
+        lambda: Targets.spheres(np.zeros((4, 3)), 1.0, concave=[True, False]),
+        lambda: Targets.spheres(np.zeros((4, 3)), 1.0, n=3),
+        lambda: Targets.facing("x"),
+    ],
+    ids=["n negative", "n text", "radius length", "concave length", "centres against n", "facing text"],
+)
+def test_bad_targets_are_input_errors(make):
+    with pytest.raises(InputError):
+        make()
+
+
+@pytest.mark.parametrize("which", ["loads", "poses"])
+def test_a_load_path_of_text_is_an_input_error_naming_it(which):
+    layer = plate_layer(length=30, width=20, nx=6, ny=4, thickness=2.0)
+    problem = d.ContactProblem(layer, d.LinearLaw(10.0), reference=(0, 0, 0), free=("uz",))
+    loads = [["a"] * 6] * 3 if which == "loads" else np.array([[0, 0, -10.0]] * 3)
+    poses = [["a"]] if which == "poses" else None
+    with pytest.raises(InputError, match=which):
+        d.solve_path(problem, loads, poses)
+
+
+def test_a_crushed_answer_that_turned_far_says_a_free_dof_may_be_the_cause(tmp_path):
+    # A ball in its socket with all six dofs free: the rotations about the centre are (nearly)
+    # unresisted and turn the head 22 degrees before the layer is crushed: the message says so.
+    from dea_opt.run import run_scenario
+    from dea_opt.scenario import load_scenario
+
+    here = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "hip_meshes.toml"
+    scenario = load_scenario(here, overrides={"solve.kinematics": "finite", "body2.free": "all"})
+    quiet(run_scenario, scenario, tmp_path / "out")
+    written = json.loads((tmp_path / "out" / "contact.json").read_text())
+    assert written["status"] == "crushed" and written["success"] is False
+    assert "free dof" in written["message"] and "deg" in written["message"]
