@@ -66,8 +66,11 @@ def certificate(state, law, layer, lengths, stiffness, u, reported_stress, strai
 
 
 def _finite(eps) -> np.ndarray:
-    """Strains of springs whose ray misses its target (``inf``) as a large finite number: open."""
-    return np.where(np.isfinite(eps), eps, 1e300)
+    """Strains of springs whose ray misses its target (``inf``) as open ones: the largest finite
+    strain, at least 1 (a stress reported there then weighs in the residuals as it is, not
+    times 1e300)."""
+    finite = np.isfinite(eps)
+    return np.where(finite, eps, max(1.0, float(np.max(eps, where=finite, initial=1.0))))
 
 
 @dataclass(frozen=True, eq=False)
