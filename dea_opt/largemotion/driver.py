@@ -286,11 +286,11 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
-    far = tracker is not None and not near_base(tracker, system)
+    first = tracker is not None  # the first solve, which may start again at the base pose
     if cold and loaded and tracker is not None:
         guess, unsolved = predicted(small, law, x)
         deepest = small.strain_at(guess).min()
-        if not unsolved and deepest <= -1.0 and not far:
+        if not unsolved and deepest <= -1.0 and near_base(tracker, system):
             tracker.counts["stable"] = True
             crushed = crushed_at_start(system, law, guess, deepest)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
@@ -316,10 +316,10 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         inner.info["loose"] = loose
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
-        if far and not inner.success:
+        if first and not inner.success and not near_base(tracker, system):
             # The tangent planes, extrapolated from where the springs were to a base pose far from
             # it, gave no answer: the springs brought up to date at the base pose, and again.
-            far = False
+            first = False
             system, failed = at_base(tracker, system, law)
             if failed is not None:
                 inner = failed
@@ -327,6 +327,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
             T, E0, small = scaled_directions(system, law)
             x, cold, start_state = np.zeros(len(system.free)), True, None
             continue
+        first = False
         if tracker is None or not inner.success:
             break
         system, inner, resolve, stable = _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten)
