@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import textwrap
 import warnings
 from pathlib import Path
 
@@ -18,6 +19,52 @@ TIGHT = {"newton": {}, "qp": {"tol": 1e-12}, "nlp": {}}
 
 SHARED = Path(__file__).resolve().parents[2] / "shared"
 KNEE = SHARED / "data" / "knee"
+KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
+
+#: A scenario of the generated knee meshes solved with finite kinematics.
+KNEE_SCENARIO = textwrap.dedent("""
+    [geometry]
+    kind = "generator"
+    function = "knee_meshes"
+    [law]
+    kind = "linear"
+    H = 10.0
+    [body2]
+    free = ["uz", "ry"]
+    [load]
+    force = [0, 0, -600.0]
+    moment = [0, 1500.0, 0]
+    [solve]
+    kinematics = "finite"
+    [output]
+    formats = ["json"]
+""")
+
+
+def real_knee() -> dict:
+    """The real knee of ``../shared/data/knee`` cast tibia onto femur (labels medial/lateral, max_gap
+    2 mm): ``mesh1``, ``mesh2``, ``options``, ``reference`` (the plateaus' mean centroid) and
+    ``cast``. Skips the test when the meshes are absent."""
+    from dea_opt import mesh as M
+
+    if not all((KNEE / name).is_file() for name in KNEE_FILES):
+        pytest.skip(f"the knee meshes are not in {KNEE}")
+    femur = M.load_mesh(KNEE / "femoral_cartilage.stl")
+    medial = M.load_mesh(KNEE / "medial_tibial_cartilage.stl")
+    lateral = M.load_mesh(KNEE / "lateral_tibial_cartilage.stl")
+    tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
+    centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
+    options = {"labels": labels, "max_gap": 2.0}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cast = M.cast_springs(tibia, femur, **options)
+    return {
+        "mesh1": tibia,
+        "mesh2": femur,
+        "options": options,
+        "reference": 0.5 * (centre[0] + centre[1]),
+        "cast": cast,
+    }
 
 
 def applies(method, law) -> bool:

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import KNEE
+from conftest import KNEE, KNEE_SCENARIO
 from typer.testing import CliRunner
 
 import dea_opt as d
@@ -27,24 +27,9 @@ from dea_opt.study import _difference, run_study, summarize
 runner = CliRunner()
 
 #: The generated knee, coarse, solved with finite kinematics (labelled medial and lateral).
-FINITE = textwrap.dedent("""
-    [geometry]
-    kind = "generator"
-    function = "knee_meshes"
-    parameters = { n_plateau = 12, step = 6.0 }
-    [law]
-    kind = "linear"
-    H = 10.0
-    [body2]
-    free = ["uz", "ry"]
-    [load]
-    force = [0, 0, -600.0]
-    moment = [0, 1500.0, 0]
-    [solve]
-    kinematics = "finite"
-    [output]
-    formats = ["json"]
-""")
+FINITE = KNEE_SCENARIO.replace(
+    'function = "knee_meshes"', 'function = "knee_meshes"\nparameters = { n_plateau = 12, step = 6.0 }'
+)
 
 
 def invoke(*args):

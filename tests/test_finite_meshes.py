@@ -13,10 +13,10 @@ from __future__ import annotations
 import pickle
 import re
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import real_knee
 from scipy.spatial import cKDTree
 
 import dea_opt as d
@@ -30,8 +30,6 @@ from dea_opt.geometry import hip_meshes
 from dea_opt.mesh import off_face
 from dea_opt.validity import ValidityLimits
 
-KNEE = Path(__file__).resolve().parents[2] / "shared" / "data" / "knee"
-FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 WIDE = 4.0  # mm of overlap a fresh cast at a far pose may take
 
 
@@ -55,21 +53,7 @@ def hip():
 
 @pytest.fixture(scope="module")
 def knee():
-    if not all((KNEE / name).is_file() for name in FILES):
-        pytest.skip(f"the knee meshes are not in {KNEE}")
-    femur = M.load_mesh(KNEE / "femoral_cartilage.stl")
-    medial = M.load_mesh(KNEE / "medial_tibial_cartilage.stl")
-    lateral = M.load_mesh(KNEE / "lateral_tibial_cartilage.stl")
-    tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
-    centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
-    options = {"labels": labels, "max_gap": 2.0}
-    return {
-        "mesh1": tibia,
-        "mesh2": femur,
-        "options": options,
-        "reference": 0.5 * (centre[0] + centre[1]),
-        "cast": quiet(M.cast_springs, tibia, femur, **options),
-    }
+    return real_knee()
 
 
 def _pose(cast, degrees, axis):

@@ -10,11 +10,11 @@ with one key, ``[solve] kinematics``.
 from __future__ import annotations
 
 import json
-import textwrap
 import warnings
 
 import numpy as np
 import pytest
+from conftest import KNEE_SCENARIO
 
 import dea_opt as d
 from dea_opt import formulations, largemotion
@@ -161,26 +161,6 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
         # the raw answers: uz, ry free; more load, deeper; the first is dea_opt.solve's answer
         assert first.success and again.success and again.u_free[0] < first.u_free[0]
         assert np.abs(first.u_free - certified.u[[8, 10]]).max() <= 1e-6 * np.abs(certified.u).max()
-
-
-#: A scenario of the generated knee meshes solved with finite kinematics.
-KNEE_SCENARIO = textwrap.dedent("""
-        [geometry]
-        kind = "generator"
-        function = "knee_meshes"
-        [law]
-        kind = "linear"
-        H = 10.0
-        [body2]
-        free = ["uz", "ry"]
-        [load]
-        force = [0, 0, -600.0]
-        moment = [0, 1500.0, 0]
-        [solve]
-        kinematics = "finite"
-        [output]
-        formats = ["json"]
-""")
 
 
 def test_a_scenario_asks_for_finite_kinematics_with_one_key(tmp_path):

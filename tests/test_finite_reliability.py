@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from conftest import real_knee
 
 import dea_opt as d
 from dea_opt import mesh as M
@@ -21,9 +22,6 @@ from dea_opt.errors import InputError
 from dea_opt.formulations.finite import Targets, left_jacobian, pose_matrix
 from dea_opt.geometry import plate_layer, socket_layer
 from dea_opt.status import CERTIFIABLE
-
-KNEE = Path(__file__).resolve().parents[2] / "shared" / "data" / "knee"
-FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 
 
 def quiet(function, *args, **kw):
@@ -40,15 +38,8 @@ def spring_force(solution) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def knee():
-    if not all((KNEE / name).is_file() for name in FILES):
-        pytest.skip(f"the knee meshes are not in {KNEE}")
-    femur = M.load_mesh(KNEE / "femoral_cartilage.stl")
-    medial = M.load_mesh(KNEE / "medial_tibial_cartilage.stl")
-    lateral = M.load_mesh(KNEE / "lateral_tibial_cartilage.stl")
-    tibia, labels = M.concatenate_meshes({"medial": medial, "lateral": lateral})
-    centre = [(m.area_faces @ m.triangles_center) / m.area for m in (medial, lateral)]
-    cast = quiet(M.cast_springs, tibia, femur, labels=labels, max_gap=2.0)
-    return cast, 0.5 * (centre[0] + centre[1])
+    found = real_knee()
+    return found["cast"], found["reference"]
 
 
 def _knee_problem(knee, free=("uz", "ry")):
