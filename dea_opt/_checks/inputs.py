@@ -56,6 +56,15 @@ def _at(arr: np.ndarray, flat_index: int) -> str:
     return f" at index {index[0] if len(index) == 1 else index}"
 
 
+def as_numeric(name: str, value) -> np.ndarray:
+    """``value`` as a float array of any shape (the caller checks shape and values); an
+    :class:`InputError` naming ``name`` when it is not numeric."""
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        raise InputError(f"{name} must be numbers (an array of floats), got {_describe(value)}") from None
+
+
 def as_float_array(name: str, value, shape: tuple, *, allow_scalar_for=None) -> np.ndarray:
     """``value`` as a float64 C-contiguous array of ``shape`` (``None`` entries free).
 

@@ -72,20 +72,6 @@ class FiniteStepper:
         self.tracker = None
 
 
-def numeric_array(name: str, value) -> np.ndarray:
-    """``value`` as a float array; an :class:`~dea_opt.errors.InputError` naming ``name`` when it is not numeric."""
-    from ..errors import InputError
-
-    try:
-        return np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise InputError(f"{name} must be numbers (an array of floats), got {one_line_of(exc)}") from None
-
-
-def one_line_of(exc: BaseException) -> str:
-    return str(exc).splitlines()[0] if str(exc) else type(exc).__name__
-
-
 def moves(problem: ContactProblem, poses) -> bool:
     """Whether the springs change from frame to frame: prescribed poses, or re-casting from meshes."""
     from ..mesh.springs import SpringCast
@@ -103,12 +89,13 @@ def frame_layer(frame: ContactProblem, solution) -> object:
 def check_finite_poses(problem: ContactProblem, poses, n: int):
     """Poses of a finite-kinematics path: (T, 4, 4), one per frame; the springs are re-cast from the
     problem's SpringCast (``targets=``), not by a ``layer_for_pose``."""
+    from .._checks.inputs import as_numeric
     from ..errors import InputError
     from ..mesh.springs import SpringCast, check_pose
 
     if poses is None:
         return None
-    poses = numeric_array("poses", poses)
+    poses = as_numeric("poses", poses)
     if poses.shape != (n, 4, 4):
         raise InputError(f"poses must have shape ({n}, 4, 4), one per frame, got {poses.shape}")
     if not isinstance(problem.targets, SpringCast):

@@ -36,6 +36,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._checks.inputs import as_numeric
 from .._checks.memory import check_memory
 from ..errors import (
     DeaError,
@@ -48,7 +49,7 @@ from ..formulations.energy import single_threaded_blas
 from ..problem import ContactProblem, Load
 from ..status import Status
 from .exposure import ExposureAccumulator
-from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves, numeric_array
+from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from .result import PathResult
 from .series import FrameSeries
 from .stepper import Stepper
@@ -92,7 +93,7 @@ def _frames(loads, times) -> tuple:
         columns = [loads[c] if c in loads else 0.0 * loads["Fx"] for c in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
         loads = np.column_stack([np.asarray(c, dtype=float) for c in columns])
     if isinstance(loads, np.ndarray) or (len(loads) and not isinstance(loads[0], Load)):
-        array = numeric_array("loads", loads)
+        array = as_numeric("loads", loads)
         if array.ndim != 2 or array.shape[1] not in (3, 6):
             raise InputError(
                 f"loads must be a sequence of Load, or an array of shape (T, 3) or (T, 6) "
@@ -480,7 +481,7 @@ def _solve_path(
 def _check_poses(problem, poses, layer_for_pose, n):
     if poses is None:
         return None, None
-    poses = numeric_array("poses", poses)
+    poses = as_numeric("poses", poses)
     if poses.shape != (n, 4, 4):
         raise InputError(f"poses must have shape ({n}, 4, 4), one per frame, got {poses.shape}")
     if layer_for_pose is None:

@@ -2,14 +2,9 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING
-
 from .log import one_line
 from .outcome import RunOutcome
 from .static import recast_solution
-
-if TYPE_CHECKING:
-    from ..solution import Solution
 
 __all__ = ["peak_recast", "run_path_outputs"]
 
@@ -216,37 +211,24 @@ def peak_recast(
     k = int(table.loc[row, "frame"])
     where = {"frame": k, "time": float(table.loc[row, "time"])}
     finite = getattr(result.problem, "kinematics", "small") == "finite"
-    solution: Solution
     try:
+        if finite:  # the springs follow the problem's own cast; the frame's pose is the solve's frame
+            cast, problem = result.problem.targets, result.problem
+            frame = None if frame_pose is None else frame_pose(k)
+            extra = {} if frame is None else {"frame": frame}
+        else:
+            cast, extra = frame_cast(k), {}
+            problem = result.problem.with_layer(cast.layer) if result.moving else result.problem
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ValidityWarning)
-            if finite:
-                from ..largemotion import solve as solve_finite
-                from ..solver import _check_cone, _check_unresisted
-
-                cast = result.problem.targets
-                frame = None if frame_pose is None else frame_pose(k)
-                problem = result.problem.with_load(loads[k], body=body)
-                checks = (_check_unresisted, _check_cone)
-                solution = solve_finite(
-                    problem,
-                    method,
-                    certificate_tol=certificate_tol,
-                    strict=False,
-                    frame=frame,
-                    load_checks=checks,
-                    **options,
-                )
-            else:
-                cast = frame_cast(k)
-                problem = result.problem.with_layer(cast.layer) if result.moving else result.problem
-                solution = solve(
-                    problem.with_load(loads[k], body=body),
-                    method,
-                    certificate_tol=certificate_tol,
-                    strict=False,
-                    **options,
-                )
+            solution = solve(
+                problem.with_load(loads[k], body=body),
+                method,
+                certificate_tol=certificate_tol,
+                strict=False,
+                **options,
+                **extra,
+            )
     except DeaError as exc:
         return {**where, "error": f"the peak frame {k} was not re-cast at its solved pose: {one_line(str(exc))}"}
     solution, recast = recast_solution(solution, cast)
