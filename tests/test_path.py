@@ -59,10 +59,15 @@ def test_gait_is_a_double_hump_peaking_near_2_4_bw():
 
 def test_newton_path_table(newton_path, gait):
     table = newton_path.table
-    # the fixed columns first, then one per validity check (no labels: no region columns)
+    # the fixed columns first, the motion of each free dof, then one per validity check (no
+    # labels: no region columns)
     assert list(table.columns)[: len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
     extra = list(table.columns)[len(TABLE_COLUMNS) :]
-    assert extra and all(c.startswith("validity_") for c in extra)
+    assert extra[:3] == ["body2_ux", "body2_uy", "body2_uz"]
+    assert all(c.startswith("validity_") for c in extra[3:])
+    found = np.array([s.u[6:9] for s in newton_path.solutions])
+    assert np.array_equal(table[["body2_ux", "body2_uy", "body2_uz"]].to_numpy(), found)
+    assert (table["body2_uz"] < 0).all()  # the head sinks into the socket under every frame's load
     assert table["valid"].all() and (table["message"] == "").all()
     assert len(table) == len(gait) and newton_path.success
     assert np.allclose(table["time"], gait["time"])

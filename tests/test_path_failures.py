@@ -106,6 +106,9 @@ def test_every_output_has_every_frame(hip, tmp_path):
     table = pd.read_csv(files["table"], keep_default_na=False, na_values=[""])
     assert table["status"].tolist()[1] == "load_not_supported" and table["success"].tolist() == [True, False, True]
     assert math.isnan(table["peak_pressure"].iloc[1]) and table["peak_pressure"].iloc[[0, 2]].gt(0).all()
+    # the motion found: a number for a certified frame only
+    motion = table[["body2_ux", "body2_uy", "body2_uz"]]
+    assert motion.iloc[1].isna().all() and np.isfinite(motion.iloc[[0, 2]].to_numpy()).all()
     datasets = ET.parse(files["series"]).getroot().find("Collection").findall("DataSet")
     assert [float(x.get("timestep")) for x in datasets] == TIMES.tolist()
     frames = [meshio.read(tmp_path / x.get("file")) for x in datasets]

@@ -140,6 +140,20 @@ def test_a_load_path_with_any_frame_outside_validity_exits_3(tmp_path, H, code):
     assert bool(outside) == (code == 3)
     if outside:
         assert f"{len(outside)} of 11 frame(s) outside validity" in stderr_lines(result)[-1]
+    # the motion each frame found, per free dof: a column of frames.csv, its range in summary.json
+    # and on the terminal; the head sinks along the load, further under the stiffer frames' load
+    motion = summary["motion"]
+    assert list(motion) == ["body2_ux", "body2_uy", "body2_uz"]
+    peak = frames["peak_pressure"].idxmax()
+    for column, m in motion.items():
+        assert m["unit"] == "mm"
+        assert (m["min"], m["max"], m["at_peak"]) == (
+            frames[column].min(),
+            frames[column].max(),
+            frames[column].iloc[peak],
+        )
+    assert frames.loc[frames["Fz"].abs().idxmax(), "body2_uz"] == frames["body2_uz"].min() < 0
+    assert f"body2_uz {motion['body2_uz']['min']:.4g} to {motion['body2_uz']['max']:.4g} mm" in result.stdout
 
 
 def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):

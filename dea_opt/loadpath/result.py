@@ -20,6 +20,7 @@ from ..io.summary import write_json
 from ..problem import ContactProblem
 from .exposure import Exposure
 from .series import FrameSeries, write_pvd
+from .table import MOTION_UNITS, motion_columns
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -156,6 +157,22 @@ class PathResult:
             "failed_frames": self.failed_frames,
         }
 
+    def motion_summary(self) -> dict:
+        """Per free dof (its table column, ``body2_uz``): its unit and, over the certified frames,
+        the smallest and largest motion found and that of the peak frame (mm, rad)."""
+        table = self.table.loc[self.table["success"]]
+        k = _largest(table["peak_pressure"])
+        out = {}
+        for column in motion_columns(self.problem):
+            values = table[column]
+            out[column] = {
+                "unit": MOTION_UNITS[column.rsplit("_", 1)[1]],
+                "min": _nan_or(values.min()),
+                "max": _nan_or(values.max()),
+                "at_peak": math.nan if k is None else float(values.iloc[k]),
+            }
+        return out
+
     def region_summary(self) -> dict:
         """Per region over the certified frames: mean, smallest and largest force share, the
         peak pressure and its frame, the largest contact area."""
@@ -219,6 +236,7 @@ class PathResult:
             "solve_time_total": float(table["solve_time"].sum()),
             "solve_time_after_first_mean": float(table["solve_time"].iloc[1:].mean()) if len(table) > 1 else None,
             "worst_certificate_residual": _nan_or(table["certificate_residual"].max()),
+            "motion": self.motion_summary(),
             "regions": self.region_summary(),
             "exposure": self.exposure.summary(),
         }

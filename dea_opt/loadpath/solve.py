@@ -53,7 +53,7 @@ from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, move
 from .result import PathResult
 from .series import FrameSeries
 from .stepper import Stepper
-from .table import TABLE_COLUMNS, FrameRegions, failed_row, make_table, solved_row
+from .table import TABLE_COLUMNS, FrameRegions, failed_row, make_table, motion_columns, solved_row
 
 __all__ = ["TABLE_COLUMNS", "check_frames", "path_memory", "solve_path"]
 
@@ -136,13 +136,13 @@ def path_memory(
 ) -> float:
     """Bytes a load path of ``n_frames`` x ``n_springs`` keeps until it returns (an estimate).
 
-    The table (about 40 columns and 8 per region, per frame), the pressures (8 bytes per
+    The table (about 50 columns: the fixed ones, the validity checks and the free dofs; 8 more per region, per frame), the pressures (8 bytes per
     spring and frame) and the solutions (strain and pressure; with ``moving`` meshes each
     frame's layer and its operator too, about 250 bytes per spring). The exposure and one
     frame's work are O(springs) and not counted.
     """
     n_frames, n_springs = int(n_frames), int(n_springs)
-    columns = len(TABLE_COLUMNS) + 12 + 8 * int(n_regions)
+    columns = len(TABLE_COLUMNS) + 12 + 12 + 8 * int(n_regions)  # + validity checks + free dofs
     need = n_frames * (_FRAME_BYTES + _CELL_BYTES * columns)
     if keep_pressures:
         need += 8.0 * n_frames * n_springs
@@ -408,6 +408,7 @@ def _solve_path(
     problem.system()  # computes the geometry once, to be shared by every frame
     setup = time.perf_counter() - start
     base_regions = FrameRegions(labels) if labels is not None else None
+    motion = motion_columns(problem)
     rows, pressures, solutions = [], [], []
     bar = _progress(len(loads), progress)
     failed = 0
@@ -439,7 +440,9 @@ def _solve_path(
                     raise _stop(k, t, status, message, solution, error) from None
                 failed += 1
                 stepper.reset()  # the next frame starts cold, not from a failed state
-                rows.append(failed_row(k, t, vector, len(frame.layer), status, message, solution, frame_regions))
+                rows.append(
+                    failed_row(k, t, vector, len(frame.layer), status, message, solution, frame_regions, motion)
+                )
                 accumulator.skip(t)
                 bar.set_postfix(failed=failed, refresh=False)
             else:
@@ -447,7 +450,7 @@ def _solve_path(
                 layer = frame_layer(frame, solution)
                 if finite and base_regions is not None:
                     frame_regions = FrameRegions(_labels(regions, layer), base_regions.prefixes)
-                rows.append(solved_row(k, t, vector, solution, frame_regions))
+                rows.append(solved_row(k, t, vector, solution, frame_regions, motion))
                 accumulator.add(t, solution.pressure, _sites(layer, moving))
             certified = None if status else solution
             if keep_pressures:
@@ -461,7 +464,7 @@ def _solve_path(
             bar.update()
     finally:
         bar.close()
-    table = make_table(rows, base_regions.prefixes if base_regions is not None else None)
+    table = make_table(rows, base_regions.prefixes if base_regions is not None else None, motion)
     result = PathResult(
         table=table,
         times=times,

@@ -16,11 +16,13 @@ import numpy as np
 from ..errors import InputError
 
 __all__ = [
+    "MOTION_UNITS",
     "REGION_COLUMNS",
     "TABLE_COLUMNS",
     "FrameRegions",
     "failed_row",
     "make_table",
+    "motion_columns",
     "region_prefixes",
     "solved_row",
 ]
@@ -57,6 +59,9 @@ TABLE_COLUMNS = {
     "valid": "certified and inside the model's validity",
     "validity_failed": "the failed validity checks, joined by ;",
 }
+
+#: Units of the motion columns (``body2_uz``, ...): one per free dof, after :data:`TABLE_COLUMNS`.
+MOTION_UNITS = {"ux": "mm", "uy": "mm", "uz": "mm", "rx": "rad", "ry": "rad", "rz": "rad"}
 
 #: Columns of each region, after the region's prefix (``medial_force_share``), with units.
 REGION_COLUMNS = {
@@ -145,6 +150,20 @@ class FrameRegions:
         return row
 
 
+def motion_columns(problem) -> dict:
+    """``{column: index in u}``: the free dofs the frames solve for, as columns ``body<b>_<dof>``
+    (mm, rad: :data:`MOTION_UNITS`): the motion each certified frame found (``Solution.u``; for
+    finite kinematics on top of the frame's pose, as the free coordinates act)."""
+    return {name.replace(".", "_"): int(i) for name, i in zip(problem.free_names, problem.free_indices)}
+
+
+def _motion(solution, motion: dict | None) -> dict:
+    if not motion:
+        return {}
+    u = None if solution is None else np.asarray(solution.u, dtype=float)
+    return {column: math.nan if u is None else float(u[i]) for column, i in motion.items()}
+
+
 def _load_columns(k: int, t: float, load) -> dict:
     return {
         "frame": k,
@@ -158,9 +177,12 @@ def _load_columns(k: int, t: float, load) -> dict:
     }
 
 
-def solved_row(k: int, t: float, load, solution, regions: FrameRegions | None = None) -> dict:
+def solved_row(
+    k: int, t: float, load, solution, regions: FrameRegions | None = None, motion: dict | None = None
+) -> dict:
     """The row of frame ``k`` at time ``t`` (s) under ``load`` (the 6-vector on the loaded body)
-    whose ``solution`` passed its certificate."""
+    whose ``solution`` passed its certificate; ``motion`` (:func:`motion_columns`) the free dofs
+    whose motion it reports."""
     cop = solution.center_of_pressure
     name, value = solution.certificate.worst()
     validity = solution.validity.columns()
@@ -183,6 +205,7 @@ def solved_row(k: int, t: float, load, solution, regions: FrameRegions | None = 
         "success": True,
         "status": solution.status,
         "message": "",
+        **_motion(solution, motion),
         **validity,
     }
     row["valid"] = bool(validity["valid"])
@@ -200,8 +223,10 @@ def failed_row(
     message: str,
     solution=None,
     regions: FrameRegions | None = None,
+    motion: dict | None = None,
 ) -> dict:
-    """The row of a frame without a certified answer: its load, status and message, NaN results.
+    """The row of a frame without a certified answer: its load, status and message, NaN results
+    (the motion of ``motion``'s free dofs too: an uncertified answer's motion is not a result).
 
     ``solution`` is the uncertified answer when there is one (its iterations, times and
     certificate residual are kept: they say how it failed).
@@ -226,26 +251,29 @@ def failed_row(
         valid=False,
         validity_failed="",
     )
+    row.update(_motion(None, motion))
     if regions is not None:
         row.update(regions.columns(None))
     return row
 
 
-def make_table(rows: list, region_prefixes: dict | None = None):
-    """The rows as a DataFrame: :data:`TABLE_COLUMNS`, the validity checks, then the regions'."""
+def make_table(rows: list, region_prefixes: dict | None = None, motion: dict | None = None):
+    """The rows as a DataFrame: :data:`TABLE_COLUMNS`, the motion of the free dofs (``motion``,
+    :func:`motion_columns`), the validity checks, then the regions'."""
     import pandas as pd
 
     validity: list[str] = []
     regions: list[str] = []
     region_names = {f"{p}_{c}" for p in (region_prefixes or {}).values() for c in REGION_COLUMNS}
+    moved = list(motion or {})
     for row in rows:
         for key in row:
-            if key in TABLE_COLUMNS:
+            if key in TABLE_COLUMNS or key in (motion or {}):
                 continue
             target = regions if key in region_names else validity
             if key not in target:
                 target.append(key)
-    columns = [*TABLE_COLUMNS, *validity, *sorted(regions, key=_region_order(region_prefixes or {}))]
+    columns = [*TABLE_COLUMNS, *moved, *validity, *sorted(regions, key=_region_order(region_prefixes or {}))]
     table = pd.DataFrame(rows, columns=columns)
     for key in validity:  # a failed frame has no validity numbers
         table[key] = pd.to_numeric(table[key], errors="coerce")

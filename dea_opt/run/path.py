@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from .log import one_line
 from .outcome import RunOutcome
 from .static import recast_solution
@@ -141,6 +143,8 @@ def run_path_outputs(
         lines = [f"validity: valid (every one of the {certified} certified frames)"]
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
+    if summary["motion"] and summary["peak_frame"] is not None:
+        lines.append(f"motion found (free dofs, frames.csv): {_motion_text(summary['motion'])}")
     regions = [
         f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
         f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
@@ -164,6 +168,17 @@ def run_path_outputs(
         regions=regions,
         failures=failures,
     )
+
+
+def _motion_text(motion: dict) -> str:
+    """``body2_uz -1.31 to -0.62 mm, body2_ry -0.0072 to 0.0091 rad (-0.41 to 0.52 deg)``."""
+    parts = []
+    for column, m in motion.items():
+        text = f"{column} {m['min']:.4g} to {m['max']:.4g} {m['unit']}"
+        if m["unit"] == "rad":
+            text += f" ({np.degrees(m['min']):.3g} to {np.degrees(m['max']):.3g} deg)"
+        parts.append(text)
+    return ", ".join(parts)
 
 
 def peak_recast(
