@@ -9,6 +9,7 @@ import warnings
 import numpy as np
 
 from . import formulations
+from .agreement import disagreement
 from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
 from .formulations.energy import (
     CRUSHED_MESSAGE,
@@ -477,32 +478,37 @@ def _raise_if_unsupported(problem: ContactProblem) -> None:
 def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1e-6, **options) -> dict:
     """Solve with several methods and measure their largest disagreement.
 
-    ``methods`` defaults to every registered formulation; those that do not take the law
-    (``qp`` for a nonlinear law) are skipped. ``options`` may map a method name to its own
-    options, e.g. ``compare(p, qp={"tol": 1e-10})``.
+    ``methods`` defaults to every registered formulation. The methods are chosen as by
+    ``dea-opt compare`` (:func:`dea_opt.formulations.select`): for ``kinematics="finite"``
+    ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp`` (``notes`` says so), and a
+    method that does not solve the problem (``qp`` for a nonlinear law, or for finite kinematics:
+    the QP is a small-kinematics method) is skipped, ``skipped`` saying why. ``options`` may map a
+    method to its options, ``compare(p, qp={"tol": 1e-10})`` (``nlp=`` reaches ``finite_nlp``).
 
     Returns
     -------
     dict
-        ``{"solutions": {method: Solution}, "displacement": float, "pressure": float,
-        "skipped": {method: reason}}``: the largest pairwise difference of ``u`` relative
-        to ``max |u|`` and of pressure relative to the peak pressure.
+        ``{"solutions": {formulation: Solution}, "displacement": float, "pressure": float,
+        "skipped": {formulation: reason}, "notes": [str]}``: the largest pairwise difference of
+        ``u`` relative to ``max |u|`` and of pressure relative to the peak pressure
+        (:func:`dea_opt.agreement.disagreement`; finite answers matched by mesh face).
+
+    Raises
+    ------
+    InputError
+        A method that is not registered, or no method named solves the problem (e.g. ``qp``
+        alone for finite kinematics).
     """
-    solutions, skipped = {}, {}
-    for method in formulations.names() if methods is None else methods:
-        if method == "auto" or method not in formulations.names():
-            raise InputError(f"methods must be taken from {formulations.names()}, got {method!r}")
-        reason = formulations.why_not(method, problem.law, problem.kinematics)
-        if reason is not None:
-            skipped[method] = reason
-            continue
-        solutions[method] = solve(problem, method, certificate_tol=certificate_tol, **options.get(method, {}))
-    du = dp = 0.0
-    items = list(solutions.values())
-    for i, a in enumerate(items):
-        for b in items[i + 1 :]:
-            su = max(np.abs(a.u).max(), np.abs(b.u).max(), 1e-300)
-            sp = max(a.peak_pressure, b.peak_pressure, 1e-300)
-            du = max(du, float(np.abs(a.u - b.u).max() / su))
-            dp = max(dp, float(np.abs(a.pressure - b.pressure).max() / sp))
-    return {"solutions": solutions, "displacement": du, "pressure": dp, "skipped": skipped}
+    if not isinstance(problem, ContactProblem):
+        raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
+    aliases = formulations.aliases(problem.kinematics)  # {"newton": "finite", ...} for finite kinematics
+    if methods is None:  # every formulation, not twice under the names that stand for another
+        methods = [name for name in formulations.names() if name not in aliases]
+    chosen = formulations.select(methods, problem.law, problem.kinematics)
+    solutions = {}
+    for name in chosen.run:
+        given = {k: v for alias, to in aliases.items() if to == name for k, v in options.get(alias, {}).items()}
+        solutions[name] = solve(problem, name, certificate_tol=certificate_tol, **(given | options.get(name, {})))
+    du, dp = disagreement(solutions.values())
+    out = {"solutions": solutions, "displacement": du, "pressure": dp}
+    return out | {"skipped": chosen.skipped, "notes": chosen.notes}

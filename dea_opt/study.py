@@ -33,6 +33,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from . import formulations
+from .agreement import pressure_difference
 from .errors import DeaError, InputError
 from .status import Status
 
@@ -129,71 +130,24 @@ def _variants(method, solvers, forms) -> list[tuple[str, dict]]:
     return [(variant.label(value), {option.name: value}) for value in values]
 
 
-def _resolve(methods, kinematics) -> tuple[list, list]:
-    """``(methods, notes)``: each name as the formulation it runs in ``kinematics`` (for finite
-    kinematics ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``), each once."""
-    resolved, notes = [], []
-    for method in methods:
-        name = formulations.stands_for(method, kinematics)
-        if name != method:
-            notes.append(f"{method} stands for {name} with {kinematics} kinematics")
-        if name not in resolved:
-            resolved.append(name)
-    return resolved, notes
-
-
-def _why_not(method, law, kinematics) -> str | None:
-    """Why ``method`` is skipped for ``law`` in ``kinematics`` (what to use instead), or None."""
-    reason = formulations.why_not(method, law, kinematics)
-    if reason is None or kinematics in formulations.capabilities(method).kinematics:
-        return reason
-    only = " and ".join(formulations.capabilities(method).kinematics)
-    return (
-        f"{method} is a {only}-kinematics method and this problem has kinematics={kinematics!r}: "
-        f"use {formulations.alternatives(law, kinematics, prefix='', auto=False)}"
-    )
-
-
-def _cases(methods, solvers, accuracy, repeat, law, forms=("constrained",), kinematics="small"):
-    skipped = []
-    cases = []
-    for acc in accuracy:
-        for method in methods:
-            reason = _why_not(method, law, kinematics)
-            if reason is not None:
-                if reason not in skipped:
-                    skipped.append(reason)
-                continue
-            for label, options in _variants(method, solvers, forms):
-                for r in range(repeat):
-                    cases.append((ACCURACY[acc], method, label, options, r))
-    return cases, skipped
+def _cases(methods, solvers, accuracy, repeat, forms=("constrained",)):
+    return [
+        (ACCURACY[acc], method, label, options, r)
+        for acc in accuracy
+        for method in methods
+        for label, options in _variants(method, solvers, forms)
+        for r in range(repeat)
+    ]
 
 
 def _options(method, variant_options: dict, accuracy: Accuracy) -> dict:
     return {**variant_options, **formulations.tolerance_options(method, accuracy.solver_tol)}
 
 
-def _pressure_difference(solution, reference) -> float:
-    """The largest difference of the springs' pressures. Finite kinematics may end on different
-    springs (re-cast at each answer's pose): those cast from meshes are matched by the face they
-    stand on, a spring of one answer only counting with its whole pressure."""
-    a, b = np.asarray(solution.pressure), np.asarray(reference.pressure)
-    fa = getattr(solution.problem.layer, "source_face", None)
-    fb = getattr(reference.problem.layer, "source_face", None)
-    if fa is None or fb is None or np.array_equal(fa, fb):
-        return float(np.abs(a - b).max(initial=0.0)) if a.shape == b.shape else float("nan")
-    union = np.union1d(fa, fb)
-    on_a, on_b = np.zeros(len(union)), np.zeros(len(union))
-    on_a[np.searchsorted(union, fa)] = a
-    on_b[np.searchsorted(union, fb)] = b
-    return float(np.abs(on_a - on_b).max(initial=0.0))
-
-
 def _difference(solution, reference) -> tuple[float, float]:
     if reference is None or not np.isfinite(solution.u).all():
         return float("nan"), float("nan")
-    dp = _pressure_difference(solution, reference) / max(reference.peak_pressure, 1e-300)
+    dp = pressure_difference(solution, reference) / max(reference.peak_pressure, 1e-300)
     du = float(np.abs(solution.u - reference.u).max() / max(np.abs(reference.u).max(), 1e-300))
     return dp, du
 
@@ -458,11 +412,9 @@ def run_study(
             name for name in formulations.names() if formulations.why_not(name, problem.law, problem.kinematics) is None
         ]
     methods, solvers, accuracy = _check_names(methods, solvers, accuracy, what)
-    methods, notes = _resolve(methods, problem.kinematics)
-    forms = _check_forms(methods, nlp_forms)
-    cases, skipped = _cases(methods, solvers, accuracy, int(repeat), problem.law, forms, problem.kinematics)
-    if not cases:
-        raise InputError(f"no method in {what} solves this problem: {'; '.join(skipped)}")
+    chosen = formulations.select(methods, problem.law, problem.kinematics, what=what)
+    forms = _check_forms(chosen.run, nlp_forms)
+    cases = _cases(chosen.run, solvers, accuracy, int(repeat), forms)
     check_load_supported(problem)
     import warnings
 
@@ -477,5 +429,9 @@ def run_study(
         rows.append(_run_one(problem, acc, method, label, options, r, reference))
     table = pd.DataFrame(rows)
     return StudyResult(
-        table=table, summary=summarize(table, time_limit), reference=reference, skipped=skipped, notes=notes
+        table=table,
+        summary=summarize(table, time_limit),
+        reference=reference,
+        skipped=list(chosen.skipped.values()),
+        notes=chosen.notes,
     )

@@ -32,6 +32,7 @@ and capability declarations live in :mod:`dea_opt.formulations._parts.options`.
 from __future__ import annotations
 
 from importlib import import_module
+from typing import NamedTuple
 
 from ..errors import InputError
 from ._parts.options import Capabilities, Option, Variant, validate
@@ -192,6 +193,66 @@ def why_not(name: str, law, kinematics: str = "small") -> str | None:
     return f"{name} needs a linear law"
 
 
+def _why_skipped(name: str, law, kinematics: str) -> str | None:
+    """:func:`why_not`, saying for a method of other kinematics which methods solve these."""
+    reason = why_not(name, law, kinematics)
+    solved = capabilities(name).kinematics
+    if reason is None or kinematics in solved:
+        return reason
+    return (
+        f"{name} is a {' and '.join(solved)}-kinematics method and this problem has kinematics={kinematics!r}: "
+        f"use {alternatives(law, kinematics, prefix='', auto=False)}"
+    )
+
+
+class Selection(NamedTuple):
+    """The formulations a comparison of several methods runs (:func:`select`).
+
+    ``run``: the formulations, each once, in the order named; ``skipped``: ``{name: why}`` for
+    those that do not solve the problem, saying what does; ``notes``: the names that stand for
+    another formulation (``"newton stands for finite with finite kinematics"``).
+    """
+
+    run: list
+    skipped: dict
+    notes: list
+
+
+def select(methods, law, kinematics: str = "small", *, what: str = "methods") -> Selection:
+    """What ``dea_opt.compare`` and comparison studies run of ``methods`` for ``law`` in ``kinematics``.
+
+    For finite kinematics ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``
+    (:func:`stands_for`); a method that does not solve the problem (``qp`` for a nonlinear law or
+    finite kinematics) is skipped, with why. ``what`` names ``methods`` in errors.
+
+    Raises
+    ------
+    InputError
+        A name that is not a registered formulation, no name, or no method named that solves
+        the problem (the message says why each does not, and what does).
+    """
+    known, methods = names(), [methods] if isinstance(methods, str) else list(methods)
+    bad = [m for m in methods if m not in known]
+    if bad or not methods:
+        raise InputError(f"{what} must be taken from {', '.join(known)}, got {', '.join(map(str, bad)) or 'none'}")
+    run: list = []
+    skipped: dict = {}
+    notes: list = []
+    for method in methods:
+        name = stands_for(method, kinematics)
+        note = f"{method} stands for {name} with {kinematics} kinematics"
+        if name != method and note not in notes:
+            notes.append(note)
+        reason = _why_skipped(name, law, kinematics)
+        if reason is not None:
+            skipped.setdefault(name, reason)
+        elif name not in run:
+            run.append(name)
+    if not run:
+        raise InputError(f"no method in {what} solves this problem: {'; '.join(skipped.values())}")
+    return Selection(run, skipped, notes)
+
+
 def fallback_for(law, kinematics: str = "small") -> str | None:
     """``auto``'s second choice for ``law``: the first registered formulation other than
     :data:`DEFAULT` that takes it (``qp`` for a linear law, ``nlp`` otherwise, as registered)."""
@@ -234,6 +295,7 @@ __all__ = [
     "Capabilities",
     "FormulationResult",
     "Option",
+    "Selection",
     "SpringSystem",
     "Variant",
     "aliases",
@@ -248,6 +310,7 @@ __all__ = [
     "names",
     "options",
     "register",
+    "select",
     "solve",
     "stands_for",
     "takes",

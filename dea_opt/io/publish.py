@@ -7,8 +7,9 @@ folder through :func:`output_run`:
    the ``INCOMPLETE.json`` of an interrupted one); any other folder is an
    :class:`~dea_opt.errors.OutputFolderError` naming it, unless ``force`` (so no file of the
    user's is ever overwritten by surprise).
-2. A lock (``.dea-opt.lock``) keeps two runs out of one folder; temporary files left by a
-   process killed earlier (``.name.<hex>.tmp.*``) are removed.
+2. A lock (``.dea-opt.lock``, :mod:`dea_opt.io.folderlock`) keeps two runs out of one folder;
+   temporary files left by a process killed earlier (``.name.<hex>.tmp.*``) are removed. A run
+   that publishes nothing removes the lock file and the folders it made, if nothing else is in them.
 3. Every output is written atomically but *staged* (:func:`dea_opt.io.atomic.staged`): complete
    temporary files wait beside their targets, and the folder still holds the previous run.
 4. :meth:`OutputRun.publish` hashes the staged files, writes ``INCOMPLETE.json``, removes the
@@ -36,6 +37,7 @@ from pathlib import Path
 from .._version import __version__
 from ..errors import InputError, OutputFolderError
 from .atomic import TEMPORARY_NAME, staged, write_data
+from .folderlock import LOCK_NAME, folder_lock, remove_made
 
 __all__ = [
     "INCOMPLETE_NAME",
@@ -55,7 +57,6 @@ __all__ = [
 
 MANIFEST_NAME = "manifest.json"
 INCOMPLETE_NAME = "INCOMPLETE.json"
-LOCK_NAME = ".dea-opt.lock"
 _MANIFEST_FORMAT = "dea-opt run manifest"
 _INCOMPLETE_FORMAT = "dea-opt incomplete run"
 #: Sub-folders another dea-opt command made (a sweep's or a comparison's), recognised by these names.
@@ -184,30 +185,6 @@ def check_output_folder(folder, force: bool = False) -> Path:
             f"anyway (files named like the outputs are then replaced)"
         )
     return path
-
-
-@contextlib.contextmanager
-def _folder_lock(folder: Path):
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - Windows: one run per folder is then the user's to keep
-        yield
-        return
-    fd = os.open(folder / LOCK_NAME, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip()
-            raise OutputFolderError(
-                f"another dea-opt run (pid {holder or 'unknown'}) is writing into the output "
-                f"folder {folder}: wait for it, or choose another folder (-o)"
-            ) from None
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
-        yield
-    finally:
-        os.close(fd)  # releases the lock, as the death of the process does
 
 
 def _remove_stale(folder: Path) -> list[Path]:
@@ -441,8 +418,9 @@ def output_run(folder, *, force: bool = False, info: dict | None = None):
     OutputRun
         Write the outputs into ``run.folder`` (they are staged), then call
         :meth:`OutputRun.publish`. Leaving the block without publishing removes the staged
-        files and leaves the folder as it was; Ctrl-C becomes :class:`RunInterrupted`, whose
-        ``report`` says what the folder holds.
+        files and leaves the folder as it was: the lock file and the folders this run made are
+        removed too, those that hold nothing else (:mod:`dea_opt.io.folderlock`); Ctrl-C becomes
+        :class:`RunInterrupted`, whose ``report`` says what the folder holds.
 
     Raises
     ------
@@ -450,17 +428,18 @@ def output_run(folder, *, force: bool = False, info: dict | None = None):
         The folder holds files of someone else's, or another run is writing into it.
     """
     path = check_output_folder(folder, force)
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as exc:
-        raise OutputFolderError(f"cannot create the output folder {path} ({exc.strerror or exc})") from None
-    with _folder_lock(path):
-        _remove_stale(path)
-        with staged(path) as staging:
-            run = OutputRun(staging.root, staging, read_manifest(path), info or {})
-            try:
-                yield run
-            except RunInterrupted:
-                raise
-            except KeyboardInterrupt:
-                raise RunInterrupted(run.state()) from None
+    with folder_lock(path) as made:
+        run = None
+        try:
+            _remove_stale(path)
+            with staged(path) as staging:
+                run = OutputRun(staging.root, staging, read_manifest(path), info or {})
+                try:
+                    yield run
+                except RunInterrupted:
+                    raise
+                except KeyboardInterrupt:
+                    raise RunInterrupted(run.state()) from None
+        finally:
+            if run is None or run.manifest is None:  # nothing published: take away what this run made
+                remove_made(path, made)
