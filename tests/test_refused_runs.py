@@ -174,3 +174,22 @@ def test_a_parent_removed_while_a_run_makes_its_folder_is_made_again(tmp_path, m
         write_data(run.folder / "a.txt", "b's")
         run.publish()
     assert check_outputs(out) == []
+
+
+def test_a_sweep_case_refused_before_it_wrote_anything_names_no_folder(tmp_path, monkeypatch):
+    """The case's row says where its outputs are; a case that left none names no folder."""
+    import dea_opt.run
+    from dea_opt.sweep.cases import run_case
+
+    scenario = tmp_path / "s.toml"
+    scenario.write_text(KNEE_SCENARIO)
+
+    def refused(scenario, output_dir, **kwargs):
+        with output_run(output_dir):  # takes the folder's lock, then refuses its input
+            raise InputError("law.H: expected a positive number, got -1")
+
+    monkeypatch.setattr(dea_opt.run, "run_scenario", refused)
+    case_dir = tmp_path / "sweep" / "cases" / "abc"
+    row = run_case(scenario, {}, case_dir)
+    assert row["status"] == "error" and "law.H" in row["message"]
+    assert row["output_dir"] == "" and not (tmp_path / "sweep").exists()

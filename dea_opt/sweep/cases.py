@@ -154,7 +154,8 @@ def run_case(
         run), ``exit_code`` (that of ``dea-opt run``), headline
         numbers (for a load path: the largest over the frames), ``warnings`` (the run's
         validity warnings, joined by `` | ``), ``wall_time`` (s),
-        ``output_dir``, ``finished``, ``pid`` and the content key's fields.
+        ``output_dir`` (empty when the case left no folder: refused before it wrote anything),
+        ``finished``, ``pid`` and the content key's fields.
     """
     from ..run import run_scenario
 
@@ -191,7 +192,8 @@ def run_case(
         row |= {"status": str(RunStatus.ERROR), "message": f"{type(exc).__name__}: {exc} ({where})"}
     row |= {
         "wall_time": time.perf_counter() - start,
-        "output_dir": str(case_dir),
+        # a case refused before it wrote anything leaves no folder (dea_opt.io.folderlock): none named
+        "output_dir": str(case_dir) if Path(case_dir).is_dir() else "",
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "pid": os.getpid(),
         **columns,
