@@ -343,7 +343,10 @@ def _holds(folder: Path, previous: dict | None, published: dict | None) -> str:
             f"no output of this run was published; {folder} holds an incomplete earlier run "
             f"({INCOMPLETE_NAME}, no {MANIFEST_NAME}): rerun to complete it"
         )
-    return f"no output of this run was published; {folder} holds no complete outputs"
+    return (
+        f"no output of this run was published; {folder} holds no complete outputs (removed when this "
+        f"run made it and nothing else is in it)"
+    )
 
 
 #: The runs this process published, by folder: a Ctrl-C that comes after a run published (while
