@@ -86,14 +86,21 @@ def check_load_supported(problem: ContactProblem) -> None:
 
 
 def _check_unresisted(problem: ContactProblem, system) -> None:
-    """Raise when more than ``_CONE_TOL`` of the load acts along directions no spring resists."""
+    """Raise when more than ``_CONE_TOL`` of the load acts along directions no spring resists, or
+    (finite kinematics, ``system.motion``) when no free motion changes any spring's gap and none
+    is compressed: the springs' forces then stay zero, whatever their lever arms
+    (``formulations/finite.md``, "Loads no motion can carry")."""
     r = system.load
     require_finite("the load", r)
     res = system.resistance
     fraction = res.load_fraction(r)
-    if fraction <= _CONE_TOL:
-        return
     names = list(problem.free_names)
+    if fraction <= _CONE_TOL:
+        motion = getattr(system, "motion", None)  # finite kinematics: does any free motion change a gap?
+        if motion is not None and motion.moves_nothing and r.any():
+            load = _describe_direction(problem, names, r)
+            raise LoadNotSupportedError(motion.message(names, load), direction=dict(zip(names, r.tolist())))
+        return
     part = res.load_part(r)
     if res.n_resisted == 0:
         reason = f"no spring resists any of the free dofs {tuple(names)}"

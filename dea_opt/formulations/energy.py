@@ -96,8 +96,9 @@ class SpringSystem:
         new = SpringSystem(
             self.AT, self.e0, self.volume, np.asarray(load, dtype=float), self.dof_length, self.factor, self.stiffness
         )
-        if "resistance" in self.__dict__:  # the same geometry: the same decision
-            new.__dict__["resistance"] = self.__dict__["resistance"]
+        for name in ("resistance", "motion"):  # the same geometry: the same decisions
+            if name in self.__dict__:
+                new.__dict__[name] = self.__dict__[name]
         return new
 
     @cached_property

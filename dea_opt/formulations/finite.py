@@ -24,6 +24,7 @@ import numpy as np
 
 from ..status import CERTIFIABLE, Status
 from ._parts.finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
+from ._parts.finite_motion import motion
 from ._parts.finite_newton import InnerResult
 from ._parts.finite_system import FiniteSystem, State, generalized
 from ._parts.options import Capabilities, Option
@@ -140,7 +141,9 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
     """The small kinematics' :class:`~dea_opt.formulations.energy.SpringSystem` of ``system`` at
     ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
     strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
-    a rotation), with its resisted directions decided."""
+    a rotation), with its resisted directions decided, and as ``small.motion`` the
+    :class:`~dea_opt.formulations._parts.finite_motion.Motion` of the exact gaps there (which free
+    motions change a gap at all: ``dea_opt.solve``'s load check)."""
     state = system.state(system.base, law)
     free = system.free
     AT = np.ascontiguousarray(generalized(state)[free] / system.thickness)
@@ -153,6 +156,8 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
         AT, e0, volume, state.load6[free], lengths, factor, float(np.sum(system.areas / system.thickness))
     )
     small.__dict__["resistance"] = resistance(small)
+    # which free motions change a gap at all (the forces' directions above need not): the load check's
+    small.__dict__["motion"] = motion(system, state, small)
     return small
 
 
