@@ -8,19 +8,18 @@ import warnings
 
 import numpy as np
 
-from . import formulations
+from . import formulations, loadcheck
 from .agreement import disagreement
-from .errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
+from .errors import InputError, SolverError, ValidityWarning
 from .formulations.energy import (
     CRUSHED_MESSAGE,
     crushed,
     failed_result,
-    require_finite,
     single_threaded_blas,
     start_vector,
     trivial_result,
-    unresisted,
 )
+from .loadcheck import check_load_supported
 from .problem import ContactProblem
 from .solution import Solution, certify
 from .status import CERTIFIABLE, Status
@@ -39,165 +38,6 @@ __all__ = [
 #: The methods built in: ``"auto"`` and the formulations registered when dea_opt was imported
 #: (:func:`dea_opt.formulations.names` is the live list, with any registered since).
 METHODS = ("auto", *formulations.names())
-
-#: Relative residual of the cone test above which a load counts as not carried.
-_CONE_TOL = 1e-7
-
-
-def _describe_direction(problem: ContactProblem, names, vector) -> str:
-    """The large components of a generalized force in words, each in its own units: a force
-    in N, a moment in N mm about the body's reference point (named once per body)."""
-    vector = np.asarray(vector, dtype=float)
-    top = float(np.abs(vector).max(initial=0.0))
-    parts = []
-    for body in ("body1", "body2"):
-        moments = []
-        for name, value in zip(names, vector):
-            if top == 0.0 or abs(value) < 1e-3 * top or not name.startswith(f"{body}."):
-                continue
-            dof = name.split(".")[1]
-            if dof[0] == "u":
-                parts.append(f"force {value:+.4g} N along {dof[1]} on {body}")
-            else:
-                moments.append(f"moment {value:+.4g} N mm along {dof[1]} on {body}")
-        if moments:
-            reference = (problem.body1 if body == "body1" else problem.body2).reference
-            point = ", ".join(f"{c:.4g}" for c in reference)
-            moments[-1] += f" ({'moments' if len(moments) > 1 else 'moment'} about its reference point ({point}) mm)"
-            parts.extend(moments)
-    return ", ".join(parts) or "none"
-
-
-def check_load_supported(problem: ContactProblem) -> None:
-    """Raise :class:`LoadNotSupportedError` when compression-only springs cannot carry the load.
-
-    Two tests (``formulations/energy.md``, "When is there a solution?"): a part of the load
-    along directions no spring resists (:func:`_check_unresisted`, the same test as the
-    formulations' scaling and the certificate), then the cone test: a solution exists iff the
-    load lies in the cone of the spring directions, ``r = -A^T lambda`` with ``lambda >= 0``,
-    tested with non-negative least squares over the resisted directions; the unbalanced
-    remainder names the direction.
-    """
-    system = problem.system()
-    if not system.n_dofs or not system.load.any():
-        return
-    _check_unresisted(problem, system)
-    _check_cone(problem, system)
-
-
-def _check_unresisted(problem: ContactProblem, system) -> None:
-    """Raise when more than ``_CONE_TOL`` of the load acts along directions no spring resists, or
-    (finite kinematics, ``system.motion``) when no free motion changes any spring's gap and none
-    is compressed: the springs' forces then stay zero, whatever their lever arms
-    (``formulations/finite.md``, "Loads no motion can carry")."""
-    r = system.load
-    require_finite("the load", r)
-    res = system.resistance
-    fraction = res.load_fraction(r)
-    names = list(problem.free_names)
-    if fraction <= _CONE_TOL:
-        motion = getattr(system, "motion", None)  # finite kinematics: does any free motion change a gap?
-        if motion is not None and motion.moves_nothing and r.any():
-            load = _describe_direction(problem, names, r)
-            raise LoadNotSupportedError(motion.message(names, load), direction=dict(zip(names, r.tolist())))
-        return
-    part = res.load_part(r)
-    if res.n_resisted == 0:
-        reason = f"no spring resists any of the free dofs {tuple(names)}"
-        if not system.n_springs:
-            reason += " (the layer has no springs)"
-        message = (
-            f"{reason}, so the load along them cannot be carried: {_describe_direction(problem, names, part)}. "
-            f"Fix these dofs, remove this load, or add springs that resist them."
-        )
-    else:
-        message = (
-            f"no spring resists part of this load: {_describe_direction(problem, names, part)} "
-            f"({fraction:.3g} of the load) acts along a direction the springs cannot push back on "
-            f"({'; '.join(res.describe(names))}). Fix that dof, remove that part of the load, or add springs."
-        )
-    raise LoadNotSupportedError(message, direction=dict(zip(names, part.tolist())))
-
-
-def _check_cone(problem: ContactProblem, system) -> None:
-    """The cone test over the resisted directions, in arc lengths (moments over the radius).
-
-    The unbalanced part reported is the smallest in that measure (``formulations/energy.md``,
-    "When is there a solution?"): ``|| (r - r_c) / L ||`` over every load ``r_c`` the springs
-    can carry, with ``L`` 1 mm for a translation and the layer's radius for a rotation, as the
-    certificate measures loads. So it is never larger than the load itself in that measure.
-    """
-    res = system.resistance
-    D, Q = res.lengths, res.range
-    rhs = Q.T @ (system.load / D)
-    rnorm = float(np.linalg.norm(rhs))
-    if rnorm == 0.0:
-        return
-    # Each spring's generalized force direction, restricted to what the springs resist; a
-    # spring whose direction there is no stiffness at all (by the one test) joins no cone.
-    columns = -(Q.T @ (system.AT / D[:, None]))
-    norms = np.linalg.norm(columns, axis=0)
-    keep = ~unresisted(system.volume * norms**2, res.scale) & (norms > 0)
-    columns = columns[:, keep] / norms[keep]
-    residual = _cone_residual(columns, rhs)
-    if residual is None:
-        return  # undecided: leave it to the solver and its certificate
-    remainder, residual_norm = residual
-    if residual_norm <= _CONE_TOL * rnorm:
-        return
-    names = list(problem.free_names)
-    unbalanced = D * (Q @ remainder)
-    carried = system.load - unbalanced
-    radii = {
-        f"{D[j]:.4g} mm about {names[j].split('.')[0]}'s reference point": None
-        for j in range(len(names))
-        if names[j].split(".")[1][0] == "r"
-    }
-    measure = (
-        f"moments counted over the layer's radius, {', '.join(radii)}, as the certificate does" if radii else "in N"
-    )
-    raise LoadNotSupportedError(
-        f"compression-only springs cannot carry this load: {_cone_cause(problem, names, system.load, D, Q, columns)}. "
-        f"Smallest unbalanced part ({measure}): {_describe_direction(problem, names, unbalanced)}, "
-        f"{residual_norm / rnorm:.3g} of the load in that measure; the nearest load the springs can carry is "
-        f"{_describe_direction(problem, names, carried)}. Check the load's sign (body 2 is pushed toward body 1 by "
-        f"a load along -normal) and its units (N, N mm), fix the unresisted dofs, or add springs.",
-        direction=dict(zip(names, unbalanced.tolist())),
-    )
-
-
-def _cone_residual(columns, rhs):
-    """``(rhs - columns @ lam, its norm)`` for the ``lam >= 0`` nearest ``rhs`` (NNLS), or None
-    when NNLS did not finish."""
-    from scipy.optimize import nnls
-
-    if not columns.shape[1]:
-        return rhs, float(np.linalg.norm(rhs))
-    # nnls is compiled code: never hand it an empty or non-finite matrix (it aborts the
-    # process on an m x 0 one).
-    require_finite("the spring directions", columns, rhs)
-    try:
-        lam, residual_norm = nnls(columns, rhs, maxiter=50 * max(len(rhs), 1) + 100)
-    except RuntimeError:
-        return None
-    return rhs - columns @ lam, float(residual_norm)
-
-
-def _cone_cause(problem, names, load, D, Q, columns) -> str:
-    """Why the load lies outside the springs' cone, in words: its moment is more than the
-    springs can carry with its force (when the force alone could be carried), or it pulls
-    the bodies apart."""
-    rotation = np.array([name.split(".")[1][0] == "r" for name in names])
-    force_only = np.where(rotation, 0.0, load)
-    if rotation.any() and (load[rotation] != 0).any() and force_only.any():
-        rhs = Q.T @ (force_only / D)
-        residual = _cone_residual(columns, rhs)
-        if residual is not None and residual[1] <= _CONE_TOL * float(np.linalg.norm(rhs)):
-            return (
-                "its force could be carried, but its moment is more than the springs can balance with that force "
-                "(the lever arms of the contact are too short)"
-            )
-    return "it pulls the bodies apart, or loads a direction no spring can push back on"
 
 
 def _warn_validity(solution: Solution) -> None:
@@ -291,7 +131,7 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
     # Every method: a load along a direction no spring resists is never "solved" (the same
     # test as the scaling and the certificate).
     if system.load.any():
-        _check_unresisted(problem, system)
+        loadcheck.check_unresisted(problem, system)
     trivial = trivial_result(system, law)
     if trivial is not None:
         return trivial
@@ -313,7 +153,7 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
     if check_cone is None:
         check_cone = formulations.capabilities(name).checks_load_first
     if check_cone:
-        _check_cone(problem, system)
+        loadcheck.check_cone(problem, system)
     try:
         return model().solve(system.load, x0=x0)
     except SolverError as exc:
@@ -435,7 +275,7 @@ def solve(
             method,
             certificate_tol=certificate_tol,
             strict=strict,
-            load_checks=(_check_unresisted, _check_cone),
+            load_checks=(loadcheck.check_unresisted, loadcheck.check_cone),
             **options,
         )
     with single_threaded_blas():

@@ -141,9 +141,9 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
     """The small kinematics' :class:`~dea_opt.formulations.energy.SpringSystem` of ``system`` at
     ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
     strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
-    a rotation), with its resisted directions decided, and as ``small.motion`` the
-    :class:`~dea_opt.formulations._parts.finite_motion.Motion` of the exact gaps there (which free
-    motions change a gap at all: ``dea_opt.solve``'s load check)."""
+    a rotation), with its resisted directions decided, and, for targets not cast from meshes, as
+    ``small.motion`` the :class:`~dea_opt.formulations._parts.finite_motion.Motion` of the exact
+    gaps there (which free motions change a gap at all: ``dea_opt.solve``'s load check)."""
     state = system.state(system.base, law)
     free = system.free
     AT = np.ascontiguousarray(generalized(state)[free] / system.thickness)
@@ -156,8 +156,11 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
         AT, e0, volume, state.load6[free], lengths, factor, float(np.sum(system.areas / system.thickness))
     )
     small.__dict__["resistance"] = resistance(small)
-    # which free motions change a gap at all (the forces' directions above need not): the load check's
-    small.__dict__["motion"] = motion(system, state, small)
+    # which free motions change a gap at all (the forces' directions above need not): the load
+    # check's; not for targets cast from meshes, which a solve re-casts as body 2 moves (it does
+    # not decide there, and every finite solve builds this system: no QR of the springs for nothing)
+    if system.targets.faces is None:
+        small.__dict__["motion"] = motion(system, state, small)
     return small
 
 

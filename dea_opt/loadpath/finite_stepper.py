@@ -34,7 +34,7 @@ class FiniteStepper:
 
     def solve(self, problem: ContactProblem, new_geometry: bool, setup: float = 0.0) -> Solution:
         from ..largemotion import solve as solve_finite
-        from ..solver import _check_cone, _check_unresisted
+        from ..loadcheck import check_cone, check_unresisted
 
         start = time.perf_counter()
         solution = solve_finite(
@@ -44,7 +44,7 @@ class FiniteStepper:
             strict=False,
             frame=self.pose,
             tracker=self.tracker,
-            load_checks=(_check_unresisted, _check_cone),
+            load_checks=(check_unresisted, check_cone),
             x0=self.x,
             **self.options,
         )
@@ -56,7 +56,7 @@ class FiniteStepper:
                 certificate_tol=self.certificate_tol,
                 strict=False,
                 frame=self.pose,
-                load_checks=(_check_unresisted, _check_cone),
+                load_checks=(check_unresisted, check_cone),
                 **self.options,
             )
         object.__setattr__(solution, "build_time", solution.build_time + setup)
