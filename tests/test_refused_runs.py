@@ -193,3 +193,25 @@ def test_a_sweep_case_refused_before_it_wrote_anything_names_no_folder(tmp_path,
     row = run_case(scenario, {}, case_dir)
     assert row["status"] == "error" and "law.H" in row["message"]
     assert row["output_dir"] == "" and not (tmp_path / "sweep").exists()
+
+
+def test_a_path_stopped_at_a_failed_frame_leaves_no_frames_folder(tmp_path):
+    """``--stop-on-error``: the frames solved before the failed one were written into
+    ``series_frames/`` as they came (staged); none is published, so neither is the folder."""
+    loads = tmp_path / "loads.csv"
+    loads.write_text("time,Fx,Fy,Fz,Mx,My,Mz\n0,0,0,-500,0,0,0\n0.1,0,0,-800,0,0,0\n0.2,0,0,500,0,0,0\n")
+    scenario = tmp_path / "path.toml"
+    scenario.write_text(
+        PULLED.replace("[load]\nforce = [0.0, 0.0, 500.0]", '[load_path]\nfile = "loads.csv"').replace(
+            'formats = ["json"]', 'formats = ["json", "vtk"]'
+        )
+    )
+    out = tmp_path / "out"
+    refused(invoke("run", scenario, "-o", out, "--stop-on-error"), "frame 2")
+    assert not out.exists()
+    # the same into an earlier run's folder: that run stays whole, no frames folder beside it
+    assert invoke("run", scenario, "-o", out).exit_code == 1  # frame 2 recorded as failed
+    before = {p: p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    assert any(p.parent.name == "series_frames" for p in before)
+    refused(invoke("run", scenario, "-o", out, "--stop-on-error"), "frame 2")
+    assert {p: p.read_bytes() for p in out.rglob("*") if p.is_file()} == before and check_outputs(out) == []

@@ -104,6 +104,7 @@ def atomic_path(path, *, argument: str = "path"):
     """
     target = file_path(path, argument)
     parent = target.parent
+    missing = [p for p in (parent, *parent.parents) if not p.is_dir()]  # what this write makes
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
@@ -121,6 +122,8 @@ def atomic_path(path, *, argument: str = "path"):
             ) from None
     # A temporary file as the target is a reserved one being filled: its holder stages it.
     staging = None if TEMPORARY_NAME.match(target.name) else _staging_of(target)
+    if staging is not None and missing:
+        staging.made(missing)
     try:
         with contextlib.suppress(OSError):  # a new file keeps the umask's mode
             os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))
@@ -212,7 +215,13 @@ class Staging:
     def __init__(self, root: Path):
         self.root = root
         self.pending: dict[Path, Path] = {}
+        self._made: set[Path] = set()  # folders under the root its writes made (series_frames/)
         self._lock = threading.Lock()
+
+    def made(self, folders) -> None:
+        """Note ``folders`` that a staged write made (removed by :meth:`discard` when left empty)."""
+        with self._lock:
+            self._made.update(Path(f).resolve() for f in folders if Path(f).resolve().is_relative_to(self.root))
 
     def defer(self, tmp: Path, target: Path) -> None:
         """Keep ``tmp`` as the next content of ``target`` (a file written twice keeps the last)."""
@@ -237,12 +246,18 @@ class Staging:
         return pending
 
     def discard(self) -> None:
-        """Remove every pending temporary file (the run ends without publishing)."""
+        """Remove every pending temporary file (the run ends without publishing), then the folders
+        the staged writes made that this leaves empty, innermost first (a load path's
+        ``series_frames/`` of a run stopped at a failed frame: nothing of it was published)."""
         with self._lock:
             pending, self.pending = self.pending, {}
+            made, self._made = self._made, set()
         for tmp in pending.values():
             with contextlib.suppress(OSError):
                 tmp.unlink()
+        for folder in sorted(made, key=lambda f: len(f.parts), reverse=True):
+            with contextlib.suppress(OSError):  # not empty (a file of someone else's): kept
+                folder.rmdir()
 
 
 _STAGINGS: dict[Path, Staging] = {}
