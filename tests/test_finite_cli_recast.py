@@ -14,7 +14,7 @@ import warnings
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import KNEE, real_knee
+from conftest import KNEE, KNEE_SCENARIO, real_knee
 from typer.testing import CliRunner
 
 import dea_opt as d
@@ -109,22 +109,11 @@ def check_fresh_cast(recast, solution, frames_row, mesh1, mesh2, **options) -> N
 
 # --- a load path with prescribed poses (generated knee: no data needed) -----------------------------
 
-GENERATED_KNEE_PATH = textwrap.dedent("""
-    [geometry]
-    kind = "generator"
-    function = "knee_meshes"
-    [law]
-    kind = "linear"
-    H = 10.0
-    [body2]
-    free = ["uz", "ry"]
-    [solve]
-    kinematics = "finite"
-    [load_path]
-    file = "poses.csv"
-    [output]
-    formats = ["json", "csv", "vtk"]
-""")
+#: conftest's generated knee with finite kinematics, its load a path (loads and poses from a CSV)
+GENERATED_KNEE_PATH = KNEE_SCENARIO.replace(
+    "[load]\nforce = [0, 0, -600.0]\nmoment = [0, 1500.0, 0]\n", '[load_path]\nfile = "poses.csv"\n'
+).replace('formats = ["json"]', 'formats = ["json", "csv", "vtk"]')
+assert "[load_path]" in GENERATED_KNEE_PATH and '"vtk"' in GENERATED_KNEE_PATH
 
 
 def test_a_finite_path_with_poses_recasts_its_peak_frame_at_that_frame_s_solved_pose(tmp_path):
