@@ -104,7 +104,8 @@ def atomic_path(path, *, argument: str = "path"):
     """
     target = file_path(path, argument)
     parent = target.parent
-    missing = [p for p in (parent, *parent.parents) if not p.is_dir()]  # what this write makes
+    # the folders this write makes (usually none: one stat)
+    missing = [] if parent.is_dir() else [p for p in (parent, *parent.parents) if not p.is_dir()]
     try:
         parent.mkdir(parents=True, exist_ok=True)
     except OSError as exc:
