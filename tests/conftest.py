@@ -40,6 +40,11 @@ KNEE_SCENARIO = textwrap.dedent("""
     formats = ["json"]
 """)
 
+#: :data:`KNEE_SCENARIO` on a coarse generated knee (a second or two a run): CLI tests of finite runs.
+COARSE_KNEE_SCENARIO = KNEE_SCENARIO.replace(
+    'function = "knee_meshes"', 'function = "knee_meshes"\nparameters = { n_plateau = 12, step = 6.0 }'
+)
+
 
 def real_knee() -> dict:
     """The real knee of ``../shared/data/knee`` cast tibia onto femur (labels medial/lateral, max_gap

@@ -15,7 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import KNEE, KNEE_SCENARIO
+from conftest import COARSE_KNEE_SCENARIO, KNEE
 from typer.testing import CliRunner
 
 import dea_opt as d
@@ -27,9 +27,7 @@ from dea_opt.study import _difference, run_study, summarize
 runner = CliRunner()
 
 #: The generated knee, coarse, solved with finite kinematics (labelled medial and lateral).
-FINITE = KNEE_SCENARIO.replace(
-    'function = "knee_meshes"', 'function = "knee_meshes"\nparameters = { n_plateau = 12, step = 6.0 }'
-)
+FINITE = COARSE_KNEE_SCENARIO
 
 
 def invoke(*args):

@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 
 import pytest
-from conftest import KNEE_SCENARIO
+from conftest import COARSE_KNEE_SCENARIO, KNEE_SCENARIO
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -38,9 +38,7 @@ formats = ["json"]
 """
 PRESSED = PULLED.replace("force = [0.0, 0.0, 500.0]", "force = [0.0, 0.0, -500.0]")
 #: The coarse generated knee with finite kinematics: ``compare --methods qp`` is refused.
-FINITE = KNEE_SCENARIO.replace(
-    'function = "knee_meshes"', 'function = "knee_meshes"\nparameters = { n_plateau = 12, step = 6.0 }'
-)
+FINITE = COARSE_KNEE_SCENARIO
 
 
 def invoke(*args):
