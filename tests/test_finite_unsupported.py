@@ -162,3 +162,78 @@ def test_targets_turned_20_degrees_still_face_the_springs_and_carry_the_load():
     assert force[2] == pytest.approx(400.0, rel=1e-9)  # along uz, the one free dof
     # the tilted planes press on the springs at each spring's own gap: p = -H eps
     assert np.allclose(solution.pressure, -H * np.minimum(solution.strain, 0.0), rtol=1e-12)
+
+
+# --- a moment the springs resist only past a whole turn: the energy is unbounded -----------------------
+
+OFF_CENTRE = (2.0, 3.0, R)  # the reference, beside the centre at the same height
+SPIN = (200.0, -100.0, 0.0)  # N mm: a component along the line from the centre to the reference
+
+
+def test_a_moment_along_the_line_through_the_centre_turns_the_ball_without_bound(bed):
+    """Turning about the line through the reference and the centre maps the ball onto itself (no gap
+    changes: the springs' energy stays what it is) while the moment's component along that line does
+    work ``M . a theta`` growing without bound: Phi has no minimum along it, and Newton says so."""
+    axis = np.subtract(OFF_CENTRE, CENTRE) / np.linalg.norm(np.subtract(OFF_CENTRE, CENTRE))
+    targets = Targets.spheres(CENTRE, R, n=len(bed))
+    start = evaluate(targets, bed.points, bed.normals, np.eye(4)).s
+    for degrees in (10.0, 90.0, 270.0):
+        pose = pose_matrix(np.r_[0.0, 0.0, 0.0, np.radians(degrees) * axis], OFF_CENTRE)
+        np.testing.assert_allclose(evaluate(targets, bed.points, bed.normals, pose).s, start, atol=1e-9)
+    assert np.dot(SPIN, axis) == pytest.approx(100.0 / np.sqrt(13.0))  # the work per radian, N mm
+    problem = ball_problem(bed, OFF_CENTRE, SPIN, ("rx", "ry"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", d.ValidityWarning)
+        solution = d.solve(problem, "newton", strict=False)
+        with pytest.raises(d.SolverError) as caught:
+            d.solve(problem, "newton")
+    assert solution.status is d.Status.UNBOUNDED and not solution.success
+    assert "the energy decreases without bound along the search direction (rx " in solution.message
+    assert "a sphere turning about its own centre" in solution.message
+    assert caught.value.status is d.Status.UNBOUNDED
+
+
+@pytest.mark.slow
+def test_auto_names_newtons_finding_when_ipopt_fails_after_it(bed):
+    problem = ball_problem(bed, OFF_CENTRE, SPIN, ("rx", "ry"))
+    with pytest.raises(d.SolverError) as caught:
+        solve(problem, "auto")
+    assert "before it, finite ended with status 'unbounded' (the energy decreases without bound" in str(caught.value)
+
+
+class _Line:
+    """A manufactured line: ``phi'(a)`` given, body 2 turned one radian a unit step (free uz, rx)."""
+
+    def __init__(self, slope, d=(0.0, 1.0)):
+        self.d, self._slope = np.asarray(d, dtype=float), slope
+
+    def slope(self, a):
+        return self._slope(a), ("state at", a)
+
+
+def _basin(a):
+    """Descending steeply (``phi' = -1``) but on a contact from 0.20 to 0.50 rad that resists past the
+    load: ``phi'`` rises through the Wolfe band to +1 at 0.25 rad."""
+    return 1.0 if 0.30 <= a <= 0.50 else -1.0 + 2.0 * max(0.0, 1.0 - abs(a - 0.25) / 0.05) * (a < 0.30)
+
+
+def test_the_line_search_leaps_a_contact_that_resists_over_a_few_degrees_and_the_scan_finds_it():
+    from dea_opt.formulations._parts.finite_newton import _scan
+    from dea_opt.formulations.newton import _line_search
+
+    line = _Line(_basin)
+    alpha, _, _ = _line_search(line, -1.0, 0.9)
+    assert alpha == np.inf  # fourfold steps from 1 never land on 0.2-0.5
+    alpha, state, used = _scan(line, np.array([2, 3]), -1.0, 0.9)
+    assert 0.2 <= alpha <= 0.25 and state == ("state at", alpha)
+    assert -0.9 <= _basin(alpha) <= -1e-4  # the Wolfe band of phi'(0) = -1
+    assert used < 360
+
+
+def test_the_scan_finds_nothing_on_a_turn_no_spring_resists_nor_on_a_line_that_only_slides():
+    from dea_opt.formulations._parts.finite_newton import _scan
+
+    alpha, state, used = _scan(_Line(lambda a: -1.0), np.array([2, 3]), -1.0, 0.9)
+    assert alpha is None and state is None and used == 360  # one a degree over a whole turn
+    alpha, _, used = _scan(_Line(_basin, d=(1.0, 0.0)), np.array([2, 3]), -1.0, 0.9)
+    assert alpha is None and used == 0  # uz alone: no turn to look over

@@ -101,8 +101,17 @@ class _Line:
         return (value if np.isfinite(value) else np.inf), trial
 
 
+#: The step (in units of the Newton step) beyond which a line on which ``Phi`` still descends
+#: steeply counts as one along which it decreases without bound.
+UNBOUNDED_STEP = 1e12
+
+
 def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     """A step ``a`` with ``curvature phi'(0) <= phi'(a) <= 1e-4 phi'(0)`` (``phi'(0) < 0``).
+
+    Returns ``(a, state at a, evaluations)``; ``a`` is None where no step is acceptable and
+    ``inf`` where ``phi`` still descends steeply at every step up to :data:`UNBOUNDED_STEP`
+    (``Phi`` decreases without bound along the line: the load does work nothing resists there).
 
     ``phi`` is convex, so ``phi'`` increases: such a step decreases ``Phi`` by at least
     ``1e-4 a |phi'(0)|`` and is not too short. Only derivatives are used, never differences
@@ -133,8 +142,8 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
         alpha = 4.0 * alpha if hi is None else 0.5 * (lo + hi)
         if hi is not None and hi - lo <= 1e-14 * hi:
             break
-        if alpha > 1e12:
-            return None, None, evaluation  # Phi decreases without bound along d
+        if alpha > UNBOUNDED_STEP:
+            return np.inf, None, evaluation  # Phi decreases without bound along d
         value, trial = line.slope(alpha)
     if lo > 0.0:
         value, trial = line.slope(lo)
@@ -317,9 +326,11 @@ def _solve(
         curvature = _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE
         alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d), slope, curvature)
         evaluations += used
-        if alpha is None:
+        if alpha is None or not np.isfinite(alpha):
             # (springs at eps = -1 make it "crushed" below)
             status, message = "line_search", "the line search found no acceptable step"
+            if alpha is not None:
+                message = "the energy decreases without bound along the search direction (the load does work no spring resists)"
             break
         step = alpha * d
         xi = xi + step

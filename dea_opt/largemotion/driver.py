@@ -233,8 +233,8 @@ def solve(
                 solution.info["fallback"] = "not tried: the springs did not settle within max_recasts updates"
             elif not solution.success and len(steps) > 1:
                 reason = (
-                    f"{name} ended with status {solution.status!r} and certificate residual "
-                    f"{solution.certificate.worst()}"
+                    f"{name} ended with status {solution.status!r} ({solution.message}) and certificate "
+                    f"residual {solution.certificate.worst()}"
                 )
                 fallback, opts, _ = steps[1]
                 solution = _solve(problem, fallback, certificate_tol, opts, None, frame, None, load_checks)
@@ -244,7 +244,8 @@ def solve(
     if not solution.success and strict:
         raise SolverError(
             f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
-            f"{solution.message}); {solution.failure}",
+            f"{solution.message}); {solution.failure}"
+            + (f"; before it, {solution.info['fallback']}" if solution.method != steps[0][0] else ""),
             status=solution.status,
             solution=solution,
         )

@@ -73,6 +73,71 @@ class _Line:
     energy = phi  # the name the small Newton's line search used before the registry
 
 
+#: Body 2's coordinates ``y`` of a FiniteSystem, in order (``system.free`` indexes them).
+_COORDINATES = ("ux", "uy", "uz", "rx", "ry", "rz")
+
+
+#: Points a turn the scan of a rotating line looks at (one a degree).
+_SCAN_POINTS = 360
+
+
+def _scan(line, free, slope0, curvature) -> tuple:
+    """``(a, state, evaluations)``: a step on a line along which the steps of the line search,
+    growing fourfold, found ``phi`` descending steeply up to :data:`~dea_opt.formulations.newton.UNBOUNDED_STEP`.
+
+    Along a line that turns body 2, the springs' energy is bounded (a turn brings every spring
+    back) while a moment's work grows without bound, so ``Phi`` does decrease without bound; but
+    a contact that resists the turn over a few degrees can lie between two of those steps. The
+    line is looked at one degree apart over one turn (or, for a line that only slides body 2, not
+    at all: there the springs' energy grows without bound where they resist); where ``phi'``
+    rises above the Wolfe band, the step is found by bisection. ``a`` is None where nothing
+    resists anywhere on the turn."""
+    turn = float(np.linalg.norm(line.d[np.asarray(free) >= 3]))  # rad a unit step turns body 2
+    if not turn > 0:
+        return None, None, 0
+    upper_ok, lower_ok = 1e-4 * slope0, curvature * slope0
+    lo, hi, used = 0.0, None, 0
+    for a in np.linspace(0.0, 2.0 * np.pi / turn, _SCAN_POINTS + 1)[1:]:
+        value, trial = line.slope(float(a))
+        used += 1
+        if value > upper_ok:
+            hi = float(a)
+            break
+        if value >= lower_ok:
+            return float(a), trial, used
+        lo = float(a)
+    if hi is None:
+        return None, None, used
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        value, trial = line.slope(mid)
+        used += 1
+        if value > upper_ok:
+            hi = mid
+        elif value < lower_ok:
+            lo = mid
+        else:
+            return mid, trial, used
+    if lo == 0.0:
+        return None, None, used
+    value, trial = line.slope(lo)
+    return lo, trial, used + 1
+
+
+def _unbounded(system, direction) -> str:
+    """Why the solve stopped where the energy decreases without bound along ``direction`` (m,)."""
+    size = np.abs(direction)
+    parts = [
+        f"{_COORDINATES[i]} {v / size.max():+.3g}" for i, v in zip(system.free, direction) if abs(v) > 1e-3 * size.max()
+    ]
+    return (
+        f"the energy decreases without bound along the search direction ({', '.join(parts)}): the load does "
+        f"more work than the springs resist however far body 2 moves that way, as when it turns or slides "
+        f"the surfaces along each other (a sphere turning about its own centre); no equilibrium near the "
+        f"start carries this load"
+    )
+
+
 def _direction(K, g, material) -> tuple[np.ndarray, bool]:
     """``(d, safe)``: ``-K^{-1} g``, its pseudo-inverse where ``g`` lies in ``K``'s range, else a safe
     step ``-(K + 1e-3 K_all)^{-1} g`` (``K_all`` the material stiffness of every spring)."""
@@ -193,6 +258,12 @@ def solve(
         if alpha is None:
             status, message = "line_search_failed", "the line search found no acceptable step"
             break
+        if not np.isfinite(alpha):  # steps growing fourfold may leap a turn's contact: look closely
+            alpha, trial, used = _scan(line, system.free, slope, _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE)
+            evaluations += used
+            if alpha is None:
+                status, message = "unbounded", _unbounded(system, Td)
+                break
         step = alpha * Td
         x = x + step
         state = trial
