@@ -276,6 +276,11 @@ class AnatomicalFrame:
         w = np.ones(len(points)) if weights is None else np.asarray(weights, dtype=float)
         return w @ points / w.sum()
 
+    def layer_origin(self, layer) -> np.ndarray:
+        """The origin (mm, shape (3,)) of coordinates on ``layer``: the given one, or the
+        area-weighted centroid of its springs (what every anatomical output measures from)."""
+        return self.origin_for(layer.points, layer.areas)
+
     def coordinates(self, points, origin=None) -> np.ndarray:
         """``(medial, anterior, proximal)`` coordinates (mm) of ``points`` (..., 3) from ``origin``."""
         origin = self.origin if origin is None else origin

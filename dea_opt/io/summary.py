@@ -133,8 +133,7 @@ def _add_anatomy(out: dict, solution, regions: dict, anatomy) -> None:
     from ..anatomy import AnatomicalFrame
 
     frame = AnatomicalFrame.from_dict(anatomy)
-    layer = solution.problem.layer
-    origin = frame.origin_for(layer.points, layer.areas)
+    origin = frame.layer_origin(solution.problem.layer)
 
     def where(point):
         values = frame.coordinates(point, origin)

@@ -18,6 +18,7 @@ from ..io.atomic import write_data
 from ..io.pictures import DrawHere, PictureFiles
 from ..io.summary import write_json
 from ..problem import ContactProblem
+from .anatomical import COP_COLUMNS, anatomical_columns, anatomical_frame_table, anatomical_origin
 from .exposure import Exposure
 from .series import FrameSeries, write_pvd
 from .table import MOTION_UNITS, motion_columns
@@ -157,21 +158,53 @@ class PathResult:
             "failed_frames": self.failed_frames,
         }
 
-    def motion_summary(self) -> dict:
-        """Per free dof (its table column, ``body2_uz``): its unit and, over the certified frames,
-        the smallest and largest motion found and that of the peak frame (mm, rad)."""
-        table = self.table.loc[self.table["success"]]
-        k = _largest(table["peak_pressure"])
+    def _ranges(self, columns: pd.DataFrame, units: dict) -> dict:
+        """``{column: {unit, min, max, at_peak}}`` of ``columns`` (rows as :attr:`table`'s) over
+        the certified frames: the smallest, the largest and the peak frame's value."""
+        certified = self.table["success"].to_numpy(dtype=bool)
+        k = _largest(self.table.loc[certified, "peak_pressure"])
         out = {}
-        for column in motion_columns(self.problem):
-            values = table[column]
+        for column, unit in units.items():
+            values = columns.loc[certified, column]
             out[column] = {
-                "unit": MOTION_UNITS[column.rsplit("_", 1)[1]],
+                "unit": unit,
                 "min": _nan_or(values.min()),
                 "max": _nan_or(values.max()),
                 "at_peak": math.nan if k is None else float(values.iloc[k]),
             }
         return out
+
+    def motion_summary(self) -> dict:
+        """Per free dof (its table column, ``body2_uz``): its unit and, over the certified frames,
+        the smallest and largest motion found and that of the peak frame (mm, rad)."""
+        units = {column: MOTION_UNITS[column.rsplit("_", 1)[1]] for column in motion_columns(self.problem)}
+        return self._ranges(self.table, units)
+
+    def anatomical_table(self, anatomy) -> pd.DataFrame:
+        """:attr:`table` with the centre of pressure and the motion found along the anatomical
+        axes of ``anatomy`` (an AnatomicalFrame or a dict) appended: ``cop_medial``,
+        ``cop_anterior``, ``cop_proximal`` (mm from the frame's origin),
+        ``body<b>_translation_<axis>`` (mm) and ``body<b>_rotation_<axis>`` (rad); see
+        :func:`~dea_opt.loadpath.anatomical.anatomical_frame_table`."""
+        import pandas as pd
+
+        return pd.concat([self.table, anatomical_frame_table(self.table, self.problem, anatomy)], axis=1)
+
+    def anatomical_summary(self, anatomy) -> dict:
+        """What :meth:`summary` adds for an anatomical frame ``anatomy``: ``anatomy`` (the frame
+        and ``origin_used``, mm), and over the certified frames, like :meth:`motion_summary`,
+        ``center_of_pressure_anatomical`` (``cop_medial``, ... in mm) and ``motion_anatomical``
+        (``body2_translation_proximal`` in mm, ``body2_rotation_anterior`` in rad, ...)."""
+        frame, origin = anatomical_origin(self.problem, anatomy)
+        columns = anatomical_frame_table(self.table, self.problem, frame)
+        units = anatomical_columns(self.problem)
+        cop = {c: u for c, u in units.items() if c in COP_COLUMNS}
+        motion = {c: u for c, u in units.items() if c not in COP_COLUMNS}
+        return {
+            "anatomy": {**frame.as_dict(), "origin_used": origin.tolist()},
+            "center_of_pressure_anatomical": self._ranges(columns, cop),
+            "motion_anatomical": self._ranges(columns, motion),
+        }
 
     def region_summary(self) -> dict:
         """Per region over the certified frames: mean, smallest and largest force share, the
@@ -210,12 +243,15 @@ class PathResult:
             stacklevel=4,
         )
 
-    def summary(self) -> dict:
-        """Headline numbers of the path (plain Python values; NaN where no frame has an answer)."""
+    def summary(self, anatomy=None) -> dict:
+        """Headline numbers of the path (plain Python values; NaN where no frame has an answer);
+        with an anatomical frame ``anatomy`` (an AnatomicalFrame or a dict) also
+        :meth:`anatomical_summary`'s ``anatomy``, ``center_of_pressure_anatomical`` and
+        ``motion_anatomical``."""
         table = self.table
         ok = table.loc[table["success"]]
         k = _largest(ok["peak_pressure"])
-        return {
+        out = {
             "method": self.method,
             "law": self.problem.law.describe(),
             "frames": len(table),
@@ -240,15 +276,25 @@ class PathResult:
             "regions": self.region_summary(),
             "exposure": self.exposure.summary(),
         }
+        if anatomy is not None:
+            out.update(self.anatomical_summary(anatomy))
+        return out
 
     # --- writers ------------------------------------------------------------------------
-    def to_csv(self, path) -> Path:
-        """The per-frame table as CSV (floats in their shortest round-trip text)."""
-        return write_data(path, self.table.to_csv(index=False, lineterminator="\n", float_format=None))
+    def to_csv(self, path, anatomy=None) -> Path:
+        """The per-frame table as CSV (floats in their shortest round-trip text); with an
+        anatomical frame ``anatomy``, :meth:`anatomical_table`'s columns after the table's."""
+        table = self.table if anatomy is None else self.anatomical_table(anatomy)
+        return write_data(path, table.to_csv(index=False, lineterminator="\n", float_format=None))
 
-    def to_json(self, path, extra: dict | None = None, summary: dict | None = None) -> Path:
-        """:meth:`summary` (plus ``extra``) as JSON; ``summary``: one the caller already has."""
-        return write_json({**(self.summary() if summary is None else summary), **(extra or {})}, path)
+    def to_json(self, path, extra: dict | None = None, summary: dict | None = None, anatomy=None) -> Path:
+        """:meth:`summary` (with ``anatomy``, plus ``extra``) as JSON; ``summary``: one the caller
+        already has (the anatomical keys are added when ``anatomy`` is given and it has none)."""
+        if summary is None:
+            summary = self.summary(anatomy)
+        elif anatomy is not None and "motion_anatomical" not in summary:
+            summary = {**summary, **self.anatomical_summary(anatomy)}
+        return write_json({**summary, **(extra or {})}, path)
 
     def to_pvd(self, path) -> Path:
         """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame.
@@ -331,8 +377,10 @@ class PathResult:
 
         ``csv``: ``frames.csv``; ``json``: ``summary.json``; ``vtk``: ``series.pvd`` (the
         frames written while solving, or ``series_frames/`` written now from the kept
-        solutions) and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``, in the
-        anatomical frame ``anatomy`` when given. ``summary``: :meth:`summary`, when the caller
+        solutions) and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``. With an
+        anatomical frame ``anatomy`` the PNGs are drawn in it, ``frames.csv`` ends with
+        :meth:`anatomical_table`'s columns and ``summary.json`` holds
+        :meth:`anatomical_summary`'s keys. ``summary``: :meth:`summary`, when the caller
         already has it (it is computed once). ``pictures``: a
         :class:`~dea_opt.io.pictures.PictureWorker` to draw the PNGs in while the other files are
         written (the same pictures, drawn here if it fails).
@@ -357,7 +405,7 @@ class PathResult:
                     "exposure_map", directory / "exposure.png", lambda p: self._exposure_job(p, anatomy=anatomy)
                 )
             if "csv" in formats:
-                files["table"] = self.to_csv(directory / "frames.csv")
+                files["table"] = self.to_csv(directory / "frames.csv", anatomy=anatomy)
             if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):
                 files["series"] = self.to_pvd(directory / "series.pvd")
             if "vtk" in formats:
@@ -366,10 +414,6 @@ class PathResult:
         if "json" in formats:
             files["summary"] = directory / "summary.json"
             extra = {**(extra_summary or {}), "files": {k: str(v) for k, v in files.items()}}
-            if anatomy is not None:
-                from ..anatomy import AnatomicalFrame
-
-                extra.setdefault("anatomy", AnatomicalFrame.from_dict(anatomy).as_dict())
-            self.to_json(files["summary"], extra, summary=summary)
+            self.to_json(files["summary"], extra, summary=summary, anatomy=anatomy)
         self.files.update(files)
         return files

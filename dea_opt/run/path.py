@@ -92,7 +92,7 @@ def run_path_outputs(
     extra = {"title": scenario.title, **(extra_summary or {})}
     if recast is not None:
         extra["recast"] = recast
-    summary = result.summary()
+    summary = result.summary(anatomy)
     files = result.write(out, formats, extra_summary=extra, anatomy=anatomy, summary=summary, pictures=pictures)
     validity = summary["validity"]
     outside = validity["frames_outside_validity"]
@@ -145,6 +145,9 @@ def run_path_outputs(
         lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
     if summary["motion"] and summary["peak_frame"] is not None:
         lines.append(f"motion found (free dofs, frames.csv): {_motion_text(summary['motion'])}")
+        along = _anatomical_motion_text(summary.get("motion_anatomical", {}))
+        if along:
+            lines.append(f"motion found along the anatomical axes: {along}")
     regions = [
         f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
         f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
@@ -178,6 +181,29 @@ def _motion_text(motion: dict) -> str:
         if m["unit"] == "rad":
             text += f" ({np.degrees(m['min']):.3g} to {np.degrees(m['max']):.3g} deg)"
         parts.append(text)
+    return ", ".join(parts)
+
+
+def _anatomical_motion_text(motion: dict) -> str:
+    """``body2 translation proximal -1.31 to -0.62 mm, rotation about anterior -0.41 to 0.52 deg``:
+    the ranges of ``motion_anatomical``, rotations in degrees, each body and kind named once."""
+    parts = []
+    named_body = named_kind = None
+    for column, m in motion.items():
+        body, kind, axis = column.split("_")
+        # Free dofs along coordinate axes that are anatomical axes too reach no other axis:
+        # their exactly-zero ranges would only lengthen the line.
+        if m["min"] == 0.0 == m["max"]:
+            continue
+        low, high, unit = m["min"], m["max"], m["unit"]
+        if unit == "rad":
+            low, high, unit = np.degrees(low), np.degrees(high), "deg"
+        words = [body] if body != named_body else []
+        if (body, kind) != (named_body, named_kind):
+            words.append(kind)
+        words.append(f"about {axis}" if kind == "rotation" else axis)
+        parts.append(f"{' '.join(words)} {low:.3g} to {high:.3g} {unit}")
+        named_body, named_kind = body, kind
     return ", ".join(parts)
 
 
