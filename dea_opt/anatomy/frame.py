@@ -230,7 +230,9 @@ class AnatomicalFrame:
         if isinstance(spec, AnatomicalFrame):
             return spec
         if not hasattr(spec, "items"):
-            raise InputError(f"anatomy must be a table, got {type(spec).__name__}")
+            raise InputError(
+                f"anatomy must be a table (a dict in Python) or an AnatomicalFrame, got {type(spec).__name__}"
+            )
         spec = dict(spec)
         allowed = {"medial", "anterior", "proximal", "side", "origin", "origin_name", "landmarks"}
         unknown = sorted(set(spec) - allowed)
