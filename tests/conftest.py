@@ -46,6 +46,24 @@ COARSE_KNEE_SCENARIO = KNEE_SCENARIO.replace(
 )
 
 
+#: A coarse hip socket with a free head (the scenario tables before its load and outputs).
+COARSE_SOCKET = """\
+[geometry]
+kind = "socket"
+radius = 25.0
+thickness = 3.0
+coverage = 80.0
+gap = 0.1
+n_rings = 10
+n_sectors = 30
+[law]
+kind = "linear"
+H = 10.0
+[body2]
+free = ["ux", "uy", "uz"]
+"""
+
+
 def real_knee() -> dict:
     """The real knee of ``../shared/data/knee`` cast tibia onto femur (labels medial/lateral, max_gap
     2 mm): ``mesh1``, ``mesh2``, ``options``, ``reference`` (the plateaus' mean centroid) and
@@ -93,6 +111,14 @@ def solve_quietly(problem, method, **options):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", d.ValidityWarning)
         return d.solve(problem, method, **{**TIGHT[method], **options})
+
+
+@pytest.fixture
+def finite(tmp_path):
+    """:data:`COARSE_KNEE_SCENARIO` (the knee with finite kinematics) as a scenario file."""
+    path = tmp_path / "finite.toml"
+    path.write_text(COARSE_KNEE_SCENARIO)
+    return path
 
 
 @pytest.fixture(scope="session")

@@ -39,13 +39,6 @@ def one_line(result) -> str:
 
 
 @pytest.fixture
-def finite(tmp_path):
-    path = tmp_path / "finite.toml"
-    path.write_text(FINITE)
-    return path
-
-
-@pytest.fixture
 def knee(tmp_path):
     """The real knee with finite kinematics and a varus-valgus tilt free (the defect reports' scenario)."""
     if not all((KNEE / n).is_file() for n in ("femoral_cartilage.stl", "medial_tibial_cartilage.stl")):

@@ -20,6 +20,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import COARSE_SOCKET
 
 from dea_opt.errors import OutputFolderError
 from dea_opt.io.atomic import TEMPORARY_NAME, write_data
@@ -35,27 +36,17 @@ from dea_opt.io.publish import (
 
 ROOT = Path(__file__).resolve().parents[1]
 
-PATH_SCENARIO = """\
-title = "coarse hip, short gait"
-[geometry]
-kind = "socket"
-radius = 25.0
-thickness = 3.0
-coverage = 80.0
-gap = 0.1
-n_rings = 10
-n_sectors = 30
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["ux", "uy", "uz"]
+PATH_SCENARIO = (
+    'title = "coarse hip, short gait"\n'
+    + COARSE_SOCKET
+    + """\
 [load_path]
 builtin = "hip_gait"
 frames = 24
 [output]
 directory = "out"
 """
+)
 
 
 def temporary_files(folder: Path) -> list[Path]:

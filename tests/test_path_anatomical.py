@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import KNEE, KNEE_FILES
+from conftest import COARSE_SOCKET, KNEE, KNEE_FILES
 from scipy.spatial.transform import Rotation
 from typer.testing import CliRunner
 
@@ -164,26 +164,16 @@ def test_write_puts_the_columns_in_frames_csv_and_the_ranges_in_summary_json(pla
 
 # --- dea-opt run --------------------------------------------------------------------------------
 
-SOCKET_PATH = """\
-[geometry]
-kind = "socket"
-radius = 25.0
-thickness = 3.0
-coverage = 80.0
-gap = 0.1
-n_rings = 10
-n_sectors = 30
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["ux", "uy", "uz"]
+SOCKET_PATH = (
+    COARSE_SOCKET
+    + """\
 [load_path]
 file = "path.csv"
 [output]
 formats = ["csv", "json"]
 anatomy = {anatomy}
 """
+)
 
 
 def socket_scenario(tmp_path, anatomy: str):

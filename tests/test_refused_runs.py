@@ -9,7 +9,7 @@ from __future__ import annotations
 import os
 
 import pytest
-from conftest import COARSE_KNEE_SCENARIO, KNEE_SCENARIO
+from conftest import KNEE_SCENARIO
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -38,7 +38,6 @@ formats = ["json"]
 """
 PRESSED = PULLED.replace("force = [0.0, 0.0, 500.0]", "force = [0.0, 0.0, -500.0]")
 #: The coarse generated knee with finite kinematics: ``compare --methods qp`` is refused.
-FINITE = COARSE_KNEE_SCENARIO
 
 
 def invoke(*args):
@@ -61,13 +60,6 @@ def listing(folder):
 def pulled(tmp_path):
     path = tmp_path / "pulled.toml"
     path.write_text(PULLED)
-    return path
-
-
-@pytest.fixture
-def finite(tmp_path):
-    path = tmp_path / "finite.toml"
-    path.write_text(FINITE)
     return path
 
 

@@ -13,6 +13,7 @@ from pathlib import Path
 import distributed  # noqa: E402, F401 - a dev dependency: the sweeps need it
 import pandas as pd
 import pytest
+from conftest import COARSE_SOCKET
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -28,27 +29,17 @@ from dea_opt.sweep import (
 )
 
 # A small hip under a 5-frame gait: about a second per case with its outputs.
-SCENARIO = """\
-title = "sweep test"
-[geometry]
-kind = "socket"
-radius = 25.0
-thickness = 3.0
-coverage = 80.0
-gap = 0.1
-n_rings = 10
-n_sectors = 30
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["ux", "uy", "uz"]
+SCENARIO = (
+    'title = "sweep test"\n'
+    + COARSE_SOCKET
+    + """\
 [load_path]
 builtin = "hip_gait"
 frames = 5
 [output]
 formats = ["csv", "json", "vtk", "png"]
 """
+)
 TWELVE = ["law.H=5,10,20", "load_path.scale=0.5,1", "geometry.gap=0.05,0.1"]
 FOUR = ["law.H=5,10", "load_path.scale=0.5,1", "geometry.gap=0.05"]
 

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import KNEE
+from conftest import COARSE_SOCKET, KNEE
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -38,21 +38,7 @@ def invoke(*args):
     return runner.invoke(app, [str(a) for a in args])
 
 
-SOCKET = """\
-[geometry]
-kind = "socket"
-radius = 25.0
-thickness = 3.0
-coverage = 80.0
-gap = 0.1
-n_rings = 10
-n_sectors = 30
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["ux", "uy", "uz"]
-"""
+SOCKET = COARSE_SOCKET
 
 
 def socket_path(tmp_path, rows, extra="") -> Path:
