@@ -243,19 +243,22 @@ def test_a_load_that_drives_the_femur_through_the_knee_cartilage_fails_as_crushe
         quiet(d.solve, problem, method)
 
 
-def test_six_free_dofs_on_the_knee_say_how_far_the_small_kinematics_moved_the_femur(knee):
+def test_six_free_dofs_on_the_knee_end_unbounded_naming_the_slide_nothing_holds(knee):
     """With every dof free nothing holds the femur's slide and spin (the ligaments are not in the
-    model): the small kinematics slide it 17 mm and turn it 21 deg, where their strains mean
-    little. The crushed answer says so, with the motion, beside the advice on the load."""
+    model): the small kinematics slide it 17 mm and turn it 21 deg, where their strain of -2.2
+    says nothing of the load (it sinks 2.7 mm, less than the layer is thick), so they do not call
+    the layer crushed: Newton finds the energy falling without bound along the slide, and says so
+    at once (IPOPT is not run)."""
     kw = {"force": (0.0, 0.0, -LOAD), "reference": tuple(knee["reference"])}
     problem = d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), kinematics="finite", targets=knee["cast"], **kw)
     solution = quiet(d.solve, problem, "auto", strict=False)
     small = quiet(d.solve, d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), **kw), strict=False)
     slide = np.linalg.norm(small.u[6:8])  # across the load (along -z)
-    assert slide > 5.0 and solution.status is d.Status.CRUSHED
-    said = float(re.search(r"uy (-?[0-9.]+) mm", solution.message).group(1))  # the predictor's, to 1e-3
-    assert abs(said - small.u[7]) <= 0.05 * abs(small.u[7]) and "slid or turned far" in solution.message
-    assert "ligaments" in solution.message and "beyond what this layer can bear" in solution.message
+    assert slide > 5.0 and small.strain.min() < -1.0 and -small.u[8] < knee["cast"].layer.thickness.max()
+    assert solution.status is d.Status.UNBOUNDED and solution.info["fallback"].startswith("not tried")
+    said = re.search(r"along the search direction \(([^)]*)\)", solution.message).group(1)
+    assert said.startswith("ux ") and "uy -1" in said  # the slide along -y dominates, as the small one's
+    assert small.u[7] < 0 and abs(small.u[7]) > abs(small.u[6])
 
 
 def _behind_far_side(mesh1, mesh2, faces, normals, depth=3.0):

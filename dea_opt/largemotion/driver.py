@@ -35,7 +35,7 @@ from ..formulations.finite import (
 from ..kinematics import DOFS
 from ..mesh import SpringCast, check_pose
 from ..status import Status
-from .outcome import crushed_at_start, crushed_far, crushed_through, unsettled
+from .outcome import crushed_at_start, crushed_far, crushed_through, far_from_start, ran_away, unsettled
 from .solution import FiniteSolution, certificate
 from .start import at_base, near_base, predicted
 from .tracker import MeshTracker
@@ -199,7 +199,9 @@ def solve(
         ``"finite"`` (or ``"newton"``): Newton with the consistent tangent; ``"finite_nlp"``
         (or ``"nlp"``): IPOPT on a conservative surrogate re-centred at each outer iteration
         (``formulations/finite_nlp.md``); ``"auto"``: Newton, then IPOPT if Newton's answer
-        fails its certificate (``solution.info["fallback"]`` says why). ``"qp"`` is an
+        fails its certificate (``solution.info["fallback"]`` says why; not where Newton found the
+        layer crushed, no spring left, springs that do not settle, or no equilibrium near the
+        start: IPOPT meets the same, in minutes). ``"qp"`` is an
         :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
     certificate_tol : float
     strict : bool
@@ -227,6 +229,8 @@ def solve(
         if method == "auto":
             if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
                 solution.info["fallback"] = "not tried: the layer is crushed through, a limit of the model"
+            elif solution.status is Status.UNBOUNDED:  # IPOPT chases the same motion (9 minutes on the knee)
+                solution.info["fallback"] = "not tried: no equilibrium near the start carries the load"
             elif solution.status is Status.POSE_ERROR:  # the meshes' geometry: the same for IPOPT
                 solution.info["fallback"] = "not tried: no spring is left at the pose"
             elif solution.info.get("recast", {}).get("stable") is False:  # IPOPT's springs are updated alike
@@ -291,7 +295,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     if cold and loaded and tracker is not None:
         guess, unsolved = predicted(small, law, x)
         deepest = small.strain_at(guess).min()
-        if not unsolved and deepest <= -1.0 and near_base(tracker, system):
+        crushing = not unsolved and deepest <= -1.0
+        if crushing and near_base(tracker, system) and not far_from_start(system, guess):
             tracker.counts["stable"] = True
             crushed = crushed_at_start(system, law, guess, deepest)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
@@ -347,6 +352,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
             crushed_through(tracker, inner, law)
         elif not stable and inner.success:
             unsettled(inner)
+    if not inner.success and inner.status not in ("crushed", "unbounded"):
+        ran_away(system, inner, rms_radius(system))
     if inner.status == "crushed" and np.isfinite(inner.u_free).all():
         crushed_far(system, inner)
     if method == "finite" and not inner.success and loaded and cone is not None:

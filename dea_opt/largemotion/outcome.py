@@ -1,8 +1,10 @@
 """How a finite-kinematics solve that cannot give an answer of the meshes says so.
 
 ``crushed`` (:class:`~dea_opt.status.Status`) when the load drives body 2 through the cartilage
-(``formulations/finite.md``, "Limits"), and ``max_iterations`` when the springs did not settle
-within ``max_recasts`` updates. Used by :mod:`~dea_opt.largemotion.driver`.
+(``formulations/finite.md``, "Limits"), ``unbounded`` when the iterates ran away (no
+equilibrium near the start: along a free dof the contact resists less than the load), and
+``max_iterations`` when the springs did not settle within ``max_recasts`` updates. Used by
+:mod:`~dea_opt.largemotion.driver`.
 """
 
 from __future__ import annotations
@@ -13,17 +15,38 @@ import numpy as np
 
 from ..formulations.finite import InnerResult
 
-__all__ = ["crushed_at_start", "crushed_far", "crushed_through", "unsettled"]
+__all__ = ["crushed_at_start", "crushed_far", "crushed_through", "far_from_start", "ran_away", "unsettled"]
+
+
+def far_from_start(system, x) -> bool:
+    """Whether the small kinematics' answer ``x`` (free coordinates) slid body 2 across the load or
+    turned it beyond :data:`_FAR`, without sinking along the load past the thickest spring: its
+    strains there are no measure of the load (the knee's contact holds a torsion that turns the
+    femur 13 deg, where the small kinematics read eps = -1), so they may not call the layer
+    crushed before a solve (:func:`crushed_at_start`); the solve finds out. Sinking past the
+    whole layer is what a load too large does, however far body 2 turned on the way."""
+    force = np.asarray(system.force, dtype=float)
+    _, far = _motion(system.free, x, force)
+    if not far:
+        return False
+    shift = np.zeros(3)
+    for index, value in zip(system.free, x):
+        if index < 3:
+            shift[index] = value
+    size = float(np.linalg.norm(force))
+    sinking = float(shift @ force) / size if size > 0 else 0.0
+    return not sinking > float(np.max(system.thickness, initial=0.0))
 
 
 def crushed_at_start(system, law, x, eps) -> InnerResult:
     """A failed answer at the small kinematics' answer ``x``, which crushes the layer through
-    (``eps <= -1``): with springs that follow mesh 2, body 2 would go through the cartilage
-    (springs lost through the layer, :func:`crushed_through`); said before any solve, since
-    IPOPT takes minutes to find it out."""
+    (``eps <= -1``) with body 2 not far from its start, or sunk through the layer
+    (:func:`far_from_start`): with springs
+    that follow mesh 2, body 2 would go through the cartilage (springs lost through the layer,
+    :func:`crushed_through`); said before any solve, since IPOPT takes minutes to find it out."""
     motion, far = _motion(system.free, x, np.asarray(system.force, dtype=float))
     cause = _beyond(law)
-    if far:  # the small kinematics mean little there: the dofs may be what lets body 2 go
+    if far:  # it sank through the layer, but the dofs may be what let body 2 go that far
         cause += _FREE_DOF
     return InnerResult(
         x,
@@ -33,6 +56,34 @@ def crushed_at_start(system, law, x, eps) -> InnerResult:
         f"the small kinematics on the start pose's springs reach eps = {eps:.3g} ({motion}): body 2 would "
         f"go through the cartilage before the load is carried, so {cause}",
     )
+
+
+#: How far a failed solve's iterate may move body 2 before it counts as run away: a turn (deg),
+#: and a translation in multiples of the springs' RMS distance from its reference.
+_RUN_AWAY = (180.0, 4.0)
+
+
+def ran_away(system, inner, radius: float) -> bool:
+    """Mark a failed solve ``unbounded`` when its iterate moved body 2 beyond :data:`_RUN_AWAY`
+    (``radius``: the springs' RMS distance from body 2's reference, mm), far past any contact
+    near the start: no equilibrium there carries the load, which along a free dof exceeds what
+    the contact resists (a joint's torsion past the largest its articular surfaces hold; in the
+    joint, the ligaments). Springs lost through the layer on the way (whose rays met mesh 2
+    behind mesh 1's far side as it passed) say nothing of a load too large. Whether it did."""
+    x = np.asarray(inner.u_free, dtype=float)
+    free = np.asarray(system.free)
+    turn = float(np.linalg.norm(x[free >= 3])) if (free >= 3).any() else 0.0
+    shift = float(np.linalg.norm(x[free < 3])) if (free < 3).any() else 0.0
+    if np.isfinite(x).all() and math.degrees(turn) <= _RUN_AWAY[0] and shift <= _RUN_AWAY[1] * radius:
+        return False
+    motion, _ = _motion(system.free, x, np.asarray(system.force, dtype=float))
+    inner.status = "unbounded"
+    inner.message += (
+        f"; the iterates ran away ({motion}): no equilibrium near the start carries this load, which along "
+        f"the free dofs exceeds what the contact resists (nothing in the model holds body 2 there; in a "
+        f"joint, the ligaments): hold those dofs, or give them the loads that hold them"
+    )
+    return True
 
 
 _FREE_DOF = (

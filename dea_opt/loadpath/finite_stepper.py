@@ -50,6 +50,7 @@ class FiniteStepper:
         )
         if not solution.success and self.x is not None:
             # The previous frame's pose may be a poor start (a jump in the load): start cold.
+            warm = solution
             solution = solve_finite(
                 problem,
                 self.method,
@@ -59,6 +60,10 @@ class FiniteStepper:
                 load_checks=(check_unresisted, check_cone),
                 **self.options,
             )
+            if not solution.success:  # what the start nearer the path found says as much
+                said = f"from the previous frame's pose, status {warm.status.value!r}: {warm.message}"
+                object.__setattr__(solution, "message", f"{solution.message}; {said}")
+                solution.info["warm_start"] = {"status": warm.status.value, "message": warm.message}
         object.__setattr__(solution, "build_time", solution.build_time + setup)
         if solution.success:
             self.x = solution.u[problem.free_indices]

@@ -1,0 +1,112 @@
+"""Finite kinematics on the real knee with ``uz, rz`` free under 1000 N and a torsion ``Mz``: the
+articular surfaces alone (no ligaments in the model) hold a torsion up to a limit, turning the
+femur as it grows, and past that limit no equilibrium near the start carries it.
+
+Up to about 4300 N mm the femur turns 13-15 deg and rides up the tibial plateau; the springs at
+the solved pose balance the load (summed here). The small kinematics on the start pose's springs
+read eps = -1 at such a turn: they may not call the layer crushed (they once did, refusing an
+answer that exists). Past the limit the iterates run away, and the answer says so as
+``unbounded``, at once (IPOPT, which chased the same runaway for 9 minutes, is not run).
+Reads ``../shared/data/knee``; skips without it."""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+from conftest import real_knee
+
+import dea_opt as d
+
+LOAD = 1000.0  # N along -z
+
+
+@pytest.fixture(scope="module")
+def knee():
+    return real_knee()
+
+
+def torsion(knee, moment):
+    return d.ContactProblem(
+        knee["cast"].layer,
+        d.LinearLaw(10.0),
+        force=(0.0, 0.0, -LOAD),
+        moment=(0.0, 0.0, moment),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rz"),
+        kinematics="finite",
+        targets=knee["cast"],
+    )
+
+
+def quiet(function, *args, **kw):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return function(*args, **kw)
+
+
+def springs_on_femur(solution):
+    """The springs' force (N) on the femur and its moment (N mm) about its reference at the solved
+    pose, summed from each spring's pressure, area and direction (the tibia's normal)."""
+    layer = solution.problem.layer
+    push = (solution.pressure * layer.areas)[:, None] * layer.normals
+    centre = np.asarray(solution.problem.body2.reference) + solution.u[6:9]
+    return push.sum(axis=0), np.cross(layer.points - centre, push).sum(axis=0)
+
+
+def test_a_torsion_the_knee_holds_turns_the_femur_13_degrees_and_converges_from_a_cold_start(knee):
+    problem = torsion(knee, 4000.0)
+    solution = quiet(d.solve, problem)
+    assert solution.success and solution.status is d.Status.CONVERGED
+    force, moment = springs_on_femur(solution)
+    # equilibrium along the free dofs, summed here: the springs carry the 1000 N and the torsion
+    # (a turn about z alone: the rotation vector's component is the moment's)
+    assert force[2] == pytest.approx(LOAD, rel=1e-6)
+    assert moment[2] == pytest.approx(-4000.0, rel=1e-6)
+    turn = np.degrees(solution.u[11])
+    assert 12.0 < turn < 14.5
+    # the small kinematics on the start pose's springs crush the layer through at that turn
+    small = quiet(d.solve, d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), **_small_kw(knee, 4000.0)))
+    assert small.strain.min() <= -0.95 and np.degrees(small.u[11]) > 10.0
+
+
+def _small_kw(knee, moment):
+    return {
+        "force": (0.0, 0.0, -LOAD),
+        "moment": (0.0, 0.0, moment),
+        "reference": tuple(knee["reference"]),
+        "free": ("uz", "rz"),
+    }
+
+
+def test_a_torsion_past_the_largest_the_knee_holds_ends_unbounded_without_ipopt(knee):
+    problem = torsion(knee, 5000.0)
+    solution = quiet(d.solve, problem, strict=False)
+    assert not solution.success and solution.status is d.Status.UNBOUNDED
+    assert solution.method == "finite" and solution.info["fallback"].startswith("not tried")
+    assert "no equilibrium near the start carries this load" in solution.message
+    assert "ligaments" in solution.message and "crushed" not in solution.message
+    with pytest.raises(d.SolverError) as caught:
+        quiet(d.solve, problem)
+    assert caught.value.status is d.Status.UNBOUNDED
+
+
+def test_a_growing_torsion_along_a_load_path_turns_the_femur_then_ends_unbounded_not_crushed(knee):
+    moments = np.array([0.0, 1000.0, 2000.0, 3000.0, 4000.0, 5000.0, 6000.0])
+    loads = np.zeros((len(moments), 6))
+    loads[:, 2], loads[:, 5] = -LOAD, moments
+    result = quiet(d.solve_path, torsion(knee, 0.0), loads, method="newton")
+    table = result.table
+    held = moments <= 4000.0
+    assert table["success"].to_numpy()[held].all()
+    turns = table["body2_rz"].to_numpy()[held]
+    assert (np.diff(turns) > 0).all() and np.all(np.diff(np.diff(turns)) > 0)  # softening toward the limit
+    assert list(table["status"][~held]) == ["unbounded", "unbounded"]
+    first = result.failures()[0]
+    assert "from the previous frame's pose" in first["message"] or "ran away" in first["message"]
+    for solution in result.solutions:
+        if solution is not None and solution.success:
+            force, moment = springs_on_femur(solution)
+            assert force[2] == pytest.approx(LOAD, rel=1e-6)
+            assert moment[2] == pytest.approx(-solution.problem.load_vector[11], rel=1e-6, abs=1e-6)
