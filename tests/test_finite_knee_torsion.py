@@ -110,3 +110,40 @@ def test_a_growing_torsion_along_a_load_path_turns_the_femur_then_ends_unbounded
             force, moment = springs_on_femur(solution)
             assert force[2] == pytest.approx(LOAD, rel=1e-6)
             assert moment[2] == pytest.approx(-solution.problem.load_vector[11], rel=1e-6, abs=1e-6)
+
+
+def test_the_cli_says_why_a_torsion_past_the_limit_has_no_answer(knee, tmp_path):
+    """``dea-opt run``: exit 1 (no certified answer), with the reason in its last line."""
+    from conftest import KNEE
+    from typer.testing import CliRunner
+
+    from dea_opt.cli import app
+
+    scenario = tmp_path / "torsion.toml"
+    scenario.write_text(
+        f"""
+[geometry]
+kind = "meshes"
+mesh1 = {{ medial = "{KNEE / "medial_tibial_cartilage.stl"}", lateral = "{KNEE / "lateral_tibial_cartilage.stl"}" }}
+mesh2 = "{KNEE / "femoral_cartilage.stl"}"
+max_gap = 2.0
+[law]
+kind = "linear"
+H = 10.0
+[body2]
+reference = {list(map(float, knee["reference"]))}
+free = ["uz", "rz"]
+[load]
+force = [0.0, 0.0, -{LOAD}]
+moment = [0.0, 0.0, 5000.0]
+[solve]
+kinematics = "finite"
+[output]
+formats = ["json"]
+"""
+    )
+    result = CliRunner().invoke(app, ["run", str(scenario), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 1, result.output
+    last = result.output.strip().splitlines()[-1]
+    assert "status 'unbounded': " in last and "no equilibrium near the start carries this load" in last
+    assert "Traceback" not in result.output
