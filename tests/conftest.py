@@ -64,6 +64,31 @@ free = ["ux", "uy", "uz"]
 """
 
 
+def real_knee_scenario(free, moment=(0.0, 0.0, 0.0)) -> str:
+    """A scenario of the real knee's meshes (``KNEE``) with finite kinematics: 1000 N along -z and
+    ``moment`` (N mm) on the femur, ``free`` its free dofs, json output."""
+    return textwrap.dedent(f"""
+        [geometry]
+        kind = "meshes"
+        mesh1 = {{ medial = "{KNEE / "medial_tibial_cartilage.stl"}", lateral = "{KNEE / "lateral_tibial_cartilage.stl"}" }}
+        mesh2 = "{KNEE / "femoral_cartilage.stl"}"
+        max_gap = 2.0
+        [law]
+        kind = "linear"
+        H = 10.0
+        [body2]
+        reference = [-69.0242, -5.9006, -18.8433]
+        free = {list(free)}
+        [load]
+        force = [0.0, 0.0, -1000.0]
+        moment = {list(map(float, moment))}
+        [solve]
+        kinematics = "finite"
+        [output]
+        formats = ["json"]
+    """)
+
+
 def real_knee() -> dict:
     """The real knee of ``../shared/data/knee`` cast tibia onto femur (labels medial/lateral, max_gap
     2 mm): ``mesh1``, ``mesh2``, ``options``, ``reference`` (the plateaus' mean centroid) and

@@ -8,14 +8,13 @@ included); the real knee of ``../shared/data/knee`` reproduces the reports and s
 
 from __future__ import annotations
 
-import textwrap
 import warnings
 from types import SimpleNamespace
 
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import COARSE_KNEE_SCENARIO, KNEE
+from conftest import COARSE_KNEE_SCENARIO, KNEE, real_knee_scenario
 from typer.testing import CliRunner
 
 import dea_opt as d
@@ -44,27 +43,7 @@ def knee(tmp_path):
     if not all((KNEE / n).is_file() for n in ("femoral_cartilage.stl", "medial_tibial_cartilage.stl")):
         pytest.skip(f"the knee meshes are not in {KNEE}")
     path = tmp_path / "knee.toml"
-    path.write_text(
-        textwrap.dedent(f"""
-            [geometry]
-            kind = "meshes"
-            mesh1 = {{ medial = "{KNEE / "medial_tibial_cartilage.stl"}", lateral = "{KNEE / "lateral_tibial_cartilage.stl"}" }}
-            mesh2 = "{KNEE / "femoral_cartilage.stl"}"
-            max_gap = 2.0
-            [law]
-            kind = "linear"
-            H = 10.0
-            [body2]
-            reference = [-69.0242, -5.9006, -18.8433]
-            free = ["uz", "rx", "ry"]
-            [load]
-            force = [0.0, 0.0, -1000.0]
-            [solve]
-            kinematics = "finite"
-            [output]
-            formats = ["json"]
-        """)
-    )
+    path.write_text(real_knee_scenario(["uz", "rx", "ry"]))
     return path
 
 

@@ -15,7 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import real_knee
+from conftest import real_knee, real_knee_scenario
 
 import dea_opt as d
 
@@ -114,34 +114,12 @@ def test_a_growing_torsion_along_a_load_path_turns_the_femur_then_ends_unbounded
 
 def test_the_cli_says_why_a_torsion_past_the_limit_has_no_answer(knee, tmp_path):
     """``dea-opt run``: exit 1 (no certified answer), with the reason in its last line."""
-    from conftest import KNEE
     from typer.testing import CliRunner
 
     from dea_opt.cli import app
 
     scenario = tmp_path / "torsion.toml"
-    scenario.write_text(
-        f"""
-[geometry]
-kind = "meshes"
-mesh1 = {{ medial = "{KNEE / "medial_tibial_cartilage.stl"}", lateral = "{KNEE / "lateral_tibial_cartilage.stl"}" }}
-mesh2 = "{KNEE / "femoral_cartilage.stl"}"
-max_gap = 2.0
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-reference = {list(map(float, knee["reference"]))}
-free = ["uz", "rz"]
-[load]
-force = [0.0, 0.0, -{LOAD}]
-moment = [0.0, 0.0, 5000.0]
-[solve]
-kinematics = "finite"
-[output]
-formats = ["json"]
-"""
-    )
+    scenario.write_text(real_knee_scenario(["uz", "rz"], (0.0, 0.0, 5000.0)))
     result = CliRunner().invoke(app, ["run", str(scenario), "-o", str(tmp_path / "out")])
     assert result.exit_code == 1, result.output
     last = result.output.strip().splitlines()[-1]
