@@ -359,9 +359,10 @@ class Solution:
         :meth:`with_validity`, or call :func:`dea_opt.validity.assess` ``(solution.problem,
         solution.u, solution.strain, solution.pressure, limits=..., dropped=...)``.
         """
-        if self.assessed_validity is not None:
-            return self.assessed_validity
-        return assess(self.problem, self.u, self.strain, self.pressure, **self._counts())
+        validity = self.assessed_validity
+        if validity is None:
+            validity = assess(self.problem, self.u, self.strain, self.pressure, **self._counts())
+        return _ran_away(validity) if self.status == Status.UNBOUNDED else validity
 
     def _counts(self) -> dict:
         """The counts of springs this answer knows for :func:`~dea_opt.validity.assess` (none; a
@@ -479,3 +480,21 @@ class Solution:
         from .anatomy.regions import regional_statistics
 
         return regional_statistics(self, labels=labels, planes=planes)
+
+
+#: The checks that measure the answer itself (not the layer's sizes).
+_OF_THE_ANSWER = ("strain", "rotation", "gap_error", "peak_pressure", "dropped_springs", "lost_through_layer")
+
+
+def _ran_away(validity: Validity) -> Validity:
+    """``validity`` of an answer whose iterates ran away (``Status.UNBOUNDED``): the failed checks of
+    the answer say that it is no equilibrium, not what a failure would mean at one (a crushed
+    layer, a load in the wrong unit)."""
+    why = (
+        "the answer is where the solver's iterates ran away (status 'unbounded'), no equilibrium: its strains, "
+        "pressures and motion mean nothing (the message says which load no spring resists)"
+    )
+    checks = tuple(
+        replace(c, advice=why) if c.passed is False and c.name in _OF_THE_ANSWER else c for c in validity.checks
+    )
+    return replace(validity, checks=checks)

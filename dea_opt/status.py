@@ -94,9 +94,9 @@ _DESCRIPTIONS = {
     Status.UNBOUNDED: "the solver found its problem unbounded (its iterates diverged); for finite kinematics, Newton found "
     "the energy decreasing without bound along its direction (checked over a whole turn): the load turns "
     "or slides body 2 along a motion no spring resists (a sphere turning about its own centre), or its "
-    "iterates ran away (a turn past 180 deg, a slide past 4 times the layer's radius): no equilibrium "
-    "near the start carries the load (a torsion past the largest a knee's surfaces hold); auto does not "
-    "run IPOPT then",
+    "iterates ran away (a turn past 180 deg, a slide past 4 times the layer's radius): no stable "
+    "equilibrium near the start carries the load (a torsion past the largest a knee's surfaces hold; "
+    "IPOPT may find an unstable one, which fails the stability check); auto does not run IPOPT then",
     Status.NON_FINITE: "a NaN or an infinity: in the data bound for compiled code (never passed on) or from the law",
     Status.SOLVER_ERROR: "the solver failed or raised without an answer",
     Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a load path's frame or a study's row "

@@ -1,6 +1,6 @@
 """Finite kinematics on the real knee with ``uz, rz`` free under 1000 N and a torsion ``Mz``: the
 articular surfaces alone (no ligaments in the model) hold a torsion up to a limit, turning the
-femur as it grows, and past that limit no equilibrium near the start carries it.
+femur as it grows, and past that limit no stable equilibrium near the start carries it.
 
 Up to about 4300 N mm the femur turns 13-15 deg and rides up the tibial plateau; the springs at
 the solved pose balance the load (summed here). The small kinematics on the start pose's springs
@@ -66,6 +66,7 @@ def test_a_torsion_the_knee_holds_turns_the_femur_13_degrees_and_converges_from_
     assert moment[2] == pytest.approx(-4000.0, rel=1e-6)
     turn = np.degrees(solution.u[11])
     assert 12.0 < turn < 14.5
+    assert solution.validity["stability"].passed  # the femur rides up the plateau: it stays there
     # the small kinematics on the start pose's springs crush the layer through at that turn
     small = quiet(d.solve, d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), **_small_kw(knee, 4000.0)))
     assert small.strain.min() <= -0.95 and np.degrees(small.u[11]) > 10.0
@@ -85,8 +86,15 @@ def test_a_torsion_past_the_largest_the_knee_holds_ends_unbounded_without_ipopt(
     solution = quiet(d.solve, problem, strict=False)
     assert not solution.success and solution.status is d.Status.UNBOUNDED
     assert solution.method == "finite" and solution.info["fallback"].startswith("not tried")
-    assert "no equilibrium near the start carries this load" in solution.message
+    assert "no stable equilibrium near the start carries this load" in solution.message
     assert "ligaments" in solution.message and "crushed" not in solution.message
+    # the run-away pose's strains and pressures fail their checks, which say that it is no
+    # equilibrium, not that the layer is crushed or the units are wrong
+    failed = solution.validity.failed
+    assert failed and not solution.validity.valid
+    for check in failed:
+        assert "ran away" in check.advice and "units" not in check.advice and "bounded law" not in check.advice
+    assert solution.validity["stability"].passed is None
     with pytest.raises(d.SolverError) as caught:
         quiet(d.solve, problem)
     assert caught.value.status is d.Status.UNBOUNDED
@@ -123,5 +131,5 @@ def test_the_cli_says_why_a_torsion_past_the_limit_has_no_answer(knee, tmp_path)
     result = CliRunner().invoke(app, ["run", str(scenario), "-o", str(tmp_path / "out")])
     assert result.exit_code == 1, result.output
     last = result.output.strip().splitlines()[-1]
-    assert "status 'unbounded': " in last and "no equilibrium near the start carries this load" in last
+    assert "status 'unbounded': " in last and "no stable equilibrium near the start carries this load" in last
     assert "Traceback" not in result.output

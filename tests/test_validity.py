@@ -34,6 +34,7 @@ NAMES = (
     "peak_pressure",
     "dropped_springs",
     "lost_through_layer",
+    "stability",
 )
 
 
@@ -258,7 +259,7 @@ def test_dropped_springs_is_not_evaluated_unless_counted():
     check = solution.validity["dropped_springs"]
     assert check.passed is None and check.status == "not evaluated" and math.isnan(check.value)
     assert solution.validity.valid
-    assert "dropped_springs not evaluated" in solution.validity.summary()
+    assert "dropped_springs, stability not evaluated" in solution.validity.summary()
     args = (solution.problem, solution.u, solution.strain, solution.pressure)
     assert assess(*args, dropped=0)["dropped_springs"].passed is True
     counted = assess(*args, dropped=453)

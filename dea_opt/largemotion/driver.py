@@ -37,6 +37,7 @@ from ..mesh import SpringCast, check_pose
 from ..status import Status
 from .outcome import crushed_at_start, crushed_far, crushed_through, far_from_start, ran_away, unsettled
 from .solution import FiniteSolution, certificate
+from .stability import softest
 from .start import at_base, near_base, predicted
 from .tracker import MeshTracker
 
@@ -200,7 +201,7 @@ def solve(
         (or ``"nlp"``): IPOPT on a conservative surrogate re-centred at each outer iteration
         (``formulations/finite_nlp.md``); ``"auto"``: Newton, then IPOPT if Newton's answer
         fails its certificate (``solution.info["fallback"]`` says why; not where Newton found the
-        layer crushed, no spring left, springs that do not settle, or no equilibrium near the
+        layer crushed, no spring left, springs that do not settle, or no stable equilibrium near the
         start: IPOPT meets the same, in minutes). ``"qp"`` is an
         :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
     certificate_tol : float
@@ -230,7 +231,7 @@ def solve(
             if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
                 solution.info["fallback"] = "not tried: the layer is crushed through, a limit of the model"
             elif solution.status is Status.UNBOUNDED:  # IPOPT chases the same motion (9 minutes on the knee)
-                solution.info["fallback"] = "not tried: no equilibrium near the start carries the load"
+                solution.info["fallback"] = "not tried: no stable equilibrium near the start carries the load"
             elif solution.status is Status.POSE_ERROR:  # the meshes' geometry: the same for IPOPT
                 solution.info["fallback"] = "not tried: no spring is left at the pose"
             elif solution.info.get("recast", {}).get("stable") is False:  # IPOPT's springs are updated alike
@@ -477,6 +478,10 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     through = 0 if tracker is None else tracker.lost_through_layer(system.transform(state.y)) if finite else None
     if through:
         info["recast"]["lost_through_layer"] = through
+    # stability is a property of an equilibrium: of a certified answer only
+    stability, along = softest(state, lengths) if finite and cert.passed else (None, "")
+    if along:
+        info["softest_direction"] = along
     message = inner.message
     held = small.resistance.describe(problem.free_names) if len(system.free) else []
     if held:
@@ -501,5 +506,6 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
         targets=targets,
         dropped=dropped,
         lost_through_layer=through,
+        stability=stability,
         tracker=tracker,
     )

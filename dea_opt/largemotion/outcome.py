@@ -2,7 +2,7 @@
 
 ``crushed`` (:class:`~dea_opt.status.Status`) when the load drives body 2 through the cartilage
 (``formulations/finite.md``, "Limits"), ``unbounded`` when the iterates ran away (no
-equilibrium near the start: along a free dof the contact resists less than the load), and
+stable equilibrium near the start: along a free dof the contact resists less than the load), and
 ``max_iterations`` when the springs did not settle within ``max_recasts`` updates. Used by
 :mod:`~dea_opt.largemotion.driver`.
 """
@@ -79,7 +79,7 @@ def ran_away(system, inner, radius: float) -> bool:
     motion, _ = _motion(system.free, x, np.asarray(system.force, dtype=float))
     inner.status = "unbounded"
     inner.message += (
-        f"; the iterates ran away ({motion}): no equilibrium near the start carries this load, which along "
+        f"; the iterates ran away ({motion}): no stable equilibrium near the start carries this load, which along "
         f"the free dofs exceeds what the contact resists (nothing in the model holds body 2 there; in a "
         f"joint, the ligaments): hold those dofs, or give them the loads that hold them"
     )

@@ -82,13 +82,16 @@ class FiniteSolution(Solution):
     (:class:`~dea_opt.formulations.finite.Targets`); ``info`` counts the re-casts and
     the springs they gained, lost and dropped (``info["recast"]``); ``lost_through_layer`` the
     loaded springs lost through the layer that still lie behind mesh 1's far side at the solved
-    pose (a validity check); ``tracker`` is the re-casting state a load path's next frame
-    continues from.
+    pose (a validity check); ``stability`` how far the answer is from a stable equilibrium
+    (:func:`~dea_opt.largemotion.stability.softest`: above 0 when a disturbance along
+    ``info["softest_direction"]`` grows; the ``stability`` validity check); ``tracker`` is the
+    re-casting state a load path's next frame continues from.
     """
 
     targets: Targets | None = None
     dropped: int | None = None
     lost_through_layer: int | None = None
+    stability: float | None = None
     tracker: object = field(default=None, repr=False)
 
     def __getstate__(self) -> dict:
@@ -128,8 +131,14 @@ class FiniteSolution(Solution):
 
     def _counts(self) -> dict:
         """The validity report at the solved pose counts the springs the window dropped there and
-        those lost through the layer (when the springs were re-cast from meshes)."""
-        return {"dropped": self.dropped, "lost_through_layer": self.lost_through_layer}
+        those lost through the layer (when the springs were re-cast from meshes), and says whether
+        the equilibrium is stable."""
+        return {
+            "dropped": self.dropped,
+            "lost_through_layer": self.lost_through_layer,
+            "stability": self.stability,
+            "softest": self.info.get("softest_direction", ""),
+        }
 
     def summary(self) -> dict:
         out = super().summary()

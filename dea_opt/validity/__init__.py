@@ -6,7 +6,8 @@ law's range and short of crushing, rotations small enough for the linearised kin
 Eq. (9)-(11) (with the gap error they imply at the springs, computed exactly), sizes and
 pressures that a human joint has (so meshes in metres or loads in the wrong unit are caught),
 the springs the proximity window dropped at the solved pose, and, for finite kinematics, the
-loaded springs lost through the layer (an overlap deeper than mesh 1's cartilage). The
+loaded springs lost through the layer (an overlap deeper than mesh 1's cartilage) and whether
+the equilibrium is stable (a moment can tip body 2 over the contact). The
 formulas, the limits and their sources are in ``formulations/validity.md``; the report's types
 are in :mod:`~dea_opt.validity.report`, the checks in :mod:`~dea_opt.validity.checks`.
 
@@ -27,6 +28,7 @@ from .checks import (
     _pressure_check,
     _rotation_checks,
     _size_checks,
+    _stability_check,
     _strain_check,
     _through_layer_check,
     rotation_gap_error,
@@ -45,6 +47,8 @@ def assess(
     limits: ValidityLimits = DEFAULT_LIMITS,
     dropped: int | None = None,
     lost_through_layer: int | None = None,
+    stability: float | None = None,
+    softest: str = "",
 ) -> Validity:
     """The validity report of ``u`` as an answer to ``problem``.
 
@@ -65,13 +69,21 @@ def assess(
         behind mesh 1's far side at the solved pose
         (:meth:`~dea_opt.largemotion.MeshTracker.lost_through_layer`); without it the check is
         not evaluated for finite kinematics and passes for small kinematics, which loses no spring.
+    stability : float, optional
+        For finite kinematics: ``-min Re(lambda) / max |lambda|`` over the eigenvalues of the
+        tangent stiffness on the free coordinates at the solved pose
+        (:func:`~dea_opt.largemotion.stability.softest`), above 0 when the equilibrium is unstable;
+        without it the check is not evaluated (the small kinematics' equilibria are all stable:
+        their energy is convex).
+    softest : str, optional
+        The direction that gives way, for the advice (``"uz -0.1 mm, ry +2.7 deg"``).
 
     Returns
     -------
     Validity
         The checks ``strain``, ``rotation``, ``gap_error``, ``extent``, ``layer_area``,
-        ``thickness``, ``peak_pressure``, ``dropped_springs`` and ``lost_through_layer``, in
-        that order.
+        ``thickness``, ``peak_pressure``, ``dropped_springs``, ``lost_through_layer`` and
+        ``stability``, in that order.
     """
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
@@ -99,5 +111,6 @@ def assess(
         _pressure_check(pressure, limits),
         _dropped_check(dropped, limits),
         _through_layer_check(problem, lost_through_layer, limits),
+        _stability_check(problem, stability, softest, limits),
     )
     return Validity(checks, limits)

@@ -1,6 +1,7 @@
 """The validity checks, one function each (``formulations/validity.md``): the strain against the
 law's range and crushing, the rotation and the gap error of the small kinematics, the layer's
-sizes, the peak pressure, and the springs the cast dropped or lost through the layer.
+sizes, the peak pressure, the springs the cast dropped or lost through the layer, and the
+stability of a finite-kinematics equilibrium.
 """
 
 from __future__ import annotations
@@ -257,4 +258,31 @@ def _through_layer_check(problem, lost, limits: ValidityLimits) -> Check:
             f"answer leaves their force out; the layer is nearly crushed there: check the load and its units, "
             f"H and the thicknesses"
         ),
+    )
+
+
+def _stability_check(problem, stability, softest, limits: ValidityLimits) -> Check:
+    if stability is None:
+        why = (
+            "the small kinematics' energy is convex: each of its equilibria is stable"
+            if getattr(problem, "kinematics", "small") != "finite"
+            else "no certified equilibrium to test (the stability of an answer that is no equilibrium means nothing)"
+        )
+        return Check("stability", math.nan, limits.stability, "", None, why)
+    value = float(stability)
+    if value <= limits.stability:
+        return Check("stability", value, limits.stability, "", True)
+    if not math.isfinite(value):
+        return Check("stability", value, limits.stability, "", False, _NOT_FINITE)
+    where = f" along {softest}" if softest else ""
+    return Check(
+        "stability",
+        value,
+        limits.stability,
+        "",
+        False,
+        f"the equilibrium is unstable: its stiffness{where} is negative ({value:.3g} of the stiffest "
+        f"direction's), so body 2 leaves it at the smallest disturbance (the load tips it over the "
+        f"contact, as a pencil on its point) and Newton, which descends the energy, does not stop "
+        f"there; hold that dof, or give it the load that holds it (in a joint, the ligaments)",
     )

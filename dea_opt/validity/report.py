@@ -64,6 +64,10 @@ class ValidityLimits:
     lost_through_layer : int, default 0
         Springs of a finite-kinematics solve that carried load and were lost through the layer
         (at the solved pose their rays meet mesh 2 behind mesh 1's far side) that are allowed.
+    stability : float, default 1e-9
+        Largest negative stiffness of a finite-kinematics equilibrium along any free direction,
+        as a fraction of the stiffest direction's (round-off: any clearly negative stiffness
+        makes the equilibrium unstable).
     """
 
     compression: float | None = None
@@ -76,6 +80,7 @@ class ValidityLimits:
     peak_pressure: float = 35.0
     dropped_springs: int = 0
     lost_through_layer: int = 0
+    stability: float = 1e-9
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -85,6 +90,7 @@ class ValidityLimits:
         set_(self, "rotation", _limit("ValidityLimits.rotation", self.rotation, 180.0))
         set_(self, "gap_error", _limit("ValidityLimits.gap_error", self.gap_error))
         set_(self, "peak_pressure", _limit("ValidityLimits.peak_pressure", self.peak_pressure))
+        set_(self, "stability", _limit("ValidityLimits.stability", self.stability, 1.0))
         for name in ("extent", "layer_area", "thickness"):
             set_(self, name, _range(f"ValidityLimits.{name}", getattr(self, name)))
         for name in ("dropped_springs", "lost_through_layer"):
@@ -105,7 +111,7 @@ class Check:
     ----------
     name : str
         ``strain``, ``rotation``, ``gap_error``, ``extent``, ``layer_area``, ``thickness``,
-        ``peak_pressure``, ``dropped_springs`` or ``lost_through_layer``.
+        ``peak_pressure``, ``dropped_springs``, ``lost_through_layer`` or ``stability``.
     value : float
         What was measured, in ``unit``; NaN when not evaluated.
     limit : float or (float, float)

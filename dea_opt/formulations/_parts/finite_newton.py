@@ -25,6 +25,11 @@ _WOLFE_CURVATURE = 0.9
 _WOLFE_CURVATURE_SAFE = 0.01
 _SAFE_WEIGHT = 1e-3
 _CRUSH_WINDOW = 1e-4
+#: The largest turn (rad) of body 2 in a step the line search grew beyond Newton's: steps growing
+#: fourfold past it could land turns away, where the line's energy (periodic in the springs',
+#: linear in the moment's work) happens to meet the Wolfe conditions; the turn is scanned
+#: instead (:func:`_scan`).
+_MAX_TURN = 0.5 * np.pi
 
 
 @dataclass
@@ -83,7 +88,9 @@ _SCAN_POINTS = 360
 
 def _scan(line, free, slope0, curvature) -> tuple:
     """``(a, state, evaluations)``: a step on a line along which the steps of the line search,
-    growing fourfold, found ``phi`` descending steeply up to :data:`~dea_opt.formulations.newton.UNBOUNDED_STEP`.
+    growing fourfold, found ``phi`` descending steeply up to
+    :data:`~dea_opt.formulations.newton.UNBOUNDED_STEP`, or found a step that turns body 2 past
+    :data:`_MAX_TURN`.
 
     Along a line that turns body 2, the springs' energy is bounded (a turn brings every spring
     back) while a moment's work grows without bound, so ``Phi`` does decrease without bound; but
@@ -133,8 +140,9 @@ def _unbounded(system, direction) -> str:
     return (
         f"the energy decreases without bound along the search direction ({', '.join(parts)}): the load does "
         f"more work than the springs resist however far body 2 moves that way, as when it turns or slides "
-        f"the surfaces along each other (a sphere turning about its own centre); no equilibrium near the "
-        f"start carries this load"
+        f"the surfaces along each other (a sphere turning about its own centre); no stable equilibrium "
+        f"near the start carries this load: hold those dofs, or give them the loads that hold them (in a "
+        f"joint, the ligaments)"
     )
 
 
@@ -254,6 +262,8 @@ def solve(
         Td = T @ d
         line = _Line(system, law, x, Td, energy_scale, slope)
         alpha, trial, used = _line_search(line, slope, _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE)
+        if alpha is not None and alpha > 1.0 and alpha * float(np.linalg.norm(Td[np.asarray(free) >= 3])) > _MAX_TURN:
+            alpha = np.inf  # a grown step that turns body 2 past a quarter turn: look at the turn closely
         evaluations += used
         if alpha is None:
             status, message = "line_search_failed", "the line search found no acceptable step"
