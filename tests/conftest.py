@@ -21,6 +21,25 @@ SHARED = Path(__file__).resolve().parents[2] / "shared"
 KNEE = SHARED / "data" / "knee"
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 
+
+def ball_on_bed(layer, reference, moment, free, force=(0.0, 0.0, 0.0), *, H=10.0, radius=25.0):
+    """A rigid ball of ``radius`` (mm) touching the bed ``layer`` at the origin (centre
+    ``(0, 0, radius)``, its target a sphere), with finite kinematics: body 2's ``free`` dofs about
+    ``reference`` under ``force`` (N) and ``moment`` (N mm), linear law of modulus ``H`` (MPa)."""
+    from dea_opt.formulations.finite import Targets
+
+    return d.ContactProblem(
+        layer,
+        d.LinearLaw(H),
+        force=force,
+        moment=moment,
+        reference=reference,
+        free=free,
+        kinematics="finite",
+        targets=Targets.spheres((0.0, 0.0, radius), radius, n=len(layer)),
+    )
+
+
 #: A scenario of the generated knee meshes solved with finite kinematics.
 KNEE_SCENARIO = textwrap.dedent("""
     [geometry]

@@ -19,9 +19,9 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import ball_on_bed
 
 import dea_opt as d
-from dea_opt.formulations.finite import Targets
 from dea_opt.geometry import sphere_on_bed_layer
 from dea_opt.validity import ValidityLimits, assess
 
@@ -40,17 +40,8 @@ def layer():
     return sphere_on_bed_layer(RADIUS, 2.0, 7.0, 24, 20)
 
 
-def ball(layer, moment, reference):
-    return d.ContactProblem(
-        layer,
-        d.LinearLaw(H),
-        force=FORCE,
-        moment=moment,
-        reference=reference,
-        free=FREE,
-        kinematics="finite",
-        targets=Targets.spheres(tuple(CENTRE), RADIUS, n=len(layer)),
-    )
+def ball(layer, moment, reference, free=FREE, force=FORCE):
+    return ball_on_bed(layer, reference, moment, free, force, H=H, radius=RADIUS)
 
 
 def quiet(function, *args, **kw):
@@ -173,24 +164,12 @@ def test_a_line_search_step_grown_past_a_quarter_turn_is_scanned_not_taken(layer
     turn scanned one degree apart instead."""
     reference, moment, force = (3.6, -1.7, 18.7), (-49.0, 108.0, 23.0), (0.0, 0.0, -25.0)
 
-    def problem():
-        return d.ContactProblem(
-            layer,
-            d.LinearLaw(H),
-            force=force,
-            moment=moment,
-            reference=reference,
-            free=("rx", "ry"),
-            kinematics="finite",
-            targets=Targets.spheres(tuple(CENTRE), RADIUS, n=len(layer)),
-        )
-
-    newton = quiet(d.solve, problem(), "newton")
+    newton = quiet(d.solve, ball(layer, moment, reference, ("rx", "ry"), force), "newton")
     rotation = newton.pose[:3, :3]
     turn = np.degrees(np.arccos(np.clip((np.trace(rotation) - 1) / 2, -1, 1)))  # the pose's, however written
     assert newton.success and 60.0 < turn < 90.0
     net = net_generalized(layer, moment, reference, newton.u[6:], force)[[3, 4]]
     assert np.abs(net).max() < 1e-6 * 108.0  # equilibrium about rx, ry, summed here
     assert newton.validity["stability"].passed is True
-    ipopt = quiet(d.solve, problem(), "nlp")
+    ipopt = quiet(d.solve, ball(layer, moment, reference, ("rx", "ry"), force), "nlp")
     assert ipopt.success and np.abs(ipopt.pose - newton.pose).max() < 1e-6  # the same pose

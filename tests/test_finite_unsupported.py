@@ -15,6 +15,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import ball_on_bed
 
 import dea_opt as d
 from dea_opt.formulations.finite import Targets, evaluate, pose_matrix
@@ -31,16 +32,7 @@ def bed():
 
 
 def ball_problem(layer, reference, moment, free, force=(0.0, 0.0, 0.0)):
-    return d.ContactProblem(
-        layer,
-        d.LinearLaw(H),
-        force=force,
-        moment=moment,
-        reference=reference,
-        free=free,
-        kinematics="finite",
-        targets=Targets.spheres(CENTRE, R, n=len(layer)),
-    )
+    return ball_on_bed(layer, reference, moment, free, force, H=H, radius=R)
 
 
 def solve(problem, method="auto"):
