@@ -103,6 +103,20 @@ def stiffness_of(layer, moment, reference, solution, step=1e-6):
     return K, net_generalized(layer, moment, reference, y)[free]
 
 
+def scaled(layer, reference, K):
+    """``K`` in the springs' motion (mm): a rotation times the springs' RMS radius about the
+    reference (the inertia of a body whose mass lies at the springs), ``D^-1 K D^-1``."""
+    rho = np.sqrt(np.mean(np.sum((layer.points - np.asarray(reference)) ** 2, axis=1)))
+    lengths = np.array([1.0 if name.startswith("u") else rho for name in FREE])
+    return K / lengths[:, None] / lengths[None, :]
+
+
+def instability(layer, reference, K) -> float:
+    """``-min Re(lambda) / max |lambda|`` of the scaled tangent: above 0 where a disturbance grows."""
+    values = np.linalg.eigvals(scaled(layer, reference, K))
+    return float(-values.real.min() / np.abs(values).max())
+
+
 def test_ipopt_certifies_a_tipping_equilibrium_that_fails_the_stability_check(layer):
     solution = quiet(d.solve, ball(layer, TIPPING, ABOVE), "nlp")
     assert solution.success  # the forces balance there: the certificate passes
@@ -113,7 +127,8 @@ def test_ipopt_certifies_a_tipping_equilibrium_that_fails_the_stability_check(la
     assert eigenvalues.real.min() < -0.01 * np.abs(eigenvalues).max()  # a disturbance grows
     check = solution.validity["stability"]
     assert check.passed is False and not solution.validity.valid
-    assert check.value > 0.01
+    assert instability(layer, ABOVE, K) > 1e-4
+    assert check.value == pytest.approx(instability(layer, ABOVE, K), rel=1e-4)
     along = solution.info["softest_direction"]
     assert "rx" in along and "deg" in along and along in check.advice
     assert "unstable" in check.advice and "ligaments" in check.advice
@@ -132,6 +147,7 @@ def test_a_ball_that_settles_passes_the_stability_check_and_newton_and_ipopt_agr
     assert np.linalg.eigvals(K).real.min() > 0.0
     check = solution.validity["stability"]
     assert check.passed is True and check.value <= 0.0 and solution.validity.valid
+    assert check.value == pytest.approx(instability(layer, BELOW, K), rel=1e-4)
     ipopt = quiet(d.solve, ball(layer, HELD, BELOW), "nlp")
     assert ipopt.success and np.abs(ipopt.u - solution.u).max() < 1e-6
     assert ipopt.validity["stability"].passed is True
@@ -173,3 +189,33 @@ def test_a_line_search_step_grown_past_a_quarter_turn_is_scanned_not_taken(layer
     assert newton.validity["stability"].passed is True
     ipopt = quiet(d.solve, ball(layer, moment, reference, ("rx", "ry"), force), "nlp")
     assert ipopt.success and np.abs(ipopt.pose - newton.pose).max() < 1e-6  # the same pose
+
+
+def test_newton_leaves_an_unstable_equilibrium_for_the_stable_one_a_ball_rolled_over(layer):
+    """No moment, ``uz, rx, ry`` free about a reference 2.6 mm above the ball's centre: the upright
+    ball is balanced but tips (an inverted pendulum: a turn moves the centre aside of the reference,
+    and the contact force through it tips the ball further); turned half a turn the centre lies
+    2.6 mm above the reference, a pendulum, and the ball rests there. Newton from rest stops upright,
+    where the forces balance; it now measures the tangent there, steps down the energy along the
+    motion that gives way, and ends rolled over. Closed form: the turn is half a turn and the centre
+    rests where the upright ball's does (the same force on the same sphere), 2 x 2.6 mm lower
+    in ``uz``; the net force summed here vanishes and the tangent is stable."""
+    reference = (0.0, 0.0, 27.6)
+    upright = quiet(d.solve, ball(layer, (0.0, 0.0, 0.0), reference, ("uz",)), "newton")
+    newton = quiet(d.solve, ball(layer, (0.0, 0.0, 0.0), reference), "newton")
+    assert upright.success and newton.success
+    turn = np.linalg.norm(newton.u[9:])
+    assert turn == pytest.approx(np.pi, abs=1e-6)
+    centre = newton.pose[:3, :3] @ CENTRE + newton.pose[:3, 3]
+    assert centre == pytest.approx(CENTRE + [0.0, 0.0, upright.u[8]], abs=1e-6)
+    assert newton.u[8] == pytest.approx(upright.u[8] - 2 * 2.6, abs=1e-6)
+    K, net = stiffness_of(layer, (0.0, 0.0, 0.0), reference, newton)
+    assert np.abs(net).max() < 1e-6 * 68.0
+    assert instability(layer, reference, K) < 0.0 and newton.validity["stability"].passed is True
+    assert newton.validity.valid
+    left = newton.info["escapes"]
+    assert len(left) == 1 and "left an unstable equilibrium" in left[0] and left[0] in newton.message
+    # the upright pose is the equilibrium IPOPT keeps from rest, and the check fails it
+    ipopt = quiet(d.solve, ball(layer, (0.0, 0.0, 0.0), reference), "nlp")
+    assert ipopt.success and np.linalg.norm(ipopt.u[9:]) < 1e-9 and ipopt.u[8] == pytest.approx(upright.u[8], abs=1e-6)
+    assert ipopt.validity["stability"].passed is False

@@ -25,7 +25,7 @@ import numpy as np
 from ..status import CERTIFIABLE, Status
 from ._parts.finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
 from ._parts.finite_motion import motion
-from ._parts.finite_newton import InnerResult
+from ._parts.finite_newton import InnerResult, escape_step
 from ._parts.finite_system import FiniteSystem, State, generalized
 from ._parts.options import Capabilities, Option
 from .energy import SpringSystem, modulus_scale, resistance, start_vector
@@ -42,6 +42,7 @@ __all__ = [
     "Model",
     "State",
     "Targets",
+    "escape_step",
     "evaluate",
     "generalized",
     "left_jacobian",

@@ -37,7 +37,7 @@ from ..mesh import SpringCast, check_pose
 from ..status import Status
 from .outcome import crushed_at_start, crushed_far, crushed_through, far_from_start, ran_away, unsettled
 from .solution import FiniteSolution, certificate
-from .stability import softest
+from .stability import leave_unstable, lengths_of, noted, softest
 from .start import at_base, near_base, predicted
 from .tracker import MeshTracker
 
@@ -318,6 +318,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         return inner
 
     start_state = None  # the state at x of the springs an update brought, which it computed
+    escapes: list = []  # the unstable equilibria Newton converged to and left
     while True:
         inner = _inner(method, system, law, T, E0, x, cold, loose_opts, start_state)
         inner.info["loose"] = loose
@@ -335,18 +336,23 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
             x, cold, start_state = np.zeros(len(system.free)), True, None
             continue
         first = False
-        if tracker is None or not inner.success:
-            break
-        system, inner, resolve, stable = _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten)
-        x, start_state = inner.u_free, inner.state
-        if resolve and method != "finite" and tracker.crushed_through:
-            # IPOPT would take minutes to find that the springs left cannot carry the load; its
-            # forces were those of the springs before the update
-            inner.success = False
-            inner.info.pop("stress", None)
-            break
-        if not resolve:
-            break
+        if tracker is not None and inner.success:
+            system, inner, resolve, stable = _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten)
+            x, start_state = inner.u_free, inner.state
+            if resolve and method != "finite" and tracker.crushed_through:
+                # IPOPT would take minutes to find that the springs left cannot carry the load; its
+                # forces were those of the springs before the update
+                inner.success = False
+                inner.info.pop("stress", None)
+                break
+            if resolve:
+                continue
+        if stable and inner.success and method == "finite":  # Newton's answer: left if unstable
+            if (away := leave_unstable(system, law, inner, E0, escapes)) is not None:
+                x, start_state = away, None
+                continue
+        break
+    noted(inner, escapes)
     if tracker is not None:
         tracker.counts["stable"] = stable
         if tracker.crushed_through and not inner.success:
@@ -455,8 +461,7 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     with np.errstate(invalid="ignore", over="ignore"):
         pressure = 0.0 - law.stress(np.minimum(state.eps, 0.0))
     reported = -pressure if inner.info.get("stress") is None else inner.info["stress"]
-    radius = max(rms_radius(system), 1e-12)  # final.layer_radius[1], from the springs' rows
-    lengths = np.where(system.free < 3, 1.0, radius)
+    lengths = lengths_of(system)  # a rotation's: final.layer_radius[1], from the springs' rows
     stiffness = float(np.sum(layer.areas / layer.thickness))
     cert = certificate(
         state, law, final.layer, lengths, stiffness, u, reported, gaps_at_zero / system.thickness, certificate_tol
@@ -464,7 +469,7 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     settled = tracker is None or tracker.counts.get("stable", True)
     crushed = inner.status == "crushed"
     success = bool(finite and cert.passed and np.isfinite(pressure).all() and settled and not crushed)
-    info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose")}
+    info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose", "softest")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
     if cert.passed and not settled:
         info["failure"] = "its certificate passed for springs not brought up to date at the solved pose (max_recasts)"
@@ -479,7 +484,10 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     if through:
         info["recast"]["lost_through_layer"] = through
     # stability is a property of an equilibrium: of a certified answer only
-    stability, along = softest(state, lengths) if finite and cert.passed else (None, "")
+    known = inner.info.get("softest") or (None,)  # measured for Newton's answer (leave_unstable)
+    if not (finite and cert.passed):
+        known = (state, None, "")
+    stability, along = known[1:] if known[0] is state else softest(state, lengths)
     if along:
         info["softest_direction"] = along
     message = inner.message

@@ -131,6 +131,75 @@ def _scan(line, free, slope0, curvature) -> tuple:
     return lo, trial, used + 1
 
 
+#: The first step (in units of the motion, whose largest part moves the springs 1 mm) and the
+#: number of doublings :func:`escape_step` tries on each side of an unstable equilibrium.
+_ESCAPE_FIRST, _ESCAPE_DOUBLINGS = 1e-3, 24
+
+
+def escape_step(system, law, x, motion, energy_scale, radius) -> np.ndarray | None:
+    """A start away from the unstable equilibrium ``x``: the lowest point of the energy along ``motion``.
+
+    At an equilibrium where the tangent's symmetric part has a negative eigenvalue, the energy
+    falls on both sides along its eigenvector ``motion`` (m,; mm and rad, its largest part moving
+    the springs 1 mm): Newton, which stops where the forces balance, stopped at a saddle or a
+    crest of the energy. On each side the steps double from ``_ESCAPE_FIRST`` while ``phi'`` (the
+    power of the net forces, :class:`_Line`) stays negative and body 2 turns less than
+    :data:`_MAX_TURN` and slides less than 4 ``radius`` (where a solve has run away,
+    :func:`~dea_opt.largemotion.outcome.ran_away`); where ``phi'`` turns
+    positive the energy has a minimum along the line, found by bisection. Of the two sides, the
+    lower one (``phi`` by the trapezoidal rule on the slopes looked at). None where the energy
+    falls all the way on both sides, or rises at once (the answer is kept, and the ``stability``
+    check fails it).
+
+    Parameters
+    ----------
+    system : FiniteSystem
+    law : Law
+    x : ndarray (m,)
+        The free coordinates of the equilibrium (mm, rad).
+    motion : ndarray (m,)
+        The direction that gives way (:func:`~dea_opt.largemotion.stability.softest_mode`).
+    energy_scale : float
+        ``E0`` (N mm): the slopes are divided by it.
+    radius : float
+        The springs' RMS radius about body 2's reference (mm).
+    """
+    free = np.asarray(system.free)
+    turn = float(np.linalg.norm(motion[free >= 3]))
+    slide = float(np.linalg.norm(motion[free < 3]))
+    reach = min(_MAX_TURN / turn if turn > 0 else np.inf, 4.0 * radius / slide if slide > 0 else np.inf)
+    best, lowest = None, 0.0
+    for sign in (1.0, -1.0):
+        line = _Line(system, law, x, sign * motion, energy_scale, 0.0)
+        lo, slope_lo, a, energy = 0.0, 0.0, _ESCAPE_FIRST, 0.0
+        for _ in range(_ESCAPE_DOUBLINGS):
+            if a > reach:
+                break
+            value = line.slope(a)[0]
+            if not np.isfinite(value) or value >= 0.0:
+                lo, slope_lo, energy = _bisect(line, lo, a, slope_lo, energy)
+                if lo > 0.0 and energy < lowest:
+                    best, lowest = x + lo * sign * motion, energy
+                break
+            energy += 0.5 * (a - lo) * (slope_lo + value)
+            lo, slope_lo, a = a, value, 2.0 * a
+    return best
+
+
+def _bisect(line, lo, hi, slope_lo, energy) -> tuple[float, float, float]:
+    """``(a, slope, phi)``: where ``phi'`` crosses 0 between ``lo`` (below 0) and ``hi`` (at or above 0,
+    or beyond the law's domain), and ``phi`` there (``energy`` at ``lo`` plus the trapezoid)."""
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        value = line.slope(mid)[0]
+        if np.isfinite(value) and value < 0.0:
+            energy += 0.5 * (mid - lo) * (slope_lo + value)
+            lo, slope_lo = mid, value
+        else:
+            hi = mid
+    return lo, slope_lo, energy
+
+
 def _unbounded(system, direction) -> str:
     """Why the solve stopped where the energy decreases without bound along ``direction`` (m,)."""
     size = np.abs(direction)
