@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import KNEE
+from conftest import COARSE_SOCKET, KNEE
 from dea_opt.law_registry import Range
 from typer.testing import CliRunner
 
@@ -106,24 +106,14 @@ def test_a_failed_certificate_outranks_validity(tmp_path):
     assert read_manifest(tmp_path)["status"] == RunStatus.CERTIFICATE_FAILED
 
 
-HIP_PATH = """\
-[geometry]
-kind = "socket"
-radius = 25.0
-thickness = 3.0
-coverage = 80.0
-gap = 0.1
-n_rings = 10
-n_sectors = 30
-[law]
-kind = "linear"
-H = {H}
-[body2]
-free = ["ux", "uy", "uz"]
+HIP_PATH = (
+    COARSE_SOCKET.replace("H = 10.0", "H = {H}")
+    + """\
 [load_path]
 builtin = "hip_gait"
 frames = 11
 """
+)
 
 
 @pytest.mark.parametrize("H, code", [(10.0, 0), (4.0, 3)])
