@@ -484,10 +484,11 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     if through:
         info["recast"]["lost_through_layer"] = through
     # stability is a property of an equilibrium: of a certified answer only
-    known = inner.info.get("softest") or (None,)  # measured for Newton's answer (leave_unstable)
     if not (finite and cert.passed):
-        known = (state, None, "")
-    stability, along = known[1:] if known[0] is state else softest(state, lengths)
+        stability, along = None, ""
+    else:  # measured already for Newton's answer (leave_unstable)
+        known = inner.info.get("softest")
+        stability, along = known[1:] if known and known[0] is state else softest(state, lengths)
     if along:
         info["softest_direction"] = along
     message = inner.message
