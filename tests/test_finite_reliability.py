@@ -192,3 +192,28 @@ def test_a_crushed_answer_that_turned_far_says_a_free_dof_may_be_the_cause(tmp_p
     written = json.loads((tmp_path / "out" / "contact.json").read_text())
     assert written["status"] == "crushed" and written["success"] is False
     assert "free dof" in written["message"] and "deg" in written["message"]
+
+
+def test_ipopt_out_of_iterations_or_time_is_max_iterations_not_a_solver_error():
+    """IPOPT that ran out of its budget says so (``max_iterations``), and ``max_time`` bounds a
+    solve that would otherwise chase a load for minutes; the unlimited solve is certified."""
+    layer = plate_layer(6.0, 6.0, 12, 4, thickness=10.0)
+    problem = d.ContactProblem(
+        layer,
+        d.LinearLaw(10.0),
+        force=(0.0, 0.0, -50.0),
+        moment=(0.0, 40.0, 0.0),
+        free=("uz", "ry"),
+        reference=(0.0, 0.0, 0.0),
+        kinematics="finite",
+    )
+    full = quiet(d.solve, problem, method="nlp")
+    assert full.success and full.status == "converged"
+    assert np.allclose(spring_force(full), [0.0, 0.0, 50.0], atol=1e-6 * 50.0)
+    short = quiet(d.solve, problem, method="nlp", max_iter=1, strict=False)
+    assert not short.success and short.status == "max_iterations"
+    assert "Maximum_Iterations_Exceeded" in short.message
+    timed = quiet(d.solve, problem, method="nlp", max_time=1e-9, strict=False)
+    assert not timed.success and timed.status == "max_iterations" and "max_time" in timed.message
+    with pytest.raises(InputError, match="max_time must be a number in"):
+        d.solve(problem, method="nlp", max_time=-1.0)

@@ -41,13 +41,20 @@ OPTIONS = (
     ),
     Option("max_outer", int, 60, "outer iterations (re-centred IPOPT solves) per solve, at most", range=(1, None)),
     Option("max_iter", int, 3000, "IPOPT iterations per outer iteration, at most", range=(1, None)),
+    Option(
+        "max_time",
+        float,
+        3600.0,
+        "wall-clock seconds the IPOPT solves of one set of springs may take, at most (an update starts anew)",
+        range=(0, float("inf")),
+    ),
     Option("ipopt_options", dict, None, "IPOPT option names to values, passed on"),
     *RECAST_OPTIONS,
 )
 CAPABILITIES = Capabilities(laws="any", warm_start=True, kinematics=("finite",), duals=True, checks_load_first=True)
 EXTRA_OPTIONS = None
 VARIANT = Variant("form", {"constrained": "IPOPT-finite", "reduced": "IPOPT-finite-reduced"})
-_IPOPT = ("form", "tol", "outer_tol", "max_outer", "max_iter", "ipopt_options")
+_IPOPT = ("form", "tol", "outer_tol", "max_outer", "max_iter", "max_time", "ipopt_options")
 
 
 def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, start_state=None, **options) -> InnerResult:

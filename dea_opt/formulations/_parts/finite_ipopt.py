@@ -41,6 +41,8 @@ _STEP_BOUND = 4.0
 #: IPOPT's statuses that still give a usable centre for the next outer iteration: the residual
 #: test of the fixed point, and the certificate, judge the end.
 _ACCEPTABLE = ("Solved_To_Acceptable_Level", "Search_Direction_Becomes_Too_Small")
+#: IPOPT's statuses of a limit reached (its iterations or time): the solve ran out, it did not fail.
+_LIMITS = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded", "Maximum_WallTime_Exceeded")
 
 
 def _series(ca, tau, first):
@@ -63,7 +65,7 @@ def _rotation(ca, theta):
 class _Surrogate:
     """The CasADi model of ``Phi_k`` for one system, re-solved for each outer iteration."""
 
-    def __init__(self, system, law, T, energy_scale, form, tol, max_iter, ipopt_options):
+    def __init__(self, system, law, T, energy_scale, form, tol, max_iter, ipopt_options, max_time=None):
         ca = _casadi()
         self.system, self.law, self.T, self.E0, self.form = system, law, T, energy_scale, form
         m, k = T.shape
@@ -99,7 +101,8 @@ class _Surrogate:
             self.lbx, self.ubx = np.full(k, -_STEP_BOUND), np.full(k, _STEP_BOUND)
             self.lbg = self.ubg = np.zeros(0)
             nlp = {"x": xi, "p": params, "f": energy - ca.dot(load, xi)}
-        self.solver = ipopt_solver("dea_finite_nlp", nlp, tol, max_iter, ipopt_options)
+        limit = {} if max_time is None else {"max_wall_time": float(max_time)}
+        self.solver = ipopt_solver("dea_finite_nlp", nlp, tol, max_iter, {**limit, **(ipopt_options or {})})
         self.gap_jacobian = ca.Function("gap_jacobian", [xi, base], [ca.jacobian(self._gaps(ca, y), xi)])
         self._warm = None
 
@@ -225,17 +228,20 @@ def solve(
     outer_tol=1e-12,
     max_outer=60,
     max_iter=3000,
+    max_time=3600.0,
     ipopt_options=None,
 ) -> InnerResult:
     """The fixed point of the re-centred IPOPT solves (targets fixed).
 
     Stops when the scaled step of an outer iteration is below ``outer_tol`` and the physical
-    residual is below ``max(outer_tol, 1e-9)`` relative to the load.
+    residual is below ``max(outer_tol, 1e-9)`` relative to the load; or, as ``max_iterations``,
+    after ``max_outer`` outer iterations, an IPOPT solve that reached ``max_iter``, or ``max_time``
+    seconds (each IPOPT solve is bounded by it too, so a solve ends within about twice that).
     """
     if form not in ("constrained", "reduced"):
         raise InputError(f"form must be 'constrained' or 'reduced', got {form!r}")
     start = time.perf_counter()
-    model = _Surrogate(system, law, T, energy_scale, form, tol, max_iter, ipopt_options)
+    model = _Surrogate(system, law, T, energy_scale, form, tol, max_iter, ipopt_options, max_time)
     x = np.array(x0, dtype=float)
     state = system.state(system.coordinates(x), law)
     status, message, success = "max_iterations", f"no fixed point in {max_outer} outer iterations", False
@@ -247,8 +253,14 @@ def solve(
         if not np.isfinite(x_new).all():
             status, message = "non_finite", f"IPOPT returned NaN ({stats.get('return_status')})"
             break
-        if not stats.get("success", False) and str(stats.get("return_status")) not in _ACCEPTABLE:
-            status, message = "solver_error", f"IPOPT ({form}): {stats.get('return_status')}"
+        native = str(stats.get("return_status"))
+        if native in _LIMITS:
+            status = "max_iterations"
+            limit = dict(zip(_LIMITS, (f"max_iter = {max_iter}", "max_cpu_time", f"max_time = {max_time:g} s")))[native]
+            message = f"IPOPT ({form}) stopped at its limit ({native}, {limit}) in outer iteration {outer}"
+            break
+        if not stats.get("success", False) and native not in _ACCEPTABLE:
+            status, message = "solver_error", f"IPOPT ({form}): {native}"
             break
         converged = float(np.linalg.norm(step)) <= outer_tol
         candidates = [x_new] if converged else [x_new, anderson.next(x, x_new)]
@@ -263,6 +275,10 @@ def solve(
         history.append(residual)
         if converged and residual <= max(outer_tol, 1e-9):
             status, message, success = "converged", f"IPOPT ({form}) fixed point in {outer} outer iterations", True
+            break
+        if time.perf_counter() - start > max_time:
+            status = "max_iterations"
+            message = f"no fixed point within max_time = {max_time:g} s ({outer} outer iterations)"
             break
     info = {"residual_history": history, "outer_iterations": outer, "form": form}
     if form == "constrained" and stress is not None:
