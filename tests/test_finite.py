@@ -441,10 +441,12 @@ def test_pose_and_reactions_at_the_solved_pose():
     assert np.allclose(small.pose, T2)
 
 
-def test_validity_of_finite_kinematics_does_not_judge_rotations():
+def test_validity_of_finite_kinematics_judges_rotations_by_the_half_turn_not_the_small_limit():
     problem = CASES["prescribed rotation of 20 deg"]
     validity = solve(problem).validity
-    assert validity["rotation"].passed is None and validity["gap_error"].passed is None
+    assert validity["gap_error"].passed is None  # the small kinematics' error: not theirs
+    assert validity["rotation"].passed is True and validity["rotation"].limit == 180.0
+    assert validity["rotation"].value == pytest.approx(20.0, abs=0.01)
     small = d.ContactProblem(problem.layer, problem.law, body2=problem.body2)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
@@ -452,6 +454,23 @@ def test_validity_of_finite_kinematics_does_not_judge_rotations():
     assert solution.validity["rotation"].passed is False
     assert "kinematics='finite'" in solution.validity["rotation"].advice
     assert any("kinematics='finite'" in str(w.message) for w in caught)
+
+
+def test_an_answer_whose_rotation_vector_wound_past_a_half_turn_is_outside_the_model():
+    """The same pose, its rotation vector a whole turn longer (a warm start there): the forces
+    balance as before, but its components no longer turn body 2 about their axes."""
+    problem = punch_problem(punch(20, 4), 20.0, 10.0)
+    plain = solve(problem)
+    assert plain.success and plain.validity.valid
+    uz, ry = plain.u[8], plain.u[10]
+    wound = solve(problem, x0=[uz, ry + 2.0 * np.pi])
+    assert wound.success and np.allclose(wound.pose, plain.pose, atol=1e-9)
+    force, _ = springs_on_body2(wound)
+    assert np.allclose(force, [0.0, 0.0, 20.0], atol=1e-6 * 20.0)
+    check = wound.validity["rotation"]
+    assert not wound.validity.valid and check.passed is False
+    assert check.value == pytest.approx(np.degrees(abs(ry + 2.0 * np.pi)), rel=1e-9) and check.value > 180.0
+    assert "past a half turn" in check.advice and "prescribed" in check.advice
 
 
 # --- bad input ---------------------------------------------------------------------------------

@@ -11,6 +11,7 @@ Reads ``../shared/data/knee``; skips without it."""
 
 from __future__ import annotations
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -70,6 +71,22 @@ def test_a_torsion_the_knee_holds_turns_the_femur_13_degrees_and_converges_from_
     # the small kinematics on the start pose's springs crush the layer through at that turn
     small = quiet(d.solve, d.ContactProblem(knee["cast"].layer, d.LinearLaw(10.0), **_small_kw(knee, 4000.0)))
     assert small.strain.min() <= -0.95 and np.degrees(small.u[11]) > 10.0
+
+
+def test_a_warm_start_far_from_the_cast_starts_on_springs_brought_up_to_date_there(knee):
+    """A start 13 deg away (another law's answer): on the start cast's tangent planes, extrapolated
+    that far, the stiffer law read the layer crushed; on springs brought up to date at the start it
+    finds the cold start's answer."""
+    far = quiet(d.solve, torsion(knee, 4000.0)).u[[8, 11]]
+    assert np.degrees(far[1]) > 12.0
+    law = d.AteshianLaw(10.0, 0.3)
+    problem = dataclasses.replace(torsion(knee, 3000.0), law=law)
+    cold = quiet(d.solve, problem)
+    warm = quiet(d.solve, problem, x0=far)
+    assert cold.success and warm.success and warm.status is d.Status.CONVERGED
+    assert np.allclose(warm.u[[8, 11]], cold.u[[8, 11]], atol=1e-5) and warm.validity.valid
+    force, moment = springs_on_femur(warm)
+    assert force[2] == pytest.approx(LOAD, rel=1e-6) and moment[2] == pytest.approx(-3000.0, rel=1e-6)
 
 
 def _small_kw(knee, moment):

@@ -423,3 +423,26 @@ def test_the_rows_the_tracker_keeps_are_those_its_springs_give(knee_solved):
         (springs.qm, fresh.planes.qm),
     ):
         assert np.allclose(kept, built, rtol=0, atol=1e-12 * np.abs(built).max())
+
+
+def test_tangent_planes_not_re_cast_are_measured_against_mesh_2_and_fail_validity(hip):
+    """``recast=False`` keeps the start cast's tangent planes: the femoral head turned 10 deg about
+    its own centre (a sphere onto itself) leaves them ~R theta^2 / 2 off the head. The answer's
+    ``gap_error`` is that error, checked here against a fresh cast at the solved pose; re-cast
+    springs are on the head and the answer is valid."""
+    cast = hip["cast"]
+    centre = (0.0, 0.0, 24.0 - 24.5)
+    body2 = d.Body(reference=centre, free=("uz",), force=(0.0, 0.0, -300.0), prescribed={"rx": np.radians(10.0)})
+    problem = d.ContactProblem(cast.layer, d.LinearLaw(10.0), body2=body2, kinematics="finite", targets=cast)
+    kept = quiet(d.solve, problem, recast=False)
+    check = kept.validity["gap_error"]
+    assert kept.success and check.passed is False and "recast=True" in check.advice
+    fresh = quiet(M.cast_springs, hip["mesh1"], hip["mesh2"], pose=kept.pose, max_overlap=WIDE).layer
+    layer = kept.problem.layer
+    gap = dict(zip(np.asarray(fresh.source_face).tolist(), fresh.gap.tolist()))
+    planes = np.minimum(kept.strain * layer.thickness, 0.0)
+    mesh = np.array([min(gap.get(face, np.inf), 0.0) for face in np.asarray(layer.source_face).tolist()])
+    error = np.abs(mesh - planes).max()
+    assert error > 0.1 and dict(check.details)["mm"] == pytest.approx(error, abs=1e-9)
+    followed = quiet(d.solve, problem)
+    assert followed.success and followed.validity.valid and followed.validity["gap_error"].passed is None

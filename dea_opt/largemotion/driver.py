@@ -38,7 +38,7 @@ from ..status import Status
 from .outcome import crushed_at_start, crushed_far, crushed_through, far_from_start, ran_away, unsettled
 from .solution import FiniteSolution, certificate
 from .stability import leave_unstable, lengths_of, noted, softest
-from .start import at_base, near_base, predicted
+from .start import at_base, near_base, predicted, warm_start
 from .tracker import MeshTracker
 
 __all__ = ["plan", "solve"]
@@ -292,6 +292,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     build = time.perf_counter() - start
     cold = x0 is None
     x = np.zeros(len(system.free)) if cold else x0
+    if not cold and tracker is not None and (start_system := warm_start(tracker, system, law, x)) is not system:
+        system, (T, E0, small) = start_system, scaled_directions(start_system, law)
     first = tracker is not None  # the first solve, which may start again at the base pose
     if cold and loaded and tracker is not None:
         guess, unsolved = predicted(small, law, x)
@@ -365,19 +367,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         crushed_far(system, inner)
     if method == "finite" and not inner.success and loaded and cone is not None:
         cone(problem, small)
-    return _solution(
-        problem,
-        system,
-        small,
-        law,
-        inner,
-        method,
-        tracker,
-        certificate_tol,
-        build,
-        time.perf_counter() - start - build,
-        history,
-    )
+    elapsed = time.perf_counter() - start - build
+    return _solution(problem, system, small, law, inner, method, tracker, certificate_tol, build, elapsed, history)
 
 
 def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> tuple:

@@ -10,6 +10,7 @@ against the load mapped the same way; the strains are the gaps at that pose over
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -17,6 +18,33 @@ from ..formulations.energy import SpringSystem
 from ..formulations.finite import Targets, generalized, left_jacobian, pose_matrix
 from ..kinematics import DOF_NAMES
 from ..solution import Solution, certify
+
+
+def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
+    """``(relative, mm)``: how far the tangent planes of ``cast`` (springs not re-cast as body 2
+    moved) misplace the springs' compression at ``pose`` (mesh 2's, 4x4), against mesh 2 there.
+
+    Each spring's ray is cast afresh at ``pose`` by the cast's rules (:func:`~dea_opt.mesh.cast_faces`,
+    followed from the face its plane came from); the error is ``|min(g, 0) - min(s, 0)|`` with ``s``
+    the plane's gap and ``g`` the mesh's (``+inf``, open, where the ray meets no face: a plane that
+    carries load there carries it off the mesh), the largest of all springs in mm, and as a strain
+    (each gap over its own thickness, the mesh's measured afresh): the finite kinematics'
+    ``gap_error`` (``formulations/validity.md``, section 2).
+    """
+    from ..mesh import Mesh1, Mesh2, cast_faces
+
+    mesh1, mesh2 = Mesh1.of(cast), Mesh2.of(cast)
+    s = np.where(np.isfinite(eps), eps, 0.0) * layer.thickness
+    allowed = cast.options["max_overlap"] + np.maximum(-s, 0.0)  # the window reaches the planes' overlap
+    fresh = cast_faces(cast, pose, layer.source_face, allowed, mesh1, mesh2, met=layer.target_faces)
+    if not len(s):
+        return 0.0, 0.0
+    gap = np.where(fresh.spring, fresh.gap, np.inf)
+    with np.errstate(invalid="ignore"):
+        strain = np.where(fresh.spring, gap / (fresh.h1 + fresh.h2), np.inf)
+    mm = np.abs(np.minimum(gap, 0.0) - np.minimum(s, 0.0))
+    relative = np.abs(np.minimum(strain, 0.0) - np.minimum(s / layer.thickness, 0.0))
+    return float(np.max(relative)), float(np.max(mm))
 
 
 class _Deformed:
@@ -134,11 +162,23 @@ class FiniteSolution(Solution):
         those lost through the layer (when the springs were re-cast from meshes), and says whether
         the equilibrium is stable."""
         return {
+            "plane_error": self._plane_error,
             "dropped": self.dropped,
             "lost_through_layer": self.lost_through_layer,
             "stability": self.stability,
             "softest": self.info.get("softest_direction", ""),
         }
+
+    @cached_property
+    def _plane_error(self) -> tuple[float, float] | None:
+        """:func:`plane_error` where the springs came from a cast and were not re-cast (``recast=False``):
+        re-cast springs meet mesh 2 on their faces at the solved pose, closed-form targets are the model."""
+        from ..mesh import SpringCast
+
+        cast = self.problem.targets
+        if self.tracker is not None or not isinstance(cast, SpringCast) or not np.isfinite(self.u).all():
+            return None
+        return plane_error(cast, self.problem.layer, self.strain, self.pose)
 
     def summary(self) -> dict:
         out = super().summary()

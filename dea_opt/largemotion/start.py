@@ -1,6 +1,7 @@
 """Finite kinematics, the start of a solve: the small kinematics' answer as the start of a cold Newton
-solve, whether it may call the layer crushed before any solve, and the springs brought up to date
-at body 2's base pose when a solve from far away gave no answer.
+solve, whether it may call the layer crushed before any solve, the springs brought up to date
+at body 2's base pose when a solve from far away gave no answer, and at a warm start far from
+where they were.
 
 Written math: ``formulations/finite.md`` ("Newton", "Re-casting"). Used by
 :mod:`~dea_opt.largemotion.driver`.
@@ -10,7 +11,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["at_base", "near_base", "predicted"]
+__all__ = ["at_base", "near_base", "predicted", "warm_start"]
 
 _PREDICTOR_TOL = 1e-2  # the small kinematics' answer as a start (it is off by the rotation squared)
 
@@ -29,14 +30,26 @@ def near_base(tracker, system) -> bool:
     return not tracker.moved_from_update(system.transform(y)) > _BASE_SHIFT
 
 
-def at_base(tracker, system, law) -> tuple:
+def warm_start(tracker, system, law, x):
+    """The system whose springs start a solve from the given start ``x`` (free coordinates): brought
+    up to date at its pose (:func:`at_base`'s update) when that lies more than :data:`_BASE_SHIFT`
+    from where they last were, so that Newton does not start on tangent planes extrapolated that
+    far (they can read a layer crushed that is not); the same system where it lies near, or where
+    no spring is left there (the solve then finds out from the start it was given)."""
+    if not tracker.moved_from_update(system.transform(system.coordinates(x))) > _BASE_SHIFT:
+        return system
+    moved, failed = at_base(tracker, system, law, x)
+    return system if failed is not None else moved
+
+
+def at_base(tracker, system, law, x=None) -> tuple:
     """``(system, failed)``: the springs brought up to date at body 2's base pose (the free
-    coordinates at zero), by a complete update there (a whole re-cast when that is far from the
-    last one); ``failed`` an :class:`~dea_opt.formulations.finite.InnerResult` (``pose_error``)
-    when no spring is left there, else None."""
+    coordinates at zero, or at ``x``), by a complete update there (a whole re-cast when that is
+    far from the last one); ``failed`` an :class:`~dea_opt.formulations.finite.InnerResult`
+    (``pose_error``) when no spring is left there, else None."""
     from ..formulations.finite import InnerResult
 
-    zero = np.zeros(len(system.free))
+    zero = np.zeros(len(system.free)) if x is None else np.asarray(x, dtype=float)
     y = system.coordinates(zero)
     state = system.state(y, law)
     update = tracker.update(system, state, complete=True)

@@ -407,7 +407,7 @@ class MeshTracker:
 
     def _recast_all(self, system, state, pose):
         try:
-            new = recast(self.cast, pose)
+            new = recast(self._first_cast, pose)  # the window of the first cast's pose, as _allowed's
         except NoSpringsError as error:
             return self._none_left(state, error)
         self.counts["recasts"] += 1
@@ -497,9 +497,11 @@ class MeshTracker:
         return ring(self.mesh1.neighbours, self._slot, self.met, faces1, met, tried, rings)
 
     def _allowed(self, faces, pose) -> np.ndarray:
-        """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it since
-        the last whole cast (the window following the pose, as in :func:`dea_opt.mesh.recast`)."""
-        motion = pose @ np.linalg.inv(self.full)
+        """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it from
+        the pose of the cast the springs started from (the window following the pose, as in
+        :func:`dea_opt.mesh.recast` of that cast, which the whole re-casts also are): the same
+        window whatever path led to ``pose``, the one ``recast_at_solution`` counts drops in."""
+        motion = pose @ np.linalg.inv(self._first_cast.pose)
         points = np.take(self.mesh1.centroids, faces, axis=0)  # whole rows: one cache line a face
         moved = points @ (motion[:3, :3] - np.eye(3)).T + motion[:3, 3]
         toward = -dot(np.take(self.mesh1.normals, faces, axis=0), moved)

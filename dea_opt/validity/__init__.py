@@ -49,6 +49,7 @@ def assess(
     lost_through_layer: int | None = None,
     stability: float | None = None,
     softest: str = "",
+    plane_error: tuple[float, float] | None = None,
 ) -> Validity:
     """The validity report of ``u`` as an answer to ``problem``.
 
@@ -77,6 +78,11 @@ def assess(
         their energy is convex).
     softest : str, optional
         The direction that gives way, for the advice (``"uz -0.1 mm, ry +2.7 deg"``).
+    plane_error : (float, float), optional
+        For finite kinematics on springs cast from meshes and not re-cast (``recast=False``): the
+        largest error of their tangent planes' compression against mesh 2 at the solved pose, as a
+        strain and in mm (:func:`~dea_opt.largemotion.solution.plane_error`), the ``gap_error``
+        check; without it ``gap_error`` is not evaluated for finite kinematics.
 
     Returns
     -------
@@ -106,7 +112,7 @@ def assess(
             raise InputError(f"{name} must have shape ({n},), one value per spring, got shape {arr.shape}")
     checks = (
         _strain_check(problem.law, strain, limits),
-        *_rotation_checks(problem, u, limits),
+        *_rotation_checks(problem, u, limits, plane_error),
         *_size_checks(problem.layer, limits),
         _pressure_check(pressure, limits),
         _dropped_check(dropped, limits),

@@ -108,17 +108,57 @@ _KINEMATICS_ADVICE = (
     "ContactProblem(..., kinematics='finite') (exact rotations, gaps at the current pose; "
     "formulations/finite.md), fix the dofs the joint does not move, or reduce the load"
 )
-_FINITE = "finite kinematics take rotations exactly: the small kinematics' error does not apply"
+_FINITE = (
+    "finite kinematics take rotations exactly: the small kinematics' error does not apply, and springs "
+    "re-cast as body 2 moves (or closed-form targets) have no tangent planes' error"
+)
 
 
-def _rotation_checks(problem, u, limits: ValidityLimits) -> tuple[Check, Check]:
+#: deg: the rotation vector's principal range. Past it the vector has wound: the same pose has a
+#: shorter one, and its components no longer turn body 2 about their own axes.
+HALF_TURN = 180.0
+
+
+def _turn_check(u) -> Check:
+    """Finite kinematics: body 2's rotation vector within a half turn (body 1 does not move)."""
+    degrees = math.degrees(float(np.linalg.norm(u[9:12])))
+    if not math.isfinite(degrees):
+        return Check("rotation", math.nan, HALF_TURN, "deg", False, _NOT_FINITE)
+    if degrees <= HALF_TURN * (1 + 1e-12):
+        return Check("rotation", degrees, HALF_TURN, "deg", True)
+    advice = (
+        f"body 2's rotation vector turns {degrees:.4g} deg, past a half turn: it has wound through whole "
+        f"turns (the pose is {math.degrees(math.remainder(math.radians(degrees), 2 * math.pi)):+.4g} deg about "
+        f"the same axis), so its components no longer turn body 2 about their axes and a free one can undo a "
+        f"prescribed one; start from a rotation within a half turn (x0), prescribe large motions as a frame "
+        f"(poses=, a pose column), or fix the rotations the joint does not make"
+    )
+    return Check("rotation", degrees, HALF_TURN, "deg", False, advice)
+
+
+def _plane_check(plane_error, limits: ValidityLimits) -> Check:
+    """Finite kinematics: the tangent planes of springs that were not re-cast, against mesh 2."""
+    if plane_error is None:
+        return Check("gap_error", math.nan, limits.gap_error, "of thickness", None, _FINITE, (("mm", math.nan),))
+    relative, mm = plane_error
+    passed = bool(relative <= limits.gap_error)
+    advice = (
+        ""
+        if passed
+        else _NOT_FINITE
+        if math.isnan(relative)
+        else f"the start cast's tangent planes, not re-cast as body 2 moved (recast=False), misplace a "
+        f"spring's compression by {mm:.3g} mm against mesh 2 at the solved pose: solve with recast=True "
+        f"(the default), which keeps the springs on mesh 2"
+    )
+    return Check("gap_error", relative, limits.gap_error, "of thickness", passed, advice, (("mm", mm),))
+
+
+def _rotation_checks(problem, u, limits: ValidityLimits, plane_error=None) -> tuple[Check, Check]:
     u = np.asarray(u, dtype=float)
     degrees = math.degrees(max(float(np.linalg.norm(u[3:6])), float(np.linalg.norm(u[9:12]))))
     if getattr(problem, "kinematics", "small") == "finite":
-        return (
-            Check("rotation", degrees, limits.rotation, "deg", None, _FINITE),
-            Check("gap_error", math.nan, limits.gap_error, "of thickness", None, _FINITE, (("mm", math.nan),)),
-        )
+        return _turn_check(u), _plane_check(plane_error, limits)
     if not np.isfinite(u).all():
         degrees = math.nan
     passed = degrees <= limits.rotation
