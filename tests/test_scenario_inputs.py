@@ -332,3 +332,19 @@ def test_the_example_opensim_scenario_runs(tmp_path):
     assert outcome.exit_code == 0 and outcome.result.success
     # frictionless contact: the springs' resultant on the head balances each frame's force
     assert np.allclose(outcome.result.table["resultant"], np.linalg.norm(raw[:, 1:4], axis=1), rtol=1e-6)
+
+
+@pytest.mark.parametrize(
+    "key, value",
+    [("load.scale", "inf"), ("load.scale", "nan"), ("law.H", "nan"), ("law.H", "inf"), ("load.force", "[0, 0, nan]")],
+)
+def test_a_nan_or_inf_is_named_at_its_key_with_what_came(tmp_path, key, value):
+    from dea_opt.scenario import parse_set
+
+    path, values = parse_set(f"{key}={value}")
+    with pytest.raises(ScenarioError) as info:
+        parse_scenario(PLATE, name="case.toml", base_dir=tmp_path, overrides={path: values[0]})
+    message = str(info.value)
+    shown = "nan" if "nan" in value else "inf"
+    where = key + ("[2]" if key == "load.force" else "")
+    assert f"{where} (from --set): Input should be a finite number, got {shown}" in message

@@ -256,6 +256,7 @@ def _message(error: Mapping[str, Any], loc: tuple, data: dict) -> str:
         "literal_error",
         "int_from_float",
         "float_parsing",
+        "finite_number",
     ):
         message += f", got {_short(given)}" + (" (a string)" if isinstance(given, str) else "")
     return message

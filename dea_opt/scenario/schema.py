@@ -220,7 +220,7 @@ def law_model(kind) -> type[BaseModel]:
     key = (kind if isinstance(kind, str) else None, LAWS.version)
     if key in _LAW_MODELS:
         return _LAW_MODELS[key]
-    config = ConfigDict(extra="forbid", strict=True)
+    config = ConfigDict(extra="forbid", strict=True, allow_inf_nan=False)
     # The kinds are the registry's, known when the model is made: a Literal built at run time.
     fields: dict[str, Any]
     if not isinstance(kind, str) or kind not in LAWS:
