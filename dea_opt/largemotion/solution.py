@@ -33,12 +33,11 @@ def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
     """
     from ..mesh import Mesh1, Mesh2, cast_faces
 
-    mesh1, mesh2 = Mesh1.of(cast), Mesh2.of(cast)
     s = np.where(np.isfinite(eps), eps, 0.0) * layer.thickness
-    allowed = cast.options["max_overlap"] + np.maximum(-s, 0.0)  # the window reaches the planes' overlap
-    fresh = cast_faces(cast, pose, layer.source_face, allowed, mesh1, mesh2, met=layer.target_faces)
     if not len(s):
         return 0.0, 0.0
+    allowed = cast.options["max_overlap"] + np.maximum(-s, 0.0)  # the window reaches the planes' overlap
+    fresh = cast_faces(cast, pose, layer.source_face, allowed, Mesh1.of(cast), Mesh2.of(cast), met=layer.target_faces)
     gap = np.where(fresh.spring, fresh.gap, np.inf)
     with np.errstate(invalid="ignore"):
         strain = np.where(fresh.spring, gap / (fresh.h1 + fresh.h2), np.inf)
