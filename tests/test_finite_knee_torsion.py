@@ -150,3 +150,27 @@ def test_the_cli_says_why_a_torsion_past_the_limit_has_no_answer(knee, tmp_path)
     last = result.output.strip().splitlines()[-1]
     assert "status 'unbounded': " in last and "no stable equilibrium near the start carries this load" in last
     assert "Traceback" not in result.output
+
+
+@pytest.mark.parametrize(
+    ("force", "free"),
+    [
+        ((-81.016, 13.911, -56.947), ("ux", "uy", "uz")),  # 100 N tilted 45 deg: the femur slides off
+        ((499.147, 534.949, -681.676), ("ux", "uy", "uz")),  # 1000 N tilted 47 deg
+    ],
+)
+def test_a_femur_that_slides_off_along_free_dofs_is_unbounded_not_crushed(knee, force, free):
+    """Where nothing holds a free dof, the iterates run away: the small kinematics' strains of -2.5
+    to -5000 at a pose 160 mm to 250 m off say nothing of what the layer bears (they once called
+    it crushed, advising the load's units and H). The answer is ``unbounded``, its advice the free
+    dofs; holding the slide (``uz`` alone) carries the same load, its springs balancing it
+    (summed here)."""
+    reference = tuple(knee["reference"])
+    kw = {"force": force, "reference": reference, "kinematics": "finite", "targets": knee["cast"]}
+    law = d.LinearLaw(10.0)
+    solution = quiet(d.solve, d.ContactProblem(knee["cast"].layer, law, free=free, **kw), strict=False)
+    assert not solution.success and solution.status is d.Status.UNBOUNDED
+    assert "hold those dofs" in solution.message and "beyond what this layer can bear" not in solution.message
+    held = quiet(d.solve, d.ContactProblem(knee["cast"].layer, law, free=("uz",), **kw))
+    pushed, _ = springs_on_femur(held)
+    assert held.success and pushed[2] == pytest.approx(-force[2], rel=1e-6)

@@ -217,3 +217,26 @@ def test_ipopt_out_of_iterations_or_time_is_max_iterations_not_a_solver_error():
     assert not timed.success and timed.status == "max_iterations" and "max_time" in timed.message
     with pytest.raises(InputError, match="max_time must be a number in"):
         d.solve(problem, method="nlp", max_time=-1.0)
+
+
+@pytest.mark.parametrize("load", [1e-3, 1e-4, 1e-5, 1e-6])
+def test_a_tiny_load_on_the_knee_finds_the_touching_pose_not_a_runaway(knee, load):
+    """The meshes start 0.075 mm apart; a load of a micronewton brings them into contact at a few
+    springs and tilts the femur onto three of them. Newton once leapt whole turns there (a nearly
+    singular tangent: 1e-4 N ended 'unbounded' with rx = -327 deg) or ran its 100 iterations at the
+    rounding level of the sums. Each load is now carried, its springs balancing it (summed here),
+    at nearly the pose of the next larger load (the touching pose, as the indentation vanishes)."""
+    problem = _knee_problem(knee, free=("uz", "rx", "ry"))
+    problem = problem.with_load(force=(0.0, 0.0, -load))
+    solution = quiet(d.solve, problem)
+    assert solution.success and solution.iterations < 20
+    layer = solution.problem.layer
+    push = (solution.pressure * layer.areas)[:, None] * layer.normals
+    arms = layer.points - (np.asarray(problem.body2.reference) + solution.u[6:9])
+    turning = left_jacobian(solution.u[9:12]).T @ np.cross(arms, push).sum(axis=0)  # on rx, ry, rz
+    radius = np.sqrt((arms**2).sum(axis=1).mean())
+    assert push.sum(axis=0)[2] == pytest.approx(load, rel=1e-6)  # ux, uy held: their reactions aside
+    assert np.abs(turning[:2]).max() < 1e-6 * load * radius
+    assert np.degrees(np.abs(solution.u[9:11])).max() < 1.0  # under a degree: no runaway turn
+    touching = quiet(d.solve, problem.with_load(force=(0.0, 0.0, -1e-2)))
+    assert np.abs(solution.u[8:11] - touching.u[8:11]).max() < 0.02  # mm and rad

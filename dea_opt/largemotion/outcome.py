@@ -15,7 +15,15 @@ import numpy as np
 
 from ..formulations.finite import InnerResult
 
-__all__ = ["crushed_at_start", "crushed_far", "crushed_through", "far_from_start", "ran_away", "unsettled"]
+__all__ = [
+    "beyond_reach",
+    "crushed_at_start",
+    "crushed_far",
+    "crushed_through",
+    "far_from_start",
+    "ran_away",
+    "unsettled",
+]
 
 
 def far_from_start(system, x) -> bool:
@@ -71,10 +79,7 @@ def ran_away(system, inner, radius: float) -> bool:
     joint, the ligaments). Springs lost through the layer on the way (whose rays met mesh 2
     behind mesh 1's far side as it passed) say nothing of a load too large. Whether it did."""
     x = np.asarray(inner.u_free, dtype=float)
-    free = np.asarray(system.free)
-    turn = float(np.linalg.norm(x[free >= 3])) if (free >= 3).any() else 0.0
-    shift = float(np.linalg.norm(x[free < 3])) if (free < 3).any() else 0.0
-    if np.isfinite(x).all() and math.degrees(turn) <= _RUN_AWAY[0] and shift <= _RUN_AWAY[1] * radius:
+    if not beyond_reach(system, x, radius):
         return False
     motion, _ = _motion(system.free, x, np.asarray(system.force, dtype=float))
     inner.status = "unbounded"
@@ -84,6 +89,17 @@ def ran_away(system, inner, radius: float) -> bool:
         f"joint, the ligaments): hold those dofs, or give them the loads that hold them"
     )
     return True
+
+
+def beyond_reach(system, x, radius: float) -> bool:
+    """Whether the free coordinates ``x`` move body 2 beyond :data:`_RUN_AWAY` (``radius``: the
+    springs' RMS distance from its reference, mm), or are not finite: far past any contact near
+    the start."""
+    x = np.asarray(x, dtype=float)
+    free = np.asarray(system.free)
+    turn = float(np.linalg.norm(x[free >= 3])) if (free >= 3).any() else 0.0
+    shift = float(np.linalg.norm(x[free < 3])) if (free < 3).any() else 0.0
+    return not (np.isfinite(x).all() and math.degrees(turn) <= _RUN_AWAY[0] and shift <= _RUN_AWAY[1] * radius)
 
 
 _FREE_DOF = (
@@ -126,11 +142,23 @@ def _motion(free, x, force) -> tuple[str, bool]:
     return "there body 2 moved " + ", ".join(parts), far
 
 
-def crushed_through(tracker, inner, law) -> None:
+def crushed_through(tracker, inner, law, system, radius: float) -> None:
     """Mark a failed solve ``crushed`` when springs that carried load were lost through the layer
     on the way (their rays met mesh 2 behind mesh 1's far side: the overlap passed mesh 1's
     thickness): the load drove body 2 into the layer until springs left the model. IPOPT would
-    meet the same springs, in minutes: ``auto`` does not fall back to it."""
+    meet the same springs, in minutes: ``auto`` does not fall back to it. Unless the first of them
+    were lost where the iterates had already run away (:func:`beyond_reach`, ``radius`` as there;
+    the tracker's ``crushed_at``): body 2 then crossed the layer as it went where nothing held it,
+    and the solve is ``unbounded`` (:func:`ran_away`). Lost near the start, they were crushed
+    first, whatever the iterates did after."""
+    at = tracker.crushed_at
+    if at is not None and beyond_reach(system, at[list(system.free)], radius):  # lost as body 2 passed
+        inner.message += (
+            f"; {tracker.crushed_through} springs that carried load were lost through the layer as body 2 passed"
+        )
+        if inner.status != "unbounded":
+            ran_away(system, inner, radius)
+        return
     inner.status = "crushed"
     inner.message += (
         f"; {tracker.crushed_through} springs that carried load were lost through the layer on the way (their "

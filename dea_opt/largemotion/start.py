@@ -66,9 +66,11 @@ def at_base(tracker, system, law, x=None) -> tuple:
     return update.system, None
 
 
-def predicted(small, law, x):
+def predicted(small, law, x, system):
     """``(x, cold)``: the start of a cold Newton solve of springs that follow mesh 2, the answer of the
-    small kinematics (their equilibrium to first order in the rotation) when it has one, else ``x``.
+    small kinematics (their equilibrium to first order in the rotation) when it has one that
+    does not move body 2 beyond reach (:func:`~dea_opt.largemotion.outcome.beyond_reach`: ran
+    away along a free dof, where it is no start and no measure of the load), else ``x``.
 
     The first finite solve on the springs of the start pose only says where body 2 goes; the
     small kinematics says it in a third of the time, and the first update of the springs
@@ -76,6 +78,9 @@ def predicted(small, law, x):
     from ..formulations import newton as small_newton
 
     guess = small_newton.solve(small, law, gtol=_PREDICTOR_TOL, xtol=_PREDICTOR_TOL)  # a start: no finer
-    if guess.success and guess.u_free.shape == x.shape and np.isfinite(guess.u_free).all():
+    from ..formulations.finite import rms_radius
+    from .outcome import beyond_reach
+
+    if guess.success and guess.u_free.shape == x.shape and not beyond_reach(system, guess.u_free, rms_radius(system)):
         return np.array(guess.u_free, dtype=float), False
     return x, True

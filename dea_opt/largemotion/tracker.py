@@ -115,6 +115,7 @@ class MeshTracker:
         }
         self.lost: dict = {}
         self.crushed_faces: list = []  # faces of mesh 1 whose springs were lost through the layer while loaded
+        self.crushed_at: np.ndarray | None = None  # body 2's coordinates (6,) where the first of them were lost
 
     @property
     def origin(self):
@@ -276,7 +277,7 @@ class MeshTracker:
         gone = np.flatnonzero(~found)
         if len(gone):
             through = again.outcome[gone] == LOST_REASONS.index("through_layer")
-            self._crushed(springs.faces1[index[gone[through & loaded[index[gone]]]]])
+            self._crushed(springs.faces1[index[gone[through & loaded[index[gone]]]]], state.y)
         on = np.flatnonzero(~left)
         springs.gap[on] = np.where(gaps.valid[on], gaps.s[on], springs.gap[on])
         # 2. Their thickness where the hits are now, and that of springs whose hit moved on its face.
@@ -419,7 +420,7 @@ class MeshTracker:
         for reason, faces in new.lost.items():
             self._lose(reason, len(faces))
         through = np.asarray(new.lost.get("through_layer", ()), dtype=np.int64)
-        self._crushed(through[np.isin(through, self.springs.faces1[state.eps < 0])])
+        self._crushed(through[np.isin(through, self.springs.faces1[state.eps < 0])], state.y)
         self._take(new.cast)
         self.counts["dropped"] = len(self.dropped_faces)
         new_system = self.springs_of(system)
@@ -432,15 +433,18 @@ class MeshTracker:
         self.counts["recasts"] += 1
         self._lose("through_layer" if error.through_layer else "no_hit", len(self.springs))
         if error.through_layer:
-            self._crushed(self.springs.faces1[state.eps < 0])
+            self._crushed(self.springs.faces1[state.eps < 0], state.y)
             why = f"the rays of {error.through_layer} faces of mesh 1 met mesh 2 only behind mesh 1's far side"
         else:
             why = "no face of mesh 1 faces mesh 2 within the proximity window there"
         return Update(None, state, False, none_left=why)
 
-    def _crushed(self, faces) -> None:
-        """Count ``faces`` of mesh 1, whose springs carried load, as lost through the layer."""
+    def _crushed(self, faces, y) -> None:
+        """Count ``faces`` of mesh 1, whose springs carried load, as lost through the layer at body 2's
+        coordinates ``y`` (6,): the first such are kept (``crushed_at``)."""
         if len(faces):
+            if not self.crushed_faces:
+                self.crushed_at = np.array(y, dtype=float)
             self.crushed_faces.append(np.array(faces, dtype=np.int64))
 
     @property

@@ -25,6 +25,8 @@ _WOLFE_CURVATURE = 0.9
 _WOLFE_CURVATURE_SAFE = 0.01
 _SAFE_WEIGHT = 1e-3
 _CRUSH_WINDOW = 1e-4
+#: The scaled residual below which a Newton that no longer reduces it has converged (Eq. 20's).
+_ROUNDING = 1e-9
 #: The largest turn (rad) of body 2 in a step the line search grew beyond Newton's: steps growing
 #: fourfold past it could land turns away, where the line's energy (periodic in the springs',
 #: linear in the moment's work) happens to meet the Wolfe conditions; the turn is scanned
@@ -307,6 +309,11 @@ def solve(
         if gnorm <= gtol:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
+        if gnorm <= _ROUNDING and len(history) > 1 and gnorm >= history[-2]:
+            # no longer decreasing, at a level Eq. (20) accepts too: the rounding of the springs'
+            # sums (a tiny load's strains against the positions' digits), not a gtol it can reach
+            status, message, success = "converged", f"equilibrium residual {gnorm:.1e}, its rounding level", True
+            break
 
         def material(state=state):
             return T.T @ state.material() @ T / energy_scale
@@ -324,6 +331,9 @@ def solve(
             K = T.T @ state.tangent() @ T / energy_scale
             d, safe, kind = _descent(K, g, material)
         kinds.append(kind)
+        turn = float(np.linalg.norm((T @ d)[np.asarray(free) >= 3]))
+        if turn > _MAX_TURN:  # a near-singular tangent's leap: no local model reaches that far
+            d = d * (_MAX_TURN / turn)
         slope = float(g @ d)
         if not (np.isfinite(slope) and slope < 0):
             status, message = "stalled", "no descent direction (a load along a direction no spring resists?)"
@@ -358,7 +368,7 @@ def solve(
                 float(np.linalg.norm(T.T @ state.internal6[free])) / energy_scale,
                 1.0,
             )
-            if float(np.linalg.norm(g)) / norm <= max(gtol, 1e-9):
+            if float(np.linalg.norm(g)) / norm <= max(gtol, _ROUNDING):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
     if not success and law.bounded_strain and state.eps[state.gaps.valid].min(initial=0.0) < -1 + _CRUSH_WINDOW:
