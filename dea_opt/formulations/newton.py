@@ -39,7 +39,6 @@ PAGE = "formulations/newton.md"
 _WOLFE_DECREASE = 1e-4  # accept phi'(a) <= -this |phi'(0)| ...
 _WOLFE_CURVATURE = 0.9  # ... and >= -this |phi'(0)|
 _WOLFE_CURVATURE_SAFE = 0.01  # ... or this, after a safe step
-_SAFE_WEIGHT = 1e-3  # weight of the all-spring tangent in a safe step
 _EXACT_STEP = 1e-8  # a unit step whose phi'(1) is below this |phi'(0)| is accepted at once
 
 
@@ -53,8 +52,9 @@ def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
 
     A singular active tangent (too few springs in contact) is harmless when ``g`` lies in its
     range: the step ``-K^+ g`` then moves only along what the compressed springs resist. When
-    ``g`` pushes along a direction ``K`` misses, ``d = -(K + 1e-3 K_all)^{-1} g`` (``safe``):
-    the missing directions take a long step toward the next springs to touch.
+    ``g`` pushes along directions ``N`` that ``K`` misses, ``d = -K^+ g - N (N^T K_all N)^{-1}
+    N^T g`` (``safe``): the missing directions take a long step toward the next springs to
+    touch, one that moves no compressed spring (``formulations/newton.md``, "Safe step").
     """
     if not g.size:
         return g.copy(), False
@@ -70,12 +70,17 @@ def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
     outside = g - vecs[:, keep] @ coeff
     if keep.any() and np.linalg.norm(outside) <= 1e-9 * np.linalg.norm(g):
         return -(vecs[:, keep] @ (coeff / vals[keep])), False
-    K = K + _SAFE_WEIGHT * K_all_fn()
-    require_finite("Newton's tangent", K)
+    # Newton on what the compressed springs resist; on what they miss, Newton with every spring's
+    # stiffness there: that part moves no compressed spring, which stays as Newton put it.
+    null = vecs[:, ~keep]
+    K_null = null.T @ K_all_fn() @ null
+    require_finite("Newton's tangent", K_null)
+    inside = vecs[:, keep] @ (coeff / vals[keep]) if keep.any() else np.zeros_like(g)
     try:
-        return -np.linalg.solve(K, g), True
+        beyond = np.linalg.solve(K_null, null.T @ g)
     except np.linalg.LinAlgError:
-        return -np.linalg.lstsq(K, g, rcond=UNRESISTED)[0], True
+        beyond = np.linalg.lstsq(K_null, null.T @ g, rcond=UNRESISTED)[0]
+    return -(inside + null @ beyond), True
 
 
 class _Line:

@@ -114,6 +114,26 @@ NATIVE_STATUS = {
 #: Clarabel's statuses whose iterate is an answer to judge (the others' is a certificate of
 #: infeasibility or nothing); cvxpy draws the same line.
 _WITH_ITERATE = ("Solved", "AlmostSolved", "MaxIterations", "MaxTime", "InsufficientProgress")
+#: Clarabel's statuses whose x is a ray of unbounded decrease (a certificate dea-opt checks).
+_UNBOUNDED = ("DualInfeasible", "AlmostDualInfeasible")
+
+
+def _false_ray(ray, scale, scaled_load) -> str | None:
+    """Why Clarabel's ray (k,) is no direction along which ``Phi`` decreases without bound, or None
+    where it is one. Such a ray ``xi`` does work against the load (``r . xi > 0``) and compresses
+    no spring (``d eps = xi A >= 0``, up to rounding): else the energy of the springs it
+    compresses grows as its square (a tiny load's scale, where the gaps are 1e6 strain units,
+    fooled Clarabel's tolerances on the knee)."""
+    strain = ray @ scale.AT
+    size = float(np.abs(strain).max(initial=0.0))
+    work = float(scaled_load @ ray)
+    if np.isfinite(size) and work > 0 and strain.min(initial=0.0) >= -1e-9 * size:
+        return None
+    return (
+        f"its ray compresses springs (strain change down to {strain.min(initial=0.0) / max(size, 1e-300):.3g} of "
+        f"its largest) or does no work ({work:.3g}): no direction the load drives unresisted, a failure of "
+        f"its tolerances at this problem's scale (try method='newton')"
+    )
 
 
 def _rejected(solver: str, options: dict, exc: Exception) -> InputError:
@@ -166,6 +186,7 @@ class _Clarabel:
         self.b = np.concatenate([np.zeros(n), e0 / s0])
         self.cones = [clarabel.NonnegativeConeT(2 * n)]
         self.solver = None
+        self.ray = np.zeros(k)  # the last DualInfeasible answer's ray
 
     def solve(self, scaled_load):
         """``(xi, lambda_hat, native status, iterations, Clarabel's solve_time)``."""
@@ -181,6 +202,8 @@ class _Clarabel:
             xi, lam = z[: self.k], np.asarray(out.z, dtype=float)[self.n :]
         else:
             xi, lam = np.full(self.k, np.nan), np.full(self.n, np.nan)
+            if native in _UNBOUNDED:  # its x is the ray along which the energy falls: kept to be checked
+                self.ray = np.asarray(out.x, dtype=float)[: self.k]
         return xi, lam, native, int(out.iterations), float(out.solve_time)
 
 
@@ -298,12 +321,17 @@ class QPModel:
         # lambda_hat = Vs H s0^2 c_hat = Vs H s0 c, so sigma = -H c = -lambda_hat / (Vs s0)
         stress = -lam / (self.scale.volume * self.scale.strain_scale)
         status = NATIVE_STATUS.get(native, Status.SOLVER_ERROR)
+        message = f"{self.solver}: {native}"
+        if native in _UNBOUNDED and isinstance(self.backend, _Clarabel):
+            why = _false_ray(self.backend.ray, self.scale, scaled)
+            if why is not None:
+                status, message = Status.INACCURATE, f"{message}, but {why}"
         return FormulationResult(
             u_free=self.scale.to_u_free(xi).reshape(-1),
             stress=stress.reshape(n),
             success=status is Status.CONVERGED,
             status=status,
-            message=f"{self.solver}: {native}",
+            message=message,
             iterations=iterations,
             build_time=self.build_time if first else 0.0,
             solve_time=elapsed,
