@@ -81,6 +81,39 @@ def test_the_qp_does_not_take_clarabels_false_ray_for_an_unbounded_load(knee):
     assert strain.max() < 0  # every spring compressed along it: the energy grows, it does not fall
 
 
+@pytest.mark.parametrize(
+    ("force", "moment"),
+    [
+        ((-1.34e-11, -9.506e-10, -1.0226e-08), (5.223e-09, -3.7654e-08, -1.3389e-09)),
+        ((1.3752e-09, 3.1304e-09, -1.5437e-08), (-7.6764e-08, 1.6051e-09, 1.715e-08)),
+    ],
+)
+def test_a_spring_reached_only_far_along_a_safe_step_is_no_unbounded_load(knee, force, moment):
+    """At 1e-8 N the gaps are 1e9 strain units of the load's scale: the next spring to touch lies
+    beyond 1e12 steps along a safe step, where the line search once declared the energy unbounded
+    (``line_search_failed``). A spring whose strain falls along the line bounds it; the search goes
+    on past it, and the load, which the springs carry, is balanced (summed here)."""
+    problem = d.ContactProblem(
+        knee["cast"].layer,
+        d.LinearLaw(10.0),
+        force=force,
+        moment=moment,
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        solution = d.solve(problem, "newton")
+    assert solution.success
+    layer = problem.layer
+    push = (solution.pressure * layer.areas)[:, None] * layer.normals
+    arms = layer.points - knee["reference"]
+    radius = np.sqrt((arms**2).sum(axis=1).mean())
+    size = float(np.linalg.norm(force))
+    assert abs(push.sum(axis=0)[2] + force[2]) < 1e-6 * size
+    assert np.abs(np.cross(arms, push).sum(axis=0)[:2] + moment[:2]).max() < 1e-6 * size * radius
+
+
 @pytest.mark.slow
 def test_newton_and_the_qp_agree_on_random_loads_of_every_size_on_the_knee(knee):
     """60 loads from 1e-8 to 3000 N (mostly along -z, with shear and moments of their size) on

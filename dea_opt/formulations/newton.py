@@ -97,6 +97,18 @@ class _Line:
         value = float(self.V @ w) - alpha * self.rd
         return value if np.isfinite(value) else np.inf
 
+    def touch(self, alpha) -> float | None:
+        """The step from which a spring whose strain falls along the line is compressed (``alpha``
+        where one already is), or None where no strain falls: only then does ``Phi`` decrease
+        without bound along the line (a spring compressed ever deeper stores more than the
+        load's work). Strain rates below rounding (1e-12 of the largest) count as none."""
+        size = float(np.abs(self.Ad).max(initial=0.0))
+        falls = self.Ad < -1e-12 * size
+        if not falls.any():
+            return None
+        at = -self.eps[falls] / self.Ad[falls]
+        return max(float(at.min()), alpha)
+
     def slope(self, alpha):
         trial = self.eps + alpha * self.Ad
         if self.law.bounded_strain and trial.min(initial=0.0) <= -1.0:
@@ -136,7 +148,7 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
     ):
         return 1.0, trial, 3
     lo, hi = 0.0, None
-    alpha = 1.0
+    alpha, limit = 1.0, UNBOUNDED_STEP
     for evaluation in range(2, max_evaluations + 1):
         if value > upper_ok:
             hi = alpha  # overshoot (or out of the law's domain)
@@ -147,8 +159,13 @@ def _line_search(line, slope0, curvature=0.9, max_evaluations=60):
         alpha = 4.0 * alpha if hi is None else 0.5 * (lo + hi)
         if hi is not None and hi - lo <= 1e-14 * hi:
             break
-        if alpha > UNBOUNDED_STEP:
-            return np.inf, None, evaluation  # Phi decreases without bound along d
+        if alpha > limit:
+            touch = getattr(line, "touch", lambda _: None)(lo)
+            if touch is None or not np.isfinite(touch):
+                return np.inf, None, evaluation  # Phi decreases without bound along d
+            # a spring's strain falls along d, only far out (a tiny load's scale, where the gaps
+            # are 1e9 of its strain units): past where it is compressed, and grow from there
+            alpha, limit = max(alpha, 2.0 * touch), np.inf
         value, trial = line.slope(alpha)
     if lo > 0.0:
         value, trial = line.slope(lo)
