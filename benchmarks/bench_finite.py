@@ -56,6 +56,7 @@ COLUMNS = [
     "status",
     "peak_rss_mb",
     "load_1m",
+    "walk",
 ]
 
 
@@ -134,7 +135,15 @@ def solve_case(repeats: int = 20) -> dict:
         "status": str(finite.status),
         "peak_rss_mb": peak_rss_mb(),
         "load_1m": os.getloadavg()[0],
+        "walk": _walk(),
     }
+
+
+def _walk() -> str:
+    """Which loop walked the rays across mesh 2: ``compiled`` (``dea_opt/mesh/_walk.c``) or ``numpy``."""
+    from dea_opt.mesh.walk import compiled_walk
+
+    return "numpy" if compiled_walk() is None else "compiled"
 
 
 def gait_loads(frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -188,6 +197,7 @@ def gait_case(frames: int = 101) -> dict:
         "status": ", ".join(sorted(set(map(str, table["status"])))),
         "peak_rss_mb": peak_rss_mb(),
         "load_1m": os.getloadavg()[0],
+        "walk": _walk(),
     }
 
 

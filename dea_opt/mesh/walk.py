@@ -8,23 +8,41 @@ ray's point on a face's plane lies inside the face; a ray that leaves the mesh's
 needs more steps is left to a ray cast (:mod:`dea_opt.mesh.facecast`). Written by hand: the
 ray casters at hand (Embree through trimesh, the numpy grid) start every query from scratch,
 and a cartilage surface met once along a ray is a sheet whose neighbouring faces the mesh's
-edges name.
+edges name. The walk's loop is compiled (``_walk.c``, built at install where a C compiler is at
+hand: one pass over the rays rather than a dozen numpy passes a step, a third of a finite solve's
+updates on the knee) and in numpy otherwise, operation for operation the same numbers.
 """
 
 from __future__ import annotations
 
+import importlib
 import threading
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 import numpy as np
 
 from .raycast import _self_epsilon
 
-__all__ = ["Planes", "Walk", "Walker", "dot", "dot3"]
+__all__ = ["Planes", "Walk", "Walker", "compiled_walk", "dot", "dot3"]
 
 #: Barycentric slack (relative to the face) inside which a point still lies on a face.
 ON_FACE = 1e-9
 _ONES = np.ones(3)
+
+
+def compiled_walk() -> Any:
+    """The compiled walk (``dea_opt.mesh._walk``, built from ``_walk.c`` at install where a C
+    compiler is at hand), or None where it was not built: the numpy walk is used instead."""
+    global _COMPILED
+    if _COMPILED is False:
+        try:
+            _COMPILED = importlib.import_module(f"{__package__}._walk")
+        except ImportError:
+            _COMPILED = None
+    return _COMPILED
+
+
+_COMPILED: Any = False  # not looked for yet
 
 
 def dot(a, b) -> np.ndarray:
@@ -187,25 +205,54 @@ class Walk(NamedTuple):
 class Walker:
     """Rays followed across a mesh's edges: :meth:`follow` from the faces they met before."""
 
-    def __init__(self, planes: Planes, steps: int = 4):
+    def __init__(self, planes: Planes, steps: int = 4, compiled: bool | None = None):
         self.planes, self.steps = planes, steps
+        #: Whether :meth:`follow` runs the compiled loop (``dea_opt.mesh._walk``, where it was built
+        #: at install) or the numpy one; the same numbers either way.
+        self.compiled = compiled_walk() is not None if compiled is None else bool(compiled and compiled_walk())
 
     def follow(self, faces, origins, directions, rows: bool = False) -> Walk:
         """For rays ``origins + t directions`` (K, 3), or (3, K) with ``rows``, that met faces
         ``faces`` (K,) before: the face whose plane each ray crosses inside it, at most ``steps``
         edges away (:class:`Walk`)."""
-        across = self.planes.across.ravel()
         face = np.array(faces, dtype=np.int64)
-        k = len(face)
-        t, margin, along = np.full(k, np.nan), np.zeros(k), np.zeros(k)
-        found = np.zeros(k, dtype=bool)
         if rows:
             oT, dT = origins, directions
         else:
-            oT = np.ascontiguousarray(np.asarray(origins, dtype=float).T)
-            dT = np.ascontiguousarray(np.asarray(directions, dtype=float).T)
-        active = np.arange(k)
-        o, d = oT, dT
+            oT = np.asarray(origins, dtype=float).T
+            dT = np.asarray(directions, dtype=float).T
+        oT = np.ascontiguousarray(oT, dtype=float)
+        dT = np.ascontiguousarray(dT, dtype=float)
+        # (a walker unpickled where the compiled loop was not built walks in numpy)
+        if self.compiled and (kernel := compiled_walk()) is not None:
+            return self._follow_compiled(kernel, face, oT, dT)
+        return self._follow_numpy(face, oT, dT)
+
+    def _follow_compiled(self, kernel, face, oT, dT) -> Walk:
+        """:meth:`follow` in one compiled pass (``_walk.c``): one ray at a time, its steps in a row."""
+        k = len(face)
+        if oT.shape != (3, k) or dT.shape != (3, k):
+            raise ValueError(f"rays must be (3, {k}) rows, got {oT.shape} and {dT.shape}")
+        planes = self.planes
+        across = np.ascontiguousarray(planes.across, dtype=np.int64)
+        t, margin, along = np.empty(k), np.empty(k), np.empty(k)
+        found = np.empty(k, dtype=bool)
+        # each ray's face is read, then written: ``face`` is the start and the answer
+        kernel.follow(
+            k, len(planes.records), self.steps, ON_FACE, face, oT, dT, planes.records, across,
+            face, t, found.view(np.uint8), margin, along,
+        )  # fmt: skip
+        return Walk(face, t, found, margin, along)
+
+    def _follow_numpy(self, face, oT, dT) -> Walk:
+        """:meth:`follow` in numpy passes over the rays still walking, a step at a time."""
+        across = self.planes.across.ravel()
+        k = len(face)
+        t, margin, along = np.full(k, np.nan), np.zeros(k), np.zeros(k)
+        found = np.zeros(k, dtype=bool)
+        # a start that names no face ends its walk there, not found (as the compiled loop does)
+        active = np.flatnonzero((face >= 0) & (face < len(self.planes.records)))
+        o, d = (oT, dT) if len(active) == k else (np.take(oT, active, axis=1), np.take(dT, active, axis=1))
         for step in range(self.steps + 1):
             f = face[active]
             # whole records gathered (96 bytes a face: far fewer cache misses than row by row),

@@ -1,0 +1,123 @@
+/* The inner loop of dea_opt.mesh.walk.Walker.follow, compiled (optional: the numpy loop in
+ * walk.py is the same walk, used where this module was not built).
+ *
+ * Written by hand, as the walk itself (see walk.py): a ray steps across a mesh's edges from a face
+ * it met before until its point on a face's plane lies inside the face. In numpy every step is a
+ * dozen passes over gathered arrays; here it is one pass, each ray's record read once a step.
+ * The arithmetic is the numpy loop's, operation for operation (no fused multiply-add on the
+ * targets that have none by default), so both give the same numbers.
+ *
+ * No numpy headers: the arrays come through the buffer protocol, checked for size by the caller
+ * (walk.py) and here for length and item size; every face index read is checked against the
+ * table, so a bad index ends a ray (not found) instead of reading outside it.
+ */
+#define PY_SSIZE_T_CLEAN
+#include <Python.h>
+#include <math.h>
+#include <stdint.h>
+
+static int take(PyObject *obj, Py_buffer *view, int writable, Py_ssize_t itemsize, Py_ssize_t count, const char *name)
+{
+    if (PyObject_GetBuffer(obj, view, (writable ? PyBUF_WRITABLE : 0) | PyBUF_C_CONTIGUOUS | PyBUF_FORMAT) < 0)
+        return -1;
+    if (view->itemsize != itemsize || view->len != itemsize * count) {
+        PyErr_Format(PyExc_ValueError, "%s: expected %zd items of %zd bytes, got %zd bytes of items of %zd", name,
+                     count, itemsize, view->len, view->itemsize);
+        PyBuffer_Release(view);
+        return -1;
+    }
+    return 0;
+}
+
+static PyObject *follow(PyObject *self, PyObject *args)
+{
+    PyObject *objs[10];
+    Py_ssize_t k, n_faces;
+    int steps;
+    double on_face;
+    if (!PyArg_ParseTuple(args, "nnidOOOOOOOOOO", &k, &n_faces, &steps, &on_face, &objs[0], &objs[1], &objs[2],
+                          &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8], &objs[9]))
+        return NULL;
+    if (k < 0 || n_faces < 0 || steps < 0) {
+        PyErr_SetString(PyExc_ValueError, "follow: negative size");
+        return NULL;
+    }
+    /* faces (K,) int64, origins and directions (3, K), records (F, 12), across (3F,) int64, then the
+       outputs: face (K,) int64, t, found (uint8), margin, along (K,) */
+    static const char *names[10] = {"faces", "origins", "directions", "records", "across",
+                                    "face", "t", "found", "margin", "along"};
+    const Py_ssize_t sizes[10] = {8, 8, 8, 8, 8, 8, 8, 1, 8, 8};
+    const Py_ssize_t counts[10] = {k, 3 * k, 3 * k, 12 * n_faces, 3 * n_faces, k, k, k, k, k};
+    Py_buffer views[10];
+    int got = 0;
+    for (; got < 10; got++)
+        if (take(objs[got], &views[got], got >= 5, sizes[got], counts[got], names[got]) < 0)
+            break;
+    if (got < 10) {
+        for (int j = 0; j < got; j++)
+            PyBuffer_Release(&views[j]);
+        return NULL;
+    }
+    const int64_t *faces = views[0].buf, *across = views[4].buf;
+    const double *o = views[1].buf, *d = views[2].buf, *rec = views[3].buf;
+    int64_t *face_out = views[5].buf;
+    double *t_out = views[6].buf, *margin_out = views[8].buf, *along_out = views[9].buf;
+    uint8_t *found_out = views[7].buf;
+
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t i = 0; i < k; i++) {
+        int64_t f = faces[i];
+        const double ox = o[i], oy = o[k + i], oz = o[2 * k + i];
+        const double dx = d[i], dy = d[k + i], dz = d[2 * k + i];
+        double t = NAN, margin = 0.0, along = 0.0;
+        uint8_t found = 0;
+        for (int step = 0; step <= steps && f >= 0 && f < n_faces; step++) {
+            const double *r = rec + 12 * f;
+            const double facing = (r[0] * dx + r[1] * dy) + r[2] * dz;
+            const double dist = (r[3] - ((r[0] * ox + r[1] * oy) + r[2] * oz)) / facing;
+            if (!isfinite(dist)) /* along the plane: the walk ends there */
+                break;
+            const double px = ox + dist * dx, py = oy + dist * dy, pz = oz + dist * dz;
+            const double b1 = ((r[4] * px + r[5] * py) + r[6] * pz) - r[7];
+            const double b2 = ((r[8] * px + r[9] * py) + r[10] * pz) - r[11];
+            const double b0 = (1.0 - b1) - b2;
+            double low = NAN; /* NaN coordinates (a degenerate face) give NaN, as np.minimum */
+            if (!isnan(b0) && !isnan(b1) && !isnan(b2)) {
+                low = b0 < b1 ? b0 : b1;
+                low = low < b2 ? low : b2;
+            }
+            if (low >= -on_face) {
+                t = dist, margin = low, along = facing, found = 1;
+                break;
+            }
+            if (step == steps)
+                break;
+            const int corner = (b0 == low) ? 0 : ((b1 == low) ? 1 : 2);
+            const int64_t next = across[3 * f + corner];
+            if (next < 0) /* the mesh's boundary */
+                break;
+            f = next;
+        }
+        face_out[i] = f;
+        t_out[i] = t;
+        found_out[i] = found;
+        margin_out[i] = margin;
+        along_out[i] = along;
+    }
+    Py_END_ALLOW_THREADS
+
+    for (int j = 0; j < 10; j++)
+        PyBuffer_Release(&views[j]);
+    Py_RETURN_NONE;
+}
+
+static PyMethodDef methods[] = {
+    {"follow", follow, METH_VARARGS,
+     "follow(k, n_faces, steps, on_face, faces, origins, directions, records, across, face, t, found, margin, along): "
+     "Walker.follow's loop, writing the outputs in place."},
+    {NULL, NULL, 0, NULL},
+};
+
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_walk", "Walker.follow's loop, compiled.", -1, methods};
+
+PyMODINIT_FUNC PyInit__walk(void) { return PyModule_Create(&module); }

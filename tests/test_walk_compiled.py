@@ -1,0 +1,127 @@
+"""The walk's two loops, compiled (``dea_opt/mesh/_walk.c``) and numpy, against closed forms and each other.
+
+On a flat grid the face a ray crosses, and where, are known in closed form; on the embedded hip
+turned by large rotations (walks of many steps, rays that leave the mesh, run out of steps, or
+meet a face edge-on) the two loops must give the same faces and the same numbers, bit for bit.
+Every walk the install has is tested: numpy always, the compiled one where it was built (the
+README's install builds it wherever a C compiler is at hand).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+import pytest
+import trimesh
+
+from dea_opt import mesh as M
+from dea_opt.formulations._parts.finite_geometry import rotation
+from dea_opt.geometry import hip_meshes
+from dea_opt.mesh.walk import ON_FACE, Planes, Walker, compiled_walk
+
+WALKS = ["numpy"] + (["compiled"] if compiled_walk() is not None else [])
+
+
+def _walker(planes, walk, steps=4):
+    return Walker(planes, steps, compiled=walk == "compiled")
+
+
+def _grid(n=6, size=1.0):
+    """A flat n x n grid of squares in z = 0, each cut along its diagonal into two triangles."""
+    xs = np.arange(n + 1) * size
+    vertices = np.array([(x, y, 0.0) for y in xs for x in xs])
+    faces = []
+    for j in range(n):
+        for i in range(n):
+            a, b, c, d = j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i, (j + 1) * (n + 1) + i + 1
+            faces += [(a, b, d), (a, d, c)]
+    return trimesh.Trimesh(vertices, np.array(faces), process=False)
+
+
+def _face_at(mesh, x, y):
+    """The face of ``_grid`` holding (x, y) strictly inside (closed form: its square, then its side of the diagonal)."""
+    n = int(round(np.sqrt(len(mesh.faces) / 2)))
+    i, j = int(np.floor(x)), int(np.floor(y))
+    if not (0 <= i < n and 0 <= j < n):
+        return -1
+    return 2 * (j * n + i) + (0 if (x - i) > (y - j) else 1)
+
+
+@pytest.mark.parametrize("walk", WALKS)
+def test_on_a_flat_grid_the_walk_ends_on_the_face_below_the_ray_at_its_height(walk):
+    mesh = _grid()
+    planes = Planes(mesh)
+    rng = np.random.default_rng(3)
+    k = 400
+    # points inside the grid away from the edges and diagonals, rays tilted downward from above
+    cell = rng.integers(0, 6, size=(k, 2))
+    local = rng.uniform(0.05, 0.95, size=(k, 2))
+    local[:, 1] = np.where(np.abs(local[:, 0] - local[:, 1]) < 0.05, local[:, 0] - 0.1, local[:, 1]).clip(0.02)
+    target = np.column_stack([cell + local, np.zeros(k)])
+    directions = np.column_stack([rng.uniform(-0.3, 0.3, size=(k, 2)), -np.ones(k)])
+    directions /= np.linalg.norm(directions, axis=1)[:, None]
+    height = rng.uniform(0.5, 3.0, size=k)
+    origins = target - height[:, None] * directions
+    expected = np.array([_face_at(mesh, x, y) for x, y, _ in target])
+    start = np.array([_face_at(mesh, *np.clip(p[:2] + rng.uniform(-1.0, 1.0, 2), 0.01, 5.99)) for p in target])
+    face, t, found, margin, along = _walker(planes, walk, steps=12).follow(start, origins, directions)
+    assert found.all()
+    assert np.array_equal(face, expected)
+    assert np.abs(t - height).max() < 1e-12
+    assert np.abs(along - directions[:, 2]).max() < 1e-15  # n = +z: n . d
+    assert (margin >= -ON_FACE).all() and (margin <= 1.0 / 3.0 + 1e-12).all()
+
+
+@pytest.mark.parametrize("walk", WALKS)
+def test_rays_that_leave_the_grid_run_out_of_steps_or_lie_in_its_plane_are_not_found(walk):
+    mesh = _grid()
+    planes = Planes(mesh)
+    down = np.array([0.0, 0.0, -1.0])
+    origins = np.array(
+        [
+            [7.5, 3.5, 1.0],  # beyond the grid's edge: the walk stops at the boundary
+            [5.5, 0.5, 1.0],  # inside, but 10 faces from the start: out of steps
+            [1.5, 1.5, 0.0],  # in the plane, along it: no crossing
+            [1.5, 1.5, 1.0],  # a start that names no face
+            [2.2, 2.7, 1.0],  # settled where it starts
+        ]
+    )
+    directions = np.array([down, down, [1.0, 0.0, 0.0], down, down])
+    start = np.array(
+        [_face_at(mesh, 5.5, 3.5), _face_at(mesh, 0.5, 0.5), 0, len(mesh.faces) + 7, _face_at(mesh, 2.2, 2.7)]
+    )
+    face, t, found, margin, along = _walker(planes, walk, steps=3).follow(start, origins, directions)
+    assert found.tolist() == [False, False, False, False, True]
+    assert np.isnan(t[:4]).all() and (margin[:4] == 0).all() and (along[:4] == 0).all()
+    assert (planes.across[face[0]] < 0).any()  # stopped on a face of the grid's edge
+    assert face[3] == len(mesh.faces) + 7  # left as given
+    assert t[4] == pytest.approx(1.0, abs=1e-15)
+
+
+def _turned(reference, degrees, axis):
+    T = np.eye(4)
+    R = rotation(np.radians(degrees) * np.asarray(axis, dtype=float) / np.linalg.norm(axis))
+    c = np.asarray(reference, dtype=float)
+    T[:3, :3], T[:3, 3] = R, c - R @ c + np.array([0.3, -0.2, 0.1])
+    return T
+
+
+@pytest.mark.parametrize("walk", WALKS)
+@pytest.mark.parametrize("degrees", [0.5, 4.0, 15.0, 40.0])
+def test_every_walk_gives_the_numpy_walk_s_numbers_bit_for_bit(walk, degrees):
+    pair = hip_meshes(step=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+    layer = cast.layer
+    T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2))
+    origins = (layer.points - T[:3, 3]) @ T[:3, :3]
+    directions = layer.normals @ T[:3, :3]
+    planes = Planes(pair.mesh2)
+    for steps in (0, 1, 4, 30):
+        mine = _walker(planes, walk, steps).follow(layer.target_faces, origins, directions)
+        theirs = _walker(planes, "numpy", steps).follow(layer.target_faces, origins, directions)
+        for a, b in zip(mine, theirs):
+            assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
+    assert 0.0 < theirs.found.mean() <= 1.0
