@@ -462,7 +462,8 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     cert = certificate(
         state, law, final.layer, lengths, stiffness, u, reported, gaps_at_zero / system.thickness, certificate_tol
     )
-    settled = tracker is None or tracker.counts.get("stable", True)
+    # springs cast from meshes are updated only at a converged pose: an unconverged answer stands on old ones
+    settled = tracker is None or (tracker.counts.get("stable", True) and inner.success)
     crushed = inner.status == "crushed"
     # the driver's own verdicts on the meshes, which no certificate of these springs overrules
     judged = inner.status in ("crushed", "unbounded", "pose_error")
@@ -470,7 +471,8 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose", "softest")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
     if cert.passed and not settled:
-        info["failure"] = "its certificate passed for springs not brought up to date at the solved pose (max_recasts)"
+        why = "max_recasts" if inner.success else f"{method} ended {inner.status!r} short of it"
+        info["failure"] = f"its certificate passed for springs not brought up to date at the solved pose ({why})"
     elif cert.passed and crushed:
         info["failure"] = "its certificate passed, but the layer is crushed: the load is beyond what it can bear"
     status = status_of(inner.status, success, system, state)
