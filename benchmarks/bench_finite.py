@@ -56,7 +56,7 @@ COLUMNS = [
     "status",
     "peak_rss_mb",
     "load_1m",
-    "walk",
+    "kernels",
 ]
 
 
@@ -135,15 +135,17 @@ def solve_case(repeats: int = 20) -> dict:
         "status": str(finite.status),
         "peak_rss_mb": peak_rss_mb(),
         "load_1m": os.getloadavg()[0],
-        "walk": _walk(),
+        "kernels": _kernels(),
     }
 
 
-def _walk() -> str:
-    """Which loop walked the rays across mesh 2: ``compiled`` (``dea_opt/mesh/_walk.c``) or ``numpy``."""
+def _kernels() -> str:
+    """Which loops ran: the walk of the rays across mesh 2 (``dea_opt/mesh/_walk.c``) and the finite
+    system's passes (``dea_opt/formulations/_parts/_finite.c``), each ``compiled`` or ``numpy``."""
+    from dea_opt.formulations._parts.finite_geometry import compiled_system
     from dea_opt.mesh.walk import compiled_walk
 
-    return "numpy" if compiled_walk() is None else "compiled"
+    return "/".join("numpy" if kernel is None else "compiled" for kernel in (compiled_walk(), compiled_system()))
 
 
 def gait_loads(frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -197,7 +199,7 @@ def gait_case(frames: int = 101) -> dict:
         "status": ", ".join(sorted(set(map(str, table["status"])))),
         "peak_rss_mb": peak_rss_mb(),
         "load_1m": os.getloadavg()[0],
-        "walk": _walk(),
+        "kernels": _kernels(),
     }
 
 

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import functools
 import importlib
+from typing import Any
 
 from ..errors import MissingDependencyError
 
@@ -17,3 +19,14 @@ def require(module: str, feature: str):
             f"{feature} needs {package}; install it with `pip install {package}` "
             f"(or reinstall dea-opt with its dependencies)"
         ) from None
+
+
+@functools.cache
+def compiled(module: str) -> Any:
+    """The compiled extension ``module`` (declared in ``setup.py``, built at install where a C
+    compiler is at hand), or None where it was not built: its caller then runs the same loop in
+    numpy. Looked for once."""
+    try:
+        return importlib.import_module(module)
+    except ImportError:
+        return None

@@ -15,12 +15,12 @@ updates on the knee) and in numpy otherwise, operation for operation the same nu
 
 from __future__ import annotations
 
-import importlib
 import threading
 from typing import Any, NamedTuple
 
 import numpy as np
 
+from .._checks.dependencies import compiled
 from .raycast import _self_epsilon
 
 __all__ = ["Planes", "Walk", "Walker", "compiled_walk", "dot", "dot3"]
@@ -33,16 +33,7 @@ _ONES = np.ones(3)
 def compiled_walk() -> Any:
     """The compiled walk (``dea_opt.mesh._walk``, built from ``_walk.c`` at install where a C
     compiler is at hand), or None where it was not built: the numpy walk is used instead."""
-    global _COMPILED
-    if _COMPILED is False:
-        try:
-            _COMPILED = importlib.import_module(f"{__package__}._walk")
-        except ImportError:
-            _COMPILED = None
-    return _COMPILED
-
-
-_COMPILED: Any = False  # not looked for yet
+    return compiled(f"{__package__}._walk")
 
 
 def dot(a, b) -> np.ndarray:

@@ -19,13 +19,17 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
+from ..._checks.dependencies import compiled
 from ...errors import InputError
 
 __all__ = [
     "Gaps",
+    "as_rows",
+    "compiled_system",
     "PlaneRows",
     "Targets",
     "evaluate",
@@ -407,11 +411,37 @@ class PlaneRows:
         return rows
 
 
-def plane_gaps(rows: PlaneRows, transform) -> Gaps:
+def compiled_system() -> Any:
+    """The compiled passes over a system's springs (``_finite.c``, built at install where a C
+    compiler is at hand: :func:`plane_gaps` and the tangent's sum), or None where it was not built."""
+    return compiled(f"{__package__}._finite")
+
+
+def as_rows(a) -> np.ndarray:
+    """``a`` (float64, each row contiguous: what the compiled passes read) as it is where it already
+    is so (a view of the first columns of a longer buffer too), else a contiguous copy."""
+    a = np.asarray(a)
+    if a.dtype == np.float64 and a.ndim in (1, 2) and a.strides[-1] == 8:
+        if a.ndim == 1 or (a.strides[0] % 8 == 0 and a.strides[0] >= 8 * a.shape[1]):
+            return a
+    return np.ascontiguousarray(a, dtype=float)
+
+
+def plane_gaps(rows: PlaneRows, transform, compiled: bool | None = None) -> Gaps:
     """:func:`evaluate` for targets that are all planes, on their :class:`PlaneRows`.
 
-    ``s_i = (R q_i + t - p_i) . R m_i / (n_i . R m_i) = (q_i . m_i + t . m_i' - p_i . m_i') / (n_i . m_i')``.
+    ``s_i = (R q_i + t - p_i) . R m_i / (n_i . R m_i) = (q_i . m_i + t . m_i' - p_i . m_i') / (n_i . m_i')``,
+    in one compiled pass (:func:`compiled_system`) unless ``compiled`` is False or it was not
+    built, else in numpy: the same numbers, operation for operation.
     """
+    kernel = compiled_system() if compiled is None or compiled else None
+    if kernel is not None:
+        k = len(rows.qm)
+        mT, along, s = np.empty((3, k)), np.empty(k), np.empty(k)
+        T = np.ascontiguousarray(transform, dtype=float)
+        pT, nT, mT_own, qm = (as_rows(a) for a in (rows.pT, rows.nT, rows.mT, rows.qm))
+        kernel.plane_gaps(k, FACING, MISSED, T, pT, nT, mT_own, qm, mT, along, s)
+        return Gaps(s, mT, along, rows.points, rows.normals)
     R, shift = transform[:3, :3], transform[:3, 3]
     mT = R @ rows.mT
     along = np.einsum("ij,ij->j", rows.nT, mT)

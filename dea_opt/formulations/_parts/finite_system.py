@@ -23,6 +23,8 @@ from .finite_geometry import (
     Gaps,
     PlaneRows,
     Targets,
+    as_rows,
+    compiled_system,
     evaluate,
     jacobian_transpose_derivative,
     plane_gaps,
@@ -250,17 +252,9 @@ class State:
                 weights = s.areas[rows] * self.law.tangent(eps) / s.thickness[rows]
             w = np.zeros(len(s))
             w[rows] = weights / gaps.along[rows]
-        gap = np.where(w != 0.0, gaps.s, 0.0)
-        m = gaps.mT
         planes = s.planes
         pT, nT = (planes.pT, planes.nT) if planes is not None else (s.points.T, s.normals.T)
-        hit = pT + gap * nT
-        V = np.empty((6, len(s)))
-        V[:3] = m
-        V[3] = hit[1] * m[2] - hit[2] * m[1]
-        V[4] = hit[2] * m[0] - hit[0] * m[2]
-        V[5] = hit[0] * m[1] - hit[1] * m[0]
-        G = (s.arms * w) @ V.T
+        G = stiffness_sum(w, gaps.s, pT, nT, gaps.mT, s.arms)
         L = self._shift()
         K = L @ G @ L.T
         K[3:, :3] += _hat(self.force_sum)  # the lever arm p - c' shortens as the reference moves
@@ -285,6 +279,27 @@ class State:
         M[3:, 3:] = self.J
         ML = (M.T @ self._shift())[s.free]
         return ML @ ((U * weights) @ U.T) @ ML.T
+
+
+def stiffness_sum(w, s, pT, nT, mT, arms, compiled: bool | None = None) -> np.ndarray:
+    """``G = sum_i w_i a_i v_i^T`` (6, 6) over the springs with ``w_i != 0``: ``a_i`` = ``arms[:, i]``,
+    ``v_i = [m_i; h_i x m_i]`` with the hit ``h_i = p_i + s_i n_i`` (rows (3, N): ``pT``, ``nT``,
+    ``mT``; gaps ``s`` (N,), inf where missed). One compiled pass (``_finite.c``) unless
+    ``compiled`` is False or it was not built, else numpy (its matrix product adds in blocks: the
+    same sum to rounding)."""
+    kernel = compiled_system() if compiled is None or compiled else None
+    if kernel is not None:
+        G = np.empty((6, 6))
+        kernel.tangent_sum(len(w), *(as_rows(a) for a in (w, s, pT, nT, mT, arms)), G)
+        return G
+    gap = np.where(w != 0.0, s, 0.0)
+    hit = pT + gap * nT
+    V = np.empty((6, len(w)))
+    V[:3] = mT
+    V[3] = hit[1] * mT[2] - hit[2] * mT[1]
+    V[4] = hit[2] * mT[0] - hit[0] * mT[2]
+    V[5] = hit[0] * mT[1] - hit[1] * mT[0]
+    return (arms * w) @ V.T
 
 
 def arms_of(pT, nT, out=None) -> np.ndarray:
