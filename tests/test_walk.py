@@ -245,15 +245,34 @@ def test_springs_lost_and_gained_keep_their_arrays_together_and_say_where_they_s
     assert np.array_equal(held, faces[:, None] + np.array([0.1, 0.2, 0.3]))  # the cast's arrays untouched
 
 
-def test_rows_put_through_the_flat_view_are_a_fancy_assignment():
+def test_rows_put_whole_are_a_fancy_assignment():
     from dea_opt.largemotion.springs import put_rows
 
     rng = np.random.default_rng(3)
-    # contiguous, the head of a longer array (as the tracker keeps them), and a transposed view
-    for rows in (rng.normal(size=(50, 3)), rng.normal(size=(60, 3))[:50], rng.normal(size=(3, 50)).T):
-        expected = np.array(rows)
-        index = rng.choice(50, 17, replace=False)
-        values = rng.normal(size=(17, 3))
-        expected[index] = values
-        put_rows(rows, index, values)
-        assert np.array_equal(rows, expected)
+    # contiguous, the head of a longer array (as the tracker keeps them), a transposed view, a
+    # column and no rows at all; values transposed, an index repeated (the last value wins, as in
+    # a fancy assignment), a mask and a row broadcast
+    for rows in (
+        rng.normal(size=(50, 3)),
+        rng.normal(size=(60, 3))[:50],
+        rng.normal(size=(3, 50)).T,
+        rng.normal(size=50),
+        np.zeros((0, 3)),
+    ):
+        n = len(rows)
+        for index in (
+            rng.choice(n, min(n, 17), replace=False),
+            np.array([4, 9, 4][: min(n, 3)], dtype=np.int64)[:n],
+            rng.uniform(size=n) < 0.3,
+        ):
+            k = int(index.sum()) if index.dtype == bool else len(index)
+            for values in (rng.normal(size=(k, *rows.shape[1:])), rng.normal(size=(*rows.shape[1:], k)).T):
+                expected = np.array(rows)
+                expected[index] = values
+                put_rows(rows, index, values)
+                assert np.array_equal(rows, expected)
+        if rows.ndim == 2 and n:
+            expected = np.array(rows)
+            expected[[1, 2]] = rows[0]
+            put_rows(rows, [1, 2], rows[0].copy())
+            assert np.array_equal(rows, expected)
