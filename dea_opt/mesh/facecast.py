@@ -31,13 +31,14 @@ _SPRING = -1
 class FaceCast:
     """What the rays of some faces of mesh 1 met: a spring or the reason for none, per face."""
 
-    def __init__(self, cast, faces, outcome, q, m, faces2, gap, h1, h2, far2=None):
+    def __init__(self, cast, faces, outcome, q, m, faces2, gap, h1, h2, far2=None, first_point=None):
         self.cast, self.faces, self.outcome = cast, faces, outcome
         self.q, self.m, self.faces2, self.gap, self.h1, self.h2 = q, m, faces2, gap, h1, h2
         # the far face of mesh 2 each thickness was measured to (-1: none; -2: not measured)
         self.far2 = np.full(len(faces), -2, dtype=np.int64) if far2 is None else far2
         self.first2 = np.full(len(faces), -1, dtype=np.int64)  # what each ray met first (cast_faces)
-        self.first_point = np.full((len(faces), 3), np.nan)  # where (mesh 2's own frame)
+        # where (mesh 2's own frame)
+        self.first_point = np.full((len(faces), 3), np.nan) if first_point is None else first_point
         self.clear = np.zeros(len(faces))  # how far each hit may move on its face (0: not known)
 
     @property
@@ -134,19 +135,23 @@ def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, me
     )
 
 
-def _empty(cast, faces) -> FaceCast:
+def _empty(cast, faces, points=None) -> FaceCast:
+    """No spring for any of ``faces`` yet; ``points`` (q, m, first_point: (K, 3) each) when the caller
+    has them already (else NaN: three fresh arrays of 1e4 rows cost more than the pass that fills them)."""
     k = len(faces)
+    q, m, first_point = (np.full((k, 3), np.nan) for _ in range(3)) if points is None else points
     return FaceCast(
         cast,
         faces,
         np.full(k, LOST_REASONS.index("no_hit"), dtype=np.int8),
-        np.full((k, 3), np.nan),
-        np.full((k, 3), np.nan),
+        q,
+        m,
         np.full(k, -1, dtype=np.int64),
         np.full(k, np.nan),
         np.full(k, np.nan),
         np.full(k, np.nan),
         np.full(k, -2, dtype=np.int64),
+        first_point,
     )
 
 
@@ -247,10 +252,8 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
     max_gap, eps2 = options["max_gap"], mesh2.planes.eps
     faces = np.asarray(faces, dtype=np.int64)
     k = len(faces)
-    out = _empty(cast, faces)
-    out.first2 = np.full(k, -1, dtype=np.int64)
     if not k:
-        return out
+        return _empty(cast, faces)
     R, shift = pose[:3, :3], pose[:3, 3]
     # whole rows gathered (one cache line a face), then the rays as rows (3, K)
     oT = np.ascontiguousarray(((np.take(mesh1.centroids, faces, axis=0) - shift) @ R).T)
@@ -266,22 +269,28 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
         simple = ahead & ~beyond & ~(-t >= depth - mesh1.eps)
         window = simple & (t >= -allowed) & (t <= max_gap)
         aligned = cos >= math.cos(math.radians(options["max_angle"])) - ANGLE_SLACK
-    out.first2[met_facing] = face[met_facing]
     point = np.ascontiguousarray((oT + t * dT).T)  # where each ray crossed (NaN where it did not)
-    out.first_point = np.where(met_facing[:, None], point, np.nan)
+    spring = window & aligned
+    out = _empty(
+        cast,
+        faces,
+        (
+            # whole arrays where most rays make springs: one pass each rather than a gather and a scatter
+            np.where(spring[:, None], point, np.nan),
+            np.where(spring[:, None], np.take(mesh2.planes.normals, face, axis=0), np.nan),
+            np.where(met_facing[:, None], point, np.nan),
+        ),
+    )
+    out.first2[met_facing] = face[met_facing]
     outcome = out.outcome
     outcome[simple & (t > max_gap)] = LOST_REASONS.index("gap")
     with np.errstate(invalid="ignore"):
         outcome[simple & (t < -allowed) & aligned] = LOST_REASONS.index("overlap")
     outcome[window & ~aligned] = LOST_REASONS.index("angle")
-    spring = window & aligned
     sel = np.flatnonzero(spring)
     outcome[sel] = _SPRING
     out.gap[sel], out.faces2[sel] = t[sel], face[sel]
     out.clear[sel] = mesh2.planes.clearance(face[sel], margin[sel])
-    # whole arrays where most rays make springs: one pass each rather than a gather and a scatter
-    out.q = np.where(spring[:, None], point, np.nan)
-    out.m = np.where(spring[:, None], np.take(mesh2.planes.normals, face, axis=0), np.nan)
     rest = np.flatnonzero(~(simple | beyond))
     if len(rest):
         if not cast_rest:
