@@ -161,7 +161,8 @@ NEVER_SEEN_BY_FORMULATIONS = (
     "dea_opt.solver",
 )
 #: What they may import besides each other: errors, statuses, input checks, tolerances, laws and
-#: the kinematics' array helpers, and the loader of optional dependencies.
+#: the kinematics' array helpers, and the loader of optional dependencies and compiled parts
+#: (``dea_opt._checks.dependencies``, formerly ``dea_opt._optional``).
 SEEN_BY_FORMULATIONS = (
     "dea_opt.errors",
     "dea_opt.status",
@@ -171,6 +172,7 @@ SEEN_BY_FORMULATIONS = (
     "dea_opt.law_registry",
     "dea_opt.kinematics",
     "dea_opt._optional",
+    "dea_opt._checks.dependencies",
 )
 
 

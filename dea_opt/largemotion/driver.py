@@ -34,7 +34,7 @@ from ..formulations.finite import (
 )
 from ..kinematics import DOFS
 from ..mesh import SpringCast, check_pose
-from ..status import Status
+from . import fallback
 from .outcome import crushed_at_start, crushed_far, crushed_through, far_from_start, ran_away, unsettled
 from .solution import FiniteSolution, certificate
 from .stability import leave_unstable, lengths_of, noted, softest
@@ -202,7 +202,10 @@ def solve(
         (``formulations/finite_nlp.md``); ``"auto"``: Newton, then IPOPT if Newton's answer
         fails its certificate (``solution.info["fallback"]`` says why; not where Newton found the
         layer crushed, no spring left, springs that do not settle, or no stable equilibrium near the
-        start: IPOPT meets the same, in minutes). ``"qp"`` is an
+        start: IPOPT meets the same, in minutes), in a time budget unless the options give
+        ``max_time``: the larger of 60 s and 200 times Newton's time, shared by its solves
+        (:mod:`~dea_opt.largemotion.fallback`); an IPOPT stopped by it fails (``max_iterations``),
+        its message and ``info["fallback"]`` saying so. ``"qp"`` is an
         :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
     certificate_tol : float
     strict : bool
@@ -226,25 +229,19 @@ def solve(
     steps = plan(method, problem.law, options)
     with single_threaded_blas():
         name, opts, x0 = steps[0]
+        began = time.perf_counter()
         solution = _solve(problem, name, certificate_tol, opts, x0, frame, tracker, load_checks)
         if method == "auto":
-            if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
-                solution.info["fallback"] = "not tried: the layer is crushed through, a limit of the model"
-            elif solution.status is Status.UNBOUNDED:  # IPOPT chases the same motion (9 minutes on the knee)
-                solution.info["fallback"] = "not tried: no stable equilibrium near the start carries the load"
-            elif solution.status is Status.POSE_ERROR:  # the meshes' geometry: the same for IPOPT
-                solution.info["fallback"] = "not tried: no spring is left at the pose"
-            elif solution.info.get("recast", {}).get("stable") is False:  # IPOPT's springs are updated alike
-                solution.info["fallback"] = "not tried: the springs did not settle within max_recasts updates"
-            elif not solution.success and len(steps) > 1:
-                reason = (
-                    f"{name} ended with status {solution.status!r} ({solution.message}) and certificate "
-                    f"residual {solution.certificate.worst()}"
-                )
-                fallback, opts, _ = steps[1]
-                solution = _solve(problem, fallback, certificate_tol, opts, None, frame, None, load_checks)
-                solution.info["fallback"] = reason
-            solution.info.setdefault("fallback", None)
+            skipped = fallback.not_tried(solution)
+            if skipped is None and not solution.success and len(steps) > 1:
+                reason, newton_time = fallback.why(name, solution), time.perf_counter() - began
+                name, opts, _ = steps[1]
+                limit = fallback.budget(newton_time, options, opts)  # None: the user's max_time
+                began = time.perf_counter()
+                opts = fallback.deadline(opts, limit, began)
+                solution = _solve(problem, name, certificate_tol, opts, None, frame, None, load_checks)
+                skipped = fallback.out_of_time(solution, limit, time.perf_counter() - began, reason)
+            solution.info["fallback"] = skipped
             solution.info["requested"] = "auto"
     if not solution.success and strict:
         raise SolverError(
@@ -432,6 +429,7 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
 def _inner(method, system, law, T, E0, x, cold, opts, start_state=None):
     """The registry's formulation ``method`` on the arrays: its raw answer for these targets
     (``start_state``: the springs' state at ``x``, when known)."""
+    opts = fallback.within(opts)  # auto's fallback: the time left of its budget
     return formulations.get(method).solve(system, law, T, E0, x0=x, cold=cold, start_state=start_state, **opts)
 
 
