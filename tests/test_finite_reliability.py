@@ -265,3 +265,25 @@ def test_an_answer_the_solver_did_not_reach_stands_on_old_springs_and_is_no_succ
     assert solution.info["recast"]["updates"] == 0
     assert not solution.success and solution.status not in CERTIFIABLE
     assert "not brought up to date" in solution.failure and "max_iterations" in solution.failure
+
+
+def test_a_bounded_law_driven_past_its_domain_fails_crushed_without_a_runtime_warning():
+    # Ateshian's stress has no value past eps = -1: a start that presses the flat punch 1.5
+    # thicknesses into its bed is no answer, said by the status, not by a RuntimeWarning
+    layer = plate_layer(20.0, 10.0, 8, 4, thickness=1.0)
+    problem = d.ContactProblem(
+        layer,
+        d.AteshianLaw(2.0, 0.3),
+        force=(0.0, 0.0, -5.0),
+        free=("uz",),
+        kinematics="finite",
+        targets=Targets.facing(layer),
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        warnings.simplefilter("ignore", d.ValidityWarning)
+        solution = d.solve(problem, "finite", strict=False, x0=np.array([-1.5]))
+        again = d.solve(problem, "finite", strict=False)
+    assert not solution.success and solution.status is d.Status.CRUSHED
+    # from the start pose the same load is carried: 5 N on 200 mm^2 of H = 2 MPa
+    assert again.success and -again.strain.min() == pytest.approx(5.0 / (200.0 * 2.0), rel=0.05)

@@ -195,12 +195,13 @@ class State:
             self.sigma = law.stress(self.eps if bilateral else np.minimum(self.eps, 0.0))
         if bilateral:
             self.sigma = np.where(self.gaps.valid, self.sigma, 0.0)
-        spring = system.arms @ (system.areas * self.sigma)  # sum f a_i about the origin
-        self.force_sum = spring[:3]
-        spring[3:] -= _hat(self.centre) @ self.force_sum
-        self.spring = spring  # sum f a_i, spatial, about c'
-        self.net = self.spring - np.concatenate([system.force, system.moment])
-        self.residual6 = np.concatenate([self.net[:3], self.J.T @ self.net[3:]])
+        with np.errstate(invalid="ignore"):  # a law's NaN past its domain: the residual shows it (finite)
+            spring = system.arms @ (system.areas * self.sigma)  # sum f a_i about the origin
+            self.force_sum = spring[:3]
+            spring[3:] -= _hat(self.centre) @ self.force_sum
+            self.spring = spring  # sum f a_i, spatial, about c'
+            self.net = self.spring - np.concatenate([system.force, system.moment])
+            self.residual6 = np.concatenate([self.net[:3], self.J.T @ self.net[3:]])
         self.load6 = np.concatenate([system.force, self.J.T @ system.moment])
         self.internal6 = self.residual6 + self.load6
 
