@@ -141,6 +141,8 @@ def _refuses_arrays_of_the_wrong_shape_or_type():
             kernel.tangent_sum(k, *args, np.zeros((6, 6)))
     with pytest.raises(ValueError, match="out"):
         kernel.tangent_sum(k, *good, np.zeros((5, 6)))
+    with pytest.raises(ValueError, match="C-contiguous"):  # a view of a wider matrix: not one block
+        kernel.tangent_sum(k, *good, np.zeros((6, 12))[:, :6])
     with pytest.raises(TypeError):
         kernel.tangent_sum(k, [0.0] * k, *good[1:], np.zeros((6, 6)))
     rows, out = [np.zeros((3, k))] * 3, [np.zeros(k), np.zeros((3, k)), np.zeros(k), np.zeros(k)]

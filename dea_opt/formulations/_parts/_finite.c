@@ -19,24 +19,28 @@
 
 /* An array of float64: a vector of `count` items (rows == 0), or `rows` rows of `count` items each,
  * each row contiguous, the rows `*stride` items apart (the springs' rows live in longer buffers
- * kept between solves: a view of their first `count` columns). */
+ * kept between solves: a view of their first `count` columns); `-rows` rows: a small matrix,
+ * C-contiguous (the rows `count` items apart). */
 static int take(PyObject *obj, Py_buffer *view, int writable, int rows, Py_ssize_t count, Py_ssize_t *stride,
                 const char *name)
 {
     if (PyObject_GetBuffer(obj, view, (writable ? PyBUF_WRITABLE : 0) | PyBUF_RECORDS_RO) < 0)
         return -1;
+    const int whole = rows < 0;
+    rows = whole ? -rows : rows;
     const int ndim = rows ? 2 : 1;
     int ok = view->itemsize == 8 && view->format && strcmp(view->format, "d") == 0 && view->ndim == ndim;
     if (ok && rows)
         ok = view->shape[0] == rows && view->shape[1] == count && (view->strides[1] == 8 || count <= 1) &&
-             view->strides[0] % 8 == 0 && view->strides[0] >= 8 * count;
+             view->strides[0] % 8 == 0 && (whole ? view->strides[0] == 8 * count : view->strides[0] >= 8 * count);
     else if (ok)
         ok = view->shape[0] == count && (view->strides[0] == 8 || count <= 1);
     if (!ok) {
         if (rows)
-            PyErr_Format(PyExc_ValueError, "%s: expected float64 of shape (%d, %zd), each row contiguous, got %d "
-                         "dimensions of items of %zd bytes, format '%s'", name, rows, count, view->ndim,
-                         view->itemsize, view->format ? view->format : "?");
+            PyErr_Format(PyExc_ValueError, "%s: expected float64 of shape (%d, %zd), %s, got %d dimensions of "
+                         "items of %zd bytes, format '%s'", name, rows, count,
+                         whole ? "C-contiguous" : "each row contiguous", view->ndim, view->itemsize,
+                         view->format ? view->format : "?");
         else
             PyErr_Format(PyExc_ValueError, "%s: expected contiguous float64 of shape (%zd,), got %d dimensions of "
                          "items of %zd bytes, format '%s'", name, count, view->ndim, view->itemsize,
@@ -83,17 +87,12 @@ static PyObject *plane_gaps(PyObject *self, PyObject *args)
         return NULL;
     }
     static const char *const names[8] = {"transform", "pT", "nT", "mT", "qm", "out_mT", "out_along", "out_s"};
-    const int rows[8] = {4, 3, 3, 3, 0, 3, 0, 0};
+    const int rows[8] = {-4, 3, 3, 3, 0, 3, 0, 0};
     const Py_ssize_t counts[8] = {4, k, k, k, k, k, k, k};
     Py_ssize_t st[8];
     Py_buffer views[8];
     if (take_all(objs, views, 8, 5, rows, counts, st, names) < 0)
         return NULL;
-    if (st[0] != 4) {
-        PyErr_SetString(PyExc_ValueError, "transform: expected a C-contiguous (4, 4) array");
-        release_all(views, 8);
-        return NULL;
-    }
     const double *T = views[0].buf, *p = views[1].buf, *n = views[2].buf, *m = views[3].buf, *qm = views[4].buf;
     double *mo = views[5].buf, *along_out = views[6].buf, *s_out = views[7].buf;
     const Py_ssize_t sp = st[1], sn = st[2], sm = st[3], so = st[5];
@@ -134,17 +133,12 @@ static PyObject *tangent_sum(PyObject *self, PyObject *args)
         return NULL;
     }
     static const char *const names[7] = {"w", "s", "pT", "nT", "mT", "arms", "out"};
-    const int rows[7] = {0, 0, 3, 3, 3, 6, 6};
+    const int rows[7] = {0, 0, 3, 3, 3, 6, -6};
     const Py_ssize_t counts[7] = {k, k, k, k, k, k, 6};
     Py_ssize_t st[7];
     Py_buffer views[7];
     if (take_all(objs, views, 7, 6, rows, counts, st, names) < 0)
         return NULL;
-    if (st[6] != 6) {
-        PyErr_SetString(PyExc_ValueError, "out: expected a C-contiguous (6, 6) array");
-        release_all(views, 7);
-        return NULL;
-    }
     const Py_ssize_t sp = st[2], sn = st[3], sm = st[4], sa = st[5];
     const double *w = views[0].buf, *s = views[1].buf, *p = views[2].buf, *n = views[3].buf, *m = views[4].buf;
     const double *arms = views[5].buf;
