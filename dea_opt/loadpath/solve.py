@@ -78,8 +78,31 @@ class _ArrayLoads:
         return (self[k] for k in range(len(self)))
 
 
+def _frame_count(loads) -> int:
+    """How many frames ``loads`` holds, from its length or shape alone: no frame is read, copied
+    or converted, so the size check comes before any work that grows with the frames (a
+    broadcast array of 1e9 rows is 48 bytes of data until something walks it)."""
+    import pandas as pd
+
+    if isinstance(loads, (np.ndarray, pd.DataFrame)):
+        shape = loads.shape
+        if isinstance(loads, np.ndarray) and (len(shape) != 2 or shape[1] not in (3, 6)):
+            raise InputError(
+                f"loads must be a sequence of Load, or an array of shape (T, 3) or (T, 6) "
+                f"(Fx, Fy, Fz[, Mx, My, Mz]), got shape {shape}"
+            )
+        return int(shape[0]) if shape else 0
+    try:
+        return len(loads)
+    except TypeError:
+        raise InputError(
+            f"loads must be a sequence of Load, an array of shape (T, 3) or (T, 6), or a DataFrame, "
+            f"got {type(loads).__name__} (without a length)"
+        ) from None
+
+
 def _frames(loads, times) -> tuple:
-    """Loads as a list of :class:`Load` and the frame times (s)."""
+    """Loads as a sequence of :class:`Load` and the frame times (s)."""
     import pandas as pd
 
     if isinstance(loads, pd.DataFrame):
@@ -383,24 +406,27 @@ def _solve_path(
         raise InputError(
             f"kinematics='finite' moves body 2 against a fixed body 1: loads act on body 2, got body={body!r}"
         )
-    loads, times = _frames(loads, times)
-    if finite:
-        poses = check_finite_poses(problem, poses, len(loads))
-        moving = moves(problem, poses)
-    else:
-        poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
-        moving = poses is not None
+    # The size check first, from the frames' count and the springs alone: everything before it is
+    # O(springs), nothing reads, converts or validates a frame (the loads, times and poses are
+    # checked after it).
+    n_frames = _frame_count(loads)
+    moving = moves(problem, poses) if finite else poses is not None
     labels = _labels(regions, problem.layer)
     n_regions = 0 if labels is None else len(np.unique(labels))
-    n_sites = _site_count(problem.layer, moving)
     check_frames(
-        len(loads),
+        n_frames,
         len(problem.layer),
         keep_solutions=keep_solutions,
         keep_pressures=keep_pressures,
         moving=moving,
         n_regions=n_regions,
     )
+    loads, times = _frames(loads, times)
+    if finite:
+        poses = check_finite_poses(problem, poses, len(loads))
+    else:
+        poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
+    n_sites = _site_count(problem.layer, moving)
     stepper = FiniteStepper(method, options, certificate_tol) if finite else Stepper(method, options, certificate_tol)
     accumulator = ExposureAccumulator(n_sites, threshold)
     frames = FrameSeries(series, len(loads)) if series is not None else None
