@@ -386,7 +386,7 @@ def _problem_cast(scenario: Scenario, layer, references, cast) -> tuple:
         layer,
         build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),
-        body2=_body(scenario.body2, DOFS, reference2),
+        body2=_body(scenario.body2, None, reference2),  # default: every dof not prescribed
         kinematics=scenario.solve.kinematics,
         targets=cast if scenario.solve.kinematics == "finite" else None,
     )
