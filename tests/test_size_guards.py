@@ -15,7 +15,6 @@ import sys
 import textwrap
 from collections.abc import Sequence
 
-import numpy as np
 import pandas as pd
 import pytest
 from conftest import COARSE_SOCKET
