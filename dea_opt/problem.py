@@ -67,6 +67,11 @@ def _dof_tuple(name: str, value) -> tuple:
     return tuple(d for d in DOFS if d in items)
 
 
+class _Unprescribed(tuple):
+    """The default of :attr:`Body.free`: every dof the body does not prescribe (told apart from a
+    ``free`` the caller gave by its type)."""
+
+
 @dataclass(frozen=True)
 class Body:
     """One rigid bone: its reference point, free dofs, load and prescribed motion.
@@ -87,7 +92,7 @@ class Body:
     """
 
     reference: tuple = (0.0, 0.0, 0.0)
-    free: tuple | None = None
+    free: tuple = _Unprescribed(DOFS)
     force: tuple = (0.0, 0.0, 0.0)
     moment: tuple = (0.0, 0.0, 0.0)
     prescribed: dict = field(default_factory=dict)
@@ -105,7 +110,7 @@ class Body:
                 raise InputError(f"prescribed must use dof names from {DOFS}, got {dof!r}")
             prescribed[dof] = finite_number(f"prescribed[{dof!r}]", value, "mm or rad")
         set_(self, "prescribed", MappingProxyType(prescribed))
-        if self.free is None:
+        if isinstance(self.free, _Unprescribed):
             set_(self, "free", tuple(d for d in DOFS if d not in prescribed))
             return
         free = _dof_tuple("free", self.free)
