@@ -113,8 +113,9 @@ def test_a_run_reports_the_compartments_and_the_springs_table_keeps_them(split_p
     regions = summary["regions"]
     assert set(regions) == {"left", "right"}
     # a centred load on a symmetric plate: each half carries half of it
-    forces = [regions[name]["force"] for name in ("left", "right")]
+    forces = [regions[name]["resultant"] for name in ("left", "right")]
     assert np.allclose(forces, 200.0, rtol=1e-9) and np.isclose(sum(forces), 400.0, rtol=1e-12)
+    assert [regions[name]["share"] for name in ("left", "right")] == pytest.approx([0.5, 0.5], rel=1e-9)
     layer = outcome.result.problem.layer
     for name in ("springs.csv", "springs.npz"):
         write_springs(layer, tmp_path / name)

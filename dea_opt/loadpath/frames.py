@@ -14,7 +14,7 @@ from .._checks.inputs import as_numeric
 from .._checks.memory import check_memory
 from ..errors import InputError
 from ..problem import Load
-from .table import TABLE_COLUMNS
+from .table import REGION_COLUMNS, TABLE_COLUMNS
 
 __all__ = ["check_frames", "frame_count", "path_memory", "read_frames"]
 
@@ -120,13 +120,14 @@ def path_memory(
 ) -> float:
     """Bytes a load path of ``n_frames`` x ``n_springs`` keeps until it returns (an estimate).
 
-    The table (about 50 columns: the fixed ones, the validity checks and the free dofs; 8 more per region, per frame), the pressures (8 bytes per
+    The table (about 50 columns: the fixed ones, the validity checks and the free dofs;
+    :data:`~dea_opt.loadpath.table.REGION_COLUMNS` more per region, per frame), the pressures (8 bytes per
     spring and frame) and the solutions (strain and pressure; with ``moving`` meshes each
     frame's layer and its operator too, about 250 bytes per spring). The exposure and one
     frame's work are O(springs) and not counted.
     """
     n_frames, n_springs = int(n_frames), int(n_springs)
-    columns = len(TABLE_COLUMNS) + 12 + 12 + 8 * int(n_regions)  # + validity checks + free dofs
+    columns = len(TABLE_COLUMNS) + 12 + 12 + len(REGION_COLUMNS) * int(n_regions)  # + validity checks + free dofs
     need = n_frames * (_FRAME_BYTES + _CELL_BYTES * columns)
     if keep_pressures:
         need += 8.0 * n_frames * n_springs
