@@ -67,6 +67,11 @@ def _dof_tuple(name: str, value) -> tuple:
     return tuple(d for d in DOFS if d in items)
 
 
+class _Unprescribed(tuple):
+    """The default of :attr:`Body.free`: every dof the body does not prescribe (told apart from a
+    ``free`` the caller gave by its type)."""
+
+
 @dataclass(frozen=True)
 class Body:
     """One rigid bone: its reference point, free dofs, load and prescribed motion.
@@ -76,18 +81,18 @@ class Body:
     reference : array_like, shape (3,)
         The point rotations are about and moments are taken about (mm); the body
         centroid of Eq. (10).
-    free : sequence of str
-        Unknown dofs among ``("ux", "uy", "uz", "rx", "ry", "rz")``; default all six.
-        Dofs neither free nor prescribed are fixed at zero.
+    free : sequence of str, optional
+        Unknown dofs among ``("ux", "uy", "uz", "rx", "ry", "rz")``; default every dof that is
+        not prescribed. Dofs neither free nor prescribed are fixed at zero.
     force, moment : array_like, shape (3,)
         Load on the body (N and N mm about ``reference``).
     prescribed : mapping {dof: value}
-        Dofs held at a given displacement (mm or rad); their reactions are reported.
-        A prescribed dof is not free even if listed in ``free``.
+        Dofs held at a given displacement (mm or rad); their reactions are reported. A dof
+        cannot be both: one listed in ``free`` and in ``prescribed`` is an :class:`InputError`.
     """
 
     reference: tuple = (0.0, 0.0, 0.0)
-    free: tuple = DOFS
+    free: tuple = _Unprescribed(DOFS)
     force: tuple = (0.0, 0.0, 0.0)
     moment: tuple = (0.0, 0.0, 0.0)
     prescribed: dict = field(default_factory=dict)
@@ -105,7 +110,17 @@ class Body:
                 raise InputError(f"prescribed must use dof names from {DOFS}, got {dof!r}")
             prescribed[dof] = finite_number(f"prescribed[{dof!r}]", value, "mm or rad")
         set_(self, "prescribed", MappingProxyType(prescribed))
-        set_(self, "free", tuple(d for d in _dof_tuple("free", self.free) if d not in prescribed))
+        if isinstance(self.free, _Unprescribed):
+            set_(self, "free", tuple(d for d in DOFS if d not in prescribed))
+            return
+        free = _dof_tuple("free", self.free)
+        both = [d for d in free if d in prescribed]
+        if both:
+            raise InputError(
+                f"a dof cannot be both free and prescribed: {', '.join(both)} "
+                f"(free={free}, prescribed={dict(prescribed)}); remove it from one of them"
+            )
+        set_(self, "free", free)
 
     def __reduce__(self):
         # the checked values again through the constructor (a mappingproxy does not pickle)
@@ -121,9 +136,9 @@ class Body:
         return replace(self, force=f, moment=m, prescribed=dict(self.prescribed))
 
     def with_prescribed(self, **values) -> Body:
-        """A copy with these dofs prescribed (e.g. ``uz=-0.2``)."""
+        """A copy with these dofs prescribed (e.g. ``uz=-0.2``): free ones are free no more."""
         prescribed = {**self.prescribed, **values}
-        free = tuple(d for d in DOFS if d in self.free or (d in self.prescribed and d not in values))
+        free = tuple(d for d in self.free if d not in values)
         return replace(self, free=free, prescribed=prescribed)
 
     @property

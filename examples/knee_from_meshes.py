@@ -190,8 +190,8 @@ def comparison_table(solutions: dict, medial_side: str = MEDIAL_SIDE) -> pd.Data
     """One row per law, and how far each lies from the linear law.
 
     Columns: ``law, peak_pressure`` (MPa), ``mean_pressure`` (MPa), ``contact_area``
-    (mm^2), ``medial_share``, ``lateral_share`` (fractions of the normal force),
-    ``medial_peak``, ``lateral_peak`` (MPa), ``medial_area``, ``lateral_area`` (mm^2),
+    (mm^2), ``medial_share``, ``lateral_share`` (fractions of the contact force: each
+    compartment's resultant along it), ``medial_peak``, ``lateral_peak`` (MPa), ``medial_area``, ``lateral_area`` (mm^2),
     ``uz`` (mm), ``ry_deg``, ``max_strain``, ``iterations``, ``solve_time`` (s), then
     ``dev_peak`` and ``dev_area`` (relative to the linear law) and ``d_medial_share``
     (percentage points).
@@ -293,7 +293,7 @@ def run(
         title = (
             f"{s.problem.law.describe()}: peak {s.peak_pressure:.3g} MPa, area {s.contact_area:.0f} mm$^2$,\n"
             f"medial ({_side_on_map(s, share)}) {100 * share['medial'].share:.1f} % / lateral "
-            f"{100 * share['lateral'].share:.1f} % of the normal force"
+            f"{100 * share['lateral'].share:.1f} % of the contact force"
         )
         files[f"{name}_png"] = dio.plot_pressure(
             s, out / f"knee_pressure_{name}.png", vmax=top, title=title, dpi=100, figsize=(6.4, 4.6)

@@ -90,3 +90,19 @@ def test_problem_is_immutable_and_copies(layer):
     with pytest.raises(ValueError):
         layer.points[0, 0] = 1.0
     assert p.with_law(d.LinearLaw(2.0)).law.H == 2.0
+
+
+def test_a_dof_both_free_and_prescribed_is_a_named_error():
+    with pytest.raises(d.InputError, match="both free and prescribed: uz") as caught:
+        d.Body(reference=REF, free=("uz", "rx"), prescribed={"uz": -0.1})
+    assert "remove it from one" in str(caught.value)
+    with pytest.raises(d.InputError, match="both free and prescribed: rx, ry"):
+        d.Body(free="all", prescribed={"ry": 0.01, "rx": 0.0})
+    # free not given: every dof that is not prescribed
+    assert d.Body(prescribed={"uz": -0.1}).free == ("ux", "uy", "rx", "ry", "rz")
+    held = d.Body(free=("rx",), prescribed={"uz": -0.1})
+    assert held.with_prescribed(rx=0.01).free == () and held.with_prescribed(rx=0.01).prescribed == {
+        "uz": -0.1,
+        "rx": 0.01,
+    }
+    assert held.with_load(force=(0, 0, -1.0)).free == ("rx",)  # copies keep what they were given

@@ -161,7 +161,8 @@ def test_standard_error_in_closed_form():
     truth = solve(problem)
     rng = np.random.default_rng(5)
     data = PressureMap(layer.points, truth.pressure * np.exp(0.05 * rng.standard_normal(400)), noise=0.05)
-    fit = calibrate(apply_parameters(problem, {"Fz": -60.0}), data, ("Fz",), scale_errors=False)
+    fit = calibrate(apply_parameters(problem, {"Fz": -60.0}), data, ("Fz",))
+    assert fit.errors == "stated"  # the noise is stated: carried through the Jacobian
     assert fit.standard_errors["Fz"] == pytest.approx(abs(fit.values["Fz"]) * 0.05 / np.sqrt(400), rel=1e-6)
     # the fitted load is the geometric mean of the readings times the area
     expected = -np.exp(np.mean(np.log(data.pressure))) * layer.areas.sum()

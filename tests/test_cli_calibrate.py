@@ -102,6 +102,7 @@ def test_calibrate_one_parameter_into_a_folder(case, tmp_path):
         (["--data", "{film}", "--film", "a,b"], "--film must be"),
         (["--data", "{film}", "--parameters", "E"], "parameters must name"),
         (["--data", "{film}", "--noise", "-1"], "noise must be"),
+        (["--data", "{film}", "--correlation-length", "0"], "correlation_length: length must be a number > 0"),
     ],
 )
 def test_bad_input_exits_2_with_one_paragraph(case, extra, expected):
@@ -116,3 +117,50 @@ def test_bad_input_exits_2_with_one_paragraph(case, extra, expected):
 def test_help():
     result = invoke("calibrate", "--help")
     assert result.exit_code == 0 and "--data" in result.stdout and "--film" in result.stdout
+
+
+def test_the_standard_errors_say_where_they_come_from(case, tmp_path):
+    """The film read at one point for one parameter: with --noise the noise carried through the
+    slope; without it, nothing to estimate it from, and the command says so (JSON null)."""
+    scenario, film, truth = case
+    table = pd.read_csv(film)
+    one = tmp_path / "one.csv"
+    table.iloc[[int(np.argmax(truth.pressure))]].to_csv(one, index=False)
+    args = ("calibrate", scenario, "--data", one, "--parameters", "H", "--set", "law.beta=0.3")
+    stated = invoke(*args, "--noise", "0.1", "-o", tmp_path / "stated")
+    assert stated.exit_code == 0, stated.stderr
+    summary = json.loads((tmp_path / "stated" / "calibration.json").read_text())
+    assert summary["errors"] == "stated" and summary["noise"] == 0.1 and summary["standard_errors"]["H"] > 0
+    assert "standard errors: from the stated noise" in stated.stdout
+    doubled = invoke(*args, "--noise", "0.2", "-o", tmp_path / "doubled")
+    assert doubled.exit_code == 0, doubled.stderr
+    se = json.loads((tmp_path / "doubled" / "calibration.json").read_text())["standard_errors"]["H"]
+    assert se == pytest.approx(2.0 * summary["standard_errors"]["H"], rel=1e-6)  # the noise through the slope
+    unstated = invoke(*args, "-o", tmp_path / "unstated")
+    assert unstated.exit_code == 0, unstated.stderr
+    summary = json.loads((tmp_path / "unstated" / "calibration.json").read_text())
+    assert summary["errors"] == "estimated" and summary["standard_errors"] == {"H": None}
+    assert summary["noise"] is None and "undefined" in summary["notes"][0]
+    assert "undefined" in unstated.stdout and "note: the standard errors are undefined" in unstated.stdout
+    assert "nan" not in unstated.stdout.lower()
+    correlated = invoke(
+        *args[:3], film, *args[4:], "--noise", "0.05", "--correlation-length", "2", "-o", tmp_path / "c"
+    )
+    assert correlated.exit_code == 0, correlated.stderr
+    with_length = json.loads((tmp_path / "c" / "calibration.json").read_text())
+    assert with_length["correlation_length"] == 2.0 and with_length["errors"] == "stated"
+    independent = invoke(*args[:3], film, *args[4:], "--noise", "0.05", "-o", tmp_path / "i")
+    assert independent.exit_code == 0, independent.stderr
+    without = json.loads((tmp_path / "i" / "calibration.json").read_text())
+    assert without["values"] == with_length["values"]  # the same fit: each reading weighted by its noise
+    # the option is the API's spatial correlation of the map's points
+    from dea_opt.calibrate import PressureMap, calibrate
+
+    from dea_opt.sensitivity import spatial_correlation
+
+    data = PressureMap.from_csv(film, noise=0.05)
+    data = PressureMap(data.points, data.pressure, noise=0.05, correlation=spatial_correlation(data.points, 2.0))
+    problem = build_problem(load_scenario(scenario, {"law.beta": 0.3}))
+    fit = calibrate(problem, data, ("H",))
+    assert with_length["standard_errors"]["H"] == pytest.approx(fit.standard_errors["H"], rel=1e-6)
+    assert with_length["standard_errors"]["H"] != pytest.approx(without["standard_errors"]["H"], rel=1e-3)

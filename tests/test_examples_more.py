@@ -191,12 +191,14 @@ def _knee_checks(result, load):
         assert s.contact_force[2] == pytest.approx(load, rel=1e-6)
         assert abs(s.contact_moment[1]) <= 1e-6 * load * 100.0
         layer = s.problem.layer
-        force = s.pressure * layer.areas
+        force = (s.pressure * layer.areas)[:, None] * layer.normals  # each spring's force on body 2
+        total = force.sum(axis=0)
         row = table.set_index("law").loc[name]
         assert row["medial_share"] + row["lateral_share"] == pytest.approx(1.0, abs=1e-12)
-        if layer.labels is not None:
+        if layer.labels is not None:  # a compartment's share: its resultant along the contact force
             for side in ("medial", "lateral"):
-                assert row[f"{side}_share"] == pytest.approx(force[layer.labels == side].sum() / force.sum(), rel=1e-12)
+                part = force[layer.labels == side].sum(axis=0) @ total / (total @ total)
+                assert row[f"{side}_share"] == pytest.approx(part, rel=1e-10)
 
 
 @pytest.fixture(scope="module")

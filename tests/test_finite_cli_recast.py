@@ -8,6 +8,7 @@ again here)."""
 from __future__ import annotations
 
 import json
+import re
 import textwrap
 import warnings
 
@@ -183,7 +184,8 @@ def test_a_finite_run_with_regions_recasts_with_their_labels_and_the_regions_add
     result = invoke("run", folder / "static.toml", "-o", folder / "static")
     assert result.exit_code == 0, result.stderr
     assert "re-cast at the solved pose: " in result.stdout
-    assert "region lateral: force" in result.stdout and "region medial: force" in result.stdout
+    for name in ("lateral", "medial"):
+        assert re.search(rf"region {name}: [\d.]+% of the contact force \([\d.]+ N of [\d.]+ N along it", result.stdout)
     summary = json.loads((folder / "static" / "contact.json").read_text())
     springs = pd.read_csv(folder / "static" / "contact.csv", comment="#")
     cells = {"pressure": springs["pressure"], "area": springs["area"], "normal": springs[["nx", "ny", "nz"]]}
@@ -204,7 +206,8 @@ def test_a_finite_run_with_regions_recasts_with_their_labels_and_the_regions_add
         np.testing.assert_allclose(region["force_vector"], written_force(cells, mine), rtol=1e-9, atol=1e-6)
         assert region["n_springs"] == mine.sum() and 0.3 < region["share"] < 0.7
     np.testing.assert_allclose(sum(np.array(r["force_vector"]) for r in regions.values()), own, rtol=1e-9)
-    assert sum(r["force"] for r in regions.values()) == pytest.approx(summary["total_normal_force"], rel=1e-9)
+    magnitudes = sum(r["force_magnitude_sum"] for r in regions.values())
+    assert magnitudes == pytest.approx(summary["force_magnitude_sum"], rel=1e-9)
     assert sum(r["share"] for r in regions.values()) == pytest.approx(1.0, rel=1e-12)
 
 
@@ -236,5 +239,7 @@ def test_a_finite_path_with_poses_and_regions_recasts_its_peak_frame_with_their_
     assert set(summary["regions"]) == {"lateral", "medial"}
     assert np.allclose(frames["lateral_force_share"] + frames["medial_force_share"], 1.0)
     for name in ("lateral", "medial"):
-        normal_force = (cells["pressure"] * cells["area"])[labels == name].sum()
-        assert frames.loc[k, f"{name}_force"] == pytest.approx(normal_force, rel=1e-9)
+        magnitudes = (cells["pressure"] * cells["area"])[labels == name].sum()
+        assert frames.loc[k, f"{name}_force_magnitude_sum"] == pytest.approx(magnitudes, rel=1e-9)
+        written = [frames.loc[k, f"{name}_force_{c}"] for c in "xyz"]
+        np.testing.assert_allclose(written, forces[name], rtol=1e-9, atol=1e-9 * np.linalg.norm(total))

@@ -236,7 +236,7 @@ def test_a_zero_load_reports_no_nan_percentages(finite, tmp_path):
     result = invoke("run", finite, "--set", "load.scale=0", "-o", tmp_path / "zero")
     assert result.exit_code == 0, result.output
     assert "nan" not in result.output.lower()
-    assert "(- of the total: no force carried)" in result.output
+    assert "no share of the contact force (the springs carry none)" in result.output
     assert "(-: the solution carries no force)" in result.output
 
 

@@ -314,8 +314,10 @@ def test_json_contents(surface_solution, tmp_path):
     assert data["method"] == "newton" and data["success"] is True
     assert data["law"] == s.problem.law.describe()
     assert data["n_springs"] == len(s.problem.layer)
-    for key in ("peak_pressure", "mean_pressure", "contact_area", "total_normal_force"):
+    for key in ("peak_pressure", "mean_pressure", "contact_area"):
         assert data[key] == pytest.approx(getattr(s, key), rel=1e-15), key
+    magnitudes = float(s.pressure @ s.problem.layer.areas)  # no force on anything: named for what it is
+    assert data["force_magnitude_sum"] == pytest.approx(magnitudes, rel=1e-14) and "total_normal_force" not in data
     np.testing.assert_allclose(data["center_of_pressure"], s.center_of_pressure, rtol=1e-15)
     np.testing.assert_allclose(data["contact_force"], s.contact_force, rtol=1e-15)
     np.testing.assert_allclose(data["contact_moment"], s.contact_moment, rtol=1e-15, atol=1e-12)
@@ -327,11 +329,20 @@ def test_json_contents(surface_solution, tmp_path):
     assert set(data["regions"]) == {"lateral", "medial", "posterior", "anterior"}
     label_stats = s.regions()
     for name in ("medial", "lateral"):
-        assert data["regions"][name]["force"] == pytest.approx(label_stats[name].force, rel=1e-15)
-    assert sum(data["regions"][n]["force"] for n in ("medial", "lateral")) == pytest.approx(
-        s.total_normal_force, rel=1e-12
+        np.testing.assert_allclose(data["regions"][name]["force_vector"], label_stats[name].force_vector, rtol=1e-15)
+        assert data["regions"][name]["share"] == pytest.approx(label_stats[name].share, rel=1e-15)
+        assert "force" not in data["regions"][name]
+    np.testing.assert_allclose(
+        np.add(data["regions"]["medial"]["force_vector"], data["regions"]["lateral"]["force_vector"]),
+        data["contact_force"],
+        rtol=1e-12,
+        atol=1e-12 * np.linalg.norm(data["contact_force"]),
     )
-    assert data["regions"]["anterior"]["force"] == pytest.approx(split["anterior"].force, rel=1e-15)
+    assert sum(data["regions"][n]["share"] for n in ("medial", "lateral")) == pytest.approx(1.0, rel=1e-12)
+    assert sum(data["regions"][n]["force_magnitude_sum"] for n in ("medial", "lateral")) == pytest.approx(
+        magnitudes, rel=1e-12
+    )
+    assert data["regions"]["anterior"]["resultant"] == pytest.approx(split["anterior"].resultant, rel=1e-15)
     assert data["label_codes"] == {"lateral": 0, "medial": 1}
 
 

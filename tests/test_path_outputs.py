@@ -55,14 +55,17 @@ def test_region_columns_are_the_sums_over_each_half(path, labelled):
     expected = [f"{p}_{c}" for p in ("lateral", "medial") for c in REGION_COLUMNS]
     assert list(table.columns)[-len(expected) :] == expected
     for k, solution in enumerate(path.solutions):
-        p, a = solution.pressure, labelled.areas
-        total = float(p @ a)
+        p, a, n = solution.pressure, labelled.areas, labelled.normals
+        total = (p * a) @ n  # the contact force: every spring's force on body 2
         for name in ("medial", "lateral"):
             mask = labelled.labels == name
             force = float(p[mask] @ a[mask])
+            vector = (p[mask] * a[mask]) @ n[mask]
             row = table.iloc[k]
-            assert row[f"{name}_force"] == pytest.approx(force, rel=1e-12)
-            assert row[f"{name}_force_share"] == pytest.approx(force / total, rel=1e-12)
+            assert [row[f"{name}_force_{c}"] for c in "xyz"] == pytest.approx(vector.tolist(), rel=1e-12, abs=1e-9)
+            assert row[f"{name}_resultant"] == pytest.approx(np.linalg.norm(vector), rel=1e-12)
+            assert row[f"{name}_force_magnitude_sum"] == pytest.approx(force, rel=1e-12)
+            assert row[f"{name}_force_share"] == pytest.approx(vector @ total / (total @ total), rel=1e-12)
             assert row[f"{name}_peak_pressure"] == p[mask].max()
             contact = mask & (solution.strain < 0)
             assert row[f"{name}_contact_area"] == pytest.approx(a[contact].sum(), rel=1e-12)

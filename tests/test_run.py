@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import logging
+import re
 import warnings
 from dataclasses import dataclass
 from pathlib import Path
@@ -237,10 +238,29 @@ def test_the_physiological_knee_exits_0(tmp_path):
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     assert summary["validity"]["valid"] and 1.0 < summary["peak_pressure"] < 20.0
     regions = summary["regions"]
-    assert sum(regions[n]["force"] for n in ("medial", "lateral")) == pytest.approx(
-        summary["total_normal_force"], rel=1e-9
-    )
-    assert all(regions[n]["force"] > 0.0 for n in ("medial", "lateral"))
+    force = np.array(summary["contact_force"])
+    size = float(np.linalg.norm(force))
+    vectors = {n: np.array(regions[n]["force_vector"]) for n in ("medial", "lateral")}
+    np.testing.assert_allclose(vectors["medial"] + vectors["lateral"], force, rtol=0, atol=1e-9 * size)
+    assert regions["medial"]["share"] + regions["lateral"]["share"] == pytest.approx(1.0, rel=1e-9)
+    assert all(regions[n]["share"] > 0.0 for n in ("medial", "lateral"))
+    for n in ("medial", "lateral"):  # the share is the region's resultant along the contact force
+        assert regions[n]["share"] == pytest.approx(vectors[n] @ force / size**2, rel=1e-9)
+        assert regions[n]["resultant"] == pytest.approx(np.linalg.norm(vectors[n]), rel=1e-12)
+    # the springs' force magnitudes add up to more than the contact force: kept, named for what they are
+    magnitudes = regions["medial"]["force_magnitude_sum"] + regions["lateral"]["force_magnitude_sum"]
+    assert magnitudes == pytest.approx(summary["force_magnitude_sum"], rel=1e-9) and magnitudes > size
+    # the terminal: each region's part of the contact force, in N, and the parts add up to it
+    parts = {}
+    for line in result.stdout.splitlines():
+        match = re.match(
+            r"region (\w+): ([\d.]+)% of the contact force \(([\d.]+) N of ([\d.]+) N along it;", line.strip()
+        )
+        if match:
+            parts[match[1]] = float(match[3])
+            assert float(match[4]) == pytest.approx(size, rel=1e-3)
+    assert set(parts) == {"medial", "lateral"}
+    assert parts["medial"] + parts["lateral"] == pytest.approx(size, rel=2e-3)
 
 
 # --- laws from the registry ---------------------------------------------------------------------

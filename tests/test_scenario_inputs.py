@@ -113,8 +113,9 @@ def test_a_run_reports_the_compartments_and_the_springs_table_keeps_them(split_p
     regions = summary["regions"]
     assert set(regions) == {"left", "right"}
     # a centred load on a symmetric plate: each half carries half of it
-    forces = [regions[name]["force"] for name in ("left", "right")]
+    forces = [regions[name]["resultant"] for name in ("left", "right")]
     assert np.allclose(forces, 200.0, rtol=1e-9) and np.isclose(sum(forces), 400.0, rtol=1e-12)
+    assert [regions[name]["share"] for name in ("left", "right")] == pytest.approx([0.5, 0.5], rel=1e-9)
     layer = outcome.result.problem.layer
     for name in ("springs.csv", "springs.npz"):
         write_springs(layer, tmp_path / name)
@@ -348,3 +349,22 @@ def test_a_nan_or_inf_is_named_at_its_key_with_what_came(tmp_path, key, value):
     shown = "nan" if "nan" in value else "inf"
     where = key + ("[2]" if key == "load.force" else "")
     assert f"{where} (from --set): Input should be a finite number, got {shown}" in message
+
+
+def test_a_dof_both_free_and_prescribed_is_refused_at_its_key(tmp_path):
+    from typer.testing import CliRunner
+
+    from dea_opt.cli import app
+
+    text = PLATE.replace('free = ["uz", "rx", "ry"]', 'free = ["uz", "rx", "ry"]\nprescribed = {uz = -0.1}')
+    with pytest.raises(ScenarioError, match=r"body2 \(line 7\): a dof cannot be both free and prescribed: uz"):
+        parse(text, tmp_path)
+    (tmp_path / "both.toml").write_text(text)
+    result = CliRunner().invoke(app, ["run", str(tmp_path / "both.toml"), "-o", str(tmp_path / "out")])
+    assert result.exit_code == 2 and "cannot be both free and prescribed: uz" in result.stderr
+    assert "Traceback" not in result.stderr and not (tmp_path / "out").exists()
+    # free not given: body 2 is free in every dof that is not prescribed
+    held = PLATE.replace('free = ["uz", "rx", "ry"]', "prescribed = {uz = -0.1}").replace(
+        "[load]\nforce = [0.0, 0.0, -500.0]", "[load]\nforce = [0.0, 0.0, 0.0]"
+    )
+    assert build_problem(parse(held, tmp_path)).body2.free == ("ux", "uy", "rx", "ry", "rz")

@@ -5,6 +5,14 @@ own), by half-spaces ``{name: (point, normal)}``, or by a cut across one axis
 (:func:`split_by_axis`, OpenSim-JAM's medial/lateral, anterior/posterior and
 superior/inferior split). Each region reports a :class:`RegionStats`.
 
+A region's force is the resultant of its springs' forces on body 2 (a vector, ``force_vector``,
+and its size ``resultant``); its ``share`` of the contact force is that resultant's component
+along the contact force (every spring's), over the contact force's size, so the shares of regions
+that partition the springs add up to 1 and their parts of the contact force to the whole. The
+sum of the springs' force magnitudes (``force_magnitude_sum``, ``sum p_i S_i``) is no force on
+anything: where the normals differ it exceeds the resultant (the two compartments of a knee
+under 1500 N sum to some 1600 N).
+
 A layer made from one mesh has no labels; :func:`label_by_axis` cuts it in two once, at a
 fixed place, and gives the labels a layer (``dataclasses.replace(layer, labels=...)``) or a
 load path (``solve_path(..., regions=...)``) carries to every output: the frames table, the
@@ -42,13 +50,18 @@ class RegionStats:
         Springs in the region.
     area : float
         Area of all the region's springs (mm^2), in contact or not.
-    force : float
-        Sum of the spring force magnitudes ``sum p_i S_i`` over the region (N).
     force_vector : ndarray, shape (3,)
-        Resultant force of the region's springs on body 2 (N).
+        Resultant force of the region's springs on body 2 (N): ``sum p_i S_i n_i``.
+    resultant : float
+        Its size ``|force_vector|`` (N).
     share : float
-        ``force`` divided by the total over all springs (``Solution.total_normal_force``);
-        NaN when nothing is in contact.
+        The region's part of the contact force: ``force_vector . F / |F|^2`` with ``F`` the
+        resultant of every spring (``Solution.contact_force``), so that the shares of regions
+        that partition the springs add up to 1 (and ``share * |F|`` to ``|F|``, in N). NaN when
+        the springs carry no force.
+    force_magnitude_sum : float
+        The sum of the region's spring force magnitudes ``sum p_i S_i`` (N): not a force on
+        anything, at least ``resultant``.
     peak_pressure : float
         Largest pressure in the region (MPa); 0 without contact.
     mean_pressure : float
@@ -62,9 +75,10 @@ class RegionStats:
     name: str
     n_springs: int
     area: float
-    force: float
     force_vector: np.ndarray
+    resultant: float
     share: float
+    force_magnitude_sum: float
     peak_pressure: float
     mean_pressure: float
     contact_area: float
@@ -76,9 +90,10 @@ class RegionStats:
             "name": self.name,
             "n_springs": self.n_springs,
             "area": self.area,
-            "force": self.force,
             "force_vector": self.force_vector.tolist(),
+            "resultant": self.resultant,
             "share": self.share,
+            "force_magnitude_sum": self.force_magnitude_sum,
             "peak_pressure": self.peak_pressure,
             "mean_pressure": self.mean_pressure,
             "contact_area": self.contact_area,
@@ -101,26 +116,28 @@ def region_statistics(solution, mask, name: str = "region") -> RegionStats:
     mask = np.asarray(mask)
     if mask.shape != (n,) or mask.dtype != bool:
         raise InputError(f"mask must be booleans of shape ({n},), got shape {mask.shape} and dtype {mask.dtype}")
-    pressure = solution.pressure[mask]
-    areas = layer.areas[mask]
-    weight = pressure * areas
-    force = float(weight.sum())
-    total = solution.total_normal_force
+    every = solution.pressure * layer.areas  # each spring's force magnitude (N)
+    total = every @ layer.normals  # the contact force: every spring's resultant on body 2
+    weight = every[mask]
+    magnitudes = float(weight.sum())
+    vector = weight @ layer.normals[mask] if mask.any() else np.zeros(3)
+    size = float(total @ total)
+    # a contact force that is rounding beside its springs' forces (no load) has no direction
+    carried = size > (1e-12 * float(every.sum())) ** 2 and size > 0
     contact = solution.in_contact[mask]
+    areas = layer.areas[mask]
     contact_area = float(areas[contact].sum())
-    if force > 0:
-        cop = weight @ layer.points[mask] / force
-    else:
-        cop = np.full(3, np.nan)
+    cop = weight @ layer.points[mask] / magnitudes if magnitudes > 0 else np.full(3, np.nan)
     return RegionStats(
         name=str(name),
         n_springs=int(mask.sum()),
         area=float(areas.sum()),
-        force=force,
-        force_vector=weight @ layer.normals[mask] if mask.any() else np.zeros(3),
-        share=force / total if total > 0 else float("nan"),
-        peak_pressure=float(pressure.max(initial=0.0)),
-        mean_pressure=force / contact_area if contact_area > 0 else 0.0,
+        force_vector=vector,
+        resultant=float(np.linalg.norm(vector)),
+        share=float(vector @ total) / size if carried else float("nan"),
+        force_magnitude_sum=magnitudes,
+        peak_pressure=float(solution.pressure[mask].max(initial=0.0)),
+        mean_pressure=magnitudes / contact_area if contact_area > 0 else 0.0,
         contact_area=contact_area,
         center_of_pressure=cop,
     )
@@ -157,7 +174,8 @@ def _plane_masks(planes, points) -> dict:
 
 
 def regional_statistics(solution, labels=None, planes=None) -> dict:
-    """Force, share, peak and mean pressure, contact area and centre of pressure per region.
+    """Resultant force, share of the contact force, peak and mean pressure, contact area and centre
+    of pressure per region.
 
     Parameters
     ----------
@@ -174,7 +192,8 @@ def regional_statistics(solution, labels=None, planes=None) -> dict:
     -------
     dict {name: RegionStats}
         Label regions in sorted label order, then the half-spaces in the given order.
-        Label regions partition the springs, so their forces add up to the total.
+        Label regions partition the springs, so their force vectors add up to the contact force
+        and their shares to 1.
 
     Raises
     ------
@@ -234,7 +253,7 @@ def split_by_axis(solution, axis="x", at=None, names=("medial", "lateral")) -> d
     Returns
     -------
     dict {name: RegionStats}
-        Two regions that partition the springs: their forces add up to the total.
+        Two regions that partition the springs: their force vectors add up to the contact force.
     """
     layer = solution.problem.layer
     direction = _axis(axis)

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import Annotated
 
@@ -170,7 +171,20 @@ def calibrate(
             show_default=False,
         ),
     ] = None,
-    noise: Annotated[float, typer.Option(help="Relative noise of a reading.")] = 0.05,
+    noise: Annotated[
+        float | None,
+        typer.Option(
+            help="Relative noise of a reading (0.05: 5 %); not given: the standard errors come from the residuals' scatter.",
+            show_default=False,
+        ),
+    ] = None,
+    correlation_length: Annotated[
+        float | None,
+        typer.Option(
+            help="Readings' noise correlated over this distance (mm), e.g. a film's grain; not given: independent.",
+            show_default=False,
+        ),
+    ] = None,
     max_distance: Annotated[
         float | None, typer.Option(help="Drop points farther than this from every spring (mm).", show_default=False)
     ] = None,
@@ -197,7 +211,7 @@ def calibrate(
     from ..io.publish import check_output_folder, output_run
     from ..run import run_info
     from ..scenario import load_scenario
-    from ..sensitivity.calibrate import calibrate_scenario, check_scenario
+    from ..sensitivity.scenario_fit import calibrate_scenario, check_scenario
 
     loaded = load_scenario(scenario, _overrides(set_))
     check_scenario(loaded)  # before the output folder is taken
@@ -217,6 +231,7 @@ def calibrate(
             film=film_value,
             noise=noise,
             max_distance=max_distance,
+            correlation_length=correlation_length,
         )
         messages.collect()
         publication.publish(
@@ -226,7 +241,16 @@ def calibrate(
     _warn(messages.own)
     typer.echo(f"{'parameter':>16s} {'start':>12s} {'fitted':>12s} {'std error':>12s}")
     for name in fit.parameters:
-        typer.echo(f"{name:>16s} {fit.start[name]:12.6g} {fit.values[name]:12.6g} {fit.standard_errors[name]:12.3g}")
+        se = fit.standard_errors[name]
+        shown = f"{se:12.3g}" if math.isfinite(se) else f"{'undefined':>12s}"
+        typer.echo(f"{name:>16s} {fit.start[name]:12.6g} {fit.values[name]:12.6g} {shown}")
+    typer.echo(
+        "standard errors: from the stated noise"
+        if fit.errors == "stated"
+        else f"standard errors: the noise estimated from the residuals' scatter ({fit.degrees_of_freedom:.4g} degrees of freedom)"
+    )
+    for note in fit.notes:
+        typer.echo(f"note: {note}")
     if len(fit.parameters) > 1:
         typer.echo(
             "correlation: "

@@ -13,6 +13,10 @@ publishes every output at once, so a reader never sees files of two runs as one.
 that is itself a temporary file (one :func:`atomic_path` yielded, handed to a writer in another
 process or drawn later: :class:`dea_opt.io.pictures.PictureFiles`) is filled in place, never
 staged: the one who holds it stages it when its :func:`atomic_path` block ends.
+
+A write that fails (a full disk, a file-size limit, an I/O error) raises an :class:`OSError`
+naming the file it was writing (:func:`naming`): the operating system names none when a
+``write`` or ``fsync`` fails, and "No space left on device" alone does not say where.
 """
 
 from __future__ import annotations
@@ -33,6 +37,7 @@ __all__ = [
     "atomic_open",
     "atomic_path",
     "file_path",
+    "naming",
     "staged",
     "write_atomic",
     "write_data",
@@ -71,6 +76,19 @@ def _fsync(path: Path, directory: bool = False) -> None:
             raise
     finally:
         os.close(fd)
+
+
+@contextlib.contextmanager
+def naming(path, *temporaries):
+    """An :class:`OSError` raised in the block names ``path`` when it names no file or one of
+    ``temporaries`` (the hidden file written in its place): ``[Errno 28] No space left on
+    device: '/runs/knee/frames.csv'``. The error keeps its number (and so its subclass)."""
+    try:
+        yield
+    except OSError as exc:
+        if exc.filename is not None and str(exc.filename) not in {str(t) for t in temporaries}:
+            raise
+        raise OSError(exc.errno, exc.strerror or str(exc), str(path)) from exc
 
 
 @contextlib.contextmanager
@@ -126,14 +144,15 @@ def atomic_path(path, *, argument: str = "path"):
     if staging is not None and missing:
         staging.made(missing)
     try:
-        with contextlib.suppress(OSError):  # a new file keeps the umask's mode
-            os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))
-        yield tmp
-        _fsync(tmp)
-        if staging is not None:
-            staging.defer(tmp, target)
-            return
-        os.replace(tmp, target)
+        with naming(target, tmp):
+            with contextlib.suppress(OSError):  # a new file keeps the umask's mode
+                os.chmod(tmp, stat.S_IMODE(target.stat().st_mode))
+            yield tmp
+            _fsync(tmp)
+            if staging is not None:
+                staging.defer(tmp, target)
+                return
+            os.replace(tmp, target)
     except BaseException:
         with contextlib.suppress(OSError):
             tmp.unlink()

@@ -104,8 +104,10 @@ def plot_cycle(table, path, title: str | None = None, *, regions: dict | None = 
                 label=str(name),
                 marker=marker,
             )
-        axes[4].set_ylabel("force share (%)")
-        axes[4].set_ylim(0, 100)
+        axes[4].set_ylabel("share of the\ncontact force (%)")
+        shares = [100.0 * table[f"{prefix}_force_share"].to_numpy(dtype=float) for prefix in prefixes.values()]
+        low, high = (float(f(np.nan_to_num(np.concatenate(shares)))) for f in (np.min, np.max))
+        axes[4].set_ylim(min(0.0, low), max(100.0, high))  # a region may push against the total
     for ax in axes:
         ax.grid(alpha=0.3)
         if failed.any():

@@ -74,7 +74,8 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     Builds on :meth:`Solution.summary` (method, status, law, ``n_springs``, peak and mean
     pressure, contact area, centre of pressure, contact force and moment, ``u``,
     iterations, build and solve times, certificate, reactions) and adds ``message``,
-    ``total_normal_force``, ``moment_about`` (the point the moment is taken about: body 2's
+    ``force_magnitude_sum`` (the sum of the springs' force magnitudes, N: no force on anything;
+    the contact force is ``contact_force``), ``moment_about`` (the point the moment is taken about: body 2's
     reference, where the motion took it for finite kinematics), ``units``, ``regions``, ``label_codes`` (text labels only), ``info`` and the
     dea_opt version.
 
@@ -115,7 +116,7 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     out = {"dea_opt_version": __version__, **solution.summary()}
     out.update(
         message=solution.message,
-        total_normal_force=solution.total_normal_force,
+        force_magnitude_sum=solution.total_normal_force,
         moment_about=[float(v) for v in solution.moment_point],
         units=_UNITS,
         regions={name: stats.as_dict() for name, stats in found.items()},

@@ -37,7 +37,6 @@ from dataclasses import replace
 import numpy as np
 
 from .._checks.inputs import as_numeric
-from .._checks.memory import check_memory
 from ..errors import (
     DeaError,
     InputError,
@@ -46,133 +45,17 @@ from ..errors import (
     ValidityWarning,
 )
 from ..formulations.energy import single_threaded_blas
-from ..problem import ContactProblem, Load
+from ..problem import ContactProblem
 from ..status import Status
 from .exposure import ExposureAccumulator
 from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves
+from .frames import check_frames, frame_count, read_frames
 from .result import PathResult
 from .series import FrameSeries
 from .stepper import Stepper
 from .table import TABLE_COLUMNS, FrameRegions, failed_row, make_table, motion_columns, solved_row
 
-__all__ = ["TABLE_COLUMNS", "check_frames", "path_memory", "solve_path"]
-
-
-# --- frames -----------------------------------------------------------------------------
-
-
-class _ArrayLoads:
-    """The loads of a (T, 3) or (T, 6) array, a :class:`Load` made per frame when asked."""
-
-    def __init__(self, array: np.ndarray):
-        self.array = array
-
-    def __len__(self) -> int:
-        return len(self.array)
-
-    def __getitem__(self, k: int) -> Load:
-        row = self.array[k]
-        return Load(force=tuple(row[:3]), moment=tuple(row[3:6]) if len(row) == 6 else (0.0, 0.0, 0.0))
-
-    def __iter__(self):
-        return (self[k] for k in range(len(self)))
-
-
-def _frames(loads, times) -> tuple:
-    """Loads as a list of :class:`Load` and the frame times (s)."""
-    import pandas as pd
-
-    if isinstance(loads, pd.DataFrame):
-        missing = [c for c in ("Fx", "Fy", "Fz") if c not in loads]
-        if missing:
-            raise InputError(
-                f"loads must have columns Fx, Fy, Fz (and optionally time, Mx, My, Mz); missing {', '.join(missing)}"
-            )
-        if times is None and "time" in loads:
-            times = loads["time"].to_numpy(dtype=float)
-        columns = [loads[c] if c in loads else 0.0 * loads["Fx"] for c in ("Fx", "Fy", "Fz", "Mx", "My", "Mz")]
-        loads = np.column_stack([np.asarray(c, dtype=float) for c in columns])
-    if isinstance(loads, np.ndarray) or (len(loads) and not isinstance(loads[0], Load)):
-        array = as_numeric("loads", loads)
-        if array.ndim != 2 or array.shape[1] not in (3, 6):
-            raise InputError(
-                f"loads must be a sequence of Load, or an array of shape (T, 3) or (T, 6) "
-                f"(Fx, Fy, Fz[, Mx, My, Mz]), got shape {array.shape}"
-            )
-        loads = _ArrayLoads(array)
-    else:
-        loads = list(loads)
-    if not loads:
-        raise InputError("loads is empty: a load path needs at least one frame")
-    if not isinstance(loads, _ArrayLoads):
-        for i, load in enumerate(loads):
-            if not isinstance(load, Load):
-                raise InputError(f"loads[{i}] must be a dea_opt.Load, got {type(load).__name__}")
-    times = np.arange(len(loads), dtype=float) if times is None else np.asarray(times, dtype=float)
-    if times.shape != (len(loads),) or not np.isfinite(times).all():
-        raise InputError(f"times must be {len(loads)} finite numbers (one per frame), got shape {times.shape}")
-    if len(times) > 1 and not (np.diff(times) > 0).all():
-        raise InputError("times must increase from frame to frame")
-    return loads, times
-
-
-# --- memory -----------------------------------------------------------------------------
-
-#: Bytes per frame and table column (a row's dict entry, its value and the DataFrame cell).
-_CELL_BYTES = 160.0
-#: Bytes per frame of a Load and the frame's bookkeeping.
-_FRAME_BYTES = 2000.0
-
-
-def path_memory(
-    n_frames: int,
-    n_springs: int,
-    *,
-    n_sites: int | None = None,
-    keep_solutions: bool = True,
-    keep_pressures: bool = True,
-    moving: bool = False,
-    n_regions: int = 0,
-) -> float:
-    """Bytes a load path of ``n_frames`` x ``n_springs`` keeps until it returns (an estimate).
-
-    The table (about 50 columns: the fixed ones, the validity checks and the free dofs; 8 more per region, per frame), the pressures (8 bytes per
-    spring and frame) and the solutions (strain and pressure; with ``moving`` meshes each
-    frame's layer and its operator too, about 250 bytes per spring). The exposure and one
-    frame's work are O(springs) and not counted.
-    """
-    n_frames, n_springs = int(n_frames), int(n_springs)
-    columns = len(TABLE_COLUMNS) + 12 + 12 + 8 * int(n_regions)  # + validity checks + free dofs
-    need = n_frames * (_FRAME_BYTES + _CELL_BYTES * columns)
-    if keep_pressures:
-        need += 8.0 * n_frames * n_springs
-    if keep_solutions:
-        need += n_frames * n_springs * (250.0 if moving else 24.0)
-    return float(need)
-
-
-def check_frames(n_frames: int, n_springs: int = 0, *, what: str | None = None, **options) -> None:
-    """Raise :class:`~dea_opt.errors.SizeLimitError` before a path too large for this machine.
-
-    Parameters
-    ----------
-    n_frames, n_springs : int
-    what : str, optional
-        How the user asked for it, for the message (e.g. ``"load_path.frames = 1000000000"``);
-        default ``"a load path of <n> frames"``.
-    **options
-        ``keep_solutions``, ``keep_pressures``, ``moving``, ``n_regions`` of :func:`path_memory`.
-    """
-    need = path_memory(n_frames, n_springs, **options)
-    what = what or f"a load path of {int(n_frames)} frames x {int(n_springs)} springs"
-    keeps = [name for name in ("keep_solutions", "keep_pressures") if options.get(name, True) and n_springs]
-    advice = "use fewer frames"
-    if keeps:
-        advice += (
-            f", or {' and '.join(f'{k}=False' for k in keeps)} (the outputs are written frame by frame "
-            f"with series=<folder>)"
-        )
-    check_memory(need, what, advice)
+__all__ = ["TABLE_COLUMNS", "solve_path"]
 
 
 # --- one frame --------------------------------------------------------------------------
@@ -383,24 +266,27 @@ def _solve_path(
         raise InputError(
             f"kinematics='finite' moves body 2 against a fixed body 1: loads act on body 2, got body={body!r}"
         )
-    loads, times = _frames(loads, times)
-    if finite:
-        poses = check_finite_poses(problem, poses, len(loads))
-        moving = moves(problem, poses)
-    else:
-        poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
-        moving = poses is not None
+    # The size check first, from the frames' count and the springs alone: everything before it is
+    # O(springs), nothing reads, converts or validates a frame (the loads, times and poses are
+    # checked after it).
+    n_frames = frame_count(loads)
+    moving = moves(problem, poses) if finite else poses is not None
     labels = _labels(regions, problem.layer)
     n_regions = 0 if labels is None else len(np.unique(labels))
-    n_sites = _site_count(problem.layer, moving)
     check_frames(
-        len(loads),
+        n_frames,
         len(problem.layer),
         keep_solutions=keep_solutions,
         keep_pressures=keep_pressures,
         moving=moving,
         n_regions=n_regions,
     )
+    loads, times = read_frames(loads, times)
+    if finite:
+        poses = check_finite_poses(problem, poses, len(loads))
+    else:
+        poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
+    n_sites = _site_count(problem.layer, moving)
     stepper = FiniteStepper(method, options, certificate_tol) if finite else Stepper(method, options, certificate_tol)
     accumulator = ExposureAccumulator(n_sites, threshold)
     frames = FrameSeries(series, len(loads)) if series is not None else None

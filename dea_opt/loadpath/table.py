@@ -65,8 +65,12 @@ MOTION_UNITS = {"ux": "mm", "uy": "mm", "uz": "mm", "rx": "rad", "ry": "rad", "r
 
 #: Columns of each region, after the region's prefix (``medial_force_share``), with units.
 REGION_COLUMNS = {
-    "force": "N, sum of the spring force magnitudes",
-    "force_share": "1, of the total over all springs",
+    "force_x": "N, the resultant of the region's springs on body 2",
+    "force_y": "N",
+    "force_z": "N",
+    "resultant": "N, its size",
+    "force_share": "1, its component along the contact force over the contact force's size",
+    "force_magnitude_sum": "N, the sum of the springs' force magnitudes (no force on anything)",
     "peak_pressure": "MPa",
     "mean_pressure": "MPa, over the region's contact",
     "contact_area": "mm^2",
@@ -134,11 +138,15 @@ class FrameRegions:
                 row.update({f"{prefix}_{c}": math.nan for c in REGION_COLUMNS})
                 continue
             stats = region_statistics(solution, mask, name)
-            cop = stats.center_of_pressure
+            cop, vector = stats.center_of_pressure, stats.force_vector
             row.update(
                 {
-                    f"{prefix}_force": stats.force,
+                    f"{prefix}_force_x": vector[0],
+                    f"{prefix}_force_y": vector[1],
+                    f"{prefix}_force_z": vector[2],
+                    f"{prefix}_resultant": stats.resultant,
                     f"{prefix}_force_share": stats.share,
+                    f"{prefix}_force_magnitude_sum": stats.force_magnitude_sum,
                     f"{prefix}_peak_pressure": stats.peak_pressure,
                     f"{prefix}_mean_pressure": stats.mean_pressure,
                     f"{prefix}_contact_area": stats.contact_area,

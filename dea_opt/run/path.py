@@ -97,6 +97,9 @@ def run_path_outputs(
     validity = summary["validity"]
     outside = validity["frames_outside_validity"]
     checks = validity["failed_checks"]
+    certified = summary["frames"] - len(summary["failed_frames"])
+    # No certified frame: nothing to judge, valid or not (None: not assessed), and no shares.
+    valid = None if not certified else not outside
     headline = {
         "method": method,
         "success": result.success,
@@ -111,7 +114,7 @@ def run_path_outputs(
         "solve_time": summary["solve_time_total"],
         "worst_residual": summary["worst_certificate_residual"],
         "max_pressure_time_integral": summary["exposure"]["max_pressure_time_integral"],
-        "valid": not outside,
+        "valid": valid,
         "frames_outside_validity": len(outside),
         "validity_failed": ";".join(checks),
         **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
@@ -138,8 +141,9 @@ def run_path_outputs(
         )
         reasons = [first, *parts]
         lines = [f"validity: NOT VALID: {reasons[0]}", *(f"  {r}" for r in reasons[1:])]
+    elif not certified:
+        lines = [f"validity: not judged: none of the {summary['frames']} frames has a certified answer"]
     else:
-        certified = summary["frames"] - len(summary["failed_frames"])
         lines = [f"validity: valid (every one of the {certified} certified frames)"]
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
@@ -148,12 +152,7 @@ def run_path_outputs(
         along = _anatomical_motion_text(summary.get("motion_anatomical", {}))
         if along:
             lines.append(f"motion found along the anatomical axes: {along}")
-    regions = [
-        f"region {name}: force share {r['mean_force_share']:.1%} on average ({r['min_force_share']:.1%} to "
-        f"{r['max_force_share']:.1%}), peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest "
-        f"contact area {r['max_contact_area']:.4g} mm^2"
-        for name, r in summary["regions"].items()
-    ]
+    regions = [_region_text(name, r) for name, r in summary["regions"].items()] if certified else []
     failures: dict = {}
     for frame in result.failures():
         failures[frame["status"]] = failures.get(frame["status"], 0) + 1
@@ -165,11 +164,29 @@ def run_path_outputs(
         headline,
         result,
         warnings=notes,
-        valid=not outside,
+        valid=valid,
         validity=lines,
         reasons=reasons,
         regions=regions,
         failures=failures,
+    )
+
+
+def _region_text(name: str, r: dict) -> str:
+    """One region of a path over its certified frames (no share where no frame's share exists)."""
+    share = r["mean_force_share"]
+    if share is None or not np.isfinite(share):
+        text = f"region {name}: no share of the contact force (no certified frame carried any)"
+    else:
+        text = (
+            f"region {name}: {share:.1%} of the contact force on average ({r['min_force_share']:.1%} to "
+            f"{r['max_force_share']:.1%}: its springs' resultant along the contact force)"
+        )
+    if r["peak_frame"] is None:
+        return text
+    return (
+        f"{text}, peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest contact area "
+        f"{r['max_contact_area']:.4g} mm^2"
     )
 
 

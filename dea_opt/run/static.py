@@ -87,10 +87,16 @@ def _static_regions(solution) -> list[str]:
         return []
     from ..anatomy.regions import regional_statistics
 
+    total = float(np.linalg.norm(solution.contact_force))
     return [
-        f"region {name}: force {r.force:.4g} N"
-        # no share of a total of 0 N (no load): said as "-", not nan%
-        + (f" ({r.share:.1%} of the total)" if np.isfinite(r.share) else " (- of the total: no force carried)")
+        f"region {name}: "
+        # no share of a contact force of 0 N (no load): said so, not nan%
+        + (
+            f"{r.share:.1%} of the contact force ({r.share * total:.4g} N of {total:.4g} N along it; "
+            f"its springs' resultant {r.resultant:.4g} N)"
+            if np.isfinite(r.share)
+            else "no share of the contact force (the springs carry none)"
+        )
         + f", peak {r.peak_pressure:.4g} MPa, contact area {r.contact_area:.4g} mm^2"
         for name, r in regional_statistics(solution).items()
     ]

@@ -12,7 +12,6 @@ import numpy as np
 
 from ..errors import DeaError, ScenarioError
 from ..io.tables import read_springs
-from ..kinematics import DOFS
 from .schema import (
     BodySection,
     GeneratorGeometry,
@@ -350,7 +349,10 @@ def _body(section: BodySection, default_free, default_reference):
 
     free = default_free if section.free is None else tuple(section.free)
     reference = section.reference if section.reference is not None else (default_reference or (0.0, 0.0, 0.0))
-    return Body(reference=tuple(reference), free=free, prescribed=dict(section.prescribed))
+    prescribed = dict(section.prescribed)
+    if free is None:  # Body's default: every dof the body does not prescribe
+        return Body(reference=tuple(reference), prescribed=prescribed)
+    return Body(reference=tuple(reference), free=free, prescribed=prescribed)
 
 
 def build_problem(scenario: Scenario, layer=None):
@@ -386,7 +388,7 @@ def _problem_cast(scenario: Scenario, layer, references, cast) -> tuple:
         layer,
         build_law(scenario.law),
         body1=_body(scenario.body1, (), reference1),
-        body2=_body(scenario.body2, DOFS, reference2),
+        body2=_body(scenario.body2, None, reference2),
         kinematics=scenario.solve.kinematics,
         targets=cast if scenario.solve.kinematics == "finite" else None,
     )

@@ -9,6 +9,7 @@ Units: s, N, N mm, mm.
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -52,11 +53,28 @@ class LoadPathData:
     def __len__(self) -> int:
         return len(self.times)
 
-    def load_objects(self) -> list:
-        """One :class:`~dea_opt.problem.Load` per frame."""
+    def load_objects(self) -> Sequence:
+        """One :class:`~dea_opt.problem.Load` per frame, each made when it is read: a path's size
+        is checked from its length before any frame's Load exists."""
+        return _FrameLoads(self.loads, self.point)
+
+
+class _FrameLoads(Sequence):
+    """The rows of a (T, 6) array as :class:`~dea_opt.problem.Load` objects, made one at a time."""
+
+    def __init__(self, loads: np.ndarray, point):
+        self.loads, self.point = loads, point
+
+    def __len__(self) -> int:
+        return len(self.loads)
+
+    def __getitem__(self, k):
         from ..problem import Load
 
-        return [Load(force=row[:3], moment=row[3:], point=self.point) for row in self.loads]
+        if isinstance(k, slice):
+            return [self[i] for i in range(*k.indices(len(self)))]
+        row = self.loads[k]
+        return Load(force=row[:3], moment=row[3:], point=self.point)
 
 
 def read_load_path(section: LoadPathSection) -> LoadPathData:

@@ -252,6 +252,16 @@ class BodySection(_Section):
         default_factory=dict, description="dofs held at a displacement, e.g. {uz = -0.1} (mm, rad)"
     )
 
+    @model_validator(mode="after")
+    def _free_or_prescribed(self):
+        both = [dof for dof in self.free or () if dof in self.prescribed]
+        if both:
+            raise ValueError(
+                f"a dof cannot be both free and prescribed: {', '.join(both)} is in free = {self.free} "
+                f"and in prescribed; remove it from one of them"
+            )
+        return self
+
 
 # --- [load], [load_path] ----------------------------------------------------------------
 

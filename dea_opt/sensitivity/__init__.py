@@ -7,11 +7,14 @@ dofs), :mod:`~dea_opt.sensitivity.onesided` (the one-sided derivatives at spring
 of contact), :mod:`~dea_opt.sensitivity.parametric` (CasADi's parametric sensitivities of the
 IPOPT solution, the cross-check), :mod:`~dea_opt.sensitivity.measurements` (measured data: a
 pressure map, a force-displacement curve, contact data), :mod:`~dea_opt.sensitivity.calibrate`
-(:func:`calibrate`: fitting parameters to them) and :mod:`~dea_opt.sensitivity.uncertainty`
+(:func:`calibrate`: fitting parameters to them; :mod:`~dea_opt.sensitivity.scenario_fit`, the
+same from a scenario), :mod:`~dea_opt.sensitivity.covariance` (the
+fitted parameters' standard errors, :func:`spatial_correlation`) and :mod:`~dea_opt.sensitivity.uncertainty`
 (:func:`propagate`, :func:`monte_carlo`: parameter uncertainty carried to the answer).
 """
 
 from .calibrate import Calibration, apply_parameters, calibrate
+from .covariance import spatial_correlation
 from .derivatives import (
     LOADS,
     OUTPUTS,
@@ -49,4 +52,5 @@ __all__ = [
     "path_sensitivities",
     "propagate",
     "sensitivities",
+    "spatial_correlation",
 ]

@@ -5,7 +5,9 @@ with the exact Jacobian: every evaluation solves the problem (Newton, warm-start
 previous one) and takes :func:`~dea_opt.sensitivity.sensitivities` of the answer. The data are
 :class:`~dea_opt.sensitivity.measurements.PressureMap` (film or sensor, censored to the film's range),
 :class:`~dea_opt.sensitivity.measurements.ForceDisplacement` and :class:`~dea_opt.sensitivity.measurements.ContactData`.
-Standard errors and correlations come from the Jacobian at the optimum.
+Standard errors and correlations come from the Jacobian at the optimum: the data's stated noise
+(and correlation) carried through it, or, when a datum's noise is not stated, the noise's scale
+estimated from the residuals (:mod:`~dea_opt.sensitivity.covariance`).
 """
 
 from __future__ import annotations
@@ -18,6 +20,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import InputError, SolverError, ValidityWarning
+from .covariance import parameter_covariance
 from .derivatives import LOADS, sensitivities
 from .measurements import FILMS, ContactData, Film, ForceDisplacement, PressureMap
 
@@ -91,8 +94,17 @@ class Calibration:
     ----------
     parameters : tuple of str
     values, start, standard_errors : dict
-        Fitted values, where the fit started, and standard errors (the parameters' units).
+        Fitted values, where the fit started, and standard errors (the parameters' units); a
+        standard error is NaN when it is undefined (``notes`` says why).
     correlation, covariance : ndarray, shape (p, p)
+    errors : str
+        Which standard errors: ``"stated"`` (every datum's stated noise and correlation carried
+        through the Jacobian) or ``"estimated"`` (some datum's noise was not stated: the noise's
+        scale estimated from the residuals' scatter).
+    degrees_of_freedom : float
+        The residuals taking part less what the fit absorbs (``n - p`` for independent data).
+    notes : tuple of str
+        Why the standard errors are undefined, when they are.
     residuals : ndarray
         Weighted residuals at the optimum (measured minus predicted over their standard deviation,
         sign reversed: predicted minus measured).
@@ -120,15 +132,22 @@ class Calibration:
     nfev: int
     solution: Any
     data: tuple
+    errors: str = "stated"
+    degrees_of_freedom: float = float("nan")
+    notes: tuple = ()
     info: dict = field(default_factory=dict)
 
     def summary(self) -> dict:
-        """JSON-ready: values, standard errors, correlation, cost, and the fit's outcome."""
+        """JSON-ready (through :func:`dea_opt.io.summary.jsonable`: an undefined standard error is
+        ``null``): values, standard errors and which they are, correlation, cost, the outcome."""
         return {
             "parameters": list(self.parameters),
             "values": self.values,
             "start": self.start,
             "standard_errors": self.standard_errors,
+            "errors": self.errors,
+            "degrees_of_freedom": self.degrees_of_freedom,
+            "notes": list(self.notes),
             "correlation": self.correlation.tolist(),
             "cost": self.cost,
             "n_residuals": int(self.residuals.size),
@@ -214,12 +233,50 @@ class Calibration:
             aspect="equal", xlabel="mm (in the map's plane)", ylabel="mm", title="residual (predicted - measured) / sd"
         )
         fig.colorbar(sc, ax=ax2, shrink=0.85)
-        text = ", ".join(f"{p} = {self.values[p]:.4g} ± {self.standard_errors[p]:.2g}" for p in self.parameters)
+        text = ", ".join(f"{p} = {self.values[p]:.4g} ± {_se_text(self.standard_errors[p])}" for p in self.parameters)
         fig.suptitle(title or f"calibration: {text}", fontsize=10)
         try:
             return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
         finally:
             plt.close(fig)
+
+
+def _se_text(value: float) -> str:
+    return f"{value:.2g}" if np.isfinite(value) else "undefined"
+
+
+def _correlation(model, used):
+    """The correlation of the residuals taking part (block diagonal: data sets are independent of
+    each other), or None when no datum states one."""
+    import scipy.sparse as sp
+
+    blocks = [data.correlation_of(cache) for data, cache in zip(model.data, model.caches)]
+    if all(block is None for block in blocks):
+        return None
+    sizes = model.sizes
+    full = sp.block_diag(
+        [
+            sp.identity(size, format="csr") if block is None else sp.csr_matrix(block)
+            for block, size in zip(blocks, sizes)
+        ],
+        format="csr",
+    )
+    return full[used][:, used]
+
+
+def _errors(errors, data) -> str:
+    unstated = [k for k, d in enumerate(data) if not d.noise_stated]
+    if errors is None:
+        return "estimated" if unstated else "stated"
+    if errors not in ("stated", "estimated"):
+        raise InputError(f"errors must be 'stated', 'estimated' or None, got {errors!r}")
+    if errors == "stated" and unstated:
+        names = ", ".join(f"data[{k}] ({type(data[k]).__name__})" for k in unstated)
+        raise InputError(
+            f"errors='stated' needs every datum's noise, and {names} states none: give noise= "
+            f"(area_std=, center_std= for ContactData), or errors='estimated'"
+        )
+    return errors
 
 
 def calibrate(
@@ -229,7 +286,7 @@ def calibrate(
     *,
     start=None,
     max_nfev: int = 60,
-    scale_errors: bool = True,
+    errors: str | None = None,
     method: str = "newton",
     ftol: float = 1e-10,
     xtol: float = 1e-10,
@@ -247,9 +304,13 @@ def calibrate(
         Starting values (default: the problem's).
     max_nfev : int
         Largest number of evaluations (each one or more solves).
-    scale_errors : bool
-        Scale the covariance by the residual variance ``|r|^2 / (n - p)`` (default); False when
-        the data's standard deviations are known.
+    errors : {"stated", "estimated"}, optional
+        ``"stated"``: the data's stated standard deviations (and correlations) are the noise's,
+        carried through the Jacobian (``(J^T J)^-1`` for independent data). ``"estimated"``:
+        the noise's scale is estimated from the residuals' scatter, ``|r|^2`` over the degrees
+        of freedom left; with none left (as many data as parameters) the standard errors are
+        NaN and ``notes`` says so. Default: ``"stated"`` when every datum states its noise,
+        else ``"estimated"``.
     method : str
         The solve method (``newton``; others are tried when it fails).
     ftol, xtol : float
@@ -270,6 +331,7 @@ def calibrate(
     data = (data,) if isinstance(data, (PressureMap, ForceDisplacement, ContactData)) else tuple(data)
     if not data or not all(isinstance(x, (PressureMap, ForceDisplacement, ContactData)) for x in data):
         raise InputError("data must be a PressureMap, ForceDisplacement or ContactData, or a sequence of them")
+    errors = _errors(errors, data)
     values = {p: _current(problem, p) for p in parameters}
     values.update({k: float(v) for k, v in (start or {}).items() if k in parameters})
     unknown = set(start or {}) - set(parameters)
@@ -303,11 +365,11 @@ def calibrate(
         r, Jz, solution = model.evaluate(fit.x)
     theta = np.where(logs, np.exp(fit.x), fit.x)
     J = Jz / np.where(logs, theta, 1.0)  # d r / d theta
+    # a censored reading the model agrees with neither costs nor moves anything: it takes no part
     used = (np.abs(J).sum(axis=1) > 0) | (r != 0)
-    dof = max(int(used.sum()) - len(parameters), 1)
-    variance = float(r @ r) / dof if scale_errors else 1.0
-    covariance = variance * np.linalg.pinv(J.T @ J)
-    se = np.sqrt(np.maximum(np.diag(covariance), 0.0))
+    found = parameter_covariance(r[used], J[used], _correlation(model, used), errors=errors)
+    covariance = found.covariance
+    se = np.sqrt(np.maximum(np.diag(covariance), 0.0))  # NaN stays NaN: undefined
     with np.errstate(invalid="ignore", divide="ignore"):
         correlation = covariance / np.outer(se, se)
     return Calibration(
@@ -324,6 +386,9 @@ def calibrate(
         int(model.solves),
         solution,
         data,
+        errors=found.errors,
+        degrees_of_freedom=found.degrees_of_freedom,
+        notes=(found.note,) if found.note else (),
         info={"optimality": float(fit.optimality), "nfev": int(fit.nfev), "njev": int(fit.njev or 0)},
     )
 
@@ -338,6 +403,7 @@ class _Model:
         self.solves = 0
         self.caches = [{} for _ in data]
         self.starts = {}
+        self.sizes = [0] * len(data)
 
     def _solve(self, problem, key):
         from ..solver import solve
@@ -370,6 +436,7 @@ class _Model:
                 r, J = data.residuals(solution, sens, names, self.caches[k])
             rs.append(r)
             Js.append(J)
+            self.sizes[k] = len(r)
         if solution is None:
             solution = self._solve(problem, "main")
         r = np.concatenate(rs)
@@ -379,11 +446,10 @@ class _Model:
 
     def _curve(self, problem, data, k):
         r, J = [], []
-        for i, (d, f) in enumerate(zip(data.displacement, data.force)):
+        for i, (d, f, sd) in enumerate(zip(data.displacement, data.force, data.standard_deviations())):
             body = problem.body2.with_prescribed(**{data.dof: float(d)})
             solution = self._solve(problem.with_body(2, body), ("curve", k, i))
             sens = sensitivities(solution, self.parameters)
-            sd = data.noise * (max(abs(f), 1e-12) if data.relative else 1.0)
             r.append((solution.contact_force[data.axis] - f) / sd)
             J.append([np.asarray(sens.contact_force[n])[data.axis] / sd for n in self.parameters])
         return np.array(r), np.array(J)
@@ -393,67 +459,3 @@ class _Model:
 
     def jacobian(self, z):
         return self.evaluate(z)[1]
-
-
-def check_scenario(scenario) -> None:
-    """An error unless ``dea-opt calibrate`` can fit ``scenario``: one load (``[load]``) and small
-    kinematics (the fit's Jacobian is the small kinematics' sensitivities); the message names the key."""
-    from ..scenario import ScenarioError, key_origin
-
-    if scenario.solve.kinematics == "finite":
-        origin = key_origin(scenario, "solve.kinematics")
-        raise ScenarioError(
-            f"{scenario.source or 'the scenario'}: calibrate fits with the sensitivities of the small kinematics "
-            f'(Eq. (9)-(11)), and solve.kinematics = "finite"{f" ({origin})" if origin else ""}: set '
-            f'solve.kinematics = "small" (in the file, or --set solve.kinematics=small)'
-        )
-    if scenario.load_path is not None:
-        raise InputError(
-            "calibrate needs a scenario with one load ([load]); this one has a [load_path]: "
-            "calibrate against one frame written as a static scenario"
-        )
-
-
-def calibrate_scenario(
-    scenario, data_path, folder, *, parameters=None, film=None, noise: float = 0.05, max_distance=None
-) -> tuple:
-    """``dea-opt calibrate``: fit a scenario's parameters to a pressure map CSV and write the results.
-
-    Writes ``calibration.json`` (the summary), ``residuals.csv`` (:meth:`Calibration.residual_map`)
-    and ``calibration.png`` (:meth:`Calibration.plot`) into ``folder`` (the command stages and
-    publishes it like every run's folder). Returns ``(Calibration, {name: path})``.
-    """
-    import json
-    from pathlib import Path
-
-    from ..io.atomic import write_atomic
-    from ..scenario import build_problem
-
-    check_scenario(scenario)
-    problem = build_problem(scenario)
-    names = tuple(parameters) if parameters else problem.law.parameter_names
-    data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
-    fit = calibrate(problem, data, names)
-    folder = Path(folder)
-    files = {
-        "summary": folder / "calibration.json",
-        "residuals": folder / "residuals.csv",
-        "plot": folder / "calibration.png",
-    }
-    film_info = (
-        None if data.film is None else {"name": data.film.name, "lower": data.film.lower, "upper": data.film.upper}
-    )
-    summary = {
-        **fit.summary(),
-        "scenario": scenario.source,
-        "data": str(data_path),
-        "film": film_info,
-        "noise": data.noise,
-        "points": len(data.pressure),
-        "points_matched": int(fit.residuals.size),
-    }
-    write_atomic(files["summary"], lambda tmp: tmp.write_text(json.dumps(summary, indent=2, default=float)))
-    table = fit.residual_map()
-    write_atomic(files["residuals"], lambda tmp: table.to_csv(tmp, index=False))
-    fit.plot(files["plot"])
-    return fit, files

@@ -1,9 +1,12 @@
 """Measured data a model is calibrated against: pressure maps (film, sensors), force-displacement
 curves, contact area and centre of pressure.
 
-Written math: ``formulations/sensitivity.md`` ("Calibration"). Each kind turns a solution and its
-:class:`~dea_opt.sensitivity.Sensitivities` into weighted residuals and their Jacobian
-(:meth:`PressureMap.residuals`, ...), which :func:`dea_opt.sensitivity.calibrate.calibrate` stacks.
+Written math: ``formulations/sensitivity.md`` ("Calibration", "Standard errors"). Each kind turns
+a solution and its :class:`~dea_opt.sensitivity.Sensitivities` into weighted residuals and their
+Jacobian (:meth:`PressureMap.residuals`, ...), which :func:`dea_opt.sensitivity.calibrate.calibrate`
+stacks. Each states its noise or not (``noise=None``: not stated; the fit then weights it by
+a nominal value, :data:`NOMINAL`, and the standard errors come from the residuals' scatter), and
+a map or a curve may state the correlation of its noise (``correlation=``).
 
 Units: mm, N, MPa.
 """
@@ -16,8 +19,14 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from .covariance import check_correlation
 
-__all__ = ["FILMS", "ContactData", "Film", "ForceDisplacement", "PressureMap"]
+__all__ = ["FILMS", "NOMINAL", "ContactData", "Film", "ForceDisplacement", "PressureMap"]
+
+#: The weights of data whose noise is not stated (the fit needs one; the standard errors then
+#: come from the residuals' scatter, not from these): a map's relative noise, a curve's force
+#: noise (N; relative: 5 %), a contact area's (mm^2) and a centre of pressure's (mm).
+NOMINAL = {"pressure": 0.05, "force": 1.0, "force_relative": 0.05, "area": 10.0, "center": 0.5}
 
 
 @dataclass(frozen=True)
@@ -65,6 +74,10 @@ def finite_array(name, value, unit="") -> np.ndarray:
     return arr
 
 
+def _optional_positive(name, value):
+    return None if value is None else _positive(name, value)
+
+
 def _positive(name, value):
     if (
         isinstance(value, bool)
@@ -90,19 +103,26 @@ class PressureMap:
     film : Film, str or (lower, upper), optional
         ``"LLW"`` (0.5-2.5 MPa), ``"LW"`` (2.5-10 MPa), ... (:data:`FILMS`); None: a sensor with
         no range.
-    noise : float
-        Relative standard deviation of a reading (default 0.05).
+    noise : float, optional
+        Relative standard deviation of a reading (0.05: 5 %). None (default): not stated; the
+        fit weights the readings by ``NOMINAL["pressure"]`` (5 %) and the standard errors come
+        from the residuals' scatter.
     max_distance : float, optional
         Points farther than this from every spring (mm) are dropped (default: twice the
         springs' typical spacing).
+    correlation : array_like or scipy.sparse matrix, shape (n, n), optional
+        The correlation of the readings' noise, one row per point (neighbouring pixels of a
+        scanned film: :func:`~dea_opt.sensitivity.covariance.spatial_correlation`); None:
+        independent readings.
     """
 
     points: np.ndarray
     pressure: np.ndarray
     film: Film | None = None
-    noise: float = 0.05
+    noise: float | None = None
     max_distance: float | None = None
     source: str = field(default="", compare=False)
+    correlation: object = field(default=None, compare=False)
 
     def __post_init__(self):
         points = finite_array("points", self.points, "mm")
@@ -116,9 +136,28 @@ class PressureMap:
         object.__setattr__(self, "points", points)
         object.__setattr__(self, "pressure", pressure)
         object.__setattr__(self, "film", _film(self.film))
-        object.__setattr__(self, "noise", _positive("noise", self.noise))
+        object.__setattr__(self, "noise", _optional_positive("noise", self.noise))
         if self.max_distance is not None:
             object.__setattr__(self, "max_distance", _positive("max_distance", self.max_distance))
+        if self.correlation is not None:
+            object.__setattr__(self, "correlation", check_correlation("correlation", self.correlation, len(points)))
+
+    @property
+    def noise_stated(self) -> bool:
+        return self.noise is not None
+
+    @property
+    def weight_noise(self) -> float:
+        """The relative standard deviation the residuals are divided by: ``noise``, or the nominal
+        5 % when it is not stated."""
+        return NOMINAL["pressure"] if self.noise is None else float(self.noise)
+
+    def correlation_of(self, cache):
+        """The correlation of the residuals :meth:`residuals` returns (the matched points), or None."""
+        if self.correlation is None:
+            return None
+        kept = cache["match"][1]
+        return self.correlation[kept][:, kept]
 
     @property
     def state(self) -> np.ndarray:
@@ -128,7 +167,7 @@ class PressureMap:
         return np.where(self.pressure <= self.film.lower, -1, np.where(self.pressure >= self.film.upper, 1, 0))
 
     @classmethod
-    def from_csv(cls, path, film=None, noise: float = 0.05, max_distance=None) -> PressureMap:
+    def from_csv(cls, path, film=None, noise: float | None = None, max_distance=None) -> PressureMap:
         """Read a CSV with columns ``x, y, z, p`` (mm, MPa; other columns are ignored)."""
         import pandas as pd
 
@@ -157,7 +196,7 @@ class PressureMap:
 
     @classmethod
     def from_grid(
-        cls, values, origin, axis_u, axis_v, spacing, film=None, noise: float = 0.05, max_distance=None
+        cls, values, origin, axis_u, axis_v, spacing, film=None, noise: float | None = None, max_distance=None
     ) -> PressureMap:
         """A scanned map: ``values[j, i]`` (MPa, NaN where nothing was read) at the centre of cell
         ``(i, j)`` of a grid on a plane, ``origin + (i + 1/2) du axis_u + (j + 1/2) dv axis_v``.
@@ -217,7 +256,7 @@ class PressureMap:
             else np.zeros((len(springs), 0))
         )
         dlog = jac * (raw / model**2)[:, None]  # d log(model) / d theta
-        noise = self.noise
+        noise = self.weight_noise
         read = np.where(state == 0, np.maximum(measured, floor), 1.0)
         r = (np.log(model) - np.log(read)) / noise
         J = dlog / noise
@@ -255,14 +294,18 @@ class ForceDisplacement:
     force the layer then exerts on it along that axis measured as ``force[k]`` (N, positive when
     it pushes body 2 back along the axis' positive direction).
 
-    ``noise`` is the standard deviation of a force reading (N), or relative with ``relative=True``.
+    ``noise`` is the standard deviation of a force reading (N), or relative with ``relative=True``;
+    None (default): not stated, the fit weights the readings by ``NOMINAL["force"]`` (1 N; 5 %
+    relative) and the standard errors come from the residuals' scatter. ``correlation`` (k, k),
+    optional: the correlation of the readings' noise (a drifting load cell, a filtered signal).
     """
 
     dof: str
     displacement: np.ndarray
     force: np.ndarray
-    noise: float = 1.0
+    noise: float | None = None
     relative: bool = False
+    correlation: object = field(default=None, compare=False)
 
     def __post_init__(self):
         dof = self.dof.split(".")[-1]
@@ -275,21 +318,43 @@ class ForceDisplacement:
         object.__setattr__(self, "dof", dof)
         object.__setattr__(self, "displacement", d)
         object.__setattr__(self, "force", f)
-        object.__setattr__(self, "noise", _positive("noise", self.noise))
+        object.__setattr__(self, "noise", _optional_positive("noise", self.noise))
+        if self.correlation is not None:
+            object.__setattr__(self, "correlation", check_correlation("correlation", self.correlation, d.size))
 
     @property
     def axis(self) -> int:
         return "xyz".index(self.dof[1])
 
+    @property
+    def noise_stated(self) -> bool:
+        return self.noise is not None
+
+    def standard_deviations(self) -> np.ndarray:
+        """The standard deviation of each force reading the residuals are divided by (N)."""
+        if self.noise is None:
+            noise = NOMINAL["force_relative" if self.relative else "force"]
+        else:
+            noise = float(self.noise)
+        return noise * (np.maximum(np.abs(self.force), 1e-12) if self.relative else np.ones(self.force.size))
+
+    def correlation_of(self, cache):
+        return self.correlation
+
 
 @dataclass(frozen=True, eq=False)
 class ContactData:
-    """A measured contact area (mm^2) and/or centre of pressure (mm), with standard deviations."""
+    """A measured contact area (mm^2) and/or centre of pressure (mm), with standard deviations.
+
+    ``area_std`` (mm^2) and ``center_std`` (mm, each coordinate) None (default): not stated; the
+    fit weights the data by ``NOMINAL["area"]`` and ``NOMINAL["center"]`` and the standard
+    errors come from the residuals' scatter (undefined with as many data as parameters).
+    """
 
     area: float | None = None
     center: np.ndarray | None = None
-    area_std: float = 10.0
-    center_std: float = 0.5
+    area_std: float | None = None
+    center_std: float | None = None
 
     def __post_init__(self):
         if self.area is None and self.center is None:
@@ -301,15 +366,24 @@ class ContactData:
             if center.shape != (3,):
                 raise InputError(f"center must hold 3 numbers (mm), got {center.size}")
             object.__setattr__(self, "center", center)
-        object.__setattr__(self, "area_std", _positive("area_std", self.area_std))
-        object.__setattr__(self, "center_std", _positive("center_std", self.center_std))
+        object.__setattr__(self, "area_std", _optional_positive("area_std", self.area_std))
+        object.__setattr__(self, "center_std", _optional_positive("center_std", self.center_std))
+
+    @property
+    def noise_stated(self) -> bool:
+        return (self.area is None or self.area_std is not None) and (self.center is None or self.center_std is not None)
+
+    def correlation_of(self, cache):
+        return None
 
     def residuals(self, solution, sens, names, cache) -> tuple:
+        area_std = NOMINAL["area"] if self.area_std is None else self.area_std
+        center_std = NOMINAL["center"] if self.center_std is None else self.center_std
         r, J = [], []
         if self.area is not None:
-            r.append((solution.contact_area - self.area) / self.area_std)
-            J.append([sens.contact_area[n] / self.area_std for n in names])
+            r.append((solution.contact_area - self.area) / area_std)
+            J.append([sens.contact_area[n] / area_std for n in names])
         if self.center is not None:
-            r.extend((solution.center_of_pressure - self.center) / self.center_std)
-            J.extend(np.column_stack([np.asarray(sens.center_of_pressure[n]) for n in names]) / self.center_std)
+            r.extend((solution.center_of_pressure - self.center) / center_std)
+            J.extend(np.column_stack([np.asarray(sens.center_of_pressure[n]) for n in names]) / center_std)
         return np.asarray(r, dtype=float), np.asarray(J, dtype=float).reshape(len(r), len(names))

@@ -37,6 +37,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
+from ..io.atomic import naming
 
 __all__ = [
     "JOURNAL_NAME",
@@ -149,7 +150,7 @@ def append(out, record: dict) -> list:
     """
     line = line_of(record)
     path = Path(out) / JOURNAL_NAME
-    with _journal_lock(out):
+    with _journal_lock(out), naming(path):
         fd = os.open(path, os.O_RDWR | os.O_APPEND | os.O_CREAT, 0o644)
         try:
             _drop_torn_tail(fd)
@@ -350,7 +351,7 @@ def write_case_record(out, case_id: str, record: dict, runs: int, pointer) -> No
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp")
     data = json.dumps({"record": record, "runs": runs, "journal": pointer}, indent=1, default=_plain) + "\n"
-    with open(tmp, "w", encoding="utf-8") as handle:
+    with naming(path, tmp), open(tmp, "w", encoding="utf-8") as handle:
         handle.write(data)
         handle.flush()
         os.fsync(handle.fileno())
