@@ -17,8 +17,8 @@ CUSTOM_AXES = """
     <LinearFunction name="function"><coefficients>1 0</coefficients></LinearFunction></TransformAxis>
   <TransformAxis name="translation2"><axis>0 1 0</axis><Constant name="function"><value>0.02</value></Constant></TransformAxis>
   <TransformAxis name="translation3"><coordinates>q5</coordinates><axis>0 0.6 0.8</axis>
-    <MultiplierFunction name="function"><LinearFunction name="function"><coefficients>1 0</coefficients></LinearFunction>
-    <scale>2</scale></MultiplierFunction></TransformAxis>
+    <MultiplierFunction name="function"><function><LinearFunction name="function"><coefficients>1 0</coefficients>
+    </LinearFunction></function><scale>2</scale></MultiplierFunction></TransformAxis>
 </SpatialTransform>"""
 
 COORDS = "".join(
@@ -88,11 +88,11 @@ def model_text(*, joint_ab=None, forces="", constraints="", meshes="", wraps="",
   <Ground name="ground"/>
   <length_units>m</length_units>
   <BodySet name="bodyset"><objects>
-    <Body name="a"><components><PhysicalOffsetFrame name="a_offset"><socket_parent>..</socket_parent>
+    <Body name="a"><mass>1</mass><inertia>0.01 0.01 0.01 0 0 0</inertia><components><PhysicalOffsetFrame name="a_offset"><socket_parent>..</socket_parent>
       <translation>0.005 -0.41 0.003</translation><orientation>3.0 0.01 -3.05</orientation></PhysicalOffsetFrame>
       </components>
       <WrapObjectSet name="wrapobjectset"><objects>{wraps}</objects></WrapObjectSet></Body>
-    <Body name="b"/>
+    <Body name="b"><mass>1</mass><inertia>0.01 0.01 0.01 0 0 0</inertia></Body>
   </objects></BodySet>
   <JointSet name="jointset"><objects>
     <CustomJoint name="j0"><socket_parent_frame>/ground</socket_parent_frame><socket_child_frame>/bodyset/a</socket_child_frame>

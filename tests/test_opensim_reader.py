@@ -29,9 +29,10 @@ def _offset(translation, orientation) -> np.ndarray:
 def _expected_b(values) -> np.ndarray:
     """Body b in ground, composed here without dea_opt: Simbody's R = R1 R2 R3 about the
     normalised axes, p = sum f_k a_k in the parent frame."""
-    g1, g2 = values["g1"], values["g2"]
-    X_G_a = _T(Rotation.from_rotvec(g1 * np.array([1.0, 0, 0])).as_matrix(), [0.0, 1000.0 * g2, 0.0])
-    q1, q2, q3, q4, q5 = (values[f"q{i}"] for i in range(1, 6))
+    # j0's axes and q3's name a coordinate but give no function: OpenSim 4.6 moves nothing there
+    X_G_a = np.eye(4)
+    q1, q2, q4, q5 = (values[f"q{i}"] for i in (1, 2, 4, 5))
+    q3 = 0.0
     a1, a2, a3 = np.array([0, 0, 1.0]), np.array([1, 1, 0]) / np.sqrt(2), np.array([0, 1.0, 0])
     R = (
         Rotation.from_rotvec((-q1 + 0.1) * a1) * Rotation.from_rotvec(0.5 * q2 * a2) * Rotation.from_rotvec(q3 * a3)
@@ -59,14 +60,16 @@ def test_offset_frames_units_and_motion_types(tmp_path):
     assert frame.body == "a" and frame.parent == "/bodyset/a"
     assert np.allclose(model.frame_in_body("/bodyset/a/a_offset"), _offset([0.005, -0.41, 0.003], [3.0, 0.01, -3.05]))
     assert {n: c.motion for n, c in model.coordinates.items()} == {
-        "g1": "rotational",
-        "g2": "translational",
+        "g1": "coupled",  # no function given: OpenSim 4.6 calls it coupled (and moves nothing)
+        "g2": "coupled",
         "q1": "rotational",  # slope -1 counts as a pure rotation (OpenSim 4.5 and later)
         "q2": "coupled",  # slope 0.5
-        "q3": "rotational",  # no function: LinearFunction(1, 0)
+        "q3": "coupled",
         "q4": "translational",
         "q5": "coupled",  # a MultiplierFunction
     }
+    unmoved = sorted(i.name for i in model.not_modelled if i.kind == "property")
+    assert unmoved == ["j0/rotation1", "j0/translation2", "j1/rotation3"]
     with pytest.raises(d.OpenSimModelError, match="has no coordinate 'nope'"):
         model.poses({"nope": 1.0})
     with pytest.raises(d.OpenSimModelError, match="finite"):
@@ -74,19 +77,26 @@ def test_offset_frames_units_and_motion_types(tmp_path):
 
 
 def test_a_joint_walked_from_its_child_uses_the_inverse(tmp_path):
-    # b's joint to ground and a's joint from b: a is placed through j1 backwards
-    joint_ab = """<WeldJoint name="jb"><socket_parent_frame>/ground</socket_parent_frame>
-      <socket_child_frame>/bodyset/b</socket_child_frame></WeldJoint>"""
-    text = model_text(joint_ab=joint_ab).replace(
-        "<socket_parent_frame>/ground</socket_parent_frame><socket_child_frame>/bodyset/a</socket_child_frame>",
-        "<socket_parent_frame>/bodyset/b</socket_parent_frame><socket_child_frame>/bodyset/a</socket_child_frame>",
+    # j1 with its sockets swapped: its parent frame is on b, its child frame on a, and a is the
+    # one joined to ground, so b is reached through j1 backwards
+    text = model_text().replace(
+        "<socket_parent_frame>a_off</socket_parent_frame>", "<socket_parent_frame>b_off</socket_parent_frame>"
+    )
+    text = text.replace(
+        "<socket_child_frame>b_off</socket_child_frame>", "<socket_child_frame>a_off</socket_child_frame>"
     )
     path = tmp_path / "reversed.osim"
-    path.write_text(text.replace('<CustomJoint name="j0">', '<CustomJoint name="j0">', 1))
-    poses = read_model(path).poses()
-    assert np.allclose(poses["b"], np.eye(4))
-    X = _T(Rotation.from_rotvec(0.7 * np.array([1.0, 0, 0])).as_matrix(), [0.0, 900.0, 0.0])
-    assert np.allclose(poses["a"], X)  # child a of b (at ground): X_G_a = X_G_b X_FM
+    path.write_text(text)
+    model = read_model(path)
+    values = model.default_coordinates()
+    poses = model.poses()
+    forward = _expected_b(values)  # = X_G_a P X_FM inv(C) with P on a, C on b
+    P = _offset([0.01, -0.4, 0.002], [0.1, -0.2, 0.3])
+    C = _offset([-0.003, 0.02, 0.001], [-0.05, 0.02, 0.4])
+    X_FM = np.linalg.inv(P) @ forward @ C  # the joint's transform, from the forward composition (X_G_a = I)
+    # now F is on b (C) and M on a (P): X_G_b C X_FM = X_G_a P
+    assert np.allclose(poses["a"], np.eye(4))
+    assert np.allclose(poses["b"] @ C @ X_FM, poses["a"] @ P, atol=1e-10)
 
 
 def test_unsupported_joints_and_functions_are_listed_and_block_only_their_bodies(tmp_path):
@@ -94,7 +104,7 @@ def test_unsupported_joints_and_functions_are_listed_and_block_only_their_bodies
       <socket_child_frame>/bodyset/b</socket_child_frame>
       <coordinates><Coordinate name="angle"/></coordinates></PinJoint>"""
     model = read_model(write_model(tmp_path, joint_ab=joint_ab))
-    assert [(i.kind, i.name) for i in model.not_modelled] == [("joint", "pin")]
+    assert [(i.kind, i.name) for i in model.not_modelled if i.kind != "property"] == [("joint", "pin")]
     assert set(model.poses()) == {"ground", "a"}
     with pytest.raises(d.OpenSimModelError, match="body b has no pose: joint pin .* PinJoint"):
         model.poses(bodies=["b"])
@@ -104,7 +114,8 @@ def test_unsupported_joints_and_functions_are_listed_and_block_only_their_bodies
     )
     (tmp_path / "spline.osim").write_text(spline)
     model = read_model(tmp_path / "spline.osim")
-    assert [(i.kind, i.name, i.line > 0) for i in model.not_modelled] == [("joint_function", "j1/rotation1", True)]
+    listed = [(i.kind, i.name, i.line > 0) for i in model.not_modelled if i.kind != "property"]
+    assert listed == [("joint_function", "j1/rotation1", True)]
     with pytest.raises(d.OpenSimModelError, match="SimmSpline, which dea-opt does not evaluate"):
         model.poses(bodies=["b"])
 
@@ -119,7 +130,7 @@ def test_forces_constraints_and_path_points_not_modelled_are_listed_by_name(tmp_
         + ligament(name="off").replace("<linear_stiffness>", "<appliesForce>false</appliesForce><linear_stiffness>")
     )
     model = read_model(write_model(tmp_path, forces=forces, constraints='<CoordinateCouplerConstraint name="cc"/>'))
-    listed = {(i.kind, i.name) for i in model.not_modelled}
+    listed = {(i.kind, i.name) for i in model.not_modelled if i.kind != "property"}
     assert listed == {
         ("muscle", "m1"),
         ("force", "s1"),
@@ -215,7 +226,7 @@ def test_contact_pairs_their_law_and_the_meshes_found_as_opensim_finds_them(tmp_
             tmp_path, meshes=MESHES.format(**params), forces=CONTACT.format(formulation="nonlinear", lumped="false")
         )
     )
-    assert [i.kind for i in model.not_modelled] == ["contact"]
+    assert [i.kind for i in model.not_modelled if i.kind != "property"] == ["contact"]
     with pytest.raises(d.OpenSimModelError, match="no dea-opt law"):
         model.contact_pairs["contact"].law()
 

@@ -151,3 +151,35 @@ def test_what_dm_does_not_model_is_listed(dm):
         "wrap": 83,
         "via_points": 1,  # ITB_r
     }
+
+
+TOY = REFERENCE["toy"]
+
+
+@pytest.fixture(scope="module")
+def toy(tmp_path_factory):
+    from osim_models import ligament, write_model
+
+    via = '<PathPoint name="v"><socket_parent_frame>/bodyset/b</socket_parent_frame><location>0.1 0 0</location></PathPoint>'
+    folder = tmp_path_factory.mktemp("toy")
+    return read_model(write_model(folder, forces=ligament(via=via, slack="<slack_length>0.3</slack_length>")))
+
+
+@pytest.mark.parametrize("index", range(len(TOY["poses"])))
+def test_a_general_custom_joint_agrees_with_opensim(toy, index):
+    """The small model (needs no shared data): axes off x, y, z, a slope and an intercept, a
+    constant, a MultiplierFunction, axes without a function, offsets on both sides, a via point."""
+    pose = TOY["poses"][index]
+    ours = toy.poses(pose["coordinates"])
+    for body in ("a", "b"):
+        assert np.abs(np.asarray(pose["bodies"][body]) - ours[body]).max() < 1e-9
+    state = toy.ligament_state(pose["coordinates"])
+    length, strain, force = pose["ligaments"]["lig"]
+    assert state.path_length[0] == pytest.approx(length, rel=1e-12) and state.path_strain[0] == pytest.approx(
+        strain, rel=1e-12
+    )
+    assert state.path_force[0] == pytest.approx(force, rel=1e-12) and force > 0
+
+
+def test_the_small_models_motion_types_agree_with_opensim(toy):
+    assert {n: c.motion for n, c in toy.coordinates.items()} == TOY["motion_types"]

@@ -133,13 +133,14 @@ class TransformAxis:
 
     ``axis`` is the unit axis (the model's, normalised as Simbody does), ``coordinates`` the
     names the function takes, ``function`` the amount of rotation (rad) or translation (m) as a
-    function of them.
+    function of them; ``given`` is False for OpenSim's default function (the model gave none).
     """
 
     name: str
     axis: np.ndarray
     coordinates: tuple
     function: Any
+    given: bool = True
 
 
 @dataclass(frozen=True)

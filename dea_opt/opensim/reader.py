@@ -220,8 +220,8 @@ def _spatial_transform(doc: Document, joint, skipped: list) -> tuple:
         if not norm > 1e-12:
             raise OpenSimModelError(f"{doc.source}, line {element.line}: the axis of {where} has zero length")
         names = tuple((element.child_text("coordinates") or "").split())
-        function = _function(doc, element, names, where, skipped)
-        axes.append(TransformAxis(tag, frozen_array(axis / norm), names, function))
+        function, given = _function(doc, element, names, where, skipped)
+        axes.append(TransformAxis(tag, frozen_array(axis / norm), names, function, given))
     for start in (0, 3):  # Simbody refuses collinear axes (OpenSim: "has collinear axes")
         a = [axes[start + i].axis for i in range(3)]
         for i, j in ((0, 1), (0, 2), (1, 2)):
@@ -240,10 +240,22 @@ _FUNCTIONS = ("LinearFunction", "Constant", "MultiplierFunction")
 def _function(doc: Document, axis, names: tuple, where: str, skipped: list):
     found = [c for c in axis.children if c.name == "function" or c.tag in _FUNCTIONS or c.tag.endswith("Function")]
     found = [c for c in found if c.tag not in ("coordinates", "axis")]
-    if not found:  # OpenSim's default: LinearFunction(1, 0) of one coordinate, else Constant(0)
+    if not found:
         if len(names) > 1:
             raise OpenSimModelError(f"{doc.where(axis)}: {where} takes {len(names)} coordinates but has no function")
-        return LinearFunction() if names else Constant(0.0)
+        if names:
+            # OpenSim 4.6 moves nothing along an axis that names a coordinate but gives no function
+            # (tests/data/opensim/make_reference.py recorded it): the same here, and said.
+            skipped.append(
+                NotModelled(
+                    "property",
+                    where,
+                    f"names the coordinate {names[0]} but gives no function: OpenSim 4.6 moves nothing along this "
+                    f"axis, and neither does dea-opt",
+                    axis.line,
+                )
+            )
+        return Constant(0.0), False
     element = found[0]
     function = _read_function(doc, element, where)
     if isinstance(function, UnsupportedFunction):
@@ -254,7 +266,7 @@ def _function(doc: Document, axis, names: tuple, where: str, skipped: list):
         raise OpenSimModelError(f"{doc.where(axis)}: {where} takes {len(names)} coordinates; a {element.tag} takes one")
     elif not names and not isinstance(function, Constant):
         raise OpenSimModelError(f"{doc.where(axis)}: {where} has a {element.tag} but no coordinate")
-    return function
+    return function, True
 
 
 def _read_function(doc: Document, element, where: str):
@@ -264,7 +276,9 @@ def _read_function(doc: Document, element, where: str):
     if element.tag == "Constant":
         return Constant(doc.number(element, "value", 0.0))
     if element.tag == "MultiplierFunction":
-        inner = next((c for c in element.children if c.tag not in ("scale",)), None)
+        # OpenSim writes the wrapped function inside a <function> property element
+        holder = element.child("function")
+        inner = holder.children[0] if holder is not None and holder.children else None
         if inner is None:
             raise OpenSimModelError(f"{doc.where(element)}: a MultiplierFunction without its function")
         wrapped = _read_function(doc, inner, where)
@@ -278,12 +292,13 @@ def _motion_types(axes: tuple) -> dict:
     """OpenSim's motion type of each coordinate (``CustomJoint::constructCoordinates``): an axis
     whose function is a LinearFunction of slope +-1 makes it rotational (axes 1-3) or
     translational (4-6), the last such axis deciding; any other function makes it coupled
-    unless an axis made it one of those."""
+    unless an axis made it one of those. An axis the model gives no function counts as coupled,
+    as OpenSim 4.6 reports it (its default function is made after the motion types)."""
     motion: dict = {}
     for k, axis in enumerate(axes):
         for name in axis.coordinates:
             f = axis.function
-            if isinstance(f, LinearFunction) and abs(f.slope) == 1.0:
+            if axis.given and isinstance(f, LinearFunction) and abs(f.slope) == 1.0:
                 motion[name] = "rotational" if k < 3 else "translational"
             else:
                 motion.setdefault(name, "coupled")

@@ -22,7 +22,11 @@ What it does:
 3. records, per pose: every coordinate's value, each body's pose in ground (4x4, mm) and, for
    every Blankevoort1991Ligament of the wraps-stripped model, its length (mm), strain and total
    force (N, speeds zero); and once: each coordinate's motion type and, with the wrap objects
-   kept, every bundle's length at the default pose.
+   kept, every bundle's length at the default pose;
+4. does the same for the small model of tests/osim_models.py (a CustomJoint of axes off x, y, z,
+   a slope and an intercept, a constant, a MultiplierFunction, axes left to their defaults,
+   offset frames on both sides; a bundle with a via point) at its defaults and three poses:
+   ``toy`` in the JSON.
 
 The numbers are derived from DM.osim (Apache License 2.0, opensim-jam-org/jam-resources): the
 JSON says so, and tests/data/opensim/LICENSE is that licence.
@@ -161,6 +165,33 @@ def record(model, state, name: str, values: dict) -> dict:
     }
 
 
+def toy(folder: Path) -> dict:
+    sys.path.insert(0, str(HERE.parents[1]))
+    from osim_models import ligament, write_model
+
+    via = '<PathPoint name="v"><socket_parent_frame>/bodyset/b</socket_parent_frame><location>0.1 0 0</location></PathPoint>'
+    path = write_model(folder, forces=ligament(via=via, slack="<slack_length>0.3</slack_length>"))
+    model = osim.Model(str(path))
+    state = model.initSystem()
+    rng = np.random.default_rng(2024)
+    names = [model.getCoordinateSet().get(i).getName() for i in range(model.getCoordinateSet().getSize())]
+    poses = {"default": {}}
+    for k in range(3):
+        poses[f"random_{k}"] = {n: float(rng.uniform(-1.0, 1.0)) for n in names}
+    coordinates = model.getCoordinateSet()
+    motion = {}
+    for i in range(coordinates.getSize()):
+        c = coordinates.get(i)
+        motion[c.getName()] = {1: "rotational", 2: "translational", 3: "coupled"}.get(
+            int(c.getMotionType()), "undefined"
+        )
+    return {
+        "model": "tests/osim_models.py: write_model(forces=ligament(via=..., slack_length 0.3 m))",
+        "motion_types": motion,
+        "poses": [record(model, state, name, values) for name, values in poses.items()],
+    }
+
+
 def main() -> None:
     source = DATA / "DM.osim"
     with tempfile.TemporaryDirectory() as tmp:
@@ -179,6 +210,7 @@ def main() -> None:
         wrapped_model = osim.Model(str(stripped_copy(source, folder, without_wraps=False)))
         wrapped_state = wrapped_model.initSystem()
         wrapped = record(wrapped_model, wrapped_state, "default, wrap objects kept", {})["ligaments"]
+        small = toy(folder)
     out = {
         "script": "tests/data/opensim/make_reference.py",
         "opensim": osim.GetVersionAndDate(),
@@ -195,6 +227,7 @@ def main() -> None:
         "motion_types": motion,
         "poses": records,
         "wrapped_length_at_default_mm": {name: values[0] for name, values in wrapped.items()},
+        "toy": small,
     }
     target = HERE / "dm_reference.json"
     target.write_text(json.dumps(out, indent=1) + "\n", encoding="utf-8")
