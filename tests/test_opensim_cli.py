@@ -109,3 +109,9 @@ def test_the_dm_knee_imports_with_everything_not_modelled_listed(tmp_path):
     assert [c["name"] for c in scenario["contacts"]] == ["knee_contact", "pf_contact"]
     assert len(scenario["ligaments"]) == 149
     assert text.count("\n# wrap ") == 83 and "# via_points ITB_r" in text and text.count("\n# muscle ") == 44
+
+
+def test_help_names_the_command():
+    result = invoke("import-osim", "--help")
+    assert result.exit_code == 0 and "--mesh" in result.stdout and "Blankevoort1991Ligament" in result.stdout
+    assert "import-osim" in invoke("--help").stdout
