@@ -26,6 +26,17 @@ class ScenarioError(InputError):
     """
 
 
+class OpenSimModelError(InputError):
+    """An OpenSim model file (``.osim``) cannot be read, or uses what dea-opt cannot evaluate.
+
+    Raised for a file that is missing, not XML, malformed (the message gives its line), holds a
+    document type declaration or entities (refused: a model from elsewhere is untrusted input), or
+    whose components are incomplete or inconsistent (a socket naming no frame, an axis of zero
+    length, collinear rotation axes, a joint type or function dea-opt does not evaluate asked for).
+    The message names the file, the component (its path in the model) and, where known, the line.
+    """
+
+
 class OutputFolderError(InputError):
     """A run may not write into the output folder it was given.
 

@@ -11,8 +11,8 @@ The modules: :mod:`~dea_opt.scenario.schema` (the models), :mod:`~dea_opt.scenar
 (the documented schema),
 :mod:`~dea_opt.scenario.parse` (reading, errors with key paths and TOML lines, ``--set``),
 :mod:`~dea_opt.scenario.build` (law, springs, bodies, problem),
-:mod:`~dea_opt.scenario.load_path` (the frames of a load path) and
-:mod:`~dea_opt.scenario.opensim` (OpenSim ``.sto``/``.mot`` load paths).
+:mod:`~dea_opt.scenario.load_path` (the frames of a load path, with OpenSim ``.sto``/``.mot``
+files read by :mod:`dea_opt.opensim.storage`).
 
 Units everywhere: mm, N, N mm, MPa, s.
 

@@ -3,7 +3,7 @@
 The table is a CSV with columns ``time, Fx, Fy, Fz`` and optionally ``Mx, My, Mz`` and the six
 pose columns (``pose_tx, pose_ty, pose_tz`` in mm, ``pose_rx, pose_ry, pose_rz`` in degrees
 about the fixed x, y, z axes), an OpenSim Storage file (``.sto``/``.mot``, columns named in
-the scenario: :mod:`~dea_opt.scenario.opensim`), or the shipped synthetic hip cycle.
+the scenario: :mod:`~dea_opt.opensim.storage`), or the shipped synthetic hip cycle.
 Units: s, N, N mm, mm.
 """
 
@@ -86,7 +86,7 @@ def read_load_path(section: LoadPathSection) -> LoadPathData:
     else:
         source = section.file
     if section.columns is not None:
-        from .opensim import load_path_columns
+        from ..opensim.storage import load_path_columns
 
         table = load_path_columns(section)
     else:

@@ -1,4 +1,4 @@
-"""OpenSim Storage files (``.sto``, ``.mot``) as load paths, read with plain Python.
+"""OpenSim Storage files (``.sto``, ``.mot``), read with plain Python: load paths and motions.
 
 JointReaction and Inverse Kinematics write this text format: a name line, ``key=value``
 header lines (``version``, ``nRows``, ``nColumns``, ``inDegrees=yes|no``, ...) and free
@@ -18,7 +18,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import ScenarioError
+from ..errors import InputError, ScenarioError
 
 __all__ = ["StorageFile", "load_path_columns", "read_storage"]
 
@@ -59,20 +59,19 @@ def _shortlist(labels: list) -> str:
     return ", ".join(labels[:12]) + (f" and {len(labels) - 12} more" if len(labels) > 12 else "")
 
 
-def read_storage(path) -> StorageFile:
-    """Parse an OpenSim Storage file; errors name the file and the line."""
+def read_storage(path, what: str = "load path", error: type[InputError] = ScenarioError) -> StorageFile:
+    """Parse an OpenSim Storage file; errors (``error``) name the file (as ``what``: "load path",
+    "motion") and the line."""
     path = Path(path)
     try:
         text = path.read_bytes().decode("utf-8")
     except UnicodeDecodeError as exc:
-        raise ScenarioError(
-            f"load path {path} is not UTF-8 text (byte {exc.start}): is it an OpenSim .sto/.mot file?"
-        ) from None
+        raise error(f"{what} {path} is not UTF-8 text (byte {exc.start}): is it an OpenSim .sto/.mot file?") from None
     lines = text.splitlines()
     end = next((i for i, line in enumerate(lines) if line.strip().lower() == "endheader"), None)
     if end is None:
-        raise ScenarioError(
-            f"load path {path} has no 'endheader' line: an OpenSim Storage file (.sto/.mot) starts "
+        raise error(
+            f"{what} {path} has no 'endheader' line: an OpenSim Storage file (.sto/.mot) starts "
             f"with header lines ending in 'endheader', then a row of column labels"
         )
     header = {}
@@ -82,7 +81,7 @@ def read_storage(path) -> StorageFile:
             header[key.strip().lower()] = value.strip()
     rows = [(number, line) for number, line in enumerate(lines[end + 1 :], start=end + 2) if line.strip()]
     if not rows:
-        raise ScenarioError(f"load path {path} has no row of column labels after 'endheader'")
+        raise error(f"{what} {path} has no row of column labels after 'endheader'")
     tabs = "\t" in rows[0][1]
 
     def split(line: str) -> list:
@@ -91,31 +90,27 @@ def read_storage(path) -> StorageFile:
     labels = split(rows[0][1])
     repeated = sorted({label for label in labels if labels.count(label) > 1})
     if repeated:
-        raise ScenarioError(f"load path {path}, line {rows[0][0]}: repeated column labels {', '.join(repeated)}")
+        raise error(f"{what} {path}, line {rows[0][0]}: repeated column labels {', '.join(repeated)}")
     data = np.empty((len(rows) - 1, len(labels)))
     for k, (number, line) in enumerate(rows[1:]):
         fields = split(line)
         if len(fields) != len(labels):
-            raise ScenarioError(
-                f"load path {path}, line {number}: {len(fields)} fields, but the label row has {len(labels)}"
-            )
+            raise error(f"{what} {path}, line {number}: {len(fields)} fields, but the label row has {len(labels)}")
         for j, field in enumerate(fields):
             try:
                 value = float(field)
             except ValueError:
                 value = math.nan
             if not math.isfinite(value):
-                raise ScenarioError(
-                    f"load path {path}, line {number}, column {labels[j]}: expected a finite number, got {field!r}"
+                raise error(
+                    f"{what} {path}, line {number}, column {labels[j]}: expected a finite number, got {field!r}"
                 )
             data[k, j] = value
     if not len(data):
-        raise ScenarioError(f"load path {path} has a label row but no rows of numbers")
+        raise error(f"{what} {path} has a label row but no rows of numbers")
     expected = header.get("nrows")
     if expected is not None and expected.isdigit() and int(expected) != len(data):
-        raise ScenarioError(
-            f"load path {path}: its header says nRows={expected}, but it has {len(data)} rows (a file cut short?)"
-        )
+        raise error(f"{what} {path}: its header says nRows={expected}, but it has {len(data)} rows (a file cut short?)")
     return StorageFile(path, header, labels, data)
 
 
