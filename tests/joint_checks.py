@@ -77,3 +77,28 @@ def _scale(solution, name) -> float:
     touching = [i for i, lig in enumerate(joint.ligaments) if name in (lig.body1, lig.body2)]
     total = max(total, float(np.abs(solution.ligaments.force[touching]).sum()))
     return max(total, 1e-300)
+
+
+def net_wrench_at_pose(solution) -> dict:
+    """Finite kinematics: ``{body: (force, moment about its reference where it is)}`` of loads and
+    element forces at the solved pose: each layer's springs where its answer puts them (world
+    frame), each bundle along its line between its insertions there."""
+    joint = solution.joint
+    refs = {n: np.asarray(b.reference, dtype=float) + solution.bodies[n].u[:3] for n, b in joint.bodies.items()}
+    out = {n: [np.array(b.force, dtype=float), np.array(b.moment, dtype=float)] for n, b in joint.bodies.items()}
+    for contact, layer_solution in zip(joint.contacts, solution.contacts):
+        layer = layer_solution.problem.layer
+        push = (layer_solution.pressure * layer.areas)[:, None] * layer.normals
+        for name, sign in ((contact.body1, -1.0), (contact.body2, 1.0)):
+            out[name][0] += sign * push.sum(axis=0)
+            out[name][1] += sign * np.cross(layer.points - refs[name], push).sum(axis=0)
+    ligaments = solution.ligaments
+    for i, lig in enumerate(joint.ligaments):
+        p1, p2 = ligaments.point1[i], ligaments.point2[i]
+        e = (p2 - p1) / np.linalg.norm(p2 - p1)
+        f = float(ligaments.force[i])
+        out[lig.body1][0] += f * e
+        out[lig.body1][1] += f * np.cross(p1 - refs[lig.body1], e)
+        out[lig.body2][0] -= f * e
+        out[lig.body2][1] -= f * np.cross(p2 - refs[lig.body2], e)
+    return {name: (v[0], v[1]) for name, v in out.items()}

@@ -111,10 +111,11 @@ class ElementGroup:
     ----------
     name : str
         For messages (``"contact 0"``, ``"ligaments femur-tibia"``).
-    kind : {"contact", "ligament"}
-        Compression-only springs, or tension-only bundles.
-    law : Law or TensionLaw
-        A spring law (stress in MPa) or the bundles' :class:`TensionLaw`.
+    kind : {"contact", "ligament", "bilateral"}
+        Compression-only springs, tension-only bundles, or linear two-sided rows (finite
+        kinematics: the sideways stiffness ``f / L`` of bundles in tension at the pose).
+    law : Law, TensionLaw or None
+        A spring law (stress in MPa), the bundles' :class:`TensionLaw`, or None (bilateral: linear).
     dofs : ndarray of int, shape (m_g,)
         Indices of the group's free dofs in the joint's free vector ``x``.
     AT : ndarray, shape (m_g, N_g)
@@ -165,8 +166,14 @@ class ElementGroup:
         """``e0 + A x[dofs]``, shape (N_g,), for the joint's free vector ``x``."""
         return self.e0 + np.asarray(x, dtype=float)[self.dofs] @ self.AT
 
+    @property
+    def two_sided(self) -> bool:
+        return self.kind == "bilateral"
+
     def active(self, eps) -> np.ndarray:
-        """Springs in compression, bundles in tension."""
+        """Springs in compression, bundles in tension, two-sided rows always."""
+        if self.two_sided:
+            return np.ones(eps.shape, dtype=bool)
         return eps < 0 if self.contact else eps > 0
 
     def stress(self, eps) -> np.ndarray:
@@ -174,6 +181,8 @@ class ElementGroup:
         ``phi`` (>= 0); ``V * stress`` is the generalized force per unit strain rate."""
         if self.contact:
             return self.law.stress(np.minimum(eps, 0.0))
+        if self.two_sided:
+            return np.asarray(eps, dtype=float)
         return self.law.force(eps)
 
     def tangent(self, eps) -> np.ndarray:
@@ -184,6 +193,8 @@ class ElementGroup:
             if compressed.any():
                 out[compressed] = self.law.tangent(eps[compressed])
             return out
+        if self.two_sided:
+            return np.ones(eps.shape)
         return self.law.tangent(eps)
 
     def every_tangent(self, eps) -> np.ndarray:
@@ -205,6 +216,8 @@ class ElementGroup:
         """``w`` at the clipped strain (MPa for springs, strain^2 units for bundles)."""
         if self.contact:
             return self.law.energy(np.minimum(eps, 0.0))
+        if self.two_sided:
+            return 0.5 * np.asarray(eps, dtype=float) ** 2
         return self.law.energy(eps)
 
     def forces(self, stress) -> np.ndarray:
@@ -273,6 +286,8 @@ class JointSystem:
         stores, the scale of a press fit or of bundles stretched at the start."""
         total = 0.0
         for g in self.groups:
+            if g.two_sided:
+                continue
             clipped = np.minimum(g.e0, 0.0) if g.contact else np.maximum(g.e0, 0.0)
             top = float(np.abs(clipped).max(initial=0.0))
             if top > 0:
@@ -295,6 +310,8 @@ class JointSystem:
             group's law output: ``sign * scale * s`` (a spring's stress ``H s``, a bundle's
             ``phi = -s``).
         """
+        if any(g.two_sided for g in self.groups):
+            raise InputError("two-sided rows (finite kinematics' geometric stiffness) make no compression-only system")
         m, n = self.n_dofs, self.n_elements
         AT, e0, volume = np.zeros((m, n)), np.empty(n), np.empty(n)
         convert, at = [], 0

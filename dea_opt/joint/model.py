@@ -24,7 +24,7 @@ from .elements import Contact, Ligament
 
 __all__ = ["KINEMATICS", "Joint"]
 
-KINEMATICS = ("small",)
+KINEMATICS = ("small", "finite")
 
 
 def line_operator(point1, point2, reference1, reference2) -> np.ndarray:
@@ -226,6 +226,18 @@ class Joint:
                 radius = float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p))))
                 out[j] = radius if radius > 1e-12 else 1.0
         return out
+
+    @cached_property
+    def extent(self) -> float:
+        """The RMS distance of every point the elements act at (springs, insertions) from their
+        centroid (mm): the joint's size, against which a motion counts as running away."""
+        points = [c.layer.points for c in self.contacts]
+        points += [np.array([lig.point1, lig.point2]) for lig in self.ligaments]
+        if not points:
+            return 1.0
+        p = np.vstack(points)
+        p = p - p.mean(axis=0)
+        return max(float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p)))), 1e-12)
 
     @cached_property
     def load(self) -> np.ndarray:

@@ -216,14 +216,19 @@ def body_results(joint, body_u: dict, on_body: dict) -> MappingProxyType:
     return MappingProxyType(out)
 
 
-def layer_solutions(joint, body_u: dict, on_body: dict, layer_forces, reported, common: dict) -> tuple:
+def layer_solutions(joint, body_u: dict, on_body: dict, layer_forces, reported, common: dict, dropped=None) -> tuple:
     """Per contact, its two-body :class:`~dea_opt.Solution` at the answer: the layer's problem whose
     bodies carry, as loads, every other force on them (their own loads minus what the other
-    elements take), so that its certificate is a two-body certificate of this layer."""
+    elements take), so that its certificate is a two-body certificate of this layer.
+
+    ``joint`` gives ``contacts``, ``pairs`` (each layer's two-body problem) and ``bodies`` (their
+    loads), in the frame of ``on_body`` (each body's 6-vector of what every element takes from it);
+    ``dropped`` (per contact, or None) the springs a cast's window dropped at the answer's pose."""
     from ..solution import certify
 
     out = []
-    for c, pair, f, rep in zip(joint.contacts, joint.pairs, layer_forces, reported):
+    dropped = dropped or [None] * len(joint.contacts)
+    for c, pair, f, rep, lost in zip(joint.contacts, joint.pairs, layer_forces, reported, dropped):
         u = np.concatenate([body_u[c.body1], body_u[c.body2]])
         own = np.asarray(f, dtype=float) @ pair.normal_operator  # what this layer takes from each body
         problem = pair
@@ -233,34 +238,35 @@ def layer_solutions(joint, body_u: dict, on_body: dict, layer_forces, reported, 
             problem = problem.with_load(force=rest[:3], moment=rest[3:], body=k)
         strain = problem.strain(u)
         with np.errstate(invalid="ignore", over="ignore"):
-            pressure = 0.0 - c.law.stress(np.minimum(strain, 0.0))
-        stress = np.asarray(rep, dtype=float) / c.layer.areas
+            pressure = 0.0 - pair.law.stress(np.minimum(strain, 0.0))
+        stress = np.asarray(rep, dtype=float) / pair.layer.areas
         certificate = certify(problem, u, stress, common["tolerance"])
-        out.append(
-            Solution(
-                problem=problem,
-                u=u,
-                strain=strain,
-                pressure=pressure,
-                method=common["method"],
-                success=bool(common["success"] and certificate.passed),
-                status=common["status"],
-                message=common["message"],
-                iterations=common["iterations"],
-                build_time=0.0,
-                solve_time=common["solve_time"],
-                certificate=certificate,
-                info={"joint_contact": c.name},
-            )
+        solution = Solution(
+            problem=problem,
+            u=u,
+            strain=strain,
+            pressure=pressure,
+            method=common["method"],
+            success=bool(common["success"] and certificate.passed),
+            status=common["status"],
+            message=common["message"],
+            iterations=common["iterations"],
+            build_time=0.0,
+            solve_time=common["solve_time"],
+            certificate=certificate,
+            info={"joint_contact": c.name},
         )
+        out.append(solution if lost is None else solution.with_validity(dropped=int(lost)))
     return tuple(out)
 
 
-def ligament_results(joint, body_u: dict, law_forces) -> LigamentResults:
+def ligament_results(joint, body_u: dict, law_forces, insertions=None) -> LigamentResults:
     """Every bundle's force (N), strain and length (mm) at the answer, in ``Joint.ligaments`` order.
 
     Small kinematics: the length linearised in the motions (the strain the energy uses), the
-    insertions moved by the linearised motion; finite kinematics pass their own exact values.
+    insertions moved by the linearised motion. Finite kinematics: ``joint`` is the configuration
+    at the pose (its groups' lengths exact), ``body_u`` zero there, and ``insertions`` the
+    insertions at the pose.
     """
     n = len(joint.ligaments)
     force, strain, length = np.zeros(n), np.zeros(n), np.zeros(n)
@@ -274,8 +280,11 @@ def ligament_results(joint, body_u: dict, law_forces) -> LigamentResults:
             force[i] = law_forces[offset + gi][row]
             length[i] = L[row]
             strain[i] = L[row] / group.slack[row] - 1.0
-            p1[i] = _moved(lig.point1, body_u[lig.body1], joint.bodies[lig.body1].reference)
-            p2[i] = _moved(lig.point2, body_u[lig.body2], joint.bodies[lig.body2].reference)
+            if insertions is not None:
+                p1[i], p2[i] = insertions[0][i], insertions[1][i]
+            else:
+                p1[i] = _moved(lig.point1, body_u[lig.body1], joint.bodies[lig.body1].reference)
+                p2[i] = _moved(lig.point2, body_u[lig.body2], joint.bodies[lig.body2].reference)
     return LigamentResults(
         names=tuple(lig.name or f"ligament {i}" for i, lig in enumerate(joint.ligaments)),
         body1=tuple(lig.body1 for lig in joint.ligaments),

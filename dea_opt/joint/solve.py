@@ -12,17 +12,16 @@ from __future__ import annotations
 
 import math
 import time
-import warnings
 
 import numpy as np
 
-from ..errors import InputError, LoadNotSupportedError, SolverError, ValidityWarning
+from ..errors import InputError, SolverError
 from ..formulations._parts import joint_ipopt, joint_newton
 from ..formulations.energy import require_finite, single_threaded_blas
 from ..formulations.joint import JointResult, law_stresses
-from ..loadcheck import _cone_residual
 from ..status import CERTIFIABLE, Status
 from .certificate import body_forces, certify_joint
+from .checks import check_joint_cone, check_joint_unresisted, finish, start_vector
 from .model import Joint
 from .results import JointSolution, body_results, layer_solutions, ligament_results
 from .validity import assess_joint
@@ -59,23 +58,13 @@ def solve_joint(
         raise InputError(f"method must be one of {JOINT_METHODS} for a Joint, got {method!r}")
     if not isinstance(certificate_tol, (int, float)) or not (0 < certificate_tol < 1) or math.isnan(certificate_tol):
         raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
+    if joint.kinematics == "finite":
+        from .finite import solve_finite_joint
+
+        return solve_finite_joint(joint, method, certificate_tol=certificate_tol, strict=strict, **options)
     with single_threaded_blas():
         solution = _solve(joint, method, certificate_tol, dict(options))
-    return _finish(solution, strict)
-
-
-def _finish(solution: JointSolution, strict: bool) -> JointSolution:
-    if not solution.success and strict:
-        raise SolverError(
-            f"{solution.method} returned no certified answer for the joint (status {str(solution.status)!r}: "
-            f"{solution.message}); {solution.failure}. Try method='auto', another method, or check the loads.",
-            status=solution.status,
-            solution=solution,
-            native_status=solution.info.get("native_status"),
-        )
-    if solution.success and not solution.validity.valid:
-        warnings.warn(solution.validity.message(), ValidityWarning, stacklevel=3)
-    return solution
+    return finish(solution, strict)
 
 
 def _split(method: str, options: dict, fallback: str) -> tuple[dict, dict]:
@@ -92,22 +81,9 @@ def _split(method: str, options: dict, fallback: str) -> tuple[dict, dict]:
     return newton, rest
 
 
-def _start(joint: Joint, x0) -> np.ndarray | None:
-    if x0 is None:
-        return None
-    m = len(joint.free_index)
-    try:
-        x = np.array(x0, dtype=float)
-    except (TypeError, ValueError):
-        raise InputError(f"x0 must be one number per free dof ({m}: {joint.free_names}), got {x0!r}") from None
-    if x.shape != (m,) or not np.isfinite(x).all():
-        raise InputError(f"x0 must be {m} finite numbers, one per free dof {joint.free_names}, got {x0!r}")
-    return x
-
-
 def _solve(joint: Joint, method: str, tol: float, options: dict) -> JointSolution:
     system = joint.system()
-    x0 = _start(joint, options.pop("x0", None))
+    x0 = start_vector(joint, options.pop("x0", None))
     linear = joint_ipopt.linear(system)
     if method == "qp" and not linear:
         raise InputError(
@@ -187,67 +163,6 @@ def _trivial(joint: Joint, system) -> JointResult | None:
             zero, law_stresses(system, zero), True, Status.UNLOADED, "no load and nothing stored at the start"
         )
     return None
-
-
-def _describe(joint: Joint, vector) -> str:
-    vector = np.asarray(vector, dtype=float)
-    top = float(np.abs(vector).max(initial=0.0))
-    parts = []
-    for name, value in zip(joint.free_names, vector):
-        if top == 0.0 or abs(value) < 1e-3 * top:
-            continue
-        body, dof = name.split(".")
-        unit = "N" if dof[0] == "u" else f"N mm about {body}'s reference"
-        parts.append(f"{'force' if dof[0] == 'u' else 'moment'} {value:+.4g} {unit} along {dof[1]} on {body}")
-    return ", ".join(parts) or "none"
-
-
-def check_joint_unresisted(joint: Joint) -> None:
-    """Raise :class:`LoadNotSupportedError` when part of the load acts along free directions no
-    element resists (the same one test as the scaling and the certificate)."""
-    system = joint.system()
-    res = system.resistance
-    fraction = res.load_fraction(system.load)
-    if fraction <= 1e-7:
-        return
-    part = res.load_part(system.load)
-    names = list(joint.free_names)
-    which = "; ".join(res.describe(names)) or ", ".join(names)
-    raise LoadNotSupportedError(
-        f"no contact or ligament of the joint resists part of this load: {_describe(joint, part)} ({fraction:.3g} of "
-        f"the load) acts along {which}. Fix those dofs, remove that part of the load, or add elements that hold them.",
-        direction=dict(zip(names, part.tolist())),
-    )
-
-
-def check_joint_cone(joint: Joint) -> None:
-    """Raise :class:`LoadNotSupportedError` when the load lies outside the cone of what the elements
-    can push and pull (springs push along their normals, bundles pull along their lines)."""
-    system = joint.system()
-    if not system.n_dofs or not system.load.any():
-        return
-    flat, _ = system.flat()
-    res = system.resistance
-    D, Q = res.lengths, res.range
-    rhs = Q.T @ (system.load / D)
-    rnorm = float(np.linalg.norm(rhs))
-    if rnorm == 0.0:
-        return
-    columns = -(Q.T @ (flat.AT / D[:, None]))
-    norms = np.linalg.norm(columns, axis=0)
-    keep = norms > 1e-12 * float(norms.max(initial=0.0))
-    columns = columns[:, keep] / norms[keep]
-    residual = _cone_residual(columns, rhs)
-    if residual is None or residual[1] <= 1e-7 * rnorm:
-        return
-    unbalanced = D * (Q @ residual[0])
-    names = list(joint.free_names)
-    raise LoadNotSupportedError(
-        f"the joint's springs (which only push) and ligaments (which only pull) cannot carry this load: the smallest "
-        f"unbalanced part is {_describe(joint, unbalanced)} ({residual[1] / rnorm:.3g} of the load, moments over each "
-        f"body's radius). Check the loads' signs and units (N, N mm), or add elements.",
-        direction=dict(zip(names, unbalanced.tolist())),
-    )
 
 
 def _certified(joint: Joint, result: JointResult, method: str, tol: float) -> JointSolution:

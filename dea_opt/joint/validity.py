@@ -118,15 +118,46 @@ def _check_dict(c: Check) -> dict:
 
 
 def assess_joint(
-    joint, body_u: dict, ligaments, layers: tuple, limits: LigamentLimits = DEFAULT_JOINT_LIMITS
+    joint,
+    body_u: dict,
+    ligaments,
+    layers: tuple,
+    limits: LigamentLimits = DEFAULT_JOINT_LIMITS,
+    stability: float | None = None,
+    softest: str = "",
 ) -> JointValidity:
     """The :class:`JointValidity` of an answer (``body_u``: each body's 6-vector; ``ligaments``:
-    its :class:`~dea_opt.joint.results.LigamentResults`; ``layers``: each layer's Validity)."""
+    its :class:`~dea_opt.joint.results.LigamentResults`; ``layers``: each layer's Validity).
+
+    Finite kinematics: ``body_rotation`` is every body's rotation vector within a half turn, and
+    ``stability`` (``-min Re(lambda) / max |lambda|`` of the tangent on the free coordinates at
+    the answer, ``softest`` the motion that gives way) is checked against the two-body limit
+    (:class:`~dea_opt.validity.ValidityLimits`, ``stability``)."""
     checks = [_strain_check(ligaments, limits)]
     if joint.kinematics == "small":
         checks.append(_length_check(joint, body_u, limits))
         checks.append(_rotation_check(joint, body_u, limits))
+    else:
+        checks.append(_rotation_check(joint, body_u, limits, half_turn=True))
+        checks.append(_stability_check(stability, softest))
     return JointValidity(tuple(checks), tuple(layers), tuple(c.name for c in joint.contacts))
+
+
+def _stability_check(value, softest) -> Check:
+    from ..validity import DEFAULT_LIMITS
+
+    limit = DEFAULT_LIMITS.stability
+    if value is None:
+        return Check("stability", math.nan, limit, "", None, "not evaluated: the solve gave no equilibrium to test")
+    if not math.isfinite(value):
+        return Check("stability", value, limit, "", False, "the tangent at the answer is not finite")
+    if value <= limit:
+        return Check("stability", value, limit, "", True)
+    advice = (
+        f"the equilibrium is unstable: the joint gives way along {softest or 'a free direction'} at the smallest "
+        f"disturbance; hold that motion, or add what holds it (a ligament, a contact)"
+    )
+    return Check("stability", value, limit, "", False, advice)
 
 
 def _strain_check(ligaments, limits) -> Check:
@@ -171,8 +202,11 @@ def _length_check(joint, body_u, limits) -> Check:
     return Check("ligament_length_error", worst, limits.length_error, "", passed, advice)
 
 
-def _rotation_check(joint, body_u, limits) -> Check:
+def _rotation_check(joint, body_u, limits, half_turn: bool = False) -> Check:
     value = max((float(np.degrees(np.linalg.norm(u[3:]))) for u in body_u.values()), default=0.0)
-    passed = value <= limits.rotation
+    limit = 180.0 if half_turn else limits.rotation
+    passed = value <= limit
     advice = "" if passed else "a body turns past the small kinematics: use Joint(..., kinematics='finite')"
-    return Check("body_rotation", value, limits.rotation, "deg", passed, advice)
+    if half_turn and not passed:
+        advice = "a body's rotation vector wound past a half turn: the same pose has a shorter one; check the loads"
+    return Check("body_rotation", value, limit, "deg", passed, advice)

@@ -48,6 +48,8 @@ def solve_nlp(system: JointSystem, *, x0=None, **options) -> JointResult:
         V = ca.DM(g.volume / E0)
         if g.contact:
             stored = stored + ca.dot(V, g.law.energy(ca.fmin(eps, 0)))
+        elif g.two_sided:
+            stored = stored + 0.5 * ca.dot(V, eps * eps)
         else:
             stored = stored + ca.dot(V, g.law.casadi_energy(eps, g.law.transition))
     r = ca.DM(T.T @ system.load / E0)
@@ -77,7 +79,10 @@ def solve_nlp(system: JointSystem, *, x0=None, **options) -> JointResult:
 def linear(system: JointSystem) -> bool:
     """Whether every element is linear: springs of a :class:`~dea_opt.laws.LinearLaw`, bundles of
     the linear tension-only law (then the joint's energy is a QP)."""
-    return all(getattr(g.law, "is_linear", False) if g.contact else g.law.kind == "linear" for g in system.groups)
+    return all(
+        getattr(g.law, "is_linear", False) if g.contact else g.two_sided or g.law.kind == "linear"
+        for g in system.groups
+    )
 
 
 def solve_qp(system: JointSystem, **options) -> JointResult:

@@ -87,6 +87,10 @@ class _Line:
         steps = []
         for g, e, r in zip(self.system.groups, self.eps, self.rates):
             size = float(np.abs(r).max(initial=0.0))
+            if g.two_sided:
+                if size > 0:
+                    steps.append(alpha)  # two-sided rows resist the line at once
+                continue
             toward = r < -1e-12 * size if g.contact else r > 1e-12 * size
             if toward.any():
                 steps.append(float((-e[toward] / r[toward]).min()))
