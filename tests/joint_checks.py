@@ -102,3 +102,20 @@ def net_wrench_at_pose(solution) -> dict:
         out[lig.body2][0] -= f * e
         out[lig.body2][1] -= f * np.cross(p2 - refs[lig.body2], e)
     return {name: (v[0], v[1]) for name, v in out.items()}
+
+
+def assert_balanced_at_pose(solution, tol):
+    """Finite kinematics: on every body, the net force along each free translation, and the net
+    moment where all three rotations are free, at most ``tol`` of the forces on the joint (moments
+    over 30 mm)."""
+    wrench = net_wrench_at_pose(solution)
+    scale = max(1.0, float(np.abs(solution.ligaments.force).sum()) if len(solution.ligaments) else 1.0)
+    scale = max([scale] + [float((c.pressure * c.problem.layer.areas).sum()) for c in solution.contacts])
+    for name, body in solution.joint.bodies.items():
+        force, moment = wrench[name]
+        scale_b = max(scale, float(np.abs(body.force).max()))
+        for j, dof in enumerate(("ux", "uy", "uz")):
+            if dof in body.free:
+                assert abs(force[j]) <= tol * scale_b, (name, dof, force)
+        if all(dof in body.free for dof in ("rx", "ry", "rz")):
+            assert np.abs(moment).max() <= tol * scale_b * 30.0, (name, moment)
