@@ -345,12 +345,21 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
         ``u`` relative to ``max |u|`` and of pressure relative to the peak pressure
         (:func:`dea_opt.agreement.disagreement`; finite answers matched by mesh face).
 
+    A :class:`~dea_opt.joint.Joint` is compared by :func:`dea_opt.joint.compare.compare_joint`
+    (methods ``newton``, ``qp``, ``nlp``; its result also holds ``ligament_force``).
+
     Raises
     ------
     InputError
         A method that is not registered, or no method named solves the problem (e.g. ``qp``
         alone for finite kinematics).
     """
+    from .joint import Joint
+
+    if isinstance(problem, Joint):
+        from .joint.compare import compare_joint
+
+        return compare_joint(problem, methods, certificate_tol=certificate_tol, **options)
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
     aliases = formulations.aliases(problem.kinematics)  # {"newton": "finite", ...} for finite kinematics

@@ -78,7 +78,8 @@ class JointCertificate:
 
     def as_dict(self) -> dict:
         out = {n: getattr(self, n) for n in self._NAMES}
-        return out | {"bodies": dict(self.bodies), "elements": dict(self.elements), "tolerance": self.tolerance}
+        extra = {"bodies": dict(self.bodies), "elements": dict(self.elements), "tolerance": self.tolerance}
+        return out | extra | {"passed": self.passed}
 
 
 def _ratio(numerator: float, scale: float) -> float:
