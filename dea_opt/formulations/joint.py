@@ -135,19 +135,66 @@ class ElementGroup:
         ``F`` with ``F^T F = A^T diag(V modulus) A``, the group's bonded stiffness.
     stiffness : float
         Its own stiffness scale (N/mm): ``H sum S / h`` for springs, ``sum k / L0`` for bundles.
+    basis : (ndarray (k, m_g), ndarray (k, N_g)), optional
+        ``(C, E)`` with ``AT = C^T E``: a layer's rows in its own basis (``k = 6``: each spring's
+        translation and rotation about the layer's centroid, over ``h``) and how the two bodies'
+        free dofs move it. Then every pass over the springs reads 6 rows, however many dofs the
+        two bodies have (``formulations/joint.md``, "Gradient and tangent"); ``AT`` is formed only
+        where a solver needs the whole matrix (IPOPT, the QP).
     """
 
     name: str
     kind: str
     law: Any
     dofs: np.ndarray
-    AT: np.ndarray
+    AT: np.ndarray | None
     e0: np.ndarray
     volume: np.ndarray
     force_scale: np.ndarray
     modulus: float
     factor: np.ndarray
     stiffness: float
+    basis: tuple | None = None
+
+    @property
+    def matrix(self) -> np.ndarray:
+        """``AT`` (m_g, N_g), formed from the basis the first time it is asked for."""
+        if self.AT is not None:
+            return self.AT
+        if "_matrix" not in self.__dict__:
+            assert self.basis is not None
+            C, E = self.basis
+            self.__dict__["_matrix"] = np.ascontiguousarray(C.T @ E)
+        return self.__dict__["_matrix"]
+
+    def rate(self, dx) -> np.ndarray:
+        """``A dx[dofs]``, shape (N_g,): the strain per unit step ``dx`` of the joint's free dofs."""
+        v = np.asarray(dx, dtype=float)[self.dofs]
+        if self.basis is not None:
+            C, E = self.basis
+            return (C @ v) @ E
+        assert self.AT is not None
+        return v @ self.AT
+
+    def pull(self, v) -> np.ndarray:
+        """``A^T v``, shape (m_g,): the generalized force of element values ``v`` (N,)."""
+        if self.basis is not None:
+            C, E = self.basis
+            return C.T @ (E @ v)
+        assert self.AT is not None
+        return self.AT @ v
+
+    def gram(self, w) -> np.ndarray:
+        """``A^T diag(w) A`` (m_g, m_g) over the elements where ``w`` is nonzero."""
+        rows = np.flatnonzero(w)
+        if self.basis is not None:
+            C, E = self.basis
+            E = E[:, rows] if rows.size < E.shape[1] else E
+            M = (E * w[rows]) @ E.T if rows.size < w.size else (E * w) @ E.T
+            return C.T @ M @ C
+        assert self.AT is not None
+        AT = self.AT[:, rows]
+        return (AT * w[rows]) @ AT.T
 
     @property
     def size(self) -> int:
@@ -164,7 +211,7 @@ class ElementGroup:
 
     def strain(self, x) -> np.ndarray:
         """``e0 + A x[dofs]``, shape (N_g,), for the joint's free vector ``x``."""
-        return self.e0 + np.asarray(x, dtype=float)[self.dofs] @ self.AT
+        return self.e0 + self.rate(x)
 
     @property
     def two_sided(self) -> bool:
@@ -318,7 +365,7 @@ class JointSystem:
         for g in self.groups:
             sign = 1.0 if g.contact else -1.0
             part = slice(at, at + g.size)
-            AT[g.dofs, part] = sign * g.AT
+            AT[g.dofs, part] = sign * g.matrix
             e0[part] = sign * g.e0
             volume[part] = g.volume * g.modulus
             convert.append((part, sign, g.modulus))
@@ -342,11 +389,9 @@ def assemble(system: JointSystem, weights, transform=None) -> np.ndarray:
     m = system.n_dofs
     K = np.zeros((m, m))
     for g, w in zip(system.groups, weights):
-        rows = np.flatnonzero(w)
-        if not rows.size:
+        if not np.any(w):
             continue
-        AT = g.AT[:, rows]
-        K[np.ix_(g.dofs, g.dofs)] += (AT * w[rows]) @ AT.T
+        K[np.ix_(g.dofs, g.dofs)] += g.gram(w)
     return K if transform is None else transform.T @ K @ transform
 
 
@@ -354,7 +399,7 @@ def internal_force(system: JointSystem, stresses) -> np.ndarray:
     """``q = sum_g A_g^T (V_g stress_g)`` scattered over the joint's free dofs (N, N mm)."""
     q = np.zeros(system.n_dofs)
     for g, s in zip(system.groups, stresses):
-        q[g.dofs] += g.AT @ (g.volume * s)
+        q[g.dofs] += g.pull(g.volume * s)
     return q
 
 

@@ -90,11 +90,10 @@ def _ratio(numerator: float, scale: float) -> float:
 
 def body_forces(joint, forces) -> dict:
     """``{name: 6-vector}``: the generalized force every element's ``forces`` (N, tension positive,
-    per group of :meth:`Joint.element_bodies`) applies against each body's dofs, ``G^T f``
+    per group of :meth:`Joint.element_pairs`) applies against each body's dofs, ``G^T f``
     (N, N mm about its reference): at equilibrium, the body's load on its free dofs."""
     out = {name: np.zeros(6) for name in joint.bodies}
-    for (b1, b2, G, _), f in zip(joint.element_bodies(), forces):
-        q = np.asarray(f, dtype=float) @ G
+    for (b1, b2), q in zip(joint.element_pairs(), joint.wrenches(forces)):
         out[b1] += q[:6]
         out[b2] += q[6:]
     return out
@@ -138,7 +137,7 @@ def certify_joint(joint, x, stresses, tolerance: float = 1e-6) -> JointCertifica
             moved = sum(float(np.abs(a - b).sum()) for a, b in zip(forces, held))
             worst = max(worst, _ratio(moved, max(scale.values(), default=0.0)))
     elements, sums = {}, dict.fromkeys(("tension", "compression", "complementarity", "consistency"), 0.0)
-    for (b1, b2, _, _), g, eps, rep in zip(joint.element_bodies(), groups, strains, reported):
+    for (b1, b2), g, eps, rep in zip(joint.element_pairs(), groups, strains, reported):
         if g.two_sided:
             continue
         F = max(scale[b1], scale[b2])
@@ -169,7 +168,7 @@ def _body_scales(joint, groups, forces) -> dict:
         load = body.load_vector
         radius = max((lengths[(name, d)] for d in DOFS[3:] if (name, d) in lengths), default=1.0)
         scale[name] = max(float(np.abs(load[:3]).max()), float(np.abs(load[3:]).max()) / radius)
-    for (b1, b2, _, _), g, f in zip(joint.element_bodies(), groups, forces):
+    for (b1, b2), g, f in zip(joint.element_pairs(), groups, forces):
         total = float(np.abs(f).sum())
         start = np.maximum(-g.e0, 0.0) if g.contact else np.maximum(g.e0, 0.0)
         preload = float((g.force_scale * g.modulus) @ start) if start.any() else 0.0

@@ -263,6 +263,13 @@ class Configuration:
         ]
         return x - (np.concatenate(load) if load else np.zeros(0))
 
+    def element_pairs(self) -> list[tuple[str, str]]:
+        return [(c.body1, c.body2) for c in self.joint.contacts] + [(g.body1, g.body2) for g in self.ligament_groups]
+
+    def wrenches(self, forces) -> list[np.ndarray]:
+        """Per group, ``G^T f`` (12,) over the two bodies' coordinates at the pose."""
+        return [np.asarray(f, dtype=float) @ G for (_, _, G, _), f in zip(self.element_bodies(), forces)]
+
     def element_bodies(self) -> list:
         out = [
             (c.body1, c.body2, G, layer.thickness)

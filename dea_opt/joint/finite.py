@@ -290,6 +290,7 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
     on_body = body_forces(config, forces)
     world = config.world
     common = dict(
+        certificate=certificate,
         tolerance=tol,
         method=method,
         success=success,
@@ -304,7 +305,7 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
         {k: np.zeros(6) for k in y},
         _world_forces(config, forces[:n], forces[n:]),
         forces[:n],
-        forces[:n],
+        [layer.gap / layer.thickness for layer in config.layers],
         common,
         dropped,
     )

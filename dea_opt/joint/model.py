@@ -43,6 +43,68 @@ def line_operator(point1, point2, reference1, reference2) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
+class LayerBasis:
+    """A layer's rows in its own basis: each spring's translation and rotation about the layer's
+    centroid ``o`` (weights ``S / h``), ``E = [n, (p - o) x n]``, over ``h`` (``rows``, 6 x N); a
+    motion of its two bodies' 12 dofs moves it by ``motion(dofs)`` (6 x m, exact: a rotation about a
+    reference ``c`` is the rotation about ``o`` and the translation ``e x (o - c)``, minus for body
+    1), so that the layer's ``AT = motion^T rows``, as :meth:`dea_opt.ContactProblem._factor` builds
+    its factor (``formulations/joint.md``, "Gradient and tangent")."""
+
+    rows: np.ndarray
+    centroid: np.ndarray
+    references: tuple
+    gram: np.ndarray  # E diag(S / h) E^T (6 x 6)
+    radius: float
+    weight_sum: float
+
+    def motion(self, dofs) -> np.ndarray:
+        """``C`` (6, m): the layer's motion per unit of each of ``dofs`` (indices into the 12-vector)."""
+        return self.full[:, list(dofs)]
+
+    @cached_property
+    def full(self) -> np.ndarray:
+        """:meth:`motion` of all 12 dofs (6, 12)."""
+        C = np.zeros((6, 12))
+        for col, j in enumerate(range(12)):
+            body, k = divmod(int(j), 6)
+            sign = 1.0 if body == 1 else -1.0
+            if k < 3:
+                C[k, col] = sign
+            else:
+                e = np.zeros(3)
+                e[k - 3] = 1.0
+                C[:3, col] = sign * np.cross(e, self.centroid - np.asarray(self.references[body]))
+                C[k, col] = sign
+        return C
+
+    def factor(self, dofs) -> np.ndarray:
+        """``F`` (r, m) with ``F^T F = A^T diag(V) A`` over ``dofs``, from the 6 x 6 Gram matrix in arc
+        lengths, eigenvalues below the one test of "unresisted" dropped (as the two-body factor)."""
+        from ..formulations.energy import unresisted
+
+        Dg = np.array([1.0, 1.0, 1.0, self.radius, self.radius, self.radius])
+        vals, vecs = np.linalg.eigh(self.gram / np.outer(Dg, Dg))
+        keep = ~unresisted(vals, max(self.weight_sum, float(vals[-1])))
+        L = Dg[:, None] * vecs[:, keep] * np.sqrt(vals[keep])
+        return L.T @ self.motion(dofs)
+
+
+def layer_basis(layer, reference1, reference2) -> LayerBasis:
+    """The :class:`LayerBasis` of ``layer`` between bodies of references ``reference1``, ``reference2``."""
+    weight = layer.areas / layer.thickness
+    total = float(weight.sum())
+    o = weight @ layer.points / total if len(layer) else np.zeros(3)
+    E = np.empty((6, len(layer)))
+    E[:3] = layer.normals.T
+    E[3:] = np.cross(layer.points - o, layer.normals).T
+    gram = (E * weight) @ E.T
+    radius = float(np.sqrt(weight @ np.sum((layer.points - o) ** 2, axis=1) / total)) if len(layer) else 1.0
+    rows = np.ascontiguousarray(E / layer.thickness)
+    return LayerBasis(rows, o, (tuple(reference1), tuple(reference2)), gram, radius if radius > 1e-100 else 1.0, total)
+
+
+@dataclass(frozen=True, eq=False)
 class LigamentGroup:
     """The bundles of one law between two bodies: which they are and their full rows."""
 
@@ -220,11 +282,17 @@ class Joint:
             points[lig.body1].append(np.asarray(lig.point1)[None])
             points[lig.body2].append(np.asarray(lig.point2)[None])
         out = np.ones(len(self.free_index))
+        radii: dict = {}
         for (name, dof), j in self.free_index.items():
             if dof[0] == "r" and points[name]:
-                p = np.vstack(points[name]) - np.asarray(self.bodies[name].reference)
-                radius = float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p))))
-                out[j] = radius if radius > 1e-12 else 1.0
+                if name not in radii:
+                    # the mean squared distance from c, from each block's mean and mean square
+                    c = np.asarray(self.bodies[name].reference, dtype=float)
+                    n = sum(len(p) for p in points[name])
+                    mean = sum(p.sum(axis=0) for p in points[name]) / n
+                    square = sum(float(np.einsum("ij,ij->", p, p)) for p in points[name]) / n
+                    radii[name] = float(np.sqrt(max(square - 2 * c @ mean + c @ c, 0.0)))
+                out[j] = radii[name] if radii[name] > 1e-12 else 1.0
         return out
 
     @cached_property
@@ -254,23 +322,27 @@ class Joint:
     @cached_property
     def _system(self) -> JointSystem:
         groups = []
-        for contact, pair in zip(self.contacts, self.pairs):
-            system = pair.system()
+        for contact, basis in zip(self.contacts, self.bases):
+            layer = contact.layer
+            b1, b2 = self.bodies[contact.body1], self.bodies[contact.body2]
+            free = [DOFS.index(d) for d in DOFS if d in b1.free] + [6 + DOFS.index(d) for d in DOFS if d in b2.free]
+            u_p = np.concatenate([self.prescribed(contact.body1), self.prescribed(contact.body2)])
+            C, rows = basis.motion(free), basis.rows
             H = _modulus(contact.law)
-            factor = pair._factor * np.sqrt(H)
             groups.append(
                 ElementGroup(
                     name=f"contact {contact.name}",
                     kind="contact",
                     law=contact.law,
                     dofs=self._pair_dofs(contact.body1, contact.body2),
-                    AT=system.AT,
-                    e0=system.e0,
-                    volume=system.volume,
-                    force_scale=contact.layer.areas,
+                    AT=None,
+                    e0=layer.gap / layer.thickness + (basis.motion(range(12)) @ u_p) @ rows,
+                    volume=layer.areas * layer.thickness,
+                    force_scale=layer.areas,
                     modulus=H,
-                    factor=factor,
-                    stiffness=H * pair._stiffness,
+                    factor=basis.factor(free) * np.sqrt(H),
+                    stiffness=H * float(np.sum(layer.areas / layer.thickness)),
+                    basis=(C, rows),
                 )
             )
         for group in self.ligament_groups:
@@ -298,6 +370,27 @@ class Joint:
                 )
             )
         return JointSystem(tuple(groups), self.load, self.lengths)
+
+    @cached_property
+    def bases(self) -> tuple:
+        """Each contact layer's :class:`LayerBasis` between its two bodies."""
+        return tuple(
+            layer_basis(c.layer, self.bodies[c.body1].reference, self.bodies[c.body2].reference) for c in self.contacts
+        )
+
+    def element_pairs(self) -> list[tuple[str, str]]:
+        """The two bodies of each group of :meth:`system` (contacts first, then ligament groups)."""
+        return [(c.body1, c.body2) for c in self.contacts] + [(g.body1, g.body2) for g in self.ligament_groups]
+
+    def wrenches(self, forces) -> list[np.ndarray]:
+        """Per group of :meth:`system`, ``G^T f`` (12,): what its element ``forces`` (N, tension
+        positive) take from its two bodies' 6-vectors (N, N mm about each reference)."""
+        out = []
+        for basis, c, f in zip(self.bases, self.contacts, forces):
+            out.append(basis.motion(range(12)).T @ (basis.rows @ (np.asarray(f, dtype=float) * c.layer.thickness)))
+        for group, f in zip(self.ligament_groups, forces[len(self.contacts) :]):
+            out.append(np.asarray(f, dtype=float) @ group.G)
+        return out
 
     def element_bodies(self) -> list[tuple[str, str, np.ndarray, np.ndarray]]:
         """Per group of :meth:`system` (contacts first, then ligament groups): ``(body1, body2,

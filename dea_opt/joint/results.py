@@ -216,31 +216,46 @@ def body_results(joint, body_u: dict, on_body: dict) -> MappingProxyType:
     return MappingProxyType(out)
 
 
-def layer_solutions(joint, body_u: dict, on_body: dict, layer_forces, reported, common: dict, dropped=None) -> tuple:
+def layer_solutions(
+    joint, body_u: dict, on_body: dict, layer_forces, strains, common: dict, dropped=None, own=None
+) -> tuple:
     """Per contact, its two-body :class:`~dea_opt.Solution` at the answer: the layer's problem whose
     bodies carry, as loads, every other force on them (their own loads minus what the other
-    elements take), so that its certificate is a two-body certificate of this layer.
+    elements take), its strains and pressures.
 
     ``joint`` gives ``contacts``, ``pairs`` (each layer's two-body problem) and ``bodies`` (their
     loads), in the frame of ``on_body`` (each body's 6-vector of what every element takes from it);
-    ``dropped`` (per contact, or None) the springs a cast's window dropped at the answer's pose."""
-    from ..solution import certify
+    ``strains`` each layer's strains at the answer; ``own`` (optional) the 12-vector each layer takes
+    from its two bodies (else from the pair's rows); ``dropped`` (per contact, or None) the springs
+    a cast's window dropped at the answer's pose. Its certificate is the joint's (``common
+    ["certificate"]``), with that layer's own tension, complementarity and consistency: the
+    equilibrium it is part of is the joint's (``formulations/joint.md``, "The certificate").
+    """
+    from ..solution import Certificate
 
     out = []
     dropped = dropped or [None] * len(joint.contacts)
-    for c, pair, f, rep, lost in zip(joint.contacts, joint.pairs, layer_forces, reported, dropped):
+    own = own or [None] * len(joint.contacts)
+    whole = common["certificate"]
+    for c, pair, f, strain, lost, took in zip(joint.contacts, joint.pairs, layer_forces, strains, dropped, own):
         u = np.concatenate([body_u[c.body1], body_u[c.body2]])
-        own = np.asarray(f, dtype=float) @ pair.normal_operator  # what this layer takes from each body
+        took = np.asarray(f, dtype=float) @ pair.normal_operator if took is None else took
         problem = pair
         for k, name in ((1, c.body1), (2, c.body2)):
-            rest = joint.bodies[name].load_vector - (on_body[name] - own[6 * (k - 1) : 6 * k])
+            rest = joint.bodies[name].load_vector - (on_body[name] - took[6 * (k - 1) : 6 * k])
             rest = np.where(np.abs(rest) < 1e-30, 0.0, rest)
             problem = problem.with_load(force=rest[:3], moment=rest[3:], body=k)
-        strain = problem.strain(u)
         with np.errstate(invalid="ignore", over="ignore"):
             pressure = 0.0 - pair.law.stress(np.minimum(strain, 0.0))
-        stress = np.asarray(rep, dtype=float) / pair.layer.areas
-        certificate = certify(problem, u, stress, common["tolerance"])
+        checks = whole.elements.get(f"contact {c.name}", {})
+        certificate = Certificate(
+            whole.equilibrium,
+            checks.get("tension", 0.0),
+            checks.get("complementarity", 0.0),
+            checks.get("consistency", 0.0),
+            whole.energy,
+            whole.tolerance,
+        )
         solution = Solution(
             problem=problem,
             u=u,
@@ -274,17 +289,20 @@ def ligament_results(joint, body_u: dict, law_forces, insertions=None) -> Ligame
     offset = len(joint.contacts)
     for gi, group in enumerate(joint.ligament_groups):
         u = np.concatenate([body_u[group.body1], body_u[group.body2]])
+        members = np.asarray(group.members, dtype=int)
         L = group.start + group.G @ u
-        for row, i in enumerate(group.members):
-            lig = joint.ligaments[i]
-            force[i] = law_forces[offset + gi][row]
-            length[i] = L[row]
-            strain[i] = L[row] / group.slack[row] - 1.0
-            if insertions is not None:
-                p1[i], p2[i] = insertions[0][i], insertions[1][i]
-            else:
-                p1[i] = _moved(lig.point1, body_u[lig.body1], joint.bodies[lig.body1].reference)
-                p2[i] = _moved(lig.point2, body_u[lig.body2], joint.bodies[lig.body2].reference)
+        force[members] = law_forces[offset + gi]
+        length[members] = L
+        strain[members] = L / group.slack - 1.0
+        if insertions is None:
+            ends = [
+                np.array([joint.ligaments[i].point1 for i in members]),
+                np.array([joint.ligaments[i].point2 for i in members]),
+            ]
+            for k, name, points in ((0, group.body1, ends[0]), (1, group.body2, ends[1])):
+                (p1, p2)[k][members] = _moved(points, body_u[name], joint.bodies[name].reference)
+    if insertions is not None:
+        p1, p2 = np.array(insertions[0], dtype=float), np.array(insertions[1], dtype=float)
     return LigamentResults(
         names=tuple(lig.name or f"ligament {i}" for i, lig in enumerate(joint.ligaments)),
         body1=tuple(lig.body1 for lig in joint.ligaments),
@@ -299,6 +317,6 @@ def ligament_results(joint, body_u: dict, law_forces, insertions=None) -> Ligame
 
 
 def _moved(point, u, reference) -> np.ndarray:
-    """A point of a body moved by the linearised motion ``u`` about ``reference`` (Eq. 9)."""
+    """Points (3,) or (n, 3) of a body moved by the linearised motion ``u`` about ``reference`` (Eq. 9)."""
     p = np.asarray(point, dtype=float)
     return p + u[:3] + np.cross(u[3:], p - np.asarray(reference, dtype=float))

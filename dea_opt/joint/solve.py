@@ -191,7 +191,6 @@ def _certified(joint: Joint, result: JointResult, method: str, tol: float) -> Jo
     groups = system.groups
     with np.errstate(invalid="ignore", over="ignore"):
         law = [g.forces(s) for g, s in zip(groups, law_stresses(system, xs))]
-    reported = [g.forces(np.asarray(s, dtype=float)) for g, s in zip(groups, result.stresses)]
     body_u = joint.body_u(xs if finite else np.full(system.n_dofs, np.nan))
     on_body = body_forces(joint, law)
     common = {
@@ -202,9 +201,11 @@ def _certified(joint: Joint, result: JointResult, method: str, tol: float) -> Jo
         "message": message,
         "iterations": result.iterations,
         "solve_time": result.solve_time,
+        "certificate": certificate,
     }
     n = len(joint.contacts)
-    contacts = layer_solutions(joint, body_u, on_body, law[:n], reported[:n], common)
+    strains = system.strains(xs) if finite else [np.full(g.size, np.nan) for g in groups[:n]]
+    contacts = layer_solutions(joint, body_u, on_body, law[:n], strains[:n], common, own=joint.wrenches(law[:n]))
     ligaments = ligament_results(joint, body_u, law)
     validity = assess_joint(joint, body_u, ligaments, tuple(c.validity for c in contacts))
     info = dict(result.info, native_status=native, solver_success=result.success)

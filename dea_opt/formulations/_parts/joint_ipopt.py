@@ -42,9 +42,9 @@ def solve_nlp(system: JointSystem, *, x0=None, **options) -> JointResult:
     x = ca.mtimes(ca.DM(T), xi)
     stored = 0
     for g in system.groups:
-        require_finite(f"the NLP's data ({g.name})", g.AT, g.e0, g.volume)
+        require_finite(f"the NLP's data ({g.name})", g.matrix, g.e0, g.volume)
         dofs = [int(j) for j in g.dofs]
-        eps = ca.DM(g.e0) + ca.mtimes(ca.DM(g.AT.T), ca.vertcat(*[x[j] for j in dofs]))
+        eps = ca.DM(g.e0) + ca.mtimes(ca.DM(g.matrix.T), ca.vertcat(*[x[j] for j in dofs]))
         V = ca.DM(g.volume / E0)
         if g.contact:
             stored = stored + ca.dot(V, g.law.energy(ca.fmin(eps, 0)))

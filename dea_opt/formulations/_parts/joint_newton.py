@@ -172,7 +172,7 @@ def _solve(system: JointSystem, x0, *, xtol, gtol, max_iter, extended_start) -> 
             status, message = "stalled", "no descent direction (a load along a direction no element resists?)"
             break
         dx = T @ d
-        rates = [dx[g.dofs] @ g.AT for g in groups]
+        rates = [g.rate(dx) for g in groups]
         line = _Line(system, eps, rates, float(r @ dx), E0)
         alpha, trial, used = _line_search(line, slope, _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE)
         evaluations += used
