@@ -475,3 +475,34 @@ def test_a_bundle_strained_toward_rupture_is_flagged():
     assert s.success and not s.validity.valid
     assert "ligament_strain" in s.validity.failed and s.validity["ligament_strain"].value > 0.15
     assert d.solve(_crossed(3.0)).validity.valid
+
+
+def test_the_blankevoort_law_is_opensim_s_and_its_energy_and_tangent_are_consistent():
+    from dea_opt.formulations.joint import TensionLaw
+
+    et = 0.06
+    law = TensionLaw("blankevoort", np.full(7, et))
+    eps = np.array([-0.1, 0.0, 0.01, 0.03, et, 0.09, 0.2])
+    # OpenSim's Blankevoort1991Ligament: 0, k e^2 / (2 e_t), k (e - e_t / 2), per unit k
+    expected = np.where(eps <= 0, 0.0, np.where(eps < et, eps**2 / (2 * et), eps - et / 2))
+    np.testing.assert_allclose(law.force(eps), expected, rtol=1e-15, atol=0)
+    h = 1e-7
+    np.testing.assert_allclose((law.energy(eps + h) - law.energy(eps - h)) / (2 * h), law.force(eps), atol=1e-9)
+    inside = eps != 0.0  # the tangent's kink at slack
+    numeric = (law.force(eps + h) - law.force(eps - h)) / (2 * h)
+    np.testing.assert_allclose(numeric[inside & (eps != et)], law.tangent(eps)[inside & (eps != et)], atol=1e-6)
+    # both branches meet at e_t with the same force and slope (the curve of Blankevoort's 2 e_l = e_t)
+    below, above = law.force(np.array([et - 1e-12] * 7)), law.force(np.array([et + 1e-12] * 7))
+    assert abs(below[0] - above[0]) < 1e-11 and law.tangent(np.array([et] * 7))[0] == 1.0
+    assert d.Ligament("a", (0, 0, 0), "b", (0, 0, 10), stiffness=100.0, slack_length=9.0).force_at(
+        0.1
+    ) == pytest.approx(100 * (0.1 - 0.03))
+
+
+def test_each_layer_s_problem_is_a_two_body_problem_in_equilibrium():
+    joint, _ = _chain(d.AteshianLaw(5.0, 0.2), d.LinearLaw(7.0))
+    s = d.solve(joint)
+    for layer in s.contacts:
+        again = d.certify(layer.problem, layer.u, -layer.pressure)
+        assert again.passed, again
+        assert layer.certificate.equilibrium == s.certificate.equilibrium

@@ -256,3 +256,19 @@ def test_the_finite_knee_s_springs_and_bundles_are_where_its_pose_puts_them():
     for i, lig in enumerate(s.joint.ligaments):
         p1 = np.asarray(lig.point1) @ T[:3, :3].T + T[:3, 3]
         assert s.ligaments.length[i] == pytest.approx(np.linalg.norm(np.asarray(lig.point2) - p1), rel=1e-12)
+
+
+def test_ipopt_takes_the_finite_steps_too():
+    bodies = {
+        "ground": GROUND,
+        "block": d.Body(reference=(0.0, 0.0, HEIGHT), free=("ux", "uz"), force=(40.0, 0.0, -5.0)),
+    }
+    ligaments = [
+        d.Ligament("ground", (-HALF, 0, 0), "block", (HALF, 0, HEIGHT), stiffness=K, slack_length=LENGTH, law="linear"),
+        d.Ligament("ground", (HALF, 0, 0), "block", (-HALF, 0, HEIGHT), stiffness=K, slack_length=LENGTH, law="linear"),
+    ]
+    joint = d.Joint(bodies, ligaments=ligaments, kinematics="finite")
+    newton, ipopt = d.solve(joint, "newton"), d.solve(joint, "nlp")
+    assert newton.success and ipopt.success
+    np.testing.assert_allclose(ipopt.x, newton.x, rtol=1e-9)
+    assert_balanced_at_pose(ipopt, 1e-9)
