@@ -54,6 +54,7 @@ from .errors import (
     SolverError,
     ValidityWarning,
 )
+from .joint import Contact, Joint, JointSolution, Ligament
 from .kinematics import DOFS
 from .laws import LAWS, AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw, register_law
 from .layer import SpringLayer
@@ -74,11 +75,15 @@ __all__ = [
     "BlankevoortLaw",
     "Body",
     "Certificate",
+    "Contact",
     "ContactProblem",
     "CubicLaw",
     "DeaError",
     "InputError",
+    "Joint",
+    "JointSolution",
     "Law",
+    "Ligament",
     "LinearLaw",
     "Load",
     "LoadNotSupportedError",

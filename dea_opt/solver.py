@@ -234,14 +234,15 @@ def certified_solution(
     )
 
 
-def solve(
-    problem: ContactProblem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, **options
-) -> Solution:
+def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, strict: bool = True, **options):
     """Find the equilibrium of ``problem`` and certify it.
 
     Parameters
     ----------
-    problem : ContactProblem
+    problem : ContactProblem or Joint
+        A two-body problem, or a whole :class:`~dea_opt.joint.Joint` (several bodies, layers and
+        ligaments), which :func:`dea_opt.joint.solve_joint` solves into a
+        :class:`~dea_opt.joint.JointSolution` (methods ``"auto"``, ``"newton"``, ``"qp"``, ``"nlp"``).
     method : str
         ``"auto"`` or a registered formulation (:func:`dea_opt.formulations.names`: ``"newton"``,
         ``"qp"``, ``"nlp"``). ``"auto"`` runs the default formulation (Newton) and, if its
@@ -259,14 +260,18 @@ def solve(
 
     Returns
     -------
-    Solution
+    Solution, or JointSolution for a Joint
 
     Raises
     ------
     InputError, LoadNotSupportedError, SolverError
     """
+    from .joint import Joint, solve_joint
+
+    if isinstance(problem, Joint):
+        return solve_joint(problem, method, certificate_tol=certificate_tol, strict=strict, **options)
     if not isinstance(problem, ContactProblem):
-        raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
+        raise InputError(f"problem must be a ContactProblem or a Joint, got {type(problem).__name__}")
     if problem.kinematics == "finite":
         from .largemotion import solve as solve_finite
 
@@ -340,12 +345,21 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
         ``u`` relative to ``max |u|`` and of pressure relative to the peak pressure
         (:func:`dea_opt.agreement.disagreement`; finite answers matched by mesh face).
 
+    A :class:`~dea_opt.joint.Joint` is compared by :func:`dea_opt.joint.compare.compare_joint`
+    (methods ``newton``, ``qp``, ``nlp``; its result also holds ``ligament_force``).
+
     Raises
     ------
     InputError
         A method that is not registered, or no method named solves the problem (e.g. ``qp``
         alone for finite kinematics).
     """
+    from .joint import Joint
+
+    if isinstance(problem, Joint):
+        from .joint.compare import compare_joint
+
+        return compare_joint(problem, methods, certificate_tol=certificate_tol, **options)
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
     aliases = formulations.aliases(problem.kinematics)  # {"newton": "finite", ...} for finite kinematics

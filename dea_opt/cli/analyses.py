@@ -84,6 +84,12 @@ def compare(
 
     loaded = load_scenario(scenario, _overrides(set_))
     folder = check_output_folder(output if output is not None else loaded.output_dir() / "compare", force)
+    from ..scenario.joint_schema import JointScenario
+
+    if isinstance(loaded, JointScenario):  # a whole joint: dea_opt/run/joint_compare.py
+        from ..run.joint_compare import compare_joint_scenario
+
+        return compare_joint_scenario(loaded, folder, _split(methods), force)
     problem = _compare_problem(loaded, frame)
     section = loaded.solve
     with captured() as messages, output_run(folder, force=force, info=run_info(loaded, "compare")) as publication:

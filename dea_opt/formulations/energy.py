@@ -337,23 +337,29 @@ def resistance(system: SpringSystem) -> Resistance:
     not depend on which dofs are free: when every free dof is unresisted, rounding noise is
     not mistaken for stiffness.
     """
-    m = system.n_dofs
-    D = system.lengths
-    k_layer = 0.0 if system.stiffness is None else float(system.stiffness)
+    rows = system.factor if system.factor is not None else (system.AT * np.sqrt(system.volume)).T
+    return factor_resistance(rows, system.lengths, system.stiffness)
+
+
+def factor_resistance(factor, lengths, stiffness: float | None) -> Resistance:
+    """The :class:`Resistance` of the bonded stiffness ``factor^T factor`` (at unit modulus) over
+    dofs of ``lengths`` (:attr:`SpringSystem.lengths`), judged against ``stiffness``
+    (:attr:`SpringSystem.stiffness`): :func:`resistance` for a system given by its factor alone
+    (a joint's, stacked from its elements' factors: ``formulations/joint.md``)."""
+    D = np.asarray(lengths, dtype=float)
+    m = D.size
+    k_layer = 0.0 if stiffness is None else float(stiffness)
     if not m:
         return Resistance(np.zeros((0, 0)), np.zeros((0, 0)), D, np.zeros((0, 0)), k_layer)
-    if system.factor is not None:
-        W = system.factor / D
-    else:
-        W = (system.AT * np.sqrt(system.volume)).T / D
+    W = np.asarray(factor, dtype=float) / D
     if not W.size:
         return Resistance(np.zeros((m, 0)), np.eye(m), D, np.zeros((m, 0)), k_layer)
     require_finite("the bonded stiffness of the springs", W)
     _, sigma, vt = np.linalg.svd(W, full_matrices=True)
-    stiffness = np.concatenate([sigma**2, np.zeros(m - sigma.size)])
-    scale = max(k_layer, float(stiffness.max(initial=0.0)))
-    keep = ~unresisted(stiffness, scale) if scale > 0 else np.zeros(m, dtype=bool)
-    T1 = vt[keep].T / np.sqrt(stiffness[keep]) / D[:, None]
+    values = np.concatenate([sigma**2, np.zeros(m - sigma.size)])
+    scale = max(k_layer, float(values.max(initial=0.0)))
+    keep = ~unresisted(values, scale) if scale > 0 else np.zeros(m, dtype=bool)
+    T1 = vt[keep].T / np.sqrt(values[keep]) / D[:, None]
     return Resistance(T1, vt[~keep].T, D, vt[keep].T, scale)
 
 

@@ -122,7 +122,12 @@ def run_scenario(
     """
     from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
     from ..scenario import build_problem_cast
+    from ..scenario.joint_schema import JointScenario
 
+    if isinstance(scenario, JointScenario):
+        from .joint import run_joint_scenario
+
+        return _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario)
     method = check_method(method, scenario.solve.method)
     out = check_output_folder(scenario.output_dir(output_dir), force)
     try:
@@ -153,6 +158,34 @@ def run_scenario(
     except KeyboardInterrupt:  # before the publication began (casting) or after it ended (closing)
         raise RunInterrupted(interrupted_report(out)) from None
     return outcome
+
+
+def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario) -> RunOutcome:
+    """A joint scenario (``[[bodies]]``): its method checked, solved and published like a two-body run."""
+    from ..errors import InputError
+    from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
+    from ..joint import JOINT_METHODS
+
+    method = scenario.solve.method if method is None else method.strip().lower()
+    if method not in JOINT_METHODS:
+        raise InputError(
+            f"method (--method or [solve].method) must be one of {', '.join(JOINT_METHODS)} for a joint, got {method!r}"
+        )
+    out = check_output_folder(scenario.output_dir(output_dir), force)
+    try:
+        with captured() as messages:
+            return publish_run(
+                scenario,
+                out,
+                lambda folder: run_joint_scenario(scenario, folder, method, stop_on_error=stop_on_error),
+                messages,
+                force=force,
+                info=run_info(scenario, "run", method),
+            )
+    except RunInterrupted:
+        raise
+    except KeyboardInterrupt:
+        raise RunInterrupted(interrupted_report(out)) from None
 
 
 def picture_worker(scenario, background: bool = True):

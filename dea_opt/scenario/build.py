@@ -409,7 +409,10 @@ def check_kinematics_method(scenario: Scenario, method: str | None = None, what:
     each came from (the file's line or ``--set``) and the methods that do. For finite kinematics
     ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``, and pass."""
     from .. import formulations
+    from .joint_schema import JointScenario
 
+    if isinstance(scenario, JointScenario):
+        return  # a joint's methods are checked by its run (dea_opt/run/runner.py)
     method = scenario.solve.method if method is None else method
     kinematics = scenario.solve.kinematics
     if not isinstance(method, str) or method == "auto" or method not in formulations.names():

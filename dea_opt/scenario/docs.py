@@ -74,7 +74,41 @@ def schema_text() -> str:
                 if name == "kind" and len(models) > 1:
                     continue
                 lines.append(_field_line(name, field, _choices(model, name)))
-    return "\n".join(lines) + "\n"
+    return "\n".join(lines + _joint_lines()) + "\n"
+
+
+def _joint_lines() -> list[str]:
+    """The joint form (``[[bodies]]``: :mod:`~dea_opt.scenario.joint_schema`), after the two-body form."""
+    from .joint_schema import (
+        JointBodySection,
+        JointContactSection,
+        JointLigamentSection,
+        JointLoadPathSection,
+        JointScenario,
+        JointSolveSection,
+    )
+
+    lines = ["", "# ==== A whole joint: a scenario with [[bodies]] instead of [geometry], [law], [body1], [body2] ===="]
+    lines.extend(
+        textwrap.wrap(" ".join((JointScenario.__doc__ or "").split()), 96, initial_indent="# ", subsequent_indent="# ")
+    )
+    for table, model in (
+        ("[[bodies]]", JointBodySection),
+        ("[[contacts]]", JointContactSection),
+        ("[[ligaments]]", JointLigamentSection),
+        ("[load_path]", JointLoadPathSection),
+        ("[solve]", JointSolveSection),
+    ):
+        lines.append("")
+        lines.append(f"# {table}")
+        doc = " ".join((model.__doc__ or "").replace("``", "").split())
+        lines.extend(textwrap.wrap(doc, 96, initial_indent="# ", subsequent_indent="# "))
+        for name, field in model.model_fields.items():
+            if model is JointContactSection and name in ("geometry", "law", "regions"):
+                lines.append(f"# {name} = {{ ... }}  # a [{name}] table of the two-body form (above)")
+                continue
+            lines.append("# " + _field_line(name, field))
+    return lines
 
 
 def _kind(model: type[BaseModel]) -> str:

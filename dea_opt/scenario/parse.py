@@ -96,7 +96,9 @@ def parse_scenario(
     notes = _fit_law_to_kind(data, overrides) + _fit_solve_to_kinematics(data, swept)
     base_dir = Path.cwd() if base_dir is None else Path(base_dir)
     try:
-        scenario = Scenario.model_validate(data, context={"base_dir": base_dir})
+        # [[bodies]]: a whole joint (dea_opt/scenario/joint_schema.py); else the two-body form
+        model = _joint_model() if isinstance(data, dict) and "bodies" in data else Scenario
+        scenario = model.model_validate(data, context={"base_dir": base_dir})
     except ValidationError as exc:
         raise ScenarioError(_describe_errors(exc, name, text, data, overrides)) from None
     if name != "<scenario>":
@@ -105,6 +107,12 @@ def parse_scenario(
     scenario._overrides = overrides
     scenario._notes = notes
     return scenario
+
+
+def _joint_model():
+    from .joint_schema import JointScenario
+
+    return JointScenario
 
 
 def _check_depth(data, name: str) -> None:
