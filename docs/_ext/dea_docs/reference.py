@@ -5,8 +5,7 @@
   (type, unit, default, allowed values, meaning) and the law registry;
 - ``{dea-formulation-options}`` and ``{dea-formulation-capabilities}``: the formulations'
   options and what each can do, from the registry;
-- ``{dea-statuses}`` and ``{dea-run-statuses}``: the statuses with their descriptions (and exit
-  codes), from the enums.
+- ``{dea-frame-columns}``: the columns of a load path's ``frames.csv`` with their units.
 
 Each directive writes reStructuredText and parses it in place.
 """
@@ -235,7 +234,30 @@ class FormulationCapabilitiesDirective(_Generated):
         return _table(["method", "laws", "warm start", "kinematics", "spring forces from duals", "cone test"], rows)
 
 
+class FrameColumnsDirective(_Generated):
+    """The columns of a load path's table (``frames.csv``), in order, with units."""
+
+    def lines(self) -> list[str]:
+        import numpy as np
+
+        import dea_opt
+        from dea_opt.geometry import plate_layer
+        from dea_opt.loadpath.table import MOTION_UNITS, REGION_COLUMNS, TABLE_COLUMNS
+        from dea_opt.validity import assess
+
+        rows = [[_literal(name), unit] for name, unit in TABLE_COLUMNS.items()]
+        problem = dea_opt.ContactProblem(plate_layer(nx=4, ny=4), dea_opt.LinearLaw(1.0), force=(0, 0, -1.0))
+        for check in assess(problem, np.zeros(12)).checks:
+            rows.append([_literal(f"validity_{check.name}"), f"{check.unit or '1'}: the value of the validity check"])
+        for dof, unit in MOTION_UNITS.items():
+            rows.append([_literal(f"body<b>_{dof}"), f"{unit}: the motion found along a free dof (``Solution.u``)"])
+        for name, unit in REGION_COLUMNS.items():
+            rows.append([_literal(f"<region>_{name}"), f"{unit}: per labelled region"])
+        return _table(["column", "unit and meaning"], rows, "30 70")
+
+
 def setup(app) -> None:
+    app.add_directive("dea-frame-columns", FrameColumnsDirective)
     app.add_directive("dea-cli", CliDirective)
     app.add_directive("dea-scenario-keys", ScenarioKeysDirective)
     app.add_directive("dea-formulation-options", FormulationOptionsDirective)
