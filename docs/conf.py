@@ -111,3 +111,6 @@ html_theme_options = {
     "collapse_navigation": True,
 }
 html_sidebars = {"**": ["sidebar-nav-bs"]}
+# The theme's light/dark switch reads this; left empty it logs an error in the console on the
+# first page a fresh browser opens.
+html_context = {"default_mode": "light"}

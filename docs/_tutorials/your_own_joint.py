@@ -222,7 +222,7 @@ for name, region in solution.regions().items():
 
 # %%
 # ``valid`` is the verdict to publish: every evaluated check passed. A check that fails names
-# its value, its limit and what to do (the guide's :ref:`Validity <validity>` lists them all).
+# its value, its limit and what to do (the guide's :ref:`Validity <validity-verdict>` lists them all).
 # The figure: the pressure map in the anatomical frame (x runs medial-lateral with the medial
 # plateau at larger x, z from the tibia to the femur, a right knee), seen from above.
 
@@ -279,7 +279,7 @@ for name, pose in (("about the origin", about_origin), ("about the joint", about
 from dea_opt.run import run_scenario
 from dea_opt.scenario import build_problem, load_scenario
 
-reference = ", ".join(f"{v:.4f}" for v in centre)
+reference = ", ".join(repr(float(v)) for v in centre)
 (folder / "knee.toml").write_text(f"""
 title = "my knee, 1000 N"
 

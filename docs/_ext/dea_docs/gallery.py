@@ -70,7 +70,8 @@ def configuration(root: Path, docs: Path) -> dict:
         "backreferences_dir": None,
         "matplotlib_animations": False,
         "image_srcset": [],
-        "write_computation_times": True,
+        # its summary pages load jQuery and DataTables from a CDN; each example's page gives its time
+        "write_computation_times": False,
     }
 
 
