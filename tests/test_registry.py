@@ -362,7 +362,7 @@ def test_the_guide_tables_of_options_and_capabilities_are_made_from_the_registry
     root = Path(__file__).resolve().parents[1]
     for page in ("guide/laws.md", "reference/formulations.md"):
         text = (root / "docs" / page).read_text()
-        assert "```{dea-formulation-options}" in text and "```{dea-formulation-capabilities}" in text, page
+        assert ".. dea-formulation-options::" in text and ".. dea-formulation-capabilities::" in text, page
     sys.path.insert(0, str(root / "docs" / "_ext"))
     try:
         from dea_docs.reference import FormulationCapabilitiesDirective, FormulationOptionsDirective

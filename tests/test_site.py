@@ -135,6 +135,18 @@ def test_every_internal_link_and_anchor_resolves(site):
     assert len(parsed) > 500 and not broken, "\n".join(broken[:30])
 
 
+def test_the_math_and_the_code_link_both_ways(site):
+    """Every formulation's math page links its module's API page, and that page links back."""
+    from dea_opt import formulations
+
+    for name in formulations.names():
+        module = formulations.get(name).__name__
+        math_links = _parse(site / "math" / "pages" / f"{name}.html").links
+        assert any(f"reference/api/{module}.html" in link for link in math_links), f"math/{name} -> {module}"
+        api_links = _parse(site / "reference" / "api" / f"{module}.html").links
+        assert any(f"math/pages/{name}.html" in link for link in api_links), f"{module} -> math/{name}"
+
+
 def test_the_index_reaches_the_six_tasks_in_one_click(site):
     links = set(_parse(site / "index.html").links)
     for task, target in {

@@ -32,8 +32,8 @@ def _target(text: str, objects: dict, docnames: set[str]) -> tuple[str, str] | N
     if match:
         return objects.get(match.group(1).replace("/", "."))
     match = _MATH_PAGE.fullmatch(text)
-    if match and f"math/{match.group(1)}" in docnames:
-        return (f"math/{match.group(1)}", "")
+    if match and f"math/pages/{match.group(1)}" in docnames:
+        return (f"math/pages/{match.group(1)}", "")
     match = _DOTTED.fullmatch(text.removesuffix("()"))
     if match:
         name = match.group(0)

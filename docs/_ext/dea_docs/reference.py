@@ -7,7 +7,8 @@
   options and what each can do, from the registry;
 - ``{dea-frame-columns}``: the columns of a load path's ``frames.csv`` with their units.
 
-Each directive writes reStructuredText and parses it in place.
+Each directive writes reStructuredText and parses it in place; a Markdown page calls it inside
+``{eval-rst}``.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import typing
 from docutils import nodes
 from docutils.statemachine import StringList
 from sphinx.util.docutils import SphinxDirective
+from sphinx.util.nodes import nested_parse_with_titles
 
 #: Units a description states in parentheses, as the schema writes them.
 _UNIT = re.compile(r"\((mm|N|N mm|MPa|degrees|s|mm, rad|N, N mm|rad|1/s)\)")
@@ -52,8 +54,10 @@ class _Generated(SphinxDirective):
         raise NotImplementedError
 
     def run(self) -> list[nodes.Node]:
+        # reStructuredText, sections included: the pages call these directives through
+        # ``{eval-rst}`` so that the state parsing them is docutils', not MyST's
         container = nodes.container()
-        self.state.nested_parse(StringList(self.lines(), source="generated"), self.content_offset, container)
+        nested_parse_with_titles(self.state, StringList(self.lines(), source="generated"), container)
         return container.children
 
 
