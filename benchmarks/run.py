@@ -456,7 +456,7 @@ def targets(results) -> list[dict]:
 
 
 def markdown(rows, preamble: str = "") -> str:
-    """The TARGETS table as Markdown (for the README), under the run's header lines."""
+    """The TARGETS table as Markdown (for the documentation's Performance page), under the run's header lines."""
     lines = [line.lstrip("# ") for line in preamble.splitlines()[1:]]
     text = "".join(f"{line}  \n" for line in lines) + "\n" if lines else ""
     text += "| what | target | measured | met |\n|---|---|---|---|\n"

@@ -1,7 +1,7 @@
 """One exception tree for every failure dea-opt reports.
 
 ``DeaError`` is the base; catch it to catch everything dea-opt raises on purpose.
-The README's *Error catalogue* lists every subclass, when it is raised and what to do;
+The guide's error catalogue (``docs/guide/errors.md``) lists every subclass, when it is raised and what to do;
 ``tests/test_docs.py`` checks that the catalogue and this module agree.
 """
 

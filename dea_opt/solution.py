@@ -1,13 +1,13 @@
 """One result type for every formulation, carrying the certificate dea_opt computes itself.
 
 The certificate (:func:`certify`) is a check a reader can redo with the problem's arrays and
-``u``; ``formulations/energy.md`` ("The certificate") and the README state the same
-definitions. With ``f_i = S_i sigma(min(eps_i, 0))`` the law's spring forces at ``u`` (N,
+``u``; ``formulations/energy.md`` ("The certificate") and the user guide's concepts page state
+the same definitions. With ``f_i = S_i sigma(min(eps_i, 0))`` the law's spring forces at ``u`` (N,
 tension positive), ``f^rep_i`` the forces the formulation reported, ``q = G_free^T f`` the
 generalized spring force on the free dofs and ``r`` the load there (N; N mm for rotations),
 ``L_j`` 1 for a translation and the layer's radius about the body's reference for a
 rotation (mm), and ``H`` the law's small-strain modulus, every force residual is relative
-to one force scale
+to one force scale::
 
     F = max( max_j |r_j| / L_j,  sum_i |f_i|,  H sum_i S_i max(-e0_i, 0) )
 

@@ -27,7 +27,7 @@ __all__ = ["CERTIFIABLE", "RunStatus", "Status"]
 
 
 class Status(StrEnum):
-    """How a solve ended. ``Status.X.description`` says it in one line (the README's table)."""
+    """How a solve ended. ``Status.X.description`` says it in one line (the table of the guide's concepts page)."""
 
     CONVERGED = "converged"
     NO_FREE_DOFS = "no_free_dofs"
@@ -115,7 +115,7 @@ class RunStatus(StrEnum):
     """How a run ended: ``manifest.json``'s ``status``, a sweep row's, and the exit code's source.
 
     ``RunStatus.X.description`` says it in one line and ``RunStatus.X.exit_code`` is the exit
-    code of the command (the README's table). A ``str`` enum: JSON and CSV see the plain value.
+    code of the command (the table of the guide's concepts page). A ``str`` enum: JSON and CSV see the plain value.
     """
 
     OK = "ok"

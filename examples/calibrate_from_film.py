@@ -1,4 +1,5 @@
 """Calibrate H and beta of Ateshian's law to a pressure film, then carry their uncertainty to the answer.
+======================================================================================================
 
 A synthetic experiment on the real knee (``../shared/data/knee``; the embedded hip socket when it is
 absent or with ``--geometry hip``): the femur pressed onto the tibia with 1000 N (the hip: 2.4 kN

@@ -1,4 +1,5 @@
 """The embedded hip over one walking cycle: pressure, contact area, exposure, ParaView series.
+===========================================================================================
 
 The hip of ``dea-opt demo``: a femoral head (R = 25 mm, body 2, free to translate) in a
 spherical socket (body 1) covering 80 degrees around its pole, 0.1 mm radial clearance,

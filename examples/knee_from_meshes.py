@@ -1,4 +1,5 @@
 """A real knee from its cartilage meshes: pressure map, medial/lateral load share, linear vs Eq. (2).
+==================================================================================================
 
 Reads the femoral cartilage and the medial and lateral tibial cartilage as triangle surfaces
 (STL, OBJ, PLY, OFF, VTK, VTP; in mm), casts one spring from every tibial face that faces the

@@ -1,4 +1,5 @@
 """Is the linear spring valid up to 30 % strain?  The paper's claim put to the test under load.
+============================================================================================
 
 Volokh, Chao & Armand find Ateshian's law, Eq. (2), "almost linear up to 30 % strain" and
 conclude that the classical linear DEA spring is valid there. This example measures that claim

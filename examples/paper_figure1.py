@@ -1,4 +1,5 @@
 """Fig. 1 of Volokh, Chao & Armand: the cartilage spring law, Eq. (2) against Eq. (3).
+===================================================================================
 
 Plots normalised stress ``sigma / H`` against engineering strain on [-0.4, 0.4] for the two
 limit values of the stiffening exponent, beta = 0.05 and 0.6: Ateshian's law, Eq. (2), solid;

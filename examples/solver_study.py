@@ -1,4 +1,5 @@
 """Which formulation when: every solver on the same hip, from a thousand to thirty thousand springs.
+=================================================================================================
 
 One problem, grown in resolution: a femoral head (R = 25 mm) in a socket covering 80 degrees
 around its pole with 0.1 mm radial clearance and 3 mm of cartilage (the hip of

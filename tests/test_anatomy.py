@@ -157,14 +157,14 @@ def test_summary_gives_centres_of_pressure_in_the_anatomical_frame(tmp_path):
     assert io.read_json(paths["json"])["anatomy"]["side"] == "right"
 
 
-def test_the_readme_examples_of_compartments_and_the_anatomical_frame_run(tmp_path, monkeypatch):
+def test_the_guide_examples_of_compartments_and_the_anatomical_frame_run(tmp_path, monkeypatch):
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "meshes.md").read_text()
     blocks = [
-        re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
-        for title in ("### Compartments", "### The anatomical frame")
+        re.search(r"```python\n(.*?)```", page.split(title, 1)[1], re.DOTALL).group(1)
+        for title in ("## Compartments", "## The anatomical frame")
     ]
     layer = plate_layer(60.0, 30.0, 30, 15, thickness=3.0)
     namespace = {
@@ -173,11 +173,11 @@ def test_the_readme_examples_of_compartments_and_the_anatomical_frame_run(tmp_pa
         "epicondyle_l": np.array([-40.0, 0.0, 10.0]),
         "hip_centre": np.array([0.0, 10.0, 420.0]),
     }
-    exec(compile(blocks[0], "README.md", "exec"), namespace)
+    exec(compile(blocks[0], "meshes.md", "exec"), namespace)
     labelled = namespace["layer"]
     np.testing.assert_array_equal(labelled.labels, np.where(layer.points[:, 0] < 0, "lateral", "medial"))
     problem = d.ContactProblem(labelled, d.LinearLaw(10.0), force=(0, 0, -900), free=("uz",))
     namespace["solution"] = d.solve(problem, "newton")
     monkeypatch.chdir(tmp_path)
-    exec(compile(blocks[1], "README.md", "exec"), namespace)
+    exec(compile(blocks[1], "meshes.md", "exec"), namespace)
     assert (tmp_path / "knee.png").read_bytes()[:4] == b"\x89PNG"

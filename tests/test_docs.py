@@ -1,5 +1,5 @@
-"""The written math and the code name each other; the README's error catalogue and status table
-match the code.
+"""The written math and the code name each other; the guide's error catalogue and status tables
+(``docs/guide/errors.md``, ``docs/guide/concepts.md``) match the code.
 
 Pages are ``formulations/*.md``. A page and every module it names (``dea_opt/....py``) link
 both ways, and so do every module that cites a page and that page. Each page has a
@@ -157,9 +157,12 @@ def test_the_symbol_check_catches_an_undefined_symbol():
     assert sorted(t for t in tokens if not _is_defined(t, defined)) == ["A", "K", "Phi", "w"]
 
 
+GUIDE = ROOT / "docs" / "guide"
+
+
 def test_error_catalogue_lists_every_error():
-    readme = (ROOT / "README.md").read_text()
-    catalogue = readme.split("## Error catalogue", 1)[1].split("\n## ", 1)[0]
+    page = (GUIDE / "errors.md").read_text()
+    catalogue = page.split("## The error catalogue", 1)[1].split("\n## ", 1)[0]
     classes = [
         c
         for _, c in inspect.getmembers(dea_opt.errors, inspect.isclass)
@@ -167,24 +170,24 @@ def test_error_catalogue_lists_every_error():
     ]
     assert len(classes) >= 5
     for cls in classes:
-        assert f"`{cls.__name__}`" in catalogue, f"{cls.__name__} is not in the README's error catalogue"
+        assert f"`{cls.__name__}`" in catalogue, f"{cls.__name__} is not in the guide's error catalogue"
         assert getattr(dea_opt, cls.__name__) is cls
 
 
-def test_the_readme_status_table_lists_every_status_with_its_description():
-    readme = (ROOT / "README.md").read_text()
-    table = readme.split("### Statuses", 1)[1].split("\n#", 1)[0]
+def test_the_guide_status_table_lists_every_status_with_its_description():
+    page = (GUIDE / "concepts.md").read_text()
+    table = page.split("## Statuses", 1)[1].split("\n#", 1)[0]
     rows = {m.group(1): m.group(2).strip() for m in re.finditer(r"^\| `(\w+)` \| (.+?) \|$", table, re.MULTILINE)}
     assert set(rows) == {status.value for status in Status}
     for status in Status:
         assert rows[status.value] == status.description.replace("|", "\\|"), status
 
 
-def test_the_readme_run_status_table_lists_every_run_status_with_its_exit_code_and_description():
+def test_the_guide_run_status_table_lists_every_run_status_with_its_exit_code_and_description():
     from dea_opt.status import RunStatus
 
-    readme = (ROOT / "README.md").read_text()
-    table = readme.split("### Run statuses", 1)[1].split("\n#", 1)[0]
+    page = (GUIDE / "concepts.md").read_text()
+    table = page.split("## Run statuses", 1)[1].split("\n#", 1)[0]
     rows = {
         m.group(1): (int(m.group(2)), m.group(3).strip())
         for m in re.finditer(r"^\| `(\w+)` \| (\d+) \| (.+?) \|$", table, re.MULTILINE)

@@ -399,12 +399,14 @@ def test_study_files_and_summary(study):
 
 # ========================================================================================
 def test_gallery_pictures_exist_and_are_small():
-    """Every picture the README's gallery shows is committed, a PNG, and under 150 KB."""
+    """Every picture the site's gallery shows (``examples/GALLERY_HEADER.rst``) and the README's
+    picture are committed, PNGs, and under 150 KB."""
     import re
 
+    header = (EXAMPLES / "GALLERY_HEADER.rst").read_text(encoding="utf-8")
     readme = (EXAMPLES.parent / "README.md").read_text(encoding="utf-8")
-    gallery = readme.split("## Gallery", 1)[1].split("\n## ", 1)[0]
-    pictures = re.findall(r"\]\((examples/gallery/[\w.]+\.png)\)", gallery)
+    pictures = re.findall(r"\.\. figure:: \.\./\.\./(examples/gallery/[\w.]+\.png)", header)
+    pictures += re.findall(r"\]\((examples/gallery/[\w.]+\.png)\)", readme)
     assert len(pictures) >= 6
     for picture in pictures:
         data = (EXAMPLES.parent / picture).read_bytes()

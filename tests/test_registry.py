@@ -333,16 +333,16 @@ def test_the_built_in_fallbacks_are_capability_answers():
         assert formulations.fallback_for(law) == "nlp"
 
 
-def test_the_readme_example_of_a_formulation_runs(capsys):
+def test_the_guide_example_of_a_formulation_runs(capsys):
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = readme.split("**Adding a formulation.**", 1)[1]
+    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "laws.md").read_text()
+    section = page.split("## Adding a formulation", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.DOTALL).group(1)
     namespace: dict = {}
     try:
-        exec(compile(code, "README.md", "exec"), namespace)  # noqa: S102 - the README's own example
+        exec(compile(code, "laws.md", "exec"), namespace)  # noqa: S102 - the guide's own example
         solution = namespace["solution"]
         assert solution.success and solution.method == "bfgs" and solution.status is Status.CONVERGED
         reference = d.solve(namespace["problem"], "newton")
@@ -353,18 +353,26 @@ def test_the_readme_example_of_a_formulation_runs(capsys):
             formulations.unregister("bfgs")
 
 
-def test_the_readme_tables_of_options_and_capabilities_are_the_registry_s():
+def test_the_guide_tables_of_options_and_capabilities_are_made_from_the_registry():
+    """The guide and the reference do not copy the registry's tables: they are made from it when
+    the site is built (the directives of ``docs/_ext/dea_docs/reference.py``), row by row."""
+    import sys
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = readme.split("### Formulations and their options", 1)[1].split("**Adding a formulation.**", 1)[0]
+    root = Path(__file__).resolve().parents[1]
+    for page in ("guide/laws.md", "reference/formulations.md"):
+        text = (root / "docs" / page).read_text()
+        assert ".. dea-formulation-options::" in text and ".. dea-formulation-capabilities::" in text, page
+    sys.path.insert(0, str(root / "docs" / "_ext"))
+    try:
+        from dea_docs.reference import FormulationCapabilitiesDirective, FormulationOptionsDirective
+    finally:
+        sys.path.remove(str(root / "docs" / "_ext"))
+    options = "\n".join(FormulationOptionsDirective.lines(None))
+    capabilities = "\n".join(FormulationCapabilitiesDirective.lines(None))
     for name in formulations.names():
         for o in formulations.options(name):
-            row = f"| `{name}` | `{o.name}` | {o.kind()} | `{o.default!r}` | {'yes' if o.tolerance else ''} | {o.doc} |"
-            assert row in section, row
+            assert f"   * - ``{name}``\n     - ``{o.name}``\n     - {o.kind()}\n" in options, (name, o.name)
+            assert f"     - {' '.join(o.doc.split())}" in options, (name, o.name)
         c = formulations.capabilities(name)
-        row = (
-            f"| `{name}` | {c.laws} | {'yes' if c.warm_start else 'no'} | {', '.join(c.kinematics)} | "
-            f"{'yes' if c.duals else 'no'} | {'before' if c.checks_load_first else 'after a failure'} |"
-        )
-        assert row in section, row
+        assert f"   * - ``{name}``\n     - {c.laws}\n     - {'yes' if c.warm_start else 'no'}\n" in capabilities, name

@@ -454,15 +454,15 @@ def test_an_unexpected_failure_is_one_paragraph_with_the_traceback_in_a_file(tmp
     crash.unlink()
 
 
-def test_the_readme_law_example_registers_a_law_a_scenario_can_use():
+def test_the_guide_law_example_registers_a_law_a_scenario_can_use():
     import re
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = readme.split("`dea_opt.laws.LAWS` is the registry of law kinds", 1)[1]
+    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "laws.md").read_text()
+    section = page.split("`dea_opt.laws.LAWS` is the registry of law kinds", 1)[1]
     code = re.search(r"```python\n(.*?)```", section, re.S).group(1)
     try:
         namespace: dict = {}
-        exec(compile(code, "README.md", "exec"), namespace)
+        exec(compile(code, "laws.md", "exec"), namespace)
         assert LAWS["stiffening"].cls is namespace["StiffeningLaw"]
         scenario = parse_scenario(PLATE_TOY.replace('kind = "toy"', 'kind = "stiffening"'))
         from dea_opt.scenario import build_law

@@ -392,17 +392,21 @@ def test_page_and_modules_name_each_other():
     assert d.propagate.__module__ == "dea_opt.sensitivity.uncertainty"
 
 
-def test_readme_snippet_runs_on_the_short_example():
+def test_the_guide_snippet_runs_on_the_short_example():
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    root = Path(__file__).resolve().parents[1]
+    pages = (
+        ((root / "README.md").read_text(), "## A short example"),
+        ((root / "docs" / "guide" / "sensitivities.md").read_text(), "## Sensitivities"),
+    )
     namespace: dict = {}
-    for title in ("## A short example", "## Sensitivities, calibration and uncertainty"):
-        code = re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.S).group(1)
+    for text, title in pages:
+        code = re.search(r"```python\n(.*?)```", text.split(title, 1)[1], re.S).group(1)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", d.ValidityWarning)
-            exec(compile(code, "README.md", "exec"), namespace)
+            exec(compile(code, title, "exec"), namespace)
     sens = namespace["sens"]
     assert set(sens.wrt) == {"H", "beta", "Fz", "thickness_scale", "gap"}
     assert sens.unit("peak_pressure", "H") == "MPa/MPa"

@@ -376,18 +376,18 @@ def test_bad_arguments_to_assess():
         assess(problem.with_law(Odd(1.0)), np.zeros(12))
 
 
-def test_the_readme_validity_example_runs(capsys):
+def test_the_guide_validity_example_runs(capsys):
     import re
     from pathlib import Path
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    page = (Path(__file__).resolve().parents[1] / "docs" / "guide" / "concepts.md").read_text()
     blocks = [
-        re.search(r"```python\n(.*?)```", readme.split(title, 1)[1], re.DOTALL).group(1)
-        for title in ("## A short example", "## Validity")
+        re.search(r"```python\n(.*?)```", page.split(title, 1)[1], re.DOTALL).group(1)
+        for title in ("## Solving, and what a solution holds", "\n## Validity")
     ]
     namespace: dict = {}
     for code in blocks:
-        exec(compile(code, "README.md", "exec"), namespace)
+        exec(compile(code, "concepts.md", "exec"), namespace)
     line = capsys.readouterr().out.strip().splitlines()[-1]
     assert line == namespace["solution"].validity.summary() and line.startswith("valid (8 checks passed")
     assert namespace["loose"].limits.peak_pressure == 50.0 and namespace["loose"].valid

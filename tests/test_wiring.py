@@ -28,7 +28,7 @@ from dea_opt.scenario import load_scenario, parse_scenario, read_load_path, sche
 from dea_opt.status import RunStatus
 
 ROOT = Path(__file__).resolve().parents[1]
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+GUIDE = {page.stem: page.read_text(encoding="utf-8") for page in (ROOT / "docs" / "guide").glob("*.md")}
 KNEE_EXAMPLES = ROOT / "examples" / "scenarios" / "knee"
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 needs_knee = pytest.mark.skipif(not all((KNEE / f).is_file() for f in KNEE_FILES), reason="no knee meshes")
@@ -265,7 +265,7 @@ def test_a_bad_anatomy_names_its_key(tmp_path, value, words):
 
 def test_the_anatomy_key_is_documented():
     assert "# anatomy = ...  # optional; the anatomical frame" in schema_text()
-    assert "[output] anatomy" in README and "anatomy = {medial" in README
+    assert "[output] anatomy" in GUIDE["scenarios"] and "anatomy = {medial" in GUIDE["scenarios"]
     knee = (KNEE_EXAMPLES / "knee.toml").read_text()
     assert 'anatomy = { medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right" }' in knee
 
@@ -320,12 +320,12 @@ def test_a_sweep_case_outside_validity_is_not_ok(tmp_path):
     assert table.loc[5, "status"] == "outside_validity" and table.loc[5, "exit_code"] == 0
 
 
-def test_the_readme_documents_the_sweep_statuses():
+def test_the_guide_documents_the_sweep_statuses():
     from dea_opt.sweep.cases import RETRIED, STATUSES
 
     assert set(STATUSES) == set(RunStatus) and set(RETRIED) == {s for s in RunStatus if s.exit_code in (1, 2)}
     for status in STATUSES:
-        assert f"| `{status}` |" in README
+        assert f"| `{status}` |" in GUIDE["concepts"]
 
 
 # --- 7. the demo: validity and compartments ----------------------------------------------------

@@ -1,6 +1,6 @@
 """Springs re-cast at the solved pose through ``dea-opt run`` and the API (issue 11 item 9 wired):
 ``Solution.with_validity``, the re-cast of a static answer and of a load path's peak frame (the
-real knee, a path with poses), the README's example with the knee's numbers, and the
+real knee, a path with poses), the guide's example with the knee's numbers, and the
 unsupported-load diagnostic in commensurate units (issue 10)."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from dea_opt.errors import InputError
 from dea_opt.scenario import load_scenario, read_load_path
 
 ROOT = Path(__file__).resolve().parents[1]
-README = (ROOT / "README.md").read_text(encoding="utf-8")
+MESHES_PAGE = (ROOT / "docs" / "guide" / "meshes.md").read_text(encoding="utf-8")
 KNEE_EXAMPLES = ROOT / "examples" / "scenarios" / "knee"
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 needs_knee = pytest.mark.skipif(not all((KNEE / f).is_file() for f in KNEE_FILES), reason="no knee meshes")
@@ -236,12 +236,12 @@ def test_no_raw_warning_from_a_recast(tmp_path):
 
 
 @needs_knee
-def test_the_readme_recast_example_runs_on_the_knee_with_its_numbers():
+def test_the_guide_recast_example_runs_on_the_knee_with_its_numbers():
     import re
 
     from dea_opt.mesh import concatenate_meshes, load_mesh
 
-    block = next(b for b in re.findall(r"```python\n(.*?)```", README, re.DOTALL) if "recast_at_solution(" in b)
+    block = next(b for b in re.findall(r"```python\n(.*?)```", MESHES_PAGE, re.DOTALL) if "recast_at_solution(" in b)
     tibia, labels = concatenate_meshes(
         {"medial": load_mesh(KNEE / KNEE_FILES[1]), "lateral": load_mesh(KNEE / KNEE_FILES[2])}
     )
@@ -256,11 +256,11 @@ def test_the_readme_recast_example_runs_on_the_knee_with_its_numbers():
     }
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", d.ValidityWarning)
-        exec(compile(block, "README.md", "exec"), namespace)  # noqa: S102 - the README's own example
+        exec(compile(block, "meshes.md", "exec"), namespace)  # noqa: S102 - the guide's own example
     again, solution = namespace["again"], namespace["solution"]
     assert (again.kept, len(again.start.layer), again.dropped, again.rejected) == (13223, 13306, 0, 0)
     assert solution.validity["dropped_springs"].value == 0 and solution.validity.valid
-    assert again.force[2] == pytest.approx(1023.8, abs=0.05)  # the README's number
+    assert again.force[2] == pytest.approx(1023.8, abs=0.05)  # the guide's number
 
 
 HIP_GENERATOR = """\

@@ -78,7 +78,11 @@ class AteshianLaw(Law):
     Parameters
     ----------
     H : float
-        Aggregate modulus ``H_A0`` in MPa (> 0; 0.3 to 0.6 for human cartilage).
+        Aggregate modulus ``H_A0`` in MPa (> 0). Under gait-rate loading cartilage carries load
+        at its instantaneous modulus: hip and knee DEA use about 5-20 MPa (every knee example
+        here uses 10). The paper's 0.3-0.6 MPa is the equilibrium modulus of slow, drained
+        compression, which lets body weight crush a knee's cartilage (the tutorial "Your own
+        joint" gives values from the literature).
     beta : float
         Stiffening exponent (>= 0; 0.05 to 0.6 for human cartilage).
     """
@@ -86,7 +90,14 @@ class AteshianLaw(Law):
     H: float
     beta: float
     ranges: typing.ClassVar[dict] = {
-        "H": Range(0.0, _HUGE, "MPa", "aggregate modulus H_A0 (0.3-0.6 for human cartilage)", low_open=True),
+        "H": Range(
+            0.0,
+            _HUGE,
+            "MPa",
+            "aggregate modulus H_A0; for gait-rate loads the instantaneous modulus, about 5-20 for hip and knee "
+            "DEA (0.3-0.6 is the equilibrium modulus of slow compression, which crushes a knee)",
+            low_open=True,
+        ),
         "beta": Range(0.0, _HUGE, "", "stiffening exponent (0.05-0.6 for human cartilage)"),
     }
     name = "ateshian"

@@ -26,7 +26,7 @@ from .schema import (
     method_names,
 )
 
-__all__ = ["schema_text"]
+__all__ = ["method_choices", "schema_sections", "schema_text", "toml_value"]
 
 _SECTIONS: tuple[tuple[str, tuple[type[BaseModel], ...] | None], ...] = (
     (
@@ -44,6 +44,15 @@ _SECTIONS: tuple[tuple[str, tuple[type[BaseModel], ...] | None], ...] = (
 )
 
 
+def schema_sections() -> list[tuple[str, tuple[type[BaseModel], ...]]]:
+    """Every table of a scenario file with the models of its kinds, in the file's order (the
+    ``[law]`` table: one model per kind registered now). The documentation site's scenario
+    reference is made from these, as :func:`schema_text` is."""
+    return [
+        (table, tuple(law_model(kind) for kind in LAWS) if models is None else models) for table, models in _SECTIONS
+    ]
+
+
 def schema_text() -> str:
     """The scenario schema as commented TOML: every table, key, type, default and meaning."""
     lines = [
@@ -53,9 +62,7 @@ def schema_text() -> str:
         "",
         'title = ""  # string, optional: a name for reports',
     ]
-    for table, models in _SECTIONS:
-        if models is None:
-            models = tuple(law_model(kind) for kind in LAWS)
+    for table, models in schema_sections():
         lines.append("")
         lines.append(f"[{table}]")
         if len(models) > 1:
@@ -73,7 +80,7 @@ def schema_text() -> str:
             for name, field in model.model_fields.items():
                 if name == "kind" and len(models) > 1:
                     continue
-                lines.append(_field_line(name, field, _choices(model, name)))
+                lines.append(_field_line(name, field, method_choices(model, name)))
     return "\n".join(lines + _joint_lines()) + "\n"
 
 
@@ -116,8 +123,8 @@ def _kind(model: type[BaseModel]) -> str:
     return get_args(model.model_fields["kind"].annotation)[0]
 
 
-def _choices(model, name: str) -> str:
-    """The method names registered now, for the keys that name methods."""
+def method_choices(model, name: str) -> str:
+    """The method names registered now, for the keys that name methods (else "")."""
     if model is SolveSection and name in ("method", "methods"):
         return " | ".join(method_names()[0 if name == "method" else 1 :])
     return ""
@@ -132,16 +139,17 @@ def _field_line(name: str, field, choices: str = "") -> str:
     default = field.default_factory() if field.default_factory is not None else field.default
     if default is None:
         return f"# {name} = ...  # optional; {description}"
-    return f"{name} = {_toml_value(default)}  # {description}"
+    return f"{name} = {toml_value(default)}  # {description}"
 
 
-def _toml_value(value) -> str:
+def toml_value(value) -> str:
+    """``value`` written as TOML (a default of the schema)."""
     if isinstance(value, bool):
         return "true" if value else "false"
     if isinstance(value, str):
         return f'"{value}"'
     if isinstance(value, (list, tuple)):
-        return "[" + ", ".join(_toml_value(v) for v in value) + "]"
+        return "[" + ", ".join(toml_value(v) for v in value) + "]"
     if isinstance(value, dict):
-        return "{" + ", ".join(f"{k} = {_toml_value(v)}" for k, v in value.items()) + "}"
+        return "{" + ", ".join(f"{k} = {toml_value(v)}" for k, v in value.items()) + "}"
     return repr(value)

@@ -1,4 +1,4 @@
-"""Remake the README's gallery: run the examples at their default setting, keep small copies.
+"""Remake the gallery's pictures (examples/gallery, shown by the site's gallery and the README): run the examples at their default setting, keep small copies.
 
 Each example runs with its defaults and writes into ``examples/output/<example>/`` as its
 docstring says; the picture the gallery shows is then stored in ``examples/gallery/`` as a

@@ -31,7 +31,7 @@ class Option:
         with string keys; ``bool``: True or False.
     default : object
     doc : str
-        One line for the README and the error messages.
+        One line for the documentation's options table and the error messages.
     range : tuple, optional
         ``(low, high)`` (``high`` may be None).
     choices : tuple of str or callable, optional
