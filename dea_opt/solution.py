@@ -81,6 +81,7 @@ class Certificate:
     consistency: float
     energy: float
     tolerance: float = 1e-6
+    rounding: float = 0.0
 
     @property
     def passed(self) -> bool:
@@ -90,8 +91,8 @@ class Certificate:
     def worst(self) -> tuple[str, float]:
         """The name and value of the largest residual."""
         items = self.as_dict()
-        items.pop("tolerance")
-        items.pop("passed")
+        for key in ("tolerance", "passed", "rounding"):
+            items.pop(key)
         name = max(items, key=lambda k: items[k] if np.isfinite(items[k]) else np.inf)
         return name, items[name]
 
@@ -104,6 +105,7 @@ class Certificate:
             "energy": self.energy,
             "tolerance": self.tolerance,
             "passed": self.passed,
+            "rounding": self.rounding,
         }
 
 
@@ -150,13 +152,17 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
         nan = float("nan")
         return Certificate(nan, nan, nan, nan, nan, tolerance)
     r, L = system.load, system.lengths
-    H = modulus_scale(law.modulus)
-    # The initial overlap (gaps and prescribed motion): usually none, and then no pass over it.
-    overlap = np.maximum(-system.e0, 0.0) if system.e0.min(initial=0.0) < 0 else None
-    preload = 0.0 if overlap is None else H * float(layer.areas @ overlap)
-    F = max(float(np.abs(r / L).max(initial=0.0)), float(np.abs(force).sum()), preload)
+    # What is in equilibrium at the answer: the load, or without one the springs' forces there
+    # (which make every reaction). Never a force of the start (springs that overlapped there and
+    # opened carry nothing), nor, under a load, forces larger than it that would dilute its imbalance.
+    F = _force_scale(r, L, force)
     g = q - r
-    equilibrium = _ratio(float(np.abs(g / L).max(initial=0.0)), F)
+    # How far the strains' rounding can move each generalized force: a load the answer can resolve
+    # only below that is not certified (an overlap of gaps and motion cancelling to a tiny strain).
+    rounding = np.asarray(problem.strain_rounding(u), dtype=float)
+    spread = _rounding_force(system, law, eps, sigma, rounding)
+    equilibrium = _ratio(float(((np.abs(g) + spread) / L).max(initial=0.0)), F)
+    rounding_part = _ratio(float((spread / L).max(initial=0.0)), F)
     if res.null.shape[1]:
         equilibrium = max(equilibrium, res.load_fraction(r))
         z = res.motion_part(u_free)
@@ -167,20 +173,48 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
     tension = _ratio(float(np.maximum(reported, 0.0).sum()), F)
     complementarity = _ratio(float(np.abs(reported) @ np.maximum(eps, 0.0)), F)
     # A reported force is consistent when the law gives it at a strain within the certified
-    # precision of the compression: springs on the edge of the contact, where interior-point
-    # duals are of order sqrt(mu), are judged on what the strain allows.
-    delta = tolerance * max(float(-compressed.min(initial=0.0)), float(-system.e0.min(initial=0.0)))
+    # precision of the answer's compression (and the strain's own rounding): springs on the edge
+    # of the contact, where interior-point duals are of order sqrt(mu), are judged on what the
+    # strain allows.
+    delta = tolerance * float(-compressed.min(initial=0.0)) + rounding
     with np.errstate(invalid="ignore", over="ignore"):
         low = layer.areas * law.stress(np.minimum(eps - delta, 0.0))
         high = layer.areas * law.stress(np.minimum(eps + delta, 0.0))
     excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
     consistency = _ratio(float(np.nan_to_num(excess, nan=np.inf).sum()), F)
-    decrement = _energy_residual(system, res, law, eps, g, u_free, H, overlap) if free.size else 0.0
-    return Certificate(equilibrium, tension, complementarity, consistency, decrement, tolerance)
+    decrement = _energy_residual(system, res, law, eps, g, modulus_scale(law.modulus)) if free.size else 0.0
+    return Certificate(equilibrium, tension, complementarity, consistency, decrement, tolerance, rounding_part)
 
 
-def _energy_residual(system, res, law, eps, g, u_free, H, overlap) -> float:
-    """``g^T K^+ g / 2`` over the resisted directions, relative to the energy scale."""
+def _force_scale(r, L, force) -> float:
+    """``F`` (N): the load's largest component ``max_j |r_j| / L_j`` on the free dofs, or, without a
+    load, the springs' total force ``sum_i |f_i|`` at the answer."""
+    load = float(np.abs(r / L).max(initial=0.0))
+    return load if load > 0 else float(np.abs(force).sum())
+
+
+def _rounding_force(system, law, eps, sigma, rounding) -> np.ndarray:
+    """``rho_j = sum_i |A_ij| V_i max |sigma(eps_i +- delta_i) - sigma(eps_i)|`` (m,): how far
+    strains rounded by ``delta`` (N,) can move the generalized spring force on each free dof
+    (N, N mm). Only springs within ``delta`` of contact count; NaN (beyond the law's domain) is
+    ``inf``."""
+    near = np.flatnonzero(eps - rounding < 0)
+    if not near.size or not system.n_dofs:
+        return np.zeros(system.n_dofs)
+    e, d = eps[near], rounding[near]
+    with np.errstate(invalid="ignore", over="ignore"):
+        low = law.stress(np.minimum(e - d, 0.0))
+        high = law.stress(np.minimum(e + d, 0.0))
+        spread = np.maximum(np.abs(low - sigma[near]), np.abs(high - sigma[near]))
+    spread = np.nan_to_num(spread, nan=np.inf)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.abs(system.AT[:, near]) @ (system.volume[near] * spread)
+
+
+def _energy_residual(system, res, law, eps, g, H) -> float:
+    """``g^T K^+ g / 2`` over the resisted directions, relative to the energy at the answer of what
+    ``F`` measures: the load's ``r^T K^+ r / 2`` through the same compliance, or without a load the
+    springs' stored energy."""
     rows = np.flatnonzero(eps < 0)
     if not rows.size or not res.n_resisted:
         return 0.0
@@ -196,15 +230,14 @@ def _energy_residual(system, res, law, eps, g, u_free, H, overlap) -> float:
     # stiffness is the identity: the scale the one test of "unresisted" judges against.
     T1 = res.basis(H)
     Kt = T1.T @ K @ T1
-    gt = T1.T @ g
-    require_finite("the certificate's tangent", Kt, gt)
+    gt, rt = T1.T @ g, T1.T @ system.load
+    require_finite("the certificate's tangent", Kt, gt, rt)
     vals, vecs = np.linalg.eigh(Kt)
     keep = ~unresisted(vals, max(float(vals[-1]), 1.0))
-    coeff = vecs[:, keep].T @ gt
+    coeff, load = vecs[:, keep].T @ gt, vecs[:, keep].T @ rt
     decrement = float(coeff @ (coeff / vals[keep]))
-    preload = 0.0 if overlap is None else 0.5 * H * float(system.volume @ overlap**2)
-    scale = max(stored + abs(float(system.load @ u_free)), preload)
-    return _ratio(0.5 * abs(decrement), scale)
+    work = float(load @ (load / vals[keep]))
+    return _ratio(0.5 * abs(decrement), 0.5 * work if system.load.any() else stored)
 
 
 @dataclass(frozen=True, eq=False)

@@ -142,6 +142,7 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
         # they balance. One answer is returned for every method: the default formulation's.
         default = formulations.DEFAULT
         result = formulations.solve(default, system, law)
+        _clear_of_rounding(problem, system, result)
         if result.success:
             result.status = Status.PRELOADED
             result.message = (
@@ -160,6 +161,41 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
         # A solver that raised still yields a (failed) answer, so that auto can fall back and
         # strict=False and load paths can report it like any other failure.
         return failed_result(system, exc)
+
+
+#: How far beyond its strain's rounding a preloaded answer opens the springs it leaves touching.
+_CLEARANCE = 4.0
+
+
+def _clear_of_rounding(problem: ContactProblem, system, result) -> None:
+    """Move a preloaded answer whose springs merely touch on along its own motion, until each is open
+    by :data:`_CLEARANCE` times its strain's rounding (``ContactProblem.strain_rounding``).
+
+    With no load, every position where no spring is compressed is an equilibrium; the solver stops
+    where the last springs just open, their strains zero to rounding, where the law gives forces of
+    rounding's size that nothing else balances and no certificate can accept (there is nothing in
+    equilibrium to measure them against). A step of the motion's rounding size (at most 1e-6 of it)
+    further, none is within rounding of contact. Press fits whose springs stay compressed (real
+    forces), motions that would close another spring, and failed answers are left as they are."""
+    x = result.u_free
+    if not (x.size and np.isfinite(x).all()):
+        return
+    u = problem.full_u(x)
+    eps, delta = problem.strain(u), problem.strain_rounding(u)
+    if (eps < -delta).any():
+        return
+    near = np.flatnonzero(eps < _CLEARANCE * delta)
+    if not near.size:
+        return
+    rate = x @ system.AT[:, near]  # each strain's change per unit of the motion itself
+    if not (rate > 0).all():
+        return
+    tau = float(np.max((_CLEARANCE * delta[near] - eps[near]) / rate))
+    if not 0 < tau <= 1e-6:
+        return
+    result.u_free = x * (1.0 + tau)
+    with np.errstate(invalid="ignore", over="ignore"):
+        result.stress = problem.law.stress(np.minimum(system.strain_at(result.u_free), 0.0))
 
 
 def _status(result) -> tuple[Status, object]:
@@ -210,6 +246,12 @@ def certified_solution(
     elif not success and status in CERTIFIABLE:
         status = Status.INACCURATE
         message = f"{message}; the answer fails dea-opt's certificate"
+    if not success and certificate.rounding > certificate_tol:
+        message = (
+            f"{message}; the rounding of the strains alone can move the springs' forces by "
+            f"{certificate.rounding:.3g} of what is in equilibrium at the answer (the gaps and the motion "
+            f"cancel to strains float64 does not resolve at this load)"
+        )
     held = problem.system().resistance.describe(problem.free_names) if problem.free_indices.size else []
     if held:
         # Directions no spring resists carry no load (check_load_supported) and take no

@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
 from ._parts.options import Capabilities, Option, Variant, validate
+from ._parts.recentre import recentred_solve
 from .energy import (
     FormulationResult,
     SpringSystem,
@@ -279,6 +280,7 @@ class QPModel:
         if not CAPABILITIES.takes(law):
             raise InputError(f"method 'qp' needs a LinearLaw, got {law.describe()}: use another method for this law")
         start = time.perf_counter()
+        self._options = dict(options)
         self.solver = checked["solver"]
         self.system, self.law = system, law
         # Solved in the scaled variables xi (u_free = T xi) and c = s0 c_hat, so that the
@@ -297,12 +299,27 @@ class QPModel:
 
     def solve(self, load=None, *, x0=None) -> FormulationResult:
         """Solve for ``load`` (default: the system's own load); ``x0`` is checked and then
-        ignored: interior-point solvers start cold."""
+        ignored: interior-point solvers start cold.
+
+        Where the answer's own scale (the load, the springs' compression there) is below ``RECENTRE``
+        of the scale the QP was solved in (an overlap that opened under a smaller load), the QP is
+        solved again from that answer in its scale (:func:`~dea_opt.formulations._parts.recentre.recentred_solve`),
+        so that its tolerances are the answer's."""
         start_vector(self.system, x0)
         load = self.system.load if load is None else np.asarray(load, dtype=float)
         trivial = trivial_result(self.system, self.law, load)
         if trivial is not None:
             return trivial
+        first = self._solve_once(load)
+        return recentred_solve(
+            first,
+            self.system.with_load(load),
+            self.law,
+            np.sqrt(self.scale.energy_scale),
+            lambda system: QPModel(system, self.law, **self._options),
+        )
+
+    def _solve_once(self, load) -> FormulationResult:
         scaled = self.scale.load(load)
         require_finite("the load", scaled)
         start = time.perf_counter()
