@@ -10,6 +10,7 @@ import numpy as np
 
 from . import formulations, loadcheck
 from .agreement import disagreement
+from .certificate import certify
 from .errors import InputError, SolverError, ValidityWarning
 from .formulations.energy import (
     CRUSHED_MESSAGE,
@@ -21,7 +22,7 @@ from .formulations.energy import (
 )
 from .loadcheck import check_load_supported
 from .problem import ContactProblem
-from .solution import Solution, certify
+from .solution import Solution
 from .status import CERTIFIABLE, Status
 
 __all__ = [
@@ -291,7 +292,7 @@ def solve(
         law (:func:`~dea_opt.formulations.fallback_for`: ``qp`` for a linear law, ``nlp``
         otherwise); ``solution.info["fallback"]`` says why.
     certificate_tol : float
-        Bound on every residual of the :class:`~dea_opt.solution.Certificate`.
+        Bound on every residual of the :class:`~dea_opt.certificate.Certificate`.
     strict : bool
         Raise :class:`SolverError` when the answer fails its certificate (default). With
         ``strict=False`` the uncertified solution is returned with ``success=False``.

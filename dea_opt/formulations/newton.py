@@ -359,7 +359,7 @@ class _Run:
 def _rounding(system, law, scale, u_free, eps) -> float:
     """How far the rounding of the strains can move the gradient, ``|rho|`` in the scaled variables of
     ``scale``: each strain ``e0_i + A_i x`` is known to ``ROUNDING`` ulps of ``|e0_i| + sum_j |A_ij
-    x_j|`` (``x = u_free``; the certificate's bound, ``formulations/energy.md``), which moves the
+    x_j|`` (``x = u_free``; the certificate's bound, ``formulations/newton.md``, "Stopping"), which moves the
     force of a spring within that of contact by up to ``V_i max |sigma(eps_i +- delta_i) -
     sigma(eps_i)|``."""
     delta = ROUNDING * np.finfo(float).eps * (np.abs(system.e0) + np.abs(u_free) @ np.abs(system.AT))

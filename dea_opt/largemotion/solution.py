@@ -1,7 +1,7 @@
 """Finite kinematics, the answer: the solution at the solved pose and its certificate there.
 
 Written math: ``formulations/finite.md`` ("Certificate in the deformed configuration"). The
-certificate is the one of :func:`dea_opt.solution.certify`, with every quantity taken at the
+certificate is the one of :func:`dea_opt.certificate.certify`, with every quantity taken at the
 solved pose: the forces the springs exert along their directions ``n_i`` about body 2's current
 reference point ``c' = c + t``, mapped to the free coordinates by ``blockdiag(I, J(theta))``,
 against the load mapped the same way; the strains are the gaps at that pose over the thickness.
@@ -14,10 +14,11 @@ from functools import cached_property
 
 import numpy as np
 
+from ..certificate import certify
 from ..formulations.energy import ROUNDING, SpringSystem
 from ..formulations.finite import Targets, generalized, left_jacobian, pose_matrix
 from ..kinematics import DOF_NAMES
-from ..solution import Solution, certify
+from ..solution import Solution
 
 
 def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
@@ -47,7 +48,7 @@ def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
 
 
 class _Deformed:
-    """What :func:`~dea_opt.solution.certify` reads of a problem, at the solved pose."""
+    """What :func:`~dea_opt.certificate.certify` reads of a problem, at the solved pose."""
 
     def __init__(self, layer, law, system: SpringSystem, free_indices, eps, rounding):
         self.layer, self.law, self._system, self.free_indices = layer, law, system, free_indices
@@ -82,7 +83,7 @@ def strain_rounding(state) -> np.ndarray:
 
 
 def certificate(state, law, layer, lengths, stiffness, u, reported_stress, tolerance):
-    """The :class:`~dea_opt.solution.Certificate` of a finite-kinematics answer at its solved pose.
+    """The :class:`~dea_opt.certificate.Certificate` of a finite-kinematics answer at its solved pose.
 
     Everything it measures is at that pose: the springs' forces there, the load mapped there, the
     strains' rounding there (:func:`strain_rounding`); nothing of the start.
