@@ -334,7 +334,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     name, first_options, x0 = plan[0]
     solution = _run(problem, name, certificate_tol, first_options, x0)
     if method == "auto":
-        if not solution.success and len(plan) > 1:
+        if not solution.success and len(plan) > 1 and not beyond_resolution(solution):
             _raise_if_unsupported(problem)
             fallback, fallback_options, _ = plan[1]
             reason = (
@@ -358,6 +358,22 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     if solution.success:
         _warn_validity(solution)
     return solution
+
+
+def beyond_resolution(solution: Solution) -> bool:
+    """Whether ``solution`` failed its certificate only because its load is below what float64
+    resolves against the gaps and motion its strains are summed from: ``Certificate.rounding`` above
+    the tolerance, a computed imbalance no larger than that rounding can make (the equilibrium
+    residual adds the two), the other residuals within the tolerance. No formulation does better,
+    so ``auto`` keeps that answer and its reason rather than fall back."""
+    c = solution.certificate
+    others = (c.tension, c.complementarity, c.consistency)
+    return bool(
+        np.isfinite(solution.u).all()
+        and c.rounding > c.tolerance
+        and c.equilibrium <= 2.0 * c.rounding + c.tolerance
+        and all(v <= c.tolerance for v in others)
+    )
 
 
 def _raise_if_unsupported(problem: ContactProblem) -> None:
