@@ -195,8 +195,8 @@ OPTIONS = (
         "gtol",
         float,
         1e-12,
-        "equilibrium residual, the gradient over max(load, spring force, 1) in the scaled "
-        "variables, that counts as converged",
+        "equilibrium residual, the gradient over the larger of the load and the springs' net force "
+        "(without a load, and 1: the overlap) in the scaled variables, that counts as converged",
         range=(0, 1),
         tolerance=True,
         build=False,
@@ -275,8 +275,8 @@ def solve(system: SpringSystem, law, *, x0=None, **options) -> FormulationResult
     x0 : ndarray, shape (m,), optional
         Start (e.g. the previous frame of a load path; mm, rad); default cold (Eq. 19).
     **options
-        :data:`OPTIONS`: ``xtol`` (default 1e-12), ``gtol`` (1e-12, in the scaled variables,
-        where the larger of the load and the overlap has size 1:
+        :data:`OPTIONS`: ``xtol`` (default 1e-12), ``gtol`` (1e-12, relative to the load in the
+        scaled variables, or without one to the overlap at the stage's origin, of size 1 there:
         :func:`~dea_opt.formulations.energy.scaling`), ``max_iter`` (100), ``extended_start``.
     """
     return NewtonModel(system, law, **options).solve(x0=x0)
@@ -324,7 +324,7 @@ def _solve(
         base, x0, cold = u_free, None, False
         stage = system.recentred(base)
     status, message, success = run.status, run.message, run.success
-    if stages and status == "max_iter":
+    if status == "max_iter":  # (also where the last stage ended to re-centre, its iterations spent)
         message = f"no convergence in {max_iter} iterations"
     eps = system.strain_at(u_free) if stages else run.eps
     if not success and crushed(law, eps):
@@ -417,8 +417,8 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
             break
         history.append(gnorm)
         if len(history) > _STAGNANT and min(history[-_STAGNANT:]) > 0.5 * min(history[:-_STAGNANT]):
-            rounding = noise(xi, eps)
-            if np.linalg.norm(g) <= 4.0 * rounding:
+            rounding = noise(xi, eps)  # (infinite at a bounded law's edge: no verdict from it there)
+            if np.isfinite(rounding) and np.linalg.norm(g) <= 4.0 * rounding:
                 status, message = (
                     "stalled",
                     (
