@@ -546,6 +546,10 @@ def farkas_margin(problem) -> float:
 def check_outcomes(problem, outcomes, *, inside: bool | None):
     note(_describe(outcomes))
     errors = {m: o for m, o in outcomes.items() if isinstance(o, Exception)}
+    if len(errors) == len(outcomes) and all(_unresolved(o) for o in errors.values()):
+        # a load float64 does not resolve against the layer (one of rounding's size, a moment on lever
+        # arms that are rounding): no method certifies an answer, each says why
+        return None
     if errors:
         classes = {type(o) for o in outcomes.values()}
         assert not (len(errors) < len(outcomes)), f"some methods succeed, some raise:\n{_describe(outcomes)}"
@@ -562,6 +566,15 @@ def check_outcomes(problem, outcomes, *, inside: bool | None):
         assert_balanced(problem, s, rtol=1e-6 if s.method != "newton" else 1e-8)
     assert_agree(problem, outcomes)
     return outcomes
+
+
+def _unresolved(exc) -> bool:
+    """Whether ``exc`` is a :class:`SolverError` whose answer failed its certificate only for the
+    strains' rounding (:func:`dea_opt.solver.beyond_resolution`)."""
+    from dea_opt.solver import beyond_resolution
+
+    solution = getattr(exc, "solution", None)
+    return isinstance(exc, d.SolverError) and solution is not None and beyond_resolution(solution)
 
 
 @budget("agree")
@@ -647,7 +660,9 @@ def test_a_manufactured_equilibrium_is_found_again(case, target, pick, data):
     assert_balanced(problem, solution, rtol=1e-6 if method != "newton" else 1e-8)
     peak = pressure.max()
     np.testing.assert_allclose(solution.pressure, pressure, rtol=0, atol=1e-6 * peak)
-    P = determined_projector(problem, solution)
+    # along the directions the manufactured contact determines (a solver's answer may hold a spring on
+    # the edge of the contact compressed by its tolerance, which would add a direction it does not)
+    P = determined_projector(problem, type("S", (), {"u": u})())
     got = P @ solution.u[problem.free_indices]
     want = P @ x
     np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * max(np.abs(want).max(), 1e-300))
