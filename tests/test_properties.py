@@ -454,7 +454,7 @@ def _determined(problem, solution) -> tuple[np.ndarray, float]:
     rows = system.A[active] * np.sqrt(system.volume[active] * np.abs(problem.law.tangent(eps[active])))[:, None]
     _, s, vt = np.linalg.svd(rows, full_matrices=False)
     keep = s > 1e-7 * s.max()
-    return vt[keep].T @ vt[keep], float(s.max() / s[keep].min())
+    return vt[keep].T @ vt[keep], float(s.max() / s[keep].min()) if keep.any() else 1.0
 
 
 def assert_agree(problem, solutions, rtol=1e-6):
