@@ -576,12 +576,14 @@ def check_outcomes(problem, outcomes, *, inside: bool | None):
 
 
 def _unresolved(exc) -> bool:
-    """Whether ``exc`` is a :class:`SolverError` whose answer failed its certificate only for the
-    strains' rounding (:func:`dea_opt.solver.beyond_resolution`)."""
-    from dea_opt.solver import beyond_resolution
-
+    """Whether ``exc`` is a :class:`SolverError` whose answer the certificate could not accept for the
+    strains' rounding alone (``Certificate.rounding`` above its tolerance: a load float64 does not
+    resolve against the layer there, every residual of that answer meaningless)."""
     solution = getattr(exc, "solution", None)
-    return isinstance(exc, d.SolverError) and solution is not None and beyond_resolution(solution)
+    if not isinstance(exc, d.SolverError) or solution is None:
+        return False
+    certificate = solution.certificate
+    return bool(certificate.rounding > certificate.tolerance)
 
 
 @budget("agree")
