@@ -247,7 +247,7 @@ def certified_solution(
     elif not success and status in CERTIFIABLE:
         status = Status.INACCURATE
         message = f"{message}; the answer fails dea-opt's certificate"
-    if not success and certificate.rounding > certificate_tol:
+    if not success and certificate.rounding > 0.5 * certificate_tol:
         message = (
             f"{message}; the rounding of the strains alone can move the springs' forces by "
             f"{certificate.rounding:.3g} of what is in equilibrium at the answer (the gaps and the motion "
@@ -363,14 +363,15 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
 def beyond_resolution(solution: Solution) -> bool:
     """Whether ``solution`` failed its certificate only because its load is below what float64
     resolves against the gaps and motion its strains are summed from: ``Certificate.rounding`` above
-    the tolerance, a computed imbalance no larger than that rounding can make (the equilibrium
-    residual adds the two), the other residuals within the tolerance. No formulation does better,
-    so ``auto`` keeps that answer and its reason rather than fall back."""
+    half the tolerance (the imbalance that rounding leaves in any computed answer takes the rest), a
+    computed imbalance no larger than that rounding can make (the equilibrium residual adds the two),
+    the other residuals within the tolerance. No formulation does better, so ``auto`` keeps that
+    answer and its reason rather than fall back."""
     c = solution.certificate
     others = (c.tension, c.complementarity, c.consistency)
     return bool(
         np.isfinite(solution.u).all()
-        and c.rounding > c.tolerance
+        and c.rounding > 0.5 * c.tolerance
         and c.equilibrium <= 2.0 * c.rounding + c.tolerance
         and all(v <= c.tolerance for v in others)
     )

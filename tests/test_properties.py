@@ -577,13 +577,13 @@ def check_outcomes(problem, outcomes, *, inside: bool | None):
 
 def _unresolved(exc) -> bool:
     """Whether ``exc`` is a :class:`SolverError` whose answer the certificate could not accept for the
-    strains' rounding alone (``Certificate.rounding`` above its tolerance: a load float64 does not
-    resolve against the layer there, every residual of that answer meaningless)."""
+    strains' rounding (``Certificate.rounding`` above half its tolerance, as for
+    :func:`dea_opt.solver.beyond_resolution`: a load float64 does not resolve against the layer there)."""
     solution = getattr(exc, "solution", None)
     if not isinstance(exc, d.SolverError) or solution is None:
         return False
     certificate = solution.certificate
-    return bool(certificate.rounding > certificate.tolerance)
+    return bool(certificate.rounding > 0.5 * certificate.tolerance)
 
 
 @budget("agree")
