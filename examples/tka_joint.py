@@ -143,6 +143,7 @@ def plot_ligaments(solution, path: Path, count: int = 20) -> Path:
             va="center",
             fontsize=7,
         )
+    axes.set_xlim(0.0, 1.15 * float(lig.force[top].max()))  # room for the strain labels
     axes.set_xlabel("force (N); strain beside each bar")
     axes.set_title(f"the {len(top)} bundles that carry most, of {len(lig.force)}")
     axes.tick_params(axis="y", labelsize=7)
