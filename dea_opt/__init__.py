@@ -44,6 +44,7 @@ def _keep_former_modules(private: bool) -> None:
 _keep_former_modules(private=True)
 from .errors import (
     DeaError,
+    ImplausibleInputError,
     InputError,
     LoadNotSupportedError,
     MissingDependencyError,
@@ -79,6 +80,7 @@ __all__ = [
     "ContactProblem",
     "CubicLaw",
     "DeaError",
+    "ImplausibleInputError",
     "InputError",
     "Joint",
     "JointSolution",

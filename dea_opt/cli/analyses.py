@@ -12,6 +12,7 @@ from .common import (
     EXIT_OK,
     EXIT_UNCERTIFIED,
     ForceOpt,
+    QuietOpt,
     RunStatus,
     ScenarioArg,
     SetOpt,
@@ -70,6 +71,7 @@ def compare(
     ] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
+    quiet: QuietOpt = False,
 ):
     """Solve one problem by every method x solver x accuracy and tabulate the results.
 
@@ -77,6 +79,14 @@ def compare(
     the accuracy's tolerance, and the answer agrees with Newton to that tolerance. Writes
     compare.csv and compare_summary.csv (and manifest.json) into <output>/compare.
     """
+    from ..progress import showing
+
+    with showing(not quiet):
+        _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, output, set_, force, quiet)
+
+
+def _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, output, set_, force, quiet) -> None:
+    """The body of :func:`compare`, inside its progress."""
     from ..io.publish import check_output_folder, output_run
     from ..run import run_info
     from ..scenario import load_scenario
@@ -102,7 +112,7 @@ def compare(
             accuracy=_split(accuracy) or section.accuracy,
             repeat=section.repeat if repeat is None else repeat,
             nlp_forms=_split(nlp_forms),
-            progress=True,
+            progress=not quiet,
         )
         files = result.to_csv(publication.folder)
         messages.collect()
@@ -205,6 +215,7 @@ def calibrate(
     ] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
+    quiet: QuietOpt = False,
 ):
     """Fit law parameters to a measured pressure map (film or sensor) by least squares.
 
@@ -238,6 +249,7 @@ def calibrate(
             noise=noise,
             max_distance=max_distance,
             correlation_length=correlation_length,
+            progress=not quiet,
         )
         messages.collect()
         publication.publish(
