@@ -100,7 +100,8 @@ def _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, out
         from ..run.joint_compare import compare_joint_scenario
 
         return compare_joint_scenario(loaded, folder, _split(methods), force)
-    problem = _compare_problem(loaded, frame)
+    problem, suspicions = _compare_problem(loaded, frame)
+    _warn(f"suspicious input: {line}" for line in suspicions)
     section = loaded.solve
     with captured() as messages, output_run(folder, force=force, info=run_info(loaded, "compare")) as publication:
         # The default list is cut to the installed solvers by run_study; a list given is checked.
@@ -140,15 +141,16 @@ def _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, out
 
 
 def _compare_problem(loaded, frame):
+    """``(problem, suspicions)``: the problem compared (a load path's frame ``frame``, default the
+    largest force), built and checked as a run's is (:func:`dea_opt.run.prepare_run`)."""
     from ..errors import InputError
-    from ..scenario import build_problem, read_load_path
+    from ..run import prepare_run
 
-    problem = build_problem(loaded)
+    problem, _, data, suspicions = prepare_run(loaded)
     if loaded.load_path is None:
         if frame is not None:
             raise InputError("--frame applies to scenarios with a [load_path] only")
-        return problem
-    data = read_load_path(loaded.load_path)
+        return problem, suspicions
     if data.poses is not None:
         raise InputError(
             "compare on a load path with poses is not supported; compare one pose as a static [load] scenario"
@@ -158,7 +160,7 @@ def _compare_problem(loaded, frame):
     k = int(np.argmax(np.linalg.norm(data.loads[:, :3], axis=1))) if frame is None else frame
     if not 0 <= k < len(data):
         raise InputError(f"--frame must be in 0..{len(data) - 1}, got {frame}")
-    return problem.with_load(data.load_objects()[k], body=data.body)
+    return problem.with_load(data.load_objects()[k], body=data.body), suspicions
 
 
 @app.command()

@@ -139,8 +139,8 @@ def _rotating(body) -> list[str]:
 
 def _check_references(scenario, problem, shape: ContactShape) -> None:
     """A body free to turn whose reference was left at the origin, far from the contact."""
-    if scenario.geometry.kind == "generator":
-        return  # a generator's meshes bring their own reference points
+    if scenario.geometry.kind not in ("meshes", "springs"):
+        return  # a generator brings its bodies' reference points (a sphere's centre, a ball's)
     for k in (1, 2):
         section, body = getattr(scenario, f"body{k}"), getattr(problem, f"body{k}")
         turns = _rotating(body)
@@ -157,7 +157,7 @@ def _check_references(scenario, problem, shape: ContactShape) -> None:
 
 
 def _far_references(scenario, problem, shape: ContactShape) -> list[str]:
-    if scenario.geometry.kind == "generator":
+    if scenario.geometry.kind not in ("meshes", "springs"):
         return []
     lines = []
     for k in (1, 2):

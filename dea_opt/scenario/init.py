@@ -215,7 +215,10 @@ def init_scenario(
     folder = output.parent
     if not folder.is_dir():
         raise InputError(f"-o: the folder {folder} does not exist")
+    from ..progress import stage
+
     parts = {"body1": body1, "body2": body2}
+    stage("reading meshes")
     sizes = {}
     for option, part in parts.items():
         for label, path in _files(part).items():

@@ -76,10 +76,11 @@ def _calibrate_and_write(
 
     from ..io.atomic import write_atomic
     from ..io.summary import write_json
-    from ..scenario import build_problem
+    from ..run import prepare_run
     from .covariance import spatial_correlation
 
-    problem = build_problem(scenario)
+    # read, cast and checked as a run's (the check before solving stops a unit or sign slip)
+    problem, _, _, suspicions = prepare_run(scenario)
     stage("reading the pressure map")
     names = tuple(parameters) if parameters else problem.law.parameter_names
     data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
@@ -90,6 +91,8 @@ def _calibrate_and_write(
             raise InputError(f"correlation_length: {exc}") from None
         data = dataclasses.replace(data, correlation=correlation)
     fit = calibrate(problem, data, names, progress=progress)
+    if suspicions:
+        fit = dataclasses.replace(fit, notes=(*fit.notes, *(f"suspicious input: {line}" for line in suspicions)))
     stage("writing outputs")
     folder = Path(folder)
     files = {
