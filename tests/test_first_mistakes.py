@@ -107,7 +107,7 @@ def test_a_load_in_the_wrong_column_is_named(tmp_path, meshes):
 def test_a_static_force_in_the_wrong_component_gets_the_corrected_force(tmp_path, meshes):
     text = scenario_text(meshes).replace("[0.0, 0.0, -1000.0]", "[-1000.0, 0.0, 0.0]")
     code, first, _ = run(tmp_path, text)
-    error_line(code, first, "lies along the contact's surface", "[load] force = [0, 0, -1000]")
+    error_line(code, first, "lies along the contact's surface", "[load] force = [0.0, 0.0, -1000.0]")
 
 
 def test_a_forgotten_sign_is_named_once_for_every_frame_with_the_key(tmp_path, meshes):
@@ -127,7 +127,7 @@ def test_a_forgotten_sign_in_an_opensim_file(tmp_path, meshes):
 
 def test_a_static_load_pulling_apart_gets_the_negated_force(tmp_path, meshes):
     code, first, _ = run(tmp_path, scenario_text(meshes).replace("-1000.0]", "1000.0]"))
-    error_line(code, first, "the load pulls the bodies apart", "[load] force = [0, 0, -1000]", "cannot carry")
+    error_line(code, first, "the load pulls the bodies apart", "[load] force = [0.0, 0.0, -1000.0]", "cannot carry")
 
 
 def test_moments_in_n_mm_read_as_si_get_units_mm(tmp_path, meshes):

@@ -159,7 +159,8 @@ def cause_text(cause: str, source: LoadSource, shape: ContactShape, forces, who:
 
 
 def _toml(vector) -> str:
-    return "[" + ", ".join(f"{float(v) + 0.0:g}" for v in vector) + "]"
+    """``[0.0, 0.0, -1000.0]``: a vector as a scenario writes it (floats, 6 significant digits)."""
+    return "[" + ", ".join(repr(float(f"{float(v) + 0.0:.6g}")) for v in vector) + "]"
 
 
 def failure_lines(failures, loads, problem, source: LoadSource, body: int, total: int) -> list[str]:
