@@ -103,3 +103,4 @@ def test_frames_in_words():
     assert frames_text(range(51), 51) == "every frame (51 of 51)"
     assert frames_text([0, 1, 2, 3, 4, 9], 51) == "frames 0-4, 9 (6 of 51)"
     assert frames_text([7], 51) == "frame 7 (1 of 51)"
+    assert frames_text([7], 51, 0.25) == "frame 7 (0.25 s, 1 of 51)"

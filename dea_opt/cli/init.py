@@ -7,6 +7,7 @@ from typing import Annotated
 
 import typer
 
+from ..laws.moduli import DEFAULT_MATERIAL, MODULI
 from .common import QuietOpt, _reported, app
 
 
@@ -69,8 +70,9 @@ def init(
     material: Annotated[
         str | None,
         typer.Option(
-            help="A row of dea-opt's table of moduli for H: cartilage-slow, knee-cartilage (the default), "
-            "hip-cartilage, ankle-cartilage, uhmwpe-cams, uhmwpe-dm, uhmwpe-ankle.",
+            help="A row of dea-opt's table of moduli for H (the tutorial's 'Which modulus'): "
+            + ", ".join(f"{row.key} ({row.H:g} MPa)" for row in MODULI)
+            + f"; default {DEFAULT_MATERIAL}.",
             show_default=False,
         ),
     ] = None,

@@ -77,11 +77,14 @@ class LoadSource:
         return "[load] moment, N mm about the reference point"
 
 
-def frames_text(frames, total: int) -> str:
-    """``frames 0-4, 9 (6 of 51)``, or ``every frame (51 of 51)``."""
+def frames_text(frames, total: int, time: float | None = None) -> str:
+    """``frames 0-4, 9 (6 of 51)``, ``every frame (51 of 51)``, or ``frame 2 (0.2 s, 1 of 5)``
+    (one frame, at ``time`` s)."""
     frames = sorted(int(f) for f in frames)
     if len(frames) == total:
         return f"every frame ({total} of {total})"
+    if len(frames) == 1 and time is not None:
+        return f"frame {frames[0]} ({time:g} s, 1 of {total})"
     runs, start = [], frames[0]
     for a, b in zip(frames, [*frames[1:], None]):
         if b != a + 1:
@@ -195,11 +198,12 @@ def failure_lines(failures, loads, problem, source: LoadSource, body: int, total
     lines = []
     for (status, cause), members in groups.items():
         frames = [int(f["frame"]) for f in members]
-        who = f"{frames_text(frames, total)} {status}"
+        who = f"{frames_text(frames, total, members[0].get('time'))} {status}"
         if cause is None or shape is None:
             lines.append(f"{who}: {' '.join(str(members[0]['message']).split())}")
             continue
         forces = np.array([np.asarray(loads[k].force, dtype=float) for k in frames])
         arms = [moment_arm(shape, problem, loads[k].force, loads[k].moment, loads[k].point, body) for k in frames]
-        lines.append(f"{who}: {cause_text(cause, source, shape, forces, 'each frame', body, float(np.median(arms)))}")
+        each = "each frame" if len(frames) > 1 else "the frame"
+        lines.append(f"{who}: {cause_text(cause, source, shape, forces, each, body, float(np.median(arms)))}")
     return lines
