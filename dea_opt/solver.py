@@ -275,7 +275,7 @@ def solve(
             method,
             certificate_tol=certificate_tol,
             strict=strict,
-            load_checks=(loadcheck.check_unresisted, loadcheck.check_cone),
+            unresisted=loadcheck.check_unresisted,
             **options,
         )
     with single_threaded_blas():
