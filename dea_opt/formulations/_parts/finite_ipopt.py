@@ -190,14 +190,6 @@ def _turn(system, x) -> float:
     return float(np.linalg.norm(system.coordinates(x)[3:6]))
 
 
-def _near(T, candidate, x) -> bool:
-    """Whether ``candidate`` lies within the box of one IPOPT step (in the scaled variables) of ``x``."""
-    if not np.isfinite(candidate).all():
-        return False
-    xi = np.linalg.lstsq(T, candidate - x, rcond=None)[0]
-    return float(np.abs(xi).max(initial=0.0)) <= _STEP_BOUND
-
-
 def _scaled_residual(state, T, energy_scale) -> float:
     """The physical residual in the scaled variables, relative to the load and the springs' force."""
     free = state.system.free
@@ -292,19 +284,16 @@ def solve(
         converged = float(np.linalg.norm(step)) <= outer_tol
         plain = system.state(system.coordinates(x_new), law)
         best = (_scaled_residual(plain, T, energy_scale), x_new, plain)
-        # Anderson's centre, where the plain step stayed inside its box (a step to the box's edge, as
-        # with no spring in contact, is no smooth map to accelerate), within that box of the plain
-        # map's point and the rotation's range, and only where clearly better (not by rounding)
-        inside = float(np.abs(step).max(initial=0.0)) < _STEP_BOUND * (1.0 - 1e-6)
-        if not converged and inside:
+        # Anderson's centre, within the rotation's range (extrapolating steps that all reached the
+        # box, as with no spring in contact, it once leapt 1e15 degrees, where the residual read 1
+        # as at the plain map's point), and only where clearly better: not by the rounding of two sums
+        if not converged:
             candidate = anderson.next(x, x_new)
-            if _near(T, candidate, x_new) and _turn(system, candidate) <= ROTATION_RANGE:
+            if np.isfinite(candidate).all() and _turn(system, candidate) <= ROTATION_RANGE:
                 trial = system.state(system.coordinates(candidate), law)
                 value = _scaled_residual(trial, T, energy_scale)
                 if value < _BETTER * best[0]:
                     best = (value, candidate, trial)
-        elif not inside:
-            anderson = _Anderson(T)  # its history holds no smooth map
         residual, x, state = best
         history.append(residual)
         if converged and residual <= max(outer_tol, 1e-9):
