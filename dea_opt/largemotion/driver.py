@@ -189,8 +189,8 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, unresiste
         system, (T, E0, small) = start_system, scaled_directions(start_system, law)
     first = tracker is not None  # the first solve, which may start again at the base pose
     began = "given" if not cold else "zero"
-    # the small kinematics' answer starts springs that follow mesh 2 and IPOPT (or any solve asked to)
-    if cold and loaded and (how == "predictor" or (how == "auto" and (tracker is not None or method != "finite"))):
+    # the small kinematics' answer starts springs that follow mesh 2 (or any solve asked to)
+    if cold and loaded and (how == "predictor" or (how == "auto" and tracker is not None)):
         guess, unsolved = predicted(small, law, x, system)
         if tracker is not None and unsolved and not near_base(tracker, system):  # springs brought up to date
             system, failed = at_base(tracker, system, law)
@@ -199,10 +199,12 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, unresiste
                 return _solution(problem, system, small, law, failed, method, tracker, certificate_tol, build, 0, [])
             T, E0, small = scaled_directions(system, law)
         deepest = small.strain_at(guess).min()
-        if not unsolved and deepest <= -1.0 and run is not None and (proof := run.proof()) is not None:
+        # springs that follow mesh 2 would leave the model through the layer: said before any solve
+        # where proved (closed-form targets solve on; an answer past eps = -1 fails its validity)
+        crushing = tracker is not None and not unsolved and deepest <= -1.0
+        if crushing and run is not None and (proof := run.proof()) is not None:
             run.raise_unsupported()
-            if tracker is not None:
-                tracker.counts["stable"] = True
+            tracker.counts["stable"] = True
             crushed = crushed_at_start(system, law, guess, deepest, proof)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
         x, cold = guess, unsolved
