@@ -42,7 +42,15 @@ from dea_opt.formulations.finite import Targets  # noqa: E402
 from dea_opt.geometry import plate_layer, sphere_on_bed_layer  # noqa: E402
 
 TOL = 1e-6
-FREE_SETS = [("uz",), ("uz", "ry"), ("uz", "rx", "ry"), ("uz", "rx"), ("uz", "rz"), ("rx", "ry"), ("uz", "rx", "ry", "rz")]
+FREE_SETS = [
+    ("uz",),
+    ("uz", "ry"),
+    ("uz", "rx", "ry"),
+    ("uz", "rx"),
+    ("uz", "rz"),
+    ("rx", "ry"),
+    ("uz", "rx", "ry", "rz"),
+]
 
 
 # --- the checker's own geometry and laws ------------------------------------------------------
@@ -127,13 +135,22 @@ class Punch:
         self.layer = plate_layer(6.0, 6.0, 30, 6, thickness=10.0)
 
     def problem(self, rng):
-        law = d.LinearLaw(10 ** rng.uniform(0, 1.5)) if rng.random() < 0.5 else d.AteshianLaw(10 ** rng.uniform(0, 1.3), rng.uniform(0, 0.6))
+        law = (
+            d.LinearLaw(10 ** rng.uniform(0, 1.5))
+            if rng.random() < 0.5
+            else d.AteshianLaw(10 ** rng.uniform(0, 1.3), rng.uniform(0, 0.6))
+        )
         force = 10 ** rng.uniform(-3, 3)
         lever = rng.uniform(0, 2.7, 2) * (rng.random(2) < 0.6)
         free = [("uz",), ("uz", "ry"), ("uz", "rx", "ry"), ("uz", "rx")][rng.integers(4)]
         return d.ContactProblem(
-            self.layer, law, force=(0, 0, -force), moment=(-force * lever[1], force * lever[0], 0.0),
-            reference=(0.0, 0.0, 0.0), free=free, kinematics="finite",
+            self.layer,
+            law,
+            force=(0, 0, -force),
+            moment=(-force * lever[1], force * lever[0], 0.0),
+            reference=(0.0, 0.0, 0.0),
+            free=free,
+            kinematics="finite",
         )
 
     def gaps(self, problem, solution):
@@ -150,14 +167,24 @@ class Ball:
         self.layer = sphere_on_bed_layer(25.0, 2.0, 7.0, 24, 20)
 
     def problem(self, rng):
-        law = d.LinearLaw(10 ** rng.uniform(0, 1.5)) if rng.random() < 0.6 else d.AteshianLaw(10 ** rng.uniform(0, 1.3), rng.uniform(0, 0.6))
+        law = (
+            d.LinearLaw(10 ** rng.uniform(0, 1.5))
+            if rng.random() < 0.6
+            else d.AteshianLaw(10 ** rng.uniform(0, 1.3), rng.uniform(0, 0.6))
+        )
         reference = (rng.uniform(-3, 3), rng.uniform(-3, 3), 25.0 + rng.uniform(-8, 4))
         force = 10 ** rng.uniform(-2, 2.5)
         moment = tuple(rng.normal(size=3) * force * rng.uniform(0, 3) * (rng.random(3) < 0.7))
         free = [("uz",), ("uz", "rx", "ry"), ("rx", "ry"), ("uz", "rx"), ("uz", "rx", "ry", "rz")][rng.integers(5)]
         return d.ContactProblem(
-            self.layer, law, force=(0, 0, -force), moment=moment, reference=reference, free=free,
-            kinematics="finite", targets=Targets.spheres((0.0, 0.0, 25.0), 25.0, n=len(self.layer)),
+            self.layer,
+            law,
+            force=(0, 0, -force),
+            moment=moment,
+            reference=reference,
+            free=free,
+            kinematics="finite",
+            targets=Targets.spheres((0.0, 0.0, 25.0), 25.0, n=len(self.layer)),
         )
 
     def gaps(self, problem, solution):
@@ -175,13 +202,23 @@ class Knee:
 
     def problem(self, rng):
         k = self.knee
-        law = d.LinearLaw([3.0, 10.0, 40.0][rng.integers(3)]) if rng.random() < 0.7 else d.AteshianLaw(10 ** rng.uniform(0.3, 1.3), rng.uniform(0, 0.5))
+        law = (
+            d.LinearLaw([3.0, 10.0, 40.0][rng.integers(3)])
+            if rng.random() < 0.7
+            else d.AteshianLaw(10 ** rng.uniform(0.3, 1.3), rng.uniform(0, 0.5))
+        )
         force = 10 ** rng.uniform(-3, 3.3)
         lever = rng.normal(size=3) * rng.uniform(0, 8) * (rng.random(3) < 0.5)
         free = FREE_SETS[rng.integers(len(FREE_SETS))]
         return d.ContactProblem(
-            k["cast"].layer, law, force=(0, 0, -force), moment=tuple(force * lever), reference=tuple(k["reference"]),
-            free=free, kinematics="finite", targets=k["cast"],
+            k["cast"].layer,
+            law,
+            force=(0, 0, -force),
+            moment=tuple(force * lever),
+            reference=tuple(k["reference"]),
+            free=free,
+            kinematics="finite",
+            targets=k["cast"],
         )
 
     def gaps(self, problem, solution):
@@ -254,8 +291,20 @@ def attack(n: int, seed: int = 2025, out=print) -> dict:
         kinds.append(Knee())
     except BaseException:  # the meshes are absent: closed forms only  # noqa: BLE001
         pass
-    report = {"n": 0, "certified": 0, "failed": 0, "not_supported": 0, "worst_residual": 0.0, "bad": [],
-              "unproved": [], "disagreements": [], "missed": [], "fresh_worst": 0.0, "by_kind": {}, "seconds": 0.0}
+    report = {
+        "n": 0,
+        "certified": 0,
+        "failed": 0,
+        "not_supported": 0,
+        "worst_residual": 0.0,
+        "bad": [],
+        "unproved": [],
+        "disagreements": [],
+        "missed": [],
+        "fresh_worst": 0.0,
+        "by_kind": {},
+        "seconds": 0.0,
+    }
     began = time.perf_counter()
     for i in range(n):
         geometry = kinds[i % len(kinds)]
@@ -274,7 +323,9 @@ def attack(n: int, seed: int = 2025, out=print) -> dict:
                 report["not_supported"] += 1
                 found = other_means(problem, geometry)
                 if found is not None:
-                    report["disagreements"].append(f"{tag}: LoadNotSupportedError ({str(error)[:120]}) but {found[0]} certified one")
+                    report["disagreements"].append(
+                        f"{tag}: LoadNotSupportedError ({str(error)[:120]}) but {found[0]} certified one"
+                    )
                 out(f"{tag}: not supported ({time.perf_counter() - t0:.1f} s)")
                 continue
             if solution.success:
@@ -297,7 +348,9 @@ def attack(n: int, seed: int = 2025, out=print) -> dict:
                 said = f"{tag}: {status.value} ({solution.message[:160]}) but {found[0]} certified a stable answer"
                 negative = status in (d.Status.CRUSHED, d.Status.UNBOUNDED)
                 (report["disagreements"] if negative else report["missed"]).append(said)
-            out(f"{tag}: {status.value} ({time.perf_counter() - t0:.1f} s){'' if found is None else ' -- ' + found[0] + ' found one'}")
+            out(
+                f"{tag}: {status.value} ({time.perf_counter() - t0:.1f} s){'' if found is None else ' -- ' + found[0] + ' found one'}"
+            )
     report["seconds"] = time.perf_counter() - began
     return report
 

@@ -223,7 +223,9 @@ def test_a_load_beyond_what_every_face_of_the_tibia_carries_is_proved_crushed(kn
     solution = quiet(d.solve, problem, method, strict=False)
     assert solution.status is d.Status.CRUSHED and not solution.success and solution.iterations == 0
     assert solution.info["proved"] == "crushed" and "H: 0.45 MPa" in solution.message
-    said = re.search(r"the load asks ([0-9.e+]+) N, more than the (\d+) springs the layer can have carry there", solution.message)
+    said = re.search(
+        r"the load asks ([0-9.e+]+) N, more than the (\d+) springs the layer can have carry there", solution.message
+    )
     assert said and float(said.group(1)) == pytest.approx(LOAD) and int(said.group(2)) == len(tibia.faces)
     carried = float(re.search(r"\(([0-9.e+]+) N at the law's", solution.message).group(1))
     assert carried == pytest.approx(most, rel=1e-3)
@@ -263,7 +265,10 @@ def test_auto_finds_the_equilibrium_newton_missed_and_the_validity_says_springs_
     force, moment = _on_femur(solution)
     # along the free rotations the moment balances through the rotation vector's left Jacobian
     theta = solution.u[9:12]
-    t, W = np.linalg.norm(theta), np.array([[0, -theta[2], theta[1]], [theta[2], 0, -theta[0]], [-theta[1], theta[0], 0]])
+    t, W = (
+        np.linalg.norm(theta),
+        np.array([[0, -theta[2], theta[1]], [theta[2], 0, -theta[0]], [-theta[1], theta[0], 0]]),
+    )
     J = np.eye(3) + (1 - np.cos(t)) / t**2 * W + (t - np.sin(t)) / t**3 * W @ W
     assert force[2] == pytest.approx(LOAD, rel=1e-6) and np.abs((J.T @ moment)[:2]).max() < 1e-6 * LOAD * 10.0
     assert not solution.validity.valid and solution.validity["lost_through_layer"].passed is False

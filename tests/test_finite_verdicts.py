@@ -56,7 +56,12 @@ LIFTED = [  # (H, beta, F, M): a lever of 2.2 to 2.8 mm on a punch 3 mm to its e
 
 def punch(H, beta, F, M):
     return d.ContactProblem(
-        PUNCH, d.AteshianLaw(H, beta), force=(0, 0, -F), moment=(0, M, 0), reference=(0, 0, 0), free=("uz", "ry"),
+        PUNCH,
+        d.AteshianLaw(H, beta),
+        force=(0, 0, -F),
+        moment=(0, M, 0),
+        reference=(0, 0, 0),
+        free=("uz", "ry"),
         kinematics="finite",
     )
 
@@ -139,7 +144,9 @@ def test_a_load_that_pulls_the_punch_off_its_bed_is_not_supported_at_any_pose():
         PUNCH, d.LinearLaw(10.0), force=(0, 0, 10.0), moment=(0, 5.0, 0), free=("uz", "ry"), kinematics="finite"
     )
     for method in ("newton", "nlp", "auto"):
-        with pytest.raises(d.LoadNotSupportedError, match="none of the 360 springs the layer can have pushes") as caught:
+        with pytest.raises(
+            d.LoadNotSupportedError, match="none of the 360 springs the layer can have pushes"
+        ) as caught:
             quiet(d.solve, problem, method)
         assert caught.value.direction["body2.uz"] == pytest.approx(10.0)
 
@@ -156,8 +163,14 @@ def flexed():
     pose = pose_matrix([0, 0, 0, np.radians(15.0), 0, 0], reference + [0.0, 0.0, 25.0])
     cast = quiet(M.cast_springs, knee["mesh1"], knee["mesh2"], pose=pose, **knee["options"])
     problem = d.ContactProblem(
-        cast.layer, d.LinearLaw(40.0), force=(0, 0, -1000.0), moment=(2000.0, 0, 0), reference=tuple(reference),
-        free=("uz", "rx", "ry"), kinematics="finite", targets=cast,
+        cast.layer,
+        d.LinearLaw(40.0),
+        force=(0, 0, -1000.0),
+        moment=(2000.0, 0, 0),
+        reference=tuple(reference),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=cast,
     )
     return problem
 
@@ -197,12 +210,19 @@ def test_a_layer_from_meshes_is_re_cast_by_default_and_a_fresh_cast_carries_the_
     knee = real_knee()
     layer = quiet(d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], **knee["options"])
     problem = d.ContactProblem(
-        layer, d.LinearLaw(10.0), force=(0, 0, -1000.0), moment=(5000.0, 0, 0), reference=tuple(knee["reference"]),
-        free=("uz", "rx", "ry"), kinematics="finite",
+        layer,
+        d.LinearLaw(10.0),
+        force=(0, 0, -1000.0),
+        moment=(5000.0, 0, 0),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
     )
     solution = quiet(d.solve, problem)
     assert solution.success
-    fresh = quiet(d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_gap=2.0, max_overlap=10.0)
+    fresh = quiet(
+        d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_gap=2.0, max_overlap=10.0
+    )
     carried = float((10.0 * np.maximum(-fresh.gap / fresh.thickness, 0.0) * fresh.areas) @ fresh.normals[:, 2])
     assert carried == pytest.approx(1000.0, rel=1e-4)
     assert layer.cast is not None and layer.cast.layer is layer
@@ -234,8 +254,14 @@ def test_a_tiny_load_on_the_knee_is_carried_from_a_larger_one(force, lever, law)
     and its answer is balanced (summed here from each spring's gap to the face it met) and stable."""
     knee = real_knee()
     problem = d.ContactProblem(
-        knee["cast"].layer, law, force=(0, 0, -force), moment=tuple(force * np.asarray(lever)),
-        reference=tuple(knee["reference"]), free=("uz", "rx", "ry"), kinematics="finite", targets=knee["cast"],
+        knee["cast"].layer,
+        law,
+        force=(0, 0, -force),
+        moment=tuple(force * np.asarray(lever)),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=knee["cast"],
     )
     assert not quiet(d.solve, problem, "newton", strict=False).success
     solution = quiet(d.solve, problem, "auto")
@@ -261,9 +287,14 @@ def test_a_sliding_runaway_with_a_bounded_law_is_not_called_crushed():
     iterates did."""
     knee = real_knee()
     problem = d.ContactProblem(
-        knee["cast"].layer, d.AteshianLaw(2.0, 0.3), force=(0, 0, -0.00417),
-        moment=tuple(0.00417 * np.array([-0.535, -0.807, -0.581])), reference=tuple(knee["reference"]),
-        free=("ux", "uy", "uz", "rx", "ry"), kinematics="finite", targets=knee["cast"],
+        knee["cast"].layer,
+        d.AteshianLaw(2.0, 0.3),
+        force=(0, 0, -0.00417),
+        moment=tuple(0.00417 * np.array([-0.535, -0.807, -0.581])),
+        reference=tuple(knee["reference"]),
+        free=("ux", "uy", "uz", "rx", "ry"),
+        kinematics="finite",
+        targets=knee["cast"],
     )
     solution = quiet(d.solve, problem, "newton", strict=False)
     assert not solution.success and solution.status is d.Status.MAX_ITERATIONS

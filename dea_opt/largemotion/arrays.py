@@ -152,8 +152,6 @@ def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
     return [(n, check_options(n, parts[n]), x0 if i == 0 else None) for i, n in enumerate(chain)]
 
 
-
-
 def remembered(problem):
     """``problem`` with ``targets=`` the :class:`~dea_opt.mesh.SpringCast` its layer is the layer of
     (``SpringLayer.from_meshes``, ``cast_springs(...).layer``: :attr:`~dea_opt.layer.SpringLayer.cast`)

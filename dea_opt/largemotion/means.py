@@ -1,6 +1,7 @@
 """``method="auto"`` with finite kinematics: the other means tried before a failure is said.
 
-Written math: ``formulations/finite.md`` ("What auto tries"). Where Newton from the given start
+Written math: ``formulations/finite.md`` ("What auto tries"; its budget: ``formulations/finite_nlp.md``,
+"Limits"). Where Newton from the given start
 finds no certified answer and :mod:`~dea_opt.largemotion.verdict` proves nothing about the
 load, an answer may still be reached from elsewhere: :func:`rescue` tries, in a time budget
 (:func:`~dea_opt.largemotion.fallback.budget`), Newton again with :data:`RECASTS` times the updates
