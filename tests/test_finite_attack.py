@@ -248,7 +248,7 @@ def start(rng, problem):
 # --- the cross-check of a failure ------------------------------------------------------------------
 
 
-def other_means(problem, kind, budget=60.0):
+def other_means(problem, kind, budget=30.0):
     """A certified stable answer the script finds by itself: IPOPT from rest, or Newton along a load
     continuation from a fraction of the load that is carried (warm starts). None if it finds none."""
 
