@@ -117,16 +117,13 @@ def test_a_torsion_past_the_largest_the_knee_holds_did_not_converge_and_says_the
     assert caught.value.status is d.Status.MAX_ITERATIONS
 
 
-def test_auto_follows_the_torsion_up_to_the_largest_the_knee_holds_before_it_fails(knee, monkeypatch):
+@pytest.mark.slow  # a minute: the continuation's 26 solves and IPOPT's updates
+def test_auto_follows_the_torsion_up_to_the_largest_the_knee_holds_before_it_fails(knee):
     """``auto`` tries the other starts, a load continuation and IPOPT before it fails: the
     continuation from a tenth of the load (100 N, 500 N mm) holds it up to about two thirds of it
     (the articular surfaces' limit grows with the force that presses them together), and IPOPT,
-    given the little time the budget leaves here, gets no further."""
-    from dea_opt.largemotion import fallback
-
-    monkeypatch.setattr(fallback, "FLOOR", 2.0)
-    monkeypatch.setattr(fallback, "MULTIPLE", 0.0)
-    solution = quiet(d.solve, torsion(knee, 5000.0), strict=False)
+    given 2 s here (``max_time``), gets no further."""
+    solution = quiet(d.solve, torsion(knee, 5000.0), strict=False, max_time=2.0)
     assert not solution.success and solution.status not in (d.Status.CRUSHED, d.Status.UNBOUNDED)
     story = solution.info["fallback"]
     assert story.startswith("finite ended with status 'unbounded'") and "a continuation from 0.1 x the load" in story

@@ -35,10 +35,10 @@ def ball_problem(layer, reference, moment, free, force=(0.0, 0.0, 0.0)):
     return ball_on_bed(layer, reference, moment, free, force, H=H, radius=R)
 
 
-def solve(problem, method="auto"):
+def solve(problem, method="auto", **options):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", d.ValidityWarning)
-        return d.solve(problem, method)
+        return d.solve(problem, method, **options)
 
 
 def springs_on_body2(solution):
@@ -188,29 +188,25 @@ def test_a_moment_along_the_line_through_the_centre_turns_the_ball_without_bound
     assert caught.value.status is d.Status.MAX_ITERATIONS
 
 
-def test_auto_tries_the_other_means_before_it_says_newton_found_no_equilibrium(bed, monkeypatch):
+def test_auto_tries_the_other_means_before_it_says_newton_found_no_equilibrium(bed):
     """No pose is an equilibrium (the turn about that line changes nothing but the moment's work),
     but that is not proved from the problem: ``auto`` tries the other start, a load continuation
-    and IPOPT (here in a budget of 1 s) before it fails, and says what each found."""
-    from dea_opt.largemotion import fallback
-
-    monkeypatch.setattr(fallback, "FLOOR", 1.0)
-    monkeypatch.setattr(fallback, "MULTIPLE", 0.0)
+    and IPOPT (here given 1 s, ``max_time``) before it fails, and says what each found."""
     problem = ball_problem(bed, OFF_CENTRE, SPIN, ("rx", "ry"))
-    solution = solve_loose(problem)
+    solution = solve_loose(problem, max_time=1.0)
     assert not solution.success and solution.status not in (d.Status.CRUSHED, d.Status.UNBOUNDED)
     story = solution.info["fallback"]
     assert story.startswith("finite ended with status 'unbounded' (the energy decreases without bound")
     assert "finite_nlp from" in story and "a continuation" in story
     with pytest.raises(d.SolverError, match="the energy decreases without bound") as caught:
-        solve(problem, "auto")
+        solve(problem, "auto", max_time=1.0)
     assert caught.value.status not in (d.Status.CRUSHED, d.Status.UNBOUNDED)
 
 
-def solve_loose(problem, method="auto"):
+def solve_loose(problem, method="auto", **options):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", d.ValidityWarning)
-        return d.solve(problem, method, strict=False)
+        return d.solve(problem, method, strict=False, **options)
 
 
 class _Line:
