@@ -357,7 +357,7 @@ def attack(n: int, seed: int = 2025, out=print) -> dict:
 
 @pytest.mark.slow
 def test_an_attack_of_random_finite_problems_finds_no_wrong_answer_and_no_unproved_verdict():
-    n = int(os.environ.get("DEA_ATTACK_N", "500"))
+    n = int(os.environ.get("DEA_ATTACK_N", "40"))
     report = attack(n, int(os.environ.get("DEA_ATTACK_SEED", "2025")), out=lambda line: None)
     assert report["n"] == n
     assert not report["bad"], report["bad"]

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import time
 
-__all__ = ["FLOOR", "MULTIPLE", "budget", "deadline", "out_of_time", "why", "within"]
+__all__ = ["CEILING", "FLOOR", "MULTIPLE", "budget", "deadline", "out_of_time", "why", "within"]
 
 #: Seconds IPOPT has at least after a failed Newton: twice the longest it took to succeed on the
 #: knee (34 s), however quickly Newton failed (a Newton that fails at its first iteration tells
@@ -25,6 +25,9 @@ FLOOR = 60.0
 #: IPOPT's budget in multiples of the time Newton took, for problems larger than the knee: twice
 #: the knee's IPOPT (28 to 34 s) over its Newton's 100 iterations (0.3 s).
 MULTIPLE = 200.0
+#: Seconds the means after a failed Newton have at most, however long Newton took (a Newton that
+#: scanned whole turns on the knee took 3 s, which made the multiple 10 minutes).
+CEILING = 180.0
 
 
 def why(name: str, solution) -> str:
@@ -36,13 +39,13 @@ def why(name: str, solution) -> str:
 
 
 def budget(newton_time: float, given: dict, declared) -> dict | None:
-    """``{"max_time": s, "newton_time": s}``: the seconds IPOPT has after a Newton that took
-    ``newton_time`` s, the larger of :data:`FLOOR` and :data:`MULTIPLE` times it; None when the
-    user gave ``max_time`` (``given``: the options of the solve) or the fallback does not declare
-    it (``declared``: its options' names)."""
+    """``{"max_time": s, "newton_time": s}``: the seconds the means have after a Newton that took
+    ``newton_time`` s, the larger of :data:`FLOOR` and :data:`MULTIPLE` times it, at most
+    :data:`CEILING`; None when the user gave ``max_time`` (``given``: the options of the solve) or
+    the fallback does not declare it (``declared``: its options' names)."""
     if "max_time" in given or "max_time" not in declared:
         return None
-    return {"max_time": max(FLOOR, MULTIPLE * newton_time), "newton_time": newton_time}
+    return {"max_time": min(CEILING, max(FLOOR, MULTIPLE * newton_time)), "newton_time": newton_time}
 
 
 def deadline(opts: dict, limit: dict | None, start: float) -> dict:
@@ -78,8 +81,8 @@ def out_of_time(solution, limit: dict | None, spent: float, reason: str) -> str:
     said = (
         f"IPOPT, run by method='auto' after Newton failed (info['fallback'] says how), was stopped at the time "
         f"auto gives it, {seconds} (the larger of {FLOOR:g} s and {MULTIPLE:g} times Newton's "
-        f"{limit['newton_time']:.3g} s; it ran {spent:.3g} s), without a certified answer: give it more with "
-        f"max_time= (seconds)"
+        f"{limit['newton_time']:.3g} s, at most {CEILING:g} s; it ran {spent:.3g} s), without a certified answer: "
+        f"give it more with max_time= (seconds)"
     )
     object.__setattr__(solution, "message", f"{solution.message}; {said}")
     return f"{reason}; then IPOPT stopped at its time budget of {seconds} (max_time= gives it more)"
