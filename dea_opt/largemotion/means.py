@@ -88,6 +88,8 @@ def continuation(run, name, opts, problem, clock, story) -> tuple:
     moment = np.asarray(problem.body2.moment, dtype=float)
 
     def solve_at(lam, x0):
+        if lam == 1.0:  # the given load: the problem itself
+            return run(name, opts, x0=x0)
         scaled = problem.with_load(force=tuple(lam * force), moment=tuple(lam * moment))
         return run(name, opts, x0=x0, problem=scaled)
 
@@ -181,7 +183,7 @@ def rescue(run, steps, first, options: dict, newton_time: float):
     began = time.perf_counter()
     opts = fallback.deadline(i_opts, None if limit is None else {**limit, "max_time": clock.left()}, began)
     last = run(ipopt, opts, x0=nearest)
-    where = "the continuation's nearest pose" if nearest is not None else "the small kinematics' answer"
+    where = "the continuation's nearest pose" if nearest is not None else "its own start"
     story.append(_said(f"{ipopt} from {where}", last, began))
     spent = time.perf_counter() - clock.began
     reason = fallback.out_of_time(last, limit, spent, "; ".join(story))
