@@ -284,7 +284,9 @@ def other_means(problem, kind, budget=30.0):
 # --- the attack ---------------------------------------------------------------------------------------
 
 
-def attack(n: int, seed: int = 2025, out=print) -> dict:
+def attack(n: int, seed: int = 2025, out=print, first: int = 0) -> dict:
+    """The report of ``n`` random problems (of seed ``seed``; from the ``first``-th on: the same
+    problems whatever part is solved, so that parts may run in parallel)."""
     rng = np.random.default_rng(seed)
     kinds = [Punch(), Ball()]
     try:
@@ -310,6 +312,8 @@ def attack(n: int, seed: int = 2025, out=print) -> dict:
         geometry = kinds[i % len(kinds)]
         problem = geometry.problem(rng)
         options = start(rng, problem)
+        if i < first:
+            continue
         tag = f"#{i} {geometry.name} {problem.law} F={problem.body2.force[2]:.3g} M={np.round(problem.body2.moment, 4).tolist()} free={problem.body2.free} {options}"
         counts = report["by_kind"].setdefault(geometry.name, {"n": 0, "certified": 0})
         counts["n"] += 1
@@ -367,7 +371,8 @@ def test_an_attack_of_random_finite_problems_finds_no_wrong_answer_and_no_unprov
 
 
 if __name__ == "__main__":
-    result = attack(int(sys.argv[1]) if len(sys.argv) > 1 else 500, int(sys.argv[2]) if len(sys.argv) > 2 else 2025)
+    given = [int(a) for a in sys.argv[1:4]]
+    result = attack(*(given + [500, 2025][len(given) :])[:2], first=given[2] if len(given) > 2 else 0)
     for key in ("bad", "unproved", "disagreements", "missed"):
         print(f"{key}: {len(result[key])}")
         for line in result[key]:
