@@ -56,13 +56,14 @@ def solve(
     method : str
         ``"finite"`` (or ``"newton"``): Newton with the consistent tangent; ``"finite_nlp"``
         (or ``"nlp"``): IPOPT on a conservative surrogate re-centred at each outer iteration
-        (``formulations/finite_nlp.md``); ``"auto"``: Newton, then IPOPT if Newton's answer
-        fails its certificate (``solution.info["fallback"]`` says why; not where Newton found the
-        layer crushed, no spring left, springs that do not settle, or no stable equilibrium near the
-        start: IPOPT meets the same, in minutes), in a time budget unless the options give
-        ``max_time``: the larger of 60 s and 200 times Newton's time, shared by its solves
-        (:mod:`~dea_opt.largemotion.fallback`); an IPOPT stopped by it fails (``max_iterations``),
-        its message and ``info["fallback"]`` saying so. ``"qp"`` is an
+        (``formulations/finite_nlp.md``); ``"auto"``: Newton, then, where its answer fails its
+        certificate and nothing is proved about the load (:mod:`~dea_opt.largemotion.verdict`), the
+        other means of :mod:`~dea_opt.largemotion.means` (more updates of the springs, other
+        starts, a load continuation, IPOPT), ``solution.info["fallback"]`` saying what each found,
+        in a time budget unless the options give ``max_time``
+        (:mod:`~dea_opt.largemotion.fallback`). A verdict on the load (``crushed``, a
+        :class:`~dea_opt.errors.LoadNotSupportedError`) is given where proved, by every method;
+        a solve that met one unproved did not converge (``max_iterations``). ``"qp"`` is an
         :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
     certificate_tol : float
     strict : bool
@@ -119,6 +120,9 @@ def _final(solution) -> bool:
     return bool(solution.info.get("proved")) or solution.info.get("at_base") is True
 
 
+_UNKNOWN = object()  # a proof not looked for yet
+
+
 class _Run:
     """The solves of one ``dea_opt.solve`` call: its problem and options, and the proof of a verdict on
     its load (:func:`~dea_opt.largemotion.verdict.prove`, computed once, when a solve needs it)."""
@@ -127,10 +131,10 @@ class _Run:
         self.problem, self.certificate_tol, self.frame, self.unresisted = problem, certificate_tol, frame, unresisted
         targets = problem.targets
         self.cast = targets if isinstance(targets, SpringCast) and opts.get("recast", True) else None
-        self._proof: object = ()
+        self._proof: object = _UNKNOWN
 
     def proof(self):
-        if self._proof == ():
+        if self._proof is _UNKNOWN:
             self._proof = verdict.prove(self.problem, self.cast)
         return self._proof
 
