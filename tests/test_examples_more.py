@@ -390,7 +390,7 @@ def test_study_files_and_summary(study):
     for row in summary.itertuples(index=False):
         runs = table[(table["law"] == row.law) & (table["n_springs"] == row.n_springs) & (table["label"] == row.label)]
         assert row.best_time == pytest.approx(runs["wall_time"].min(), rel=1e-12)
-        assert row.success_rate == 100.0
+        assert row.success_rate_percent == 100.0
     assert (summary[summary["label"] == "newton"]["relative"] == 1.0).all()
     assert (out / "solver_study.png").read_bytes()[:8] == PNG
     assert (out / "solver_study.md").read_text() == result["markdown"]

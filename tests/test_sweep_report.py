@@ -114,9 +114,9 @@ def test_piped_prints_only_the_summary(plate, tmp_path):
 
 
 def test_format_row():
-    row = {"case_id": "abc", "law.H": 5, "status": "ok", "peak_pressure": 2.1875, "wall_time": 0.42}
+    row = {"case_id": "abc", "law.H_MPa": 5, "status": "ok", "peak_pressure_MPa": 2.1875, "wall_time_s": 0.42}
     assert format_row(row, {"law.H": 5}) == "case abc  law.H=5  ok  peak 2.188 MPa  0.4 s"
-    failed = {"case_id": "def", "law.H": 5, "status": "error", "message": "x " * 80, "wall_time": 1.0}
+    failed = {"case_id": "def", "law.H_MPa": 5, "status": "error", "message": "x " * 80, "wall_time_s": 1.0}
     line = format_row(failed, {"law.H": 5}, "(finished by another sweep)")
     assert line.startswith("case def  law.H=5  error  1.0 s  (x x") and "...)" in line
     assert line.endswith("(finished by another sweep)") and "\n" not in line

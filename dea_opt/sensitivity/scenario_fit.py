@@ -81,7 +81,9 @@ def calibrate_scenario(
         "plot": folder / "calibration.png",
     }
     film_info = (
-        None if data.film is None else {"name": data.film.name, "lower": data.film.lower, "upper": data.film.upper}
+        None
+        if data.film is None
+        else {"name": data.film.name, "lower_MPa": data.film.lower, "upper_MPa": data.film.upper}
     )
     summary = {
         **fit.summary(),
@@ -89,7 +91,7 @@ def calibrate_scenario(
         "data": str(data_path),
         "film": film_info,
         "noise": data.noise,
-        "correlation_length": correlation_length,
+        "correlation_length_mm": correlation_length,
         "points": len(data.pressure),
         "points_matched": int(fit.residuals.size),
     }

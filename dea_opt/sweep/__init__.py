@@ -136,12 +136,12 @@ class SweepResult:
 
 def format_row(row: dict, overrides: dict, note: str = "") -> str:
     """One line for a finished case: id, overrides, status, peak pressure, wall time."""
-    values = " ".join(f"{k}={row.get(k, v)}" for k, v in overrides.items())
+    values = " ".join(f"{k}={v}" for k, v in overrides.items())
     line = f"case {row.get('case_id')}  {values}  {row.get('status')}"
-    peak = row.get("peak_pressure")
+    peak = row.get("peak_pressure_MPa")
     if isinstance(peak, (int, float)) and not math.isnan(peak):
         line += f"  peak {peak:.4g} MPa"
-    wall = row.get("wall_time")
+    wall = row.get("wall_time_s")
     if isinstance(wall, (int, float)):
         line += f"  {wall:.1f} s"
     if row.get("status") == RunStatus.ERROR:
@@ -204,7 +204,7 @@ def _check(workers, method) -> str | None:
 
 def check_outputs(outputs) -> tuple | None:
     """``--outputs`` as a tuple of ``[output].formats`` names (None: the scenario's own)."""
-    from ..loadpath.result import FORMATS
+    from ..scenario import FORMATS
 
     if outputs is None:
         return None
