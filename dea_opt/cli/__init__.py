@@ -175,7 +175,7 @@ def sweep(
     adopted = f", {len(result.adopted)} finished by another sweep meanwhile" if result.adopted else ""
     typer.echo(
         f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished{adopted}; results: "
-        f"{result.results_path}"
+        f"{result.results_path}" + (f", report: {result.report_path}" if result.report_path else "")
     )
     for reason, count in Counter(result.recomputed.values()).items():
         typer.echo(f"  recomputed {count} case(s): {reason}")

@@ -197,6 +197,7 @@ def run_demo(
     from ..scenario import build_problem
 
     scenario = demo_scenario(frames, coarse)
+    report: dict = {}
     out = check_output_folder(Path(output_dir) if output_dir is not None else Path.cwd() / "dea-opt-demo", force)
     method = check_method(method, scenario.solve.method)
     start = time.perf_counter()
@@ -226,10 +227,18 @@ def run_demo(
             )
             if compare:
                 outcome.files["comparison"] = comparison
+                report["comparison"] = rows
             return outcome
 
         outcome = publish_run(
-            scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "demo", method)
+            scenario,
+            out,
+            solve_and_write,
+            messages,
+            force=force,
+            info=run_info(scenario, "demo", method),
+            started=start,
+            report_extra=report,
         )
     out = outcome.folder or out
     echo(f"Gait cycle: {outcome.message}")

@@ -96,6 +96,8 @@ class SweepResult:
         Cases another process finished while this sweep ran (not computed here).
     recomputed : dict {case id: reason}
         Cases whose row was stale (or failed, with ``retry_failed``), and why.
+    report_path : Path or None
+        The sweep's ``report.html`` (:mod:`dea_opt.report.sweep`), once written.
     """
 
     table: Any
@@ -105,6 +107,7 @@ class SweepResult:
     skipped: list = field(default_factory=list)
     adopted: list = field(default_factory=list)
     recomputed: dict = field(default_factory=dict)
+    report_path: Path | None = None
 
     def _with_status(self, statuses) -> list:
         if self.table is None or not len(self.table) or "status" not in self.table:
@@ -234,6 +237,7 @@ def run_sweep(
     on_report=None,
     log: bool = True,
     outputs=None,
+    report: bool = True,
 ) -> SweepResult:
     """Run every case of the ``--set`` product whose row is missing or stale.
 
@@ -269,6 +273,9 @@ def run_sweep(
     log : bool
         Route Dask's logs, worker tracebacks and Python warnings to ``<output>/sweep.log``
         while the sweep runs (see :func:`dea_opt.sweep.logs.routed_to_log`).
+    report : bool
+        Write ``report.html`` into the sweep's folder at the end: every case of the folder, a
+        sortable table and a plot of any output against any swept value (:mod:`dea_opt.report.sweep`).
 
     Raises
     ------
@@ -376,6 +383,10 @@ def run_sweep(
             result.table = publisher.now()
     if stopped:
         raise RunInterrupted(_interrupted_report(out, cases)) from None
+    if report and result.table is not None and len(result.table):
+        from ..report import write_sweep_report
+
+        result.report_path = write_sweep_report(out, result.table, swept, scenario_path, sets)
     return result
 
 
