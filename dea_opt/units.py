@@ -7,7 +7,9 @@ the **suffix of its name**, ``peak_pressure_MPa``, ``contact_area_mm2``, ``Fz_N`
 ``time_s``, ``body2_rx_rad``. A name without a suffix holds a count, an index, a dimensionless
 ratio (a strain, a share, a relative residual), a flag or a text (:data:`UNITLESS` lists every one).
 In JSON, an object that holds a ``unit`` key (a validity check's ``value`` and ``limit``, a range's
-``min``, ``max`` and ``at_peak``) states the unit of its numbers there.
+``min``, ``max`` and ``at_peak``) states the unit of its numbers there, and an object whose own
+key ends with a unit gives it to its numbers (``peak_pressure_MPa: {lower: 2.1, upper: 1.9}``).
+:func:`unnamed_units` finds any number of a JSON document left out by these rules.
 
 Why names and not a sidecar schema (a Frictionless Table Schema beside each CSV): the unit then
 travels with the column wherever it goes (a spreadsheet, ``pandas.read_csv``, R's ``read.csv``,
@@ -122,6 +124,12 @@ UNITLESS = {
     "pid": "a process id",
     "certified": "a number of certified frames",
     "bundle": "a ligament bundle's index",
+    "runs": "a number of runs",
+    "equilibrium": "a certificate residual, relative to the problem's scale (1)",
+    "tension": "a certificate residual, relative (1)",
+    "complementarity": "a certificate residual, relative (1)",
+    "consistency": "a certificate residual, relative (1)",
+    "energy": "a certificate residual: the energy a Newton step could release, relative (1)",
 }
 
 #: Objects of the JSON outputs whose numbers carry no unit, and what they hold.
@@ -132,9 +140,6 @@ UNITLESS_OBJECTS = {
     "lost": "springs lost by the re-cast, by reason",
     "overrides": "the --set values by scenario key, as given (their units: dea-opt schema)",
     "failures": "frames without a certified answer, counted by status",
-    "medial": "a unit vector's components",
-    "anterior": "a unit vector's components",
-    "proximal": "a unit vector's components",
 }
 
 
@@ -164,30 +169,43 @@ def unit_name(name: str) -> str:
 
 def is_unitless(name: str) -> bool:
     """Whether ``name`` is one of :data:`UNITLESS`, or ends with ``_<one of them>`` (a region's
-    ``medial_force_share``, a check's ``validity_strain``)."""
-    return name in UNITLESS or any(name.endswith(f"_{u}") for u in UNITLESS)
+    ``medial_force_share``, a check's ``validity_strain``), or is a scenario key the schema gives
+    no unit (a sweep's ``load.scale``, ``law.kind``)."""
+    if name in UNITLESS or any(name.endswith(f"_{u}") for u in UNITLESS):
+        return True
+    return "." in name and _scenario_key_without_unit(name)
 
 
-def unnamed_units(data, where: str = "") -> list[str]:
+def _scenario_key_without_unit(name: str) -> bool:
+    from .scenario.docs import key_unit, schema_sections
+
+    table, _, key = name.partition(".")
+    known = any(t == table and any(key in m.model_fields for m in models) for t, models in schema_sections())
+    return known and key_unit(name) == ""
+
+
+def unnamed_units(data, where: str = "", stated: bool = False) -> list[str]:
     """Where a JSON document (or a dict) holds a number whose unit its name does not give: the
     paths (``regions.medial.peak``) of numbers (and lists of numbers) whose key has no unit
-    suffix, is not one of :data:`UNITLESS` and sits in no object with a ``unit`` key nor under
+    suffix and is not one of :data:`UNITLESS`, in no object that states its unit (a ``unit`` key,
+    or its own key ending with one: ``peak_pressure_MPa: {medial: 2.1, lateral: 1.9}``) nor under
     one of :data:`UNITLESS_OBJECTS`. Empty when every number is named by the convention."""
     found: list[str] = []
     if isinstance(data, dict):
-        stated = "unit" in data
+        stated = stated or "unit" in data
         for key, value in data.items():
             path = f"{where}.{key}" if where else str(key)
             if key in UNITLESS_OBJECTS and isinstance(value, dict):
                 continue
+            named = split_unit(str(key))[1] is not None
             if _numbers(value):
-                if not (stated or split_unit(str(key))[1] or is_unitless(str(key))):
+                if not (stated or named or is_unitless(str(key))):
                     found.append(path)
             else:
-                found += unnamed_units(value, path)
+                found += unnamed_units(value, path, named)
     elif isinstance(data, list):
         for k, value in enumerate(data):
-            found += unnamed_units(value, f"{where}[{k}]")
+            found += unnamed_units(value, f"{where}[{k}]", stated)
     return found
 
 

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import staged_file, write_data
-from .page import Page, table
+from .page import Page, escape, table
 from .sections import (
     certificate_section,
     checks_table,
@@ -52,6 +52,8 @@ def run_report(outcome, scenario, folder: Path, *, command: str = "run", elapsed
     title = scenario.title or (Path(scenario.source).stem if scenario.source else "dea-opt run")
     page = Page(title, f"dea-opt {command} · {_kind(outcome)} · output folder {folder}")
     verdict_banner(page, outcome.status, outcome.valid, outcome.message, outcome.reasons, outcome.warnings)
+    said = "\n".join([outcome.message, *outcome.validity, *outcome.regions])
+    page.add(f"<details><summary>What the run printed</summary><pre>{escape(said)}</pre></details>")
     result = outcome.result
     if outcome.kind == "static" and hasattr(result, "problem"):
         _static(page, result, outcome, scenario)
