@@ -367,8 +367,8 @@ def test_study_rows_agree_with_newton(study):
             warnings.simplefilter("ignore", d.ValidityWarning)
             s = d.solve(problem, "newton")
         np.testing.assert_allclose(s.contact_force, -module.peak_force(), atol=1e-6 * module.PEAK_LOAD)
-        np.testing.assert_allclose(rows["peak_pressure"], s.peak_pressure, rtol=1e-6)
-        np.testing.assert_allclose(rows["contact_area"], s.contact_area, rtol=1e-9)
+        np.testing.assert_allclose(rows["peak_pressure_MPa"], s.peak_pressure, rtol=1e-6)
+        np.testing.assert_allclose(rows["contact_area_mm2"], s.contact_area, rtol=1e-9)
 
 
 def test_study_load_and_grid(study):

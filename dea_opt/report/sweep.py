@@ -13,7 +13,8 @@ from pathlib import Path
 import numpy as np
 
 from ..io.atomic import write_data
-from .page import Page, Raw, escape, table
+from .page import Page, Raw, escape
+from .page import table as html_table
 from .sections import software_section
 
 __all__ = ["sweep_report", "write_sweep_report"]
@@ -35,27 +36,27 @@ _BOOKKEEPING = (
 _STATUS_COLOURS = {"ok": "#1a7f37", "outside_validity": "#e37400"}
 
 
-def write_sweep_report(folder, table, swept, scenario_path, sets) -> Path:
+def write_sweep_report(folder, cases, swept, scenario_path, sets) -> Path:
     """Write ``report.html`` into the sweep's ``folder`` (atomically) and return its path."""
     path = Path(folder) / "report.html"
-    return write_data(path, sweep_report(table, swept, scenario_path, sets, Path(folder)))
+    return write_data(path, sweep_report(cases, swept, scenario_path, sets, Path(folder)))
 
 
-def _swept_columns(table, swept) -> list:
+def _swept_columns(cases, swept) -> list:
     """The columns of the swept keys (with their units: ``law.H_MPa``)."""
     found = []
     for key in swept:
-        found += [c for c in table.columns if c == key or (c.startswith(f"{key}_") and "." in c)]
+        found += [c for c in cases.columns if c == key or (c.startswith(f"{key}_") and "." in c)]
     return list(dict.fromkeys(found))
 
 
-def _numeric(table, columns) -> list:
+def _numeric(cases, columns) -> list:
     import pandas as pd
 
-    return [c for c in columns if pd.api.types.is_numeric_dtype(table[c]) and not pd.api.types.is_bool_dtype(table[c])]
+    return [c for c in columns if pd.api.types.is_numeric_dtype(cases[c]) and not pd.api.types.is_bool_dtype(cases[c])]
 
 
-def sweep_report(table, swept, scenario_path, sets, folder: Path) -> str:
+def sweep_report(cases, swept, scenario_path, sets, folder: Path) -> str:
     """The HTML of a sweep's report (see the module's docstring)."""
     from ..scenario import load_scenario
     from ..sweep.keys import sha256_file
@@ -64,23 +65,23 @@ def sweep_report(table, swept, scenario_path, sets, folder: Path) -> str:
         title = load_scenario(scenario_path).title
     except Exception:  # noqa: BLE001 - a report of the cases must not fail on the scenario's title
         title = ""
-    page = Page(f"Sweep: {title or Path(scenario_path).stem}", f"dea-opt sweep · {len(table)} cases · {folder}")
-    statuses = table["status"].value_counts().to_dict() if "status" in table else {}
+    page = Page(f"Sweep: {title or Path(scenario_path).stem}", f"dea-opt sweep · {len(cases)} cases · {folder}")
+    statuses = cases["status"].value_counts().to_dict() if "status" in cases else {}
     clean = set(statuses) <= {"ok"}
     counts = ", ".join(f"{n} {s}" for s, n in statuses.items())
     css = "ok" if clean else "bad"
     head = "EVERY CASE VALID" if clean else "NOT EVERY CASE IS A CLEAN SUCCESS"
     page.add(f'<div class="verdict {css}" id="verdict"><b>{head}</b>: {escape(counts)}</div>')
-    swept_columns = _swept_columns(table, swept)
-    outputs = [c for c in table.columns if c not in _BOOKKEEPING and c not in swept_columns and c != "case"]
-    numeric = _numeric(table, outputs)
+    swept_columns = _swept_columns(cases, swept)
+    outputs = [c for c in cases.columns if c not in _BOOKKEEPING and c not in swept_columns and c != "case"]
+    numeric = _numeric(cases, outputs)
     if swept_columns and numeric:
-        _plot(page, table, swept_columns, numeric)
+        _plot(page, cases, swept_columns, numeric)
     page.heading("Cases", "cases")
     page.paragraph("Click a column's name to sort by it; a case's name opens its own report.", "note")
     columns = ["case", "status", *swept_columns, *[c for c in outputs if c != "status"]]
     rows = []
-    for record in table.to_dict("records"):
+    for record in cases.to_dict("records"):
         row = []
         for column in columns:
             value = record.get(column)
@@ -88,24 +89,20 @@ def sweep_report(table, swept, scenario_path, sets, folder: Path) -> str:
                 value = _case_link(record, folder)
             row.append(None if isinstance(value, float) and math.isnan(value) else value)
         rows.append(row)
-    classes = ["" if r.get("status") == "ok" else "failed" for r in table.to_dict("records")]
-    page.add(f'<div class="scroll">{table_html(columns, rows, classes)}</div>')
+    classes = ["" if r.get("status") == "ok" else "failed" for r in cases.to_dict("records")]
+    page.add(f'<div class="scroll">{html_table(columns, rows, sortable=True, classes=classes)}</div>')
     page.heading("Inputs", "inputs")
     try:
         digest = sha256_file(scenario_path)
     except OSError:
         digest = "unreadable"
-    page.add(table_rows([["scenario", str(scenario_path)], ["scenario SHA-256", digest], ["--set", "  ".join(sets)]]))
-    software_section(page, [["the cases' wall time, added up", float(np.nansum(table.get("wall_time_s", [])))]])
+    page.add(
+        html_table(
+            ["", ""], [["scenario", str(scenario_path)], ["scenario SHA-256", digest], ["--set", "  ".join(sets)]]
+        )
+    )
+    software_section(page, [["the cases' wall time, added up", float(np.nansum(cases.get("wall_time_s", [])))]])
     return page.html()
-
-
-def table_html(columns, rows, classes) -> str:
-    return table(columns, rows, sortable=True, classes=classes)
-
-
-def table_rows(rows) -> str:
-    return table(["", ""], rows)
 
 
 def _case_link(record: dict, folder: Path):
@@ -116,7 +113,7 @@ def _case_link(record: dict, folder: Path):
     return name
 
 
-def _plot(page: Page, table, swept_columns: list, numeric: list) -> None:
+def _plot(page: Page, cases, swept_columns: list, numeric: list) -> None:
     """Any output against any swept value: two menus and a Plotly scatter, redrawn on a change."""
     page.heading("Any output against any swept value", "plot")
     preferred = next((c for c in ("peak_pressure_MPa", "contact_area_mm2") if c in numeric), numeric[0])
@@ -128,9 +125,9 @@ def _plot(page: Page, table, swept_columns: list, numeric: list) -> None:
         + "</select></label></p>"
     )
     page.add(menus)
-    columns = {c: [_plain(v) for v in table[c].tolist()] for c in [*swept_columns, *numeric]}
-    status = [str(s) for s in table.get("status", ["ok"] * len(table))]
-    names = [str(n) for n in table.get("case", table.get("case_id", [""] * len(table)))]
+    columns = {c: [_plain(v) for v in cases[c].tolist()] for c in [*swept_columns, *numeric]}
+    status = [str(s) for s in cases.get("status", ["ok"] * len(cases))]
+    names = [str(n) for n in cases.get("case", cases.get("case_id", [""] * len(cases)))]
     figure = {
         "data": [],
         "layout": {"margin": {"t": 20}, "hovermode": "closest", "legend": {"title": {"text": "status"}}},

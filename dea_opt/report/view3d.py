@@ -2,9 +2,11 @@
 
 The figure is written as plain data (``{"data", "layout"}``) with its arrays as Plotly's typed
 arrays (``{"dtype": "f4", "bdata": base64}``), so the page carries 4 bytes per number rather than
-its decimal text. Each face of the surface gets its own three vertices, all with its spring's
-pressure: the faces are drawn flat, as the springs are, and hovering a face shows its pressure
-(vertex values, which every version of Plotly reports on hover). Faces out of contact are grey.
+its decimal text. Springs cast from a mesh stand for its faces: each face gets its own three
+vertices, all with its spring's pressure, so the faces are drawn flat, as the springs are, and
+hovering a face shows its spring's pressure (vertex values, which Plotly reports on hover).
+Springs on points are the vertices of a triangulation through them, each with its pressure.
+Faces out of contact are grey.
 Each region's centre of pressure, and the whole contact's, is a marker with its name.
 """
 
@@ -26,31 +28,28 @@ def _typed(values, dtype="f4") -> dict:
     return {"dtype": dtype, "bdata": base64.b64encode(array.tobytes()).decode("ascii")}
 
 
-def _surface(layer):
-    """``(vertices (P, 3), triangles (T, 3), spring of each triangle (T,))``: the mesh faces the
-    springs were cast from, or a triangulation through the springs (then a triangle's value is the
-    mean of its three springs', given as -1 and handled by the caller)."""
+def _faces(solution):
+    """``(vertices (P, 3), triangles (T, 3), values, in contact (T,), per_vertex, note)``.
+
+    Springs cast from a mesh: the mesh's faces, each with its own three vertices carrying its
+    spring's pressure (drawn flat, hovered as the spring's). Springs on points: a triangulation
+    through them (:func:`~dea_opt.io.triangulate.point_triangulation`), each spring a vertex
+    carrying its pressure (drawn smooth between springs, hovered as the nearest spring's)."""
+    layer = solution.problem.layer
+    pressure = np.asarray(solution.pressure, float)
+    contact = np.asarray(solution.in_contact, bool)
     if layer.surface is not None and layer.source_face is not None:
         vertices, faces = layer.surface
-        return np.asarray(vertices, float), np.asarray(faces, np.int64)[layer.source_face], np.arange(len(layer))
-    from ..io.triangulate import point_triangulation
+        triangles = np.asarray(faces, np.int64)[layer.source_face]
+        value, touching, per_vertex = pressure, contact, False
+        vertices = np.asarray(vertices, float)
+    else:
+        from ..io.triangulate import point_triangulation
 
-    triangles = point_triangulation(layer)
-    if triangles is None or not len(triangles):
-        return np.asarray(layer.points, float), np.zeros((0, 3), np.int64), None
-    return np.asarray(layer.points, float), np.asarray(triangles, np.int64), None
-
-
-def _faces(solution):
-    """``(corners (T, 3, 3), pressure (T,), in contact (T,), note)`` of the faces drawn."""
-    layer = solution.problem.layer
-    vertices, triangles, spring = _surface(layer)
-    pressure = np.asarray(solution.pressure, float)
-    if spring is not None:
-        value, touching = pressure[spring], np.asarray(solution.in_contact)[spring]
-    else:  # springs on points: a triangle carries its three springs' mean
-        value = pressure[triangles].mean(axis=1)
-        touching = np.asarray(solution.in_contact)[triangles].any(axis=1)
+        triangles = point_triangulation(layer)
+        triangles = np.zeros((0, 3), np.int64) if triangles is None else np.asarray(triangles, np.int64)
+        vertices, value, per_vertex = np.asarray(layer.points, float), pressure, True
+        touching = contact[triangles].any(axis=1)
     note = ""
     if len(triangles) > FACE_LIMIT:
         keep = touching if touching.sum() <= FACE_LIMIT else touching & (np.cumsum(touching) % 2 == 0)
@@ -59,26 +58,28 @@ def _faces(solution):
         note = (
             f"{len(keep)} of the {len(triangles)} faces are drawn (those in contact{', thinned' if step > 1 else ''})"
         )
-        triangles, value, touching = triangles[keep], value[keep], touching[keep]
-    return vertices[triangles], value, touching, note
+        triangles, touching = triangles[keep], touching[keep]
+        value = value if per_vertex else value[keep]
+    return vertices, triangles, value, touching, per_vertex, note
 
 
-def _mesh(corners, values, name, **style) -> dict:
-    """A ``mesh3d`` trace of separate triangles ``corners`` (T, 3, 3), each vertex carrying its
-    triangle's value."""
-    points = corners.reshape(-1, 3)
-    count = len(corners)
-    index = np.arange(3 * count, dtype=np.int32).reshape(count, 3)
+def _mesh(vertices, triangles, values, per_vertex: bool, name: str, **style) -> dict:
+    """A ``mesh3d`` trace. ``per_vertex``: ``values`` (one per vertex) on shared vertices; else
+    each triangle gets three vertices of its own carrying its value (one per triangle)."""
+    if not per_vertex:
+        vertices = vertices[triangles].reshape(-1, 3)
+        triangles = np.arange(len(vertices)).reshape(-1, 3)
+        values = None if values is None else np.repeat(values, 3)
     return {
         "type": "mesh3d",
         "name": name,
-        "x": _typed(points[:, 0]),
-        "y": _typed(points[:, 1]),
-        "z": _typed(points[:, 2]),
-        "i": _typed(index[:, 0], "i4"),
-        "j": _typed(index[:, 1], "i4"),
-        "k": _typed(index[:, 2], "i4"),
-        **({"intensity": _typed(np.repeat(values, 3))} if values is not None else {}),
+        "x": _typed(vertices[:, 0]),
+        "y": _typed(vertices[:, 1]),
+        "z": _typed(vertices[:, 2]),
+        "i": _typed(triangles[:, 0], "i4"),
+        "j": _typed(triangles[:, 1], "i4"),
+        "k": _typed(triangles[:, 2], "i4"),
+        **({"intensity": _typed(values)} if values is not None else {}),
         "flatshading": True,
         # Nearly flat light: the colour is the pressure, not the shading (a fan of thin triangles at a
         # pole would otherwise turn dark).
@@ -101,14 +102,16 @@ def pressure_view(solution, title: str = "", regions: bool = True) -> tuple[dict
     """
     from ..io.mapframe import best_fit_frame
 
-    corners, pressure, touching, note = _faces(solution)
+    vertices, triangles, pressure, touching, per_vertex, note = _faces(solution)
     top = float(np.nanmax(pressure, initial=0.0)) or 1.0
     data = []
     if (~touching).any():
         data.append(
             _mesh(
-                corners[~touching],
+                vertices,
+                triangles[~touching],
                 None,
+                per_vertex,
                 "out of contact",
                 color="#c8c8c8",
                 hovertemplate="out of contact<br>x %{x:.1f}, y %{y:.1f}, z %{z:.1f} mm<extra></extra>",
@@ -117,8 +120,10 @@ def pressure_view(solution, title: str = "", regions: bool = True) -> tuple[dict
     if touching.any():
         data.append(
             _mesh(
-                corners[touching],
-                pressure[touching],
+                vertices,
+                triangles[touching],
+                pressure if per_vertex else pressure[touching],
+                per_vertex,
                 "pressure",
                 colorscale="Viridis",
                 cmin=0.0,

@@ -5,8 +5,9 @@ superior dome, and the anterior and posterior walls), and the maps are drawn in 
 anatomical frame (``[output] anatomy`` of :data:`DEMO_SCENARIO`); the terminal lists the
 validity of the frames and each region's share of the load. The outputs are published like a
 run's (:mod:`dea_opt.io.publish`): ``comparison.csv``, ``frames.csv`` (with per-region
-columns), ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``,
-``exposure.vtu``, ``summary.json`` and, last, ``manifest.json``.
+columns), ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``, ``peak.png``,
+``exposure.vtu``, ``summary.json``, ``report.html`` (the run on one page, with the comparison)
+and, last, ``manifest.json``.
 """
 
 from __future__ import annotations
