@@ -42,6 +42,7 @@ def _keep_former_modules(private: bool) -> None:
 # The private ones first: modules of branches written before the move import them while
 # this package initialises.
 _keep_former_modules(private=True)
+from .certificate import Certificate, certify
 from .errors import (
     DeaError,
     InputError,
@@ -63,7 +64,7 @@ from .problem import Body, ContactProblem, Load
 from .sensitivity import Sensitivities, sensitivities
 from .sensitivity.calibrate import calibrate
 from .sensitivity.uncertainty import propagate
-from .solution import Certificate, Solution, certify
+from .solution import Solution
 from .solver import METHODS, check_load_supported, compare, solve
 from .status import Status
 

@@ -10,7 +10,7 @@ import numpy as np
 
 from ._checks.inputs import SMALLEST, finite_number, vector3
 from .errors import InputError
-from .formulations.energy import SpringSystem, require_finite, resistance, unresisted
+from .formulations.energy import ROUNDING, SpringSystem, require_finite, resistance, unresisted
 from .kinematics import DOF_NAMES, DOFS, normal_operator
 from .laws import Law, check_law
 from .layer import SpringLayer
@@ -367,6 +367,29 @@ class ContactProblem:
         """``eps_i = (gap_i + n_i . B_i u) / h_i`` (Eq. 11), shape (N,)."""
         return (self.layer.gap + np.asarray(u, dtype=float) @ self.normal_operator.T) / self.layer.thickness
 
+    def strain_rounding(self, u) -> np.ndarray:
+        """A bound on the rounding of :meth:`strain` at ``u``, shape (N,): ``ROUNDING`` ulps of the
+        sizes of the terms the strain is summed from, ``(|gap_i| + sum_k |t_k|_1 + |p_i - c_k|
+        |w_k|_1) / h_i`` (``t_k``, ``w_k`` body ``k``'s translation and rotation; a row of the
+        normal operator is at most 1 per translation and ``|p_i - c_k|`` per rotation). Where
+        ``gap`` and the motion nearly cancel (a layer that starts in deep overlap and separates),
+        the strain keeps only the digits these leave (formulations/energy.md, "The certificate")."""
+        u = np.asarray(u, dtype=float)
+        size = np.abs(self.layer.gap)
+        for k, arm in enumerate(self._arm_lengths):
+            size = size + (
+                float(np.abs(u[6 * k : 6 * k + 3]).sum()) + arm * float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum())
+            )
+        return ROUNDING * np.finfo(float).eps * size / self.layer.thickness
+
+    @cached_property
+    def _arm_lengths(self) -> tuple[np.ndarray, np.ndarray]:
+        """``|p_i - c_k|`` for the two bodies' references (mm), each shape (N,)."""
+        points = self.layer.points
+        return tuple(
+            np.linalg.norm(points - np.asarray(b.reference, dtype=float), axis=1) for b in (self.body1, self.body2)
+        )
+
     @cached_property
     def layer_radius(self) -> np.ndarray:
         """RMS distance of the springs from each body's reference (mm), shape (2,)."""
@@ -399,6 +422,7 @@ _GEOMETRY_CACHE = (
     "_factor",
     "_stiffness",
     "_resistance",
+    "_arm_lengths",
 )
 
 

@@ -1,19 +1,5 @@
-"""One result type for every formulation, carrying the certificate dea_opt computes itself.
-
-The certificate (:func:`certify`) is a check a reader can redo with the problem's arrays and
-``u``; ``formulations/energy.md`` ("The certificate") and the user guide's concepts page state
-the same definitions. With ``f_i = S_i sigma(min(eps_i, 0))`` the law's spring forces at ``u`` (N,
-tension positive), ``f^rep_i`` the forces the formulation reported, ``q = G_free^T f`` the
-generalized spring force on the free dofs and ``r`` the load there (N; N mm for rotations),
-``L_j`` 1 for a translation and the layer's radius about the body's reference for a
-rotation (mm), and ``H`` the law's small-strain modulus, every force residual is relative
-to one force scale::
-
-    F = max( max_j |r_j| / L_j,  sum_i |f_i|,  H sum_i S_i max(-e0_i, 0) )
-
-(the load, the springs' total force, and the force of the initial overlap of gaps and
-prescribed motion), none of which is rounding noise when the others vanish. A residual whose
-numerator is exactly 0 is 0 (also when ``F = 0``).
+"""One result type for every formulation: :class:`Solution`, the answer with the certificate dea_opt
+computed for it (:mod:`dea_opt.certificate`) and its validity report (:mod:`dea_opt.validity`).
 """
 
 from __future__ import annotations
@@ -24,12 +10,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .formulations.energy import (
-    modulus_scale,
-    require_finite,
-    single_threaded_blas,
-    unresisted,
-)
+from .certificate import Certificate
 from .kinematics import DOF_NAMES
 from .status import Status
 from .validity import Validity, assess
@@ -37,174 +18,7 @@ from .validity import Validity, assess
 if TYPE_CHECKING:
     from .problem import ContactProblem
 
-__all__ = ["Certificate", "Solution", "certify"]
-
-
-@dataclass(frozen=True)
-class Certificate:
-    """Residuals computed by dea_opt from ``u``, never taken from a solver.
-
-    Notation as in the module docstring (``F`` the force scale, ``L_j`` the dof lengths).
-
-    Attributes
-    ----------
-    equilibrium : float
-        The largest of three parts. (1) Per free dof: ``max_j |q_j - r_j| / L_j / F``.
-        (2) The fraction of the load that acts along directions no spring resists
-        (:class:`~dea_opt.formulations.energy.Resistance`): ``|P r / L| / |r / L|`` with
-        ``P`` the orthogonal projector onto those directions (in arc lengths), so a load no
-        spring can carry counts in full whatever its size. (3) The spring forces that the
-        answer's motion along those directions produces (motion no spring resists changes no
-        strain except through rounding): ``sum_i |f_i - f'_i| / F`` with ``f'`` the forces
-        with that motion removed.
-    tension : float
-        ``sum_i max(f^rep_i, 0) / F``: tensile force the formulation reported.
-    complementarity : float
-        ``sum_i |f^rep_i| max(eps_i, 0) / F``: open springs carry nothing.
-    consistency : float
-        ``sum_i`` of how far ``f^rep_i`` lies outside ``S_i [sigma(eps_i - d), sigma(eps_i + d)]``
-        (strains clipped at 0), over ``F``, with ``d = tolerance * max(max_i -min(eps_i, 0),
-        max_i -min(e0_i, 0))``: the formulation's forces are what the law gives at a strain
-        within the certified precision of the compression.
-    energy : float
-        Energy a further Newton step could still release, ``g^T K^+ g / 2`` with ``g = q - r``
-        and ``K`` the tangent of the compressed springs, over the resisted directions (its
-        pseudo-inverse drops what :func:`~dea_opt.formulations.energy.unresisted` calls no
-        stiffness), relative to ``max(stored energy + |r . x|, H sum_i V_i min(e0_i, 0)^2 / 2)``.
-    tolerance : float
-        The bound every residual must meet.
-    """
-
-    equilibrium: float
-    tension: float
-    complementarity: float
-    consistency: float
-    energy: float
-    tolerance: float = 1e-6
-
-    @property
-    def passed(self) -> bool:
-        values = (self.equilibrium, self.tension, self.complementarity, self.consistency, self.energy)
-        return all(np.isfinite(v) and v <= self.tolerance for v in values)
-
-    def worst(self) -> tuple[str, float]:
-        """The name and value of the largest residual."""
-        items = self.as_dict()
-        items.pop("tolerance")
-        items.pop("passed")
-        name = max(items, key=lambda k: items[k] if np.isfinite(items[k]) else np.inf)
-        return name, items[name]
-
-    def as_dict(self) -> dict:
-        return {
-            "equilibrium": self.equilibrium,
-            "tension": self.tension,
-            "complementarity": self.complementarity,
-            "consistency": self.consistency,
-            "energy": self.energy,
-            "tolerance": self.tolerance,
-            "passed": self.passed,
-        }
-
-
-def _ratio(numerator: float, scale: float) -> float:
-    """``numerator / scale``, 0 when the numerator is exactly 0 (nothing to measure)."""
-    if numerator == 0.0:
-        return 0.0
-    return numerator / scale if scale > 0 else float("inf")
-
-
-def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate:
-    """Check ``u`` against the law: equilibrium, sign, complementarity, optimality.
-
-    Every residual is defined in :class:`Certificate`; they use dea_opt's own arrays and
-    ``u``, nothing the solver computed except ``reported_stress``.
-
-    Parameters
-    ----------
-    problem : ContactProblem
-    u : ndarray, shape (12,)
-    reported_stress : ndarray, shape (N,)
-        Spring stress as the formulation reported it (MPa, tension positive).
-    tolerance : float
-    """
-    with single_threaded_blas():
-        return _certify(problem, u, reported_stress, tolerance)
-
-
-def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
-    layer, law = problem.layer, problem.law
-    system = problem.system()
-    res = system.resistance
-    free = problem.free_indices
-    u_free = np.asarray(u, dtype=float)[free]
-    eps = problem.strain(u)
-    compressed = np.minimum(eps, 0.0)
-    with np.errstate(invalid="ignore", over="ignore"):
-        sigma = law.stress(compressed)
-        force = layer.areas * sigma
-        reported = layer.areas * np.asarray(reported_stress, dtype=float)
-        # A^T (V sigma) = G_free^T (S sigma): the generalized spring force on the free dofs.
-        q = system.AT @ (system.volume * sigma)
-    if not (np.isfinite(sigma).all() and np.isfinite(reported).all() and np.isfinite(q).all()):
-        nan = float("nan")
-        return Certificate(nan, nan, nan, nan, nan, tolerance)
-    r, L = system.load, system.lengths
-    H = modulus_scale(law.modulus)
-    # The initial overlap (gaps and prescribed motion): usually none, and then no pass over it.
-    overlap = np.maximum(-system.e0, 0.0) if system.e0.min(initial=0.0) < 0 else None
-    preload = 0.0 if overlap is None else H * float(layer.areas @ overlap)
-    F = max(float(np.abs(r / L).max(initial=0.0)), float(np.abs(force).sum()), preload)
-    g = q - r
-    equilibrium = _ratio(float(np.abs(g / L).max(initial=0.0)), F)
-    if res.null.shape[1]:
-        equilibrium = max(equilibrium, res.load_fraction(r))
-        z = res.motion_part(u_free)
-        if z.any():
-            with np.errstate(invalid="ignore", over="ignore"):
-                held = layer.areas * law.stress(np.minimum(eps - z @ system.AT, 0.0))
-            equilibrium = max(equilibrium, _ratio(float(np.nan_to_num(np.abs(force - held), nan=np.inf).sum()), F))
-    tension = _ratio(float(np.maximum(reported, 0.0).sum()), F)
-    complementarity = _ratio(float(np.abs(reported) @ np.maximum(eps, 0.0)), F)
-    # A reported force is consistent when the law gives it at a strain within the certified
-    # precision of the compression: springs on the edge of the contact, where interior-point
-    # duals are of order sqrt(mu), are judged on what the strain allows.
-    delta = tolerance * max(float(-compressed.min(initial=0.0)), float(-system.e0.min(initial=0.0)))
-    with np.errstate(invalid="ignore", over="ignore"):
-        low = layer.areas * law.stress(np.minimum(eps - delta, 0.0))
-        high = layer.areas * law.stress(np.minimum(eps + delta, 0.0))
-    excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
-    consistency = _ratio(float(np.nan_to_num(excess, nan=np.inf).sum()), F)
-    decrement = _energy_residual(system, res, law, eps, g, u_free, H, overlap) if free.size else 0.0
-    return Certificate(equilibrium, tension, complementarity, consistency, decrement, tolerance)
-
-
-def _energy_residual(system, res, law, eps, g, u_free, H, overlap) -> float:
-    """``g^T K^+ g / 2`` over the resisted directions, relative to the energy scale."""
-    rows = np.flatnonzero(eps < 0)
-    if not rows.size or not res.n_resisted:
-        return 0.0
-    compressed = eps[rows]
-    with np.errstate(invalid="ignore", over="ignore"):
-        weight = system.volume[rows] * law.tangent(compressed)
-        stored = float(system.volume[rows] @ law.energy(compressed))
-    AT = system.AT[:, rows]
-    K = (AT * weight) @ AT.T
-    if not (np.isfinite(K).all() and np.isfinite(stored)):
-        return float("nan")
-    # In the resisted basis (T1^T K0 T1 = I at the law's modulus) the bonded layer's
-    # stiffness is the identity: the scale the one test of "unresisted" judges against.
-    T1 = res.basis(H)
-    Kt = T1.T @ K @ T1
-    gt = T1.T @ g
-    require_finite("the certificate's tangent", Kt, gt)
-    vals, vecs = np.linalg.eigh(Kt)
-    keep = ~unresisted(vals, max(float(vals[-1]), 1.0))
-    coeff = vecs[:, keep].T @ gt
-    decrement = float(coeff @ (coeff / vals[keep]))
-    preload = 0.0 if overlap is None else 0.5 * H * float(system.volume @ overlap**2)
-    scale = max(stored + abs(float(system.load @ u_free)), preload)
-    return _ratio(0.5 * abs(decrement), scale)
+__all__ = ["Solution"]
 
 
 @dataclass(frozen=True, eq=False)

@@ -10,6 +10,7 @@ import numpy as np
 
 from . import formulations, loadcheck
 from .agreement import disagreement
+from .certificate import certify
 from .errors import InputError, SolverError, ValidityWarning
 from .formulations.energy import (
     CRUSHED_MESSAGE,
@@ -21,7 +22,7 @@ from .formulations.energy import (
 )
 from .loadcheck import check_load_supported
 from .problem import ContactProblem
-from .solution import Solution, certify
+from .solution import Solution
 from .status import CERTIFIABLE, Status
 
 __all__ = [
@@ -142,6 +143,7 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
         # they balance. One answer is returned for every method: the default formulation's.
         default = formulations.DEFAULT
         result = formulations.solve(default, system, law)
+        _clear_of_rounding(problem, system, result)
         if result.success:
             result.status = Status.PRELOADED
             result.message = (
@@ -160,6 +162,41 @@ def formulation_result(problem: ContactProblem, system, name: str, model, *, x0=
         # A solver that raised still yields a (failed) answer, so that auto can fall back and
         # strict=False and load paths can report it like any other failure.
         return failed_result(system, exc)
+
+
+#: How far beyond its strain's rounding a preloaded answer opens the springs it leaves touching.
+_CLEARANCE = 4.0
+
+
+def _clear_of_rounding(problem: ContactProblem, system, result) -> None:
+    """Move a preloaded answer whose springs merely touch on along its own motion, until each is open
+    by :data:`_CLEARANCE` times its strain's rounding (``ContactProblem.strain_rounding``).
+
+    With no load, every position where no spring is compressed is an equilibrium; the solver stops
+    where the last springs just open, their strains zero to rounding, where the law gives forces of
+    rounding's size that nothing else balances and no certificate can accept (there is nothing in
+    equilibrium to measure them against). A step of the motion's rounding size (at most 1e-6 of it)
+    further, none is within rounding of contact. Press fits whose springs stay compressed (real
+    forces), motions that would close another spring, and failed answers are left as they are."""
+    x = result.u_free
+    if not (x.size and np.isfinite(x).all()):
+        return
+    u = problem.full_u(x)
+    eps, delta = problem.strain(u), problem.strain_rounding(u)
+    if (eps < -delta).any():
+        return
+    near = np.flatnonzero(eps < _CLEARANCE * delta)
+    if not near.size:
+        return
+    rate = x @ system.AT[:, near]  # each strain's change per unit of the motion itself
+    if not (rate > 0).all():
+        return
+    tau = float(np.max((_CLEARANCE * delta[near] - eps[near]) / rate))
+    if not 0 < tau <= 1e-6:
+        return
+    result.u_free = x * (1.0 + tau)
+    with np.errstate(invalid="ignore", over="ignore"):
+        result.stress = problem.law.stress(np.minimum(system.strain_at(result.u_free), 0.0))
 
 
 def _status(result) -> tuple[Status, object]:
@@ -210,6 +247,12 @@ def certified_solution(
     elif not success and status in CERTIFIABLE:
         status = Status.INACCURATE
         message = f"{message}; the answer fails dea-opt's certificate"
+    if not success and certificate.rounding > 0.5 * certificate_tol:
+        message = (
+            f"{message}; the rounding of the strains alone can move the springs' forces by "
+            f"{certificate.rounding:.3g} of what is in equilibrium at the answer (the gaps and the motion "
+            f"cancel to strains float64 does not resolve at this load)"
+        )
     held = problem.system().resistance.describe(problem.free_names) if problem.free_indices.size else []
     if held:
         # Directions no spring resists carry no load (check_load_supported) and take no
@@ -250,7 +293,7 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
         law (:func:`~dea_opt.formulations.fallback_for`: ``qp`` for a linear law, ``nlp``
         otherwise); ``solution.info["fallback"]`` says why.
     certificate_tol : float
-        Bound on every residual of the :class:`~dea_opt.solution.Certificate`.
+        Bound on every residual of the :class:`~dea_opt.certificate.Certificate`.
     strict : bool
         Raise :class:`SolverError` when the answer fails its certificate (default). With
         ``strict=False`` the uncertified solution is returned with ``success=False``.
@@ -296,7 +339,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     name, first_options, x0 = plan[0]
     solution = _run(problem, name, certificate_tol, first_options, x0)
     if method == "auto":
-        if not solution.success and len(plan) > 1:
+        if not solution.success and len(plan) > 1 and not beyond_resolution(solution):
             _raise_if_unsupported(problem)
             fallback, fallback_options, _ = plan[1]
             reason = (
@@ -320,6 +363,23 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
     if solution.success:
         _warn_validity(solution)
     return solution
+
+
+def beyond_resolution(solution: Solution) -> bool:
+    """Whether ``solution`` failed its certificate only because its load is below what float64
+    resolves against the gaps and motion its strains are summed from: ``Certificate.rounding`` above
+    half the tolerance (the imbalance that rounding leaves in any computed answer takes the rest), a
+    computed imbalance no larger than that rounding can make (the equilibrium residual adds the two),
+    the other residuals within the tolerance. No formulation does better, so ``auto`` keeps that
+    answer and its reason rather than fall back."""
+    c = solution.certificate
+    others = (c.tension, c.complementarity, c.consistency)
+    return bool(
+        np.isfinite(solution.u).all()
+        and c.rounding > 0.5 * c.tolerance
+        and c.equilibrium <= 2.0 * c.rounding + c.tolerance
+        and all(v <= c.tolerance for v in others)
+    )
 
 
 def _raise_if_unsupported(problem: ContactProblem) -> None:

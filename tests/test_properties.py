@@ -437,17 +437,24 @@ def determined_projector(problem, solution) -> np.ndarray:
     ``u`` is unique along them; along the others (a direction no compressed spring
     resists) every value that keeps the open springs open is an equilibrium too.
     """
+    return _determined(problem, solution)[0]
+
+
+def _determined(problem, solution) -> tuple[np.ndarray, float]:
+    """:func:`determined_projector` and the condition number of the compressed springs' strain rows
+    (weighted by their stiffness) over those directions: how much a strain error (a pressure error)
+    grows into an error of ``u`` there."""
     system = problem.system()
     eps = system.strain_at(solution.u[problem.free_indices])
     scale = max(np.abs(eps).max(initial=0.0), 1e-300)
     active = eps < -1e-9 * scale
     m = system.n_dofs
     if not active.any():
-        return np.zeros((m, m))
+        return np.zeros((m, m)), 1.0
     rows = system.A[active] * np.sqrt(system.volume[active] * np.abs(problem.law.tangent(eps[active])))[:, None]
     _, s, vt = np.linalg.svd(rows, full_matrices=False)
     keep = s > 1e-7 * s.max()
-    return vt[keep].T @ vt[keep]
+    return vt[keep].T @ vt[keep], float(s.max() / s[keep].min()) if keep.any() else 1.0
 
 
 def assert_agree(problem, solutions, rtol=1e-6):
@@ -546,6 +553,10 @@ def farkas_margin(problem) -> float:
 def check_outcomes(problem, outcomes, *, inside: bool | None):
     note(_describe(outcomes))
     errors = {m: o for m, o in outcomes.items() if isinstance(o, Exception)}
+    if len(errors) == len(outcomes) and all(_unresolved(o) for o in errors.values()):
+        # a load float64 does not resolve against the layer (one of rounding's size, a moment on lever
+        # arms that are rounding): no method certifies an answer, each says why
+        return None
     if errors:
         classes = {type(o) for o in outcomes.values()}
         assert not (len(errors) < len(outcomes)), f"some methods succeed, some raise:\n{_describe(outcomes)}"
@@ -564,6 +575,17 @@ def check_outcomes(problem, outcomes, *, inside: bool | None):
     return outcomes
 
 
+def _unresolved(exc) -> bool:
+    """Whether ``exc`` is a :class:`SolverError` whose answer the certificate could not accept for the
+    strains' rounding (``Certificate.rounding`` above half its tolerance, as for
+    :func:`dea_opt.solver.beyond_resolution`: a load float64 does not resolve against the layer there)."""
+    solution = getattr(exc, "solution", None)
+    if not isinstance(exc, d.SolverError) or solution is None:
+        return False
+    certificate = solution.certificate
+    return bool(certificate.rounding > 0.5 * certificate.tolerance)
+
+
 @budget("agree")
 @SEEDED
 @given(case=cases())
@@ -572,7 +594,9 @@ def test_methods_agree_or_raise_the_same_error(case):
     problem = make_problem(case)
     note(repr(problem))
     margin = farkas_margin(problem)
-    assert margin <= 1e-9, f"a load built inside the cone has Farkas margin {margin}"
+    # (HiGHS's own feasibility tolerances are about 1e-9 of the data: a lever arm of 1e-9 of the
+    # layer's size, a reference 4e-9 mm off a trough's axis, leaves margins of a few 1e-9)
+    assert margin <= 1e-7, f"a load built inside the cone has Farkas margin {margin}"
     check_outcomes(problem, solve_all(problem, applicable(case.law)), inside=True)
 
 
@@ -647,10 +671,14 @@ def test_a_manufactured_equilibrium_is_found_again(case, target, pick, data):
     assert_balanced(problem, solution, rtol=1e-6 if method != "newton" else 1e-8)
     peak = pressure.max()
     np.testing.assert_allclose(solution.pressure, pressure, rtol=0, atol=1e-6 * peak)
-    P = determined_projector(problem, solution)
+    # along the directions the manufactured contact determines (a solver's answer may hold a spring on
+    # the edge of the contact compressed by its tolerance, which would add a direction it does not),
+    # to the pressures' 1e-6 grown by the contact's condition (a far reference point makes the dofs
+    # nearly dependent: a residual of 1e-13 moved IPOPT's answer by 2e-6 of it there, Newton's by 2e-8)
+    P, condition = _determined(problem, type("S", (), {"u": u})())
     got = P @ solution.u[problem.free_indices]
     want = P @ x
-    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * max(np.abs(want).max(), 1e-300))
+    np.testing.assert_allclose(got, want, rtol=0, atol=1e-6 * condition * max(np.abs(want).max(), 1e-300))
 
 
 # --- invariants ---------------------------------------------------------------------------
@@ -698,10 +726,20 @@ def _check_equivariant(case, Q, t, method):
     try:
         base = quiet_solve(problem, method)
     except d.DeaError as exc:
+        if _unresolved(exc):
+            return
         with pytest.raises(type(exc)):
             quiet_solve(moved, method)
         return
-    other = quiet_solve(moved, method)
+    try:
+        other = quiet_solve(moved, method)
+    except d.SolverError as exc:
+        if _unresolved(exc):
+            # where the answer is not unique (a press fit in a shallow bowl under a tiny load), a
+            # method may pick one far along a direction nothing determines (IPOPT: 355 m away),
+            # whose strains float64 no longer resolves: not certified, and it says why
+            return
+        raise
     assert other.success
     peak = base.peak_pressure
     np.testing.assert_allclose(other.pressure, base.pressure, rtol=0, atol=1e-6 * max(peak, 1e-300))

@@ -101,6 +101,19 @@ class SpringSystem:
                 new.__dict__[name] = self.__dict__[name]
         return new
 
+    def recentred(self, u_free) -> SpringSystem:
+        """The same springs and load with the origin of the free dofs moved to ``u_free`` (mm, rad):
+        ``e0`` becomes the strains there, computed afresh from this system's (never accumulated
+        step by step), so that a formulation can solve on in the scale of what is in equilibrium
+        there (:func:`scaling`)."""
+        new = SpringSystem(
+            self.AT, self.strain_at(u_free), self.volume, self.load, self.dof_length, self.factor, self.stiffness
+        )
+        for name in ("resistance", "motion"):  # the same geometry: the same decisions
+            if name in self.__dict__:
+                new.__dict__[name] = self.__dict__[name]
+        return new
+
     @cached_property
     def resistance(self) -> Resistance:
         """Which free-dof directions the springs resist (:func:`resistance`), computed once."""
@@ -190,6 +203,13 @@ class Scaling:
     def system(self, e0, load) -> SpringSystem:
         """The scaled system, for a formulation that knows nothing of the scaling."""
         return SpringSystem(self.AT, e0, self.volume, self.load(load))
+
+
+#: Ulps of the sizes of its terms that bound the rounding of a computed strain (a sum of a dozen
+#: products and a division: 16 is the standard bound ``n eps`` of such a sum, with room): the
+#: certificate's (``ContactProblem.strain_rounding``) and Newton's judge of a residual that only the
+#: rounding keeps from zero (formulations/energy.md, "The certificate").
+ROUNDING = 16.0
 
 
 #: A direction of motion is *unresisted* when the springs' stiffness along it is at most this

@@ -20,12 +20,15 @@ import numpy as np
 
 from ..status import Status
 from ._parts.options import Capabilities, Option, validate
+from ._parts.recentre import RECENTRE
 from .energy import (
     CRUSHED_MESSAGE,
+    ROUNDING,
     UNRESISTED,
     FormulationResult,
     SpringSystem,
     crushed,
+    modulus_scale,
     require_finite,
     scaling,
     single_threaded_blas,
@@ -70,17 +73,21 @@ def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
     outside = g - vecs[:, keep] @ coeff
     if keep.any() and np.linalg.norm(outside) <= 1e-9 * np.linalg.norm(g):
         return -(vecs[:, keep] @ (coeff / vals[keep])), False
-    # Newton on what the compressed springs resist; on what they miss, Newton with every spring's
-    # stiffness there: that part moves no compressed spring, which stays as Newton put it.
+    # Newton on what the compressed springs resist, or, where g pushes more along what they miss,
+    # Newton there with every spring's stiffness: that step moves no compressed spring, and its line
+    # search lands on the next to touch. One at a time: the two taken as one step and scaled by one
+    # line search overshoot the compressed springs long before the missing part reaches the next
+    # spring (an iterate rocking between two poses, none converging).
+    if keep.any() and float(np.linalg.norm(coeff)) > float(np.linalg.norm(outside)):
+        return -(vecs[:, keep] @ (coeff / vals[keep])), False
     null = vecs[:, ~keep]
     K_null = null.T @ K_all_fn() @ null
     require_finite("Newton's tangent", K_null)
-    inside = vecs[:, keep] @ (coeff / vals[keep]) if keep.any() else np.zeros_like(g)
     try:
         beyond = np.linalg.solve(K_null, null.T @ g)
     except np.linalg.LinAlgError:
         beyond = np.linalg.lstsq(K_null, null.T @ g, rcond=UNRESISTED)[0]
-    return -(inside + null @ beyond), True
+    return -(null @ beyond), True
 
 
 class _Line:
@@ -188,8 +195,8 @@ OPTIONS = (
         "gtol",
         float,
         1e-12,
-        "equilibrium residual, the gradient over max(load, spring force, 1) in the scaled "
-        "variables, that counts as converged",
+        "equilibrium residual, the gradient over the larger of the load and the springs' net force "
+        "(without a load, and 1: the overlap) in the scaled variables, that counts as converged",
         range=(0, 1),
         tolerance=True,
         build=False,
@@ -268,11 +275,16 @@ def solve(system: SpringSystem, law, *, x0=None, **options) -> FormulationResult
     x0 : ndarray, shape (m,), optional
         Start (e.g. the previous frame of a load path; mm, rad); default cold (Eq. 19).
     **options
-        :data:`OPTIONS`: ``xtol`` (default 1e-12), ``gtol`` (1e-12, in the scaled variables,
-        where the larger of the load and the overlap has size 1:
+        :data:`OPTIONS`: ``xtol`` (default 1e-12), ``gtol`` (1e-12, relative to the load in the
+        scaled variables, or without one to the overlap at the stage's origin, of size 1 there:
         :func:`~dea_opt.formulations.energy.scaling`), ``max_iter`` (100), ``extended_start``.
     """
     return NewtonModel(system, law, **options).solve(x0=x0)
+
+
+#: Stages a solve may take (each divides the scale by at least ``1 / RECENTRE``: from
+#: an overlap of 1e3 to a load of 1e-30 in scale units takes 33).
+_MAX_STAGES = 40
 
 
 def _solve(
@@ -285,10 +297,99 @@ def _solve(
     max_iter: int = 100,
     extended_start: bool = True,
 ) -> FormulationResult:
+    """Newton in stages: each in the scaling of its origin (:func:`~dea_opt.formulations.energy.scaling`),
+    the next from the iterate where what is in equilibrium there has fallen below ``RECENTRE`` of that
+    scale (``formulations/newton.md``, "Stopping"): an overlap that set the scale and opened under a
+    smaller load is then solved on in the load's scale, never stopped at the overlap's."""
     start = time.perf_counter()
-    scale = scaling(system, law.modulus)
+    base = np.zeros(system.n_dofs)
+    stage, cold = system, x0 is None
+    history: list = []
+    evaluations = it = stages = 0
+    while True:
+        scale = scaling(stage, law.modulus)
+        may_recentre = stages + 1 < _MAX_STAGES
+
+        def noise(xi, eps, scale=scale, base=base):
+            return _rounding(system, law, scale, base + scale.to_u_free(xi), eps)
+
+        run = _iterate(stage, law, scale, x0, cold and extended_start, xtol, gtol, max_iter - it, may_recentre, noise)
+        it += run.iterations
+        evaluations += run.evaluations
+        history += run.history
+        u_free = base + scale.to_u_free(run.xi)
+        if not run.recentre or it >= max_iter:
+            break
+        stages += 1
+        base, x0, cold = u_free, None, False
+        stage = system.recentred(base)
+    status, message, success = run.status, run.message, run.success
+    if status == "max_iter":  # (also where the last stage ended to re-centre, its iterations spent)
+        message = f"no convergence in {max_iter} iterations"
+    eps = system.strain_at(u_free) if stages else run.eps
+    if not success and crushed(law, eps):
+        status, message = "crushed", f"{message}; {CRUSHED_MESSAGE.format(eps=np.nanmin(eps))}"
+    with np.errstate(over="ignore", invalid="ignore"):
+        stress = law.stress(np.minimum(eps, 0.0))
+    return FormulationResult(
+        u_free=u_free,
+        stress=stress,
+        success=success,
+        status=NATIVE_STATUS[status],
+        message=message,
+        iterations=it,
+        solve_time=time.perf_counter() - start,
+        info={
+            "native_status": status,
+            "residual_history": history,
+            "line_evaluations": evaluations,
+            "stages": stages + 1,
+        },
+    )
+
+
+class _Run:
+    """What one stage of :func:`_iterate` ended with."""
+
+    def __init__(self, xi, eps, status, message, success, iterations, history, evaluations, recentre=False):
+        self.xi, self.eps, self.status, self.message, self.success = xi, eps, status, message, success
+        self.iterations, self.history, self.evaluations, self.recentre = iterations, history, evaluations, recentre
+
+
+def _rounding(system, law, scale, u_free, eps) -> float:
+    """How far the rounding of the strains can move the gradient, ``|rho|`` in the scaled variables of
+    ``scale``: each strain ``e0_i + A_i x`` is known to ``ROUNDING`` ulps of ``|e0_i| + sum_j |A_ij
+    x_j|`` (``x = u_free``; the certificate's bound, ``formulations/newton.md``, "Stopping"), which moves the
+    force of a spring within that of contact by up to ``V_i max |sigma(eps_i +- delta_i) -
+    sigma(eps_i)|``."""
+    delta = ROUNDING * np.finfo(float).eps * (np.abs(system.e0) + np.abs(u_free) @ np.abs(system.AT))
+    near = np.flatnonzero(eps - delta < 0)
+    if not near.size:
+        return 0.0
+    e, dl = eps[near], delta[near]
+    with np.errstate(over="ignore", invalid="ignore"):
+        sigma = law.stress(np.minimum(e, 0.0))
+        spread = np.maximum(
+            np.abs(law.stress(np.minimum(e - dl, 0.0)) - sigma), np.abs(law.stress(np.minimum(e + dl, 0.0)) - sigma)
+        )
+    return float(np.linalg.norm(np.abs(scale.AT[:, near]) @ (scale.volume[near] * spread)))
+
+
+#: Iterations without halving the best residual after which Newton asks whether the strains' rounding
+#: is what stops it.
+_STAGNANT = 3
+
+
+def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_recentre, noise) -> _Run:
+    """Newton's iterations in the scaled variables of ``scale``, from ``x0`` (or zero): a :class:`_Run`,
+    with ``recentre`` where the iterate's own scale fell below ``RECENTRE`` of ``scale``'s (when
+    ``may_recentre``). Under a load the residual is judged against the load (and the springs' net
+    force), which is what the certificate measures; ``noise(xi, eps)`` is the residual's rounding
+    (:func:`_rounding`), asked when the residual stagnates."""
     AT, V, e0 = scale.AT, scale.volume, system.e0
     r = scale.load(system.load)
+    r_norm = float(np.linalg.norm(r))
+    stiffness = V * modulus_scale(law.modulus)
     k = AT.shape[0]
     xi = np.zeros(k) if x0 is None else scale.to_xi(x0)
     eps = e0 + xi @ AT
@@ -297,27 +398,44 @@ def _solve(
         eps = e0.copy()
     previous_active = None
     status, message, success = "max_iter", f"no convergence in {max_iter} iterations", False
-    history, evaluations = [], 0
+    history: list = []
+    evaluations = 0
     it = 0
     for it in range(1, max_iter + 1):
         # The extended range (first iteration) uses the law in tension too.
         extended = it == 1 and extended_start and x0 is None
-        sigma = law.stress(np.minimum(eps, 0.0))
+        compressed = np.minimum(eps, 0.0)
+        sigma = law.stress(compressed)
         internal = AT @ (V * sigma)
         g = internal - r
-        # The scaling makes the larger of the load and the overlap of size 1: that floor keeps
-        # a press fit under no load (internal forces cancelling, r = 0) from being judged
-        # against rounding noise.
-        norm = max(float(np.linalg.norm(r)), float(np.linalg.norm(internal)), 1.0)
+        # Without a load, the scaling makes the overlap at this stage's origin of size 1: that floor
+        # keeps a press fit (internal forces cancelling, r = 0) from being judged against rounding.
+        norm = max(r_norm, float(np.linalg.norm(internal)), 0.0 if r_norm else 1.0)
         gnorm = np.linalg.norm(g) / norm
         if not np.isfinite(gnorm):
             status, message = "nan", "the law returned a non-finite stress"
             break
         history.append(gnorm)
+        if len(history) > _STAGNANT and min(history[-_STAGNANT:]) > 0.5 * min(history[:-_STAGNANT]):
+            rounding = noise(xi, eps)  # (infinite at a bounded law's edge: no verdict from it there)
+            if np.isfinite(rounding) and np.linalg.norm(g) <= 4.0 * rounding:
+                status, message = (
+                    "stalled",
+                    (
+                        f"the residual stopped at the rounding of the strains ({rounding / norm:.3g} of the load "
+                        f"or the springs' force): the gaps and the motion cancel to strains float64 does not resolve"
+                    ),
+                )
+                break
+        if may_recentre and it > 1:
+            # What is in equilibrium here, in units of the stage's scale: the load and the springs'
+            # compression (the scaled volumes are V / s^2).
+            size = max(r_norm, float(np.sqrt(stiffness @ (compressed * compressed))))
+            if 0.0 < size <= RECENTRE:
+                return _Run(xi, eps, status, "re-centred", False, it - 1, history[:-1], evaluations, recentre=True)
         if gnorm <= gtol:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
-        compressed = np.minimum(eps, 0.0)
 
         def all_springs(compressed=compressed):  # this iteration's strains
             return _tangent(AT, V * law.tangent(compressed))
@@ -363,19 +481,8 @@ def _solve(
         if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(float(np.linalg.norm(xi)), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
             internal = AT @ (V * law.stress(np.minimum(eps, 0.0)))
-            norm = max(float(np.linalg.norm(r)), float(np.linalg.norm(internal)), 1.0)
+            norm = max(r_norm, float(np.linalg.norm(internal)), 0.0 if r_norm else 1.0)
             if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
-    if not success and crushed(law, eps):
-        status, message = "crushed", f"{message}; {CRUSHED_MESSAGE.format(eps=np.nanmin(eps))}"
-    return FormulationResult(
-        u_free=scale.to_u_free(xi),
-        stress=law.stress(np.minimum(eps, 0.0)),
-        success=success,
-        status=NATIVE_STATUS[status],
-        message=message,
-        iterations=it,
-        solve_time=time.perf_counter() - start,
-        info={"native_status": status, "residual_history": history, "line_evaluations": evaluations},
-    )
+    return _Run(xi, eps, status, message, success, it, history, evaluations)

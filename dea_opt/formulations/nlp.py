@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
 from ._parts.options import Capabilities, Option, Variant, validate
+from ._parts.recentre import recentred_solve
 from .energy import (
     FormulationResult,
     SpringSystem,
@@ -122,6 +123,7 @@ class NLPModel:
         form, tol, max_iter, ipopt_options = (checked[k] for k in ("form", "tol", "max_iter", "ipopt_options"))
         ca = _casadi()
         start = time.perf_counter()
+        self._options = dict(options)
         self.system, self.law, self.form = system, law, form
         # Solved in the scaled variables xi (u_free = T xi) and c = s0 c_hat, with the
         # energy divided by E0: IPOPT's tolerances then mean the same for every unit.
@@ -182,13 +184,28 @@ class NLPModel:
 
     def solve(self, load=None, *, x0=None, warm_start: bool = True) -> FormulationResult:
         """Solve for ``load`` (default: the system's own) from ``x0`` or, without one (and with
-        ``warm_start``), from this model's last answer, duals included."""
-        system, sc = self.system, self.scale
-        x0 = start_vector(system, x0)
-        load = system.load if load is None else np.asarray(load, dtype=float)
-        trivial = trivial_result(system, self.law, load)
+        ``warm_start``), from this model's last answer, duals included.
+
+        Where the answer's own scale (the load, the springs' compression there) is below ``RECENTRE``
+        of the scale IPOPT solved in (an overlap that opened under a smaller load), the problem is
+        solved again from that answer in its scale (:func:`~dea_opt.formulations._parts.recentre.recentred_solve`),
+        so that IPOPT's tolerances are the answer's."""
+        x0 = start_vector(self.system, x0)
+        load = self.system.load if load is None else np.asarray(load, dtype=float)
+        trivial = trivial_result(self.system, self.law, load)
         if trivial is not None:
             return trivial
+        first = self._solve_once(load, x0, warm_start)
+        return recentred_solve(
+            first,
+            self.system.with_load(load),
+            self.law,
+            np.sqrt(self.scale.energy_scale),
+            lambda system: NLPModel(system, self.law, **self._options),
+        )
+
+    def _solve_once(self, load, x0, warm_start: bool) -> FormulationResult:
+        system, sc = self.system, self.scale
         scaled = sc.load(load)
         require_finite("the load", scaled)
         args = {"p": scaled, "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}

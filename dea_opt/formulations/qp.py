@@ -22,6 +22,7 @@ import numpy as np
 from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
 from ._parts.options import Capabilities, Option, Variant, validate
+from ._parts.recentre import recentred_solve
 from .energy import (
     FormulationResult,
     SpringSystem,
@@ -87,6 +88,10 @@ OPTIONS = (
 CAPABILITIES = Capabilities(laws="linear", warm_start=False, duals=True, checks_load_first=True)
 EXTRA_OPTIONS = "passed to the QP solver (Clarabel's settings, or through cvxpy's solve)"
 VARIANT = Variant("solver")
+
+#: Below this tolerance, Clarabel's insufficient progress is followed by a solve 100 times looser
+#: (``_Clarabel.solve``).
+RELAXED = 1e-9
 
 #: The solvers' own statuses, as dea-opt's vocabulary (formulations/qp.md, "Statuses"): Clarabel's
 #: words when it is called directly, cvxpy's for the others; any other is a solver error.
@@ -158,14 +163,9 @@ class _Clarabel:
         self.clarabel = clarabel
         k, n, s0 = scale.n_dofs, e0.size, scale.strain_scale
         self.k, self.n = k, n
-        settings = clarabel.DefaultSettings()
-        settings.verbose = False
-        for name, value in {**TOLERANCE_OPTIONS[DIRECT](tol), **options}.items():
-            try:
-                setattr(settings, name, value)
-            except (AttributeError, TypeError, ValueError) as exc:
-                raise _rejected(DIRECT, options, exc) from None
-        self.settings = settings
+        self.tol, self.options = tol, options
+        self.settings = self._settings(tol)
+        self.relaxed: float | None = None  # the looser tolerance the last solve ended at, if any
         # P: diag(0_k, Vs H s0^2), upper triangle, only the c columns stored.
         p_ptr = np.concatenate([np.zeros(k, dtype=np.int64), np.arange(n + 1, dtype=np.int64)])
         self.P = sp.csc_array((scale.volume * modulus * s0**2, np.arange(k, k + n), p_ptr), shape=(k + n, k + n))
@@ -188,8 +188,24 @@ class _Clarabel:
         self.solver = None
         self.ray = np.zeros(k)  # the last DualInfeasible answer's ray
 
+    def _settings(self, tol: float):
+        """Clarabel's settings for the tolerance ``tol`` (``TOLERANCE_OPTIONS``) and the caller's options."""
+        settings = self.clarabel.DefaultSettings()
+        settings.verbose = False
+        for name, value in {**TOLERANCE_OPTIONS[DIRECT](tol), **self.options}.items():
+            try:
+                setattr(settings, name, value)
+            except (AttributeError, TypeError, ValueError) as exc:
+                raise _rejected(DIRECT, self.options, exc) from None
+        return settings
+
     def solve(self, scaled_load):
-        """``(xi, lambda_hat, native status, iterations, Clarabel's solve_time)``."""
+        """``(xi, lambda_hat, native status, iterations, Clarabel's solve_time)``.
+
+        Where Clarabel makes insufficient progress toward a tolerance below ``RELAXED`` (rounding in its
+        KKT solves stops it short of 1e-12 on some layers, at an iterate 5 % off), it is solved once
+        more to a tolerance 100 times looser, and that answer kept where it is solved (``relaxed``);
+        the certificate judges it either way."""
         q = np.concatenate([-scaled_load, np.zeros(self.n)])
         if self.solver is not None and self.solver.is_data_update_allowed():
             self.solver.update(q=q)
@@ -197,6 +213,19 @@ class _Clarabel:
             self.solver = self.clarabel.DefaultSolver(self.P, q, self.G, self.b, self.cones, self.settings)
         out = self.solver.solve()
         native = str(out.status)
+        self.relaxed = None
+        if native == "InsufficientProgress" and self.tol < RELAXED:
+            looser = self.clarabel.DefaultSolver(self.P, q, self.G, self.b, self.cones, self._settings(100 * self.tol))
+            second = looser.solve()
+            if str(second.status) in ("Solved", "AlmostSolved"):
+                iterations = int(out.iterations) + int(second.iterations)
+                out, native, self.relaxed = second, str(second.status), 100 * self.tol
+                return self._answer(out, native, iterations)
+        return self._answer(out, native, int(out.iterations))
+
+    def _answer(self, out, native: str, iterations: int):
+        """The iterate of Clarabel's ``out`` (or NaN where it holds none, keeping a ray of unbounded
+        decrease to be checked)."""
         if native in _WITH_ITERATE:
             z = np.asarray(out.x, dtype=float)
             xi, lam = z[: self.k], np.asarray(out.z, dtype=float)[self.n :]
@@ -204,7 +233,7 @@ class _Clarabel:
             xi, lam = np.full(self.k, np.nan), np.full(self.n, np.nan)
             if native in _UNBOUNDED:  # its x is the ray along which the energy falls: kept to be checked
                 self.ray = np.asarray(out.x, dtype=float)[: self.k]
-        return xi, lam, native, int(out.iterations), float(out.solve_time)
+        return xi, lam, native, iterations, float(out.solve_time)
 
 
 class _Cvxpy:
@@ -279,6 +308,7 @@ class QPModel:
         if not CAPABILITIES.takes(law):
             raise InputError(f"method 'qp' needs a LinearLaw, got {law.describe()}: use another method for this law")
         start = time.perf_counter()
+        self._options = dict(options)
         self.solver = checked["solver"]
         self.system, self.law = system, law
         # Solved in the scaled variables xi (u_free = T xi) and c = s0 c_hat, so that the
@@ -297,12 +327,27 @@ class QPModel:
 
     def solve(self, load=None, *, x0=None) -> FormulationResult:
         """Solve for ``load`` (default: the system's own load); ``x0`` is checked and then
-        ignored: interior-point solvers start cold."""
+        ignored: interior-point solvers start cold.
+
+        Where the answer's own scale (the load, the springs' compression there) is below ``RECENTRE``
+        of the scale the QP was solved in (an overlap that opened under a smaller load), the QP is
+        solved again from that answer in its scale (:func:`~dea_opt.formulations._parts.recentre.recentred_solve`),
+        so that its tolerances are the answer's."""
         start_vector(self.system, x0)
         load = self.system.load if load is None else np.asarray(load, dtype=float)
         trivial = trivial_result(self.system, self.law, load)
         if trivial is not None:
             return trivial
+        first = self._solve_once(load)
+        return recentred_solve(
+            first,
+            self.system.with_load(load),
+            self.law,
+            np.sqrt(self.scale.energy_scale),
+            lambda system: QPModel(system, self.law, **self._options),
+        )
+
+    def _solve_once(self, load) -> FormulationResult:
         scaled = self.scale.load(load)
         require_finite("the load", scaled)
         start = time.perf_counter()
@@ -322,6 +367,9 @@ class QPModel:
         stress = -lam / (self.scale.volume * self.scale.strain_scale)
         status = NATIVE_STATUS.get(native, Status.SOLVER_ERROR)
         message = f"{self.solver}: {native}"
+        relaxed = getattr(self.backend, "relaxed", None)
+        if relaxed is not None:
+            message = f"{self.solver}: InsufficientProgress at tol={self.tol:g}, then {native} at tol={relaxed:g}"
         if native in _UNBOUNDED and isinstance(self.backend, _Clarabel):
             why = _false_ray(self.backend.ray, self.scale, scaled)
             if why is not None:

@@ -441,11 +441,9 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
             if held is not None:
                 held.setflags(write=False)
     final = problem
-    # the gaps with the free coordinates at zero (no forces needed there)
-    gaps_at_zero = system.gaps(system.transform(system.base)).s
     if tracker is not None and (tracker.changed_from(problem.layer) or targets.frame is not tracker.cast.pose):
         # The springs of the solved pose, with their gaps at zero displacement (from the same targets).
-        s0 = evaluate(targets, system.points, system.normals, targets.frame).s if system.base.any() else gaps_at_zero
+        s0 = evaluate(targets, system.points, system.normals, targets.frame).s
         s0 = np.clip(np.where(np.isfinite(s0), s0, 1e9), -1e9, 1e9)
         final = replace(problem, layer=tracker.layer_with_gap(s0), targets=targets)
     layer = final.layer
@@ -457,9 +455,7 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     reported = -pressure if inner.info.get("stress") is None else inner.info["stress"]
     lengths = lengths_of(system)  # a rotation's: final.layer_radius[1], from the springs' rows
     stiffness = float(np.sum(layer.areas / layer.thickness))
-    cert = certificate(
-        state, law, final.layer, lengths, stiffness, u, reported, gaps_at_zero / system.thickness, certificate_tol
-    )
+    cert = certificate(state, law, final.layer, lengths, stiffness, u, reported, certificate_tol)
     # springs cast from meshes are updated only at a converged pose: an unconverged answer stands on old ones
     settled = tracker is None or (tracker.counts.get("stable", True) and inner.success)
     crushed = inner.status == "crushed"

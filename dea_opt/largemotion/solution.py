@@ -1,7 +1,7 @@
 """Finite kinematics, the answer: the solution at the solved pose and its certificate there.
 
 Written math: ``formulations/finite.md`` ("Certificate in the deformed configuration"). The
-certificate is the one of :func:`dea_opt.solution.certify`, with every quantity taken at the
+certificate is the one of :func:`dea_opt.certificate.certify`, with every quantity taken at the
 solved pose: the forces the springs exert along their directions ``n_i`` about body 2's current
 reference point ``c' = c + t``, mapped to the free coordinates by ``blockdiag(I, J(theta))``,
 against the load mapped the same way; the strains are the gaps at that pose over the thickness.
@@ -14,10 +14,11 @@ from functools import cached_property
 
 import numpy as np
 
-from ..formulations.energy import SpringSystem
+from ..certificate import certify
+from ..formulations.energy import ROUNDING, SpringSystem
 from ..formulations.finite import Targets, generalized, left_jacobian, pose_matrix
 from ..kinematics import DOF_NAMES
-from ..solution import Solution, certify
+from ..solution import Solution
 
 
 def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
@@ -47,10 +48,11 @@ def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
 
 
 class _Deformed:
-    """What :func:`~dea_opt.solution.certify` reads of a problem, at the solved pose."""
+    """What :func:`~dea_opt.certificate.certify` reads of a problem, at the solved pose."""
 
-    def __init__(self, layer, law, system: SpringSystem, free_indices, eps):
-        self.layer, self.law, self._system, self.free_indices, self._eps = layer, law, system, free_indices, eps
+    def __init__(self, layer, law, system: SpringSystem, free_indices, eps, rounding):
+        self.layer, self.law, self._system, self.free_indices = layer, law, system, free_indices
+        self._eps, self._rounding = eps, rounding
 
     def system(self) -> SpringSystem:
         return self._system
@@ -58,9 +60,33 @@ class _Deformed:
     def strain(self, u) -> np.ndarray:
         return self._eps
 
+    def strain_rounding(self, u) -> np.ndarray:
+        return self._rounding
 
-def certificate(state, law, layer, lengths, stiffness, u, reported_stress, strain_at_zero, tolerance):
-    """The :class:`~dea_opt.solution.Certificate` of a finite-kinematics answer at its solved pose.
+
+def strain_rounding(state) -> np.ndarray:
+    """A bound on the rounding of the springs' strains at ``state``'s pose, shape (N,): ``ROUNDING``
+    ulps of the sizes the gaps are computed from (the springs' points, their targets' points and
+    radii, the pose's translation), over ``|n_i . m_i|`` (the ray's incidence on its target) and the
+    thickness; 0 where the ray misses its target (open, no force). Far from the origin, or where
+    a deep start and the motion cancel to a small gap, the strain keeps only the digits these leave
+    (``formulations/energy.md``, "The certificate")."""
+    system, gaps = state.system, state.gaps
+    targets = system.targets
+    shift = float(np.linalg.norm(system.transform(state.y)[:3, 3]))
+    size = np.linalg.norm(system.points, axis=1) + np.linalg.norm(targets.points, axis=1) + targets.radius + shift
+    along = np.abs(gaps.along)
+    valid = gaps.valid & (along > 0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        bound = ROUNDING * np.finfo(float).eps * size / (along * system.thickness)
+    return np.where(valid, bound, 0.0)
+
+
+def certificate(state, law, layer, lengths, stiffness, u, reported_stress, tolerance):
+    """The :class:`~dea_opt.certificate.Certificate` of a finite-kinematics answer at its solved pose.
+
+    Everything it measures is at that pose: the springs' forces there, the load mapped there, the
+    strains' rounding there (:func:`strain_rounding`); nothing of the start.
 
     Parameters
     ----------
@@ -75,8 +101,6 @@ def certificate(state, law, layer, lengths, stiffness, u, reported_stress, strai
     u : ndarray (12,)
     reported_stress : ndarray (N,)
         The formulation's spring stress (MPa).
-    strain_at_zero : ndarray (N,)
-        The strains with the free coordinates at zero (the initial overlap of gaps and prescribed motion).
     """
     system = state.system
     free = system.free
@@ -87,8 +111,8 @@ def certificate(state, law, layer, lengths, stiffness, u, reported_stress, strai
     # A small factor R (R^T R = A^T diag(V) A) spares the decision of the resisted directions an
     # SVD of the N x m matrix.
     factor = np.linalg.qr((AT * np.sqrt(volume)).T, mode="r") if AT.size else np.zeros((0, len(free)))
-    small = SpringSystem(AT, _finite(strain_at_zero), volume, load, lengths, factor, stiffness)
-    deformed = _Deformed(layer, law, small, 6 + free, eps)
+    small = SpringSystem(AT, eps, volume, load, lengths, factor, stiffness)
+    deformed = _Deformed(layer, law, small, 6 + free, eps, strain_rounding(state))
     return certify(deformed, u, reported_stress, tolerance)
 
 

@@ -172,17 +172,26 @@ print("H = 0.45 MPa:", soft.validity.summary())
 #    * - hip cartilage
 #      - C. L. Abraham, S. A. Maas, J. A. Weiss, B. J. Ellis, C. L. Peters, A. E. Anderson, *A new
 #        discrete element analysis method for predicting hip joint contact stresses*, J. Biomech.
-#        46(6):1121-1127, 2013 (DEA against a validated FE model, same material properties)
-#      - DEA peak pressures 9.8-13.6 MPa, mean 3.0-3.7 MPa in walking and stairs (the modulus:
-#        see its methods; not quoted here)
-#      - dea-opt's demo uses 10 MPa (peak strain near 20 %); compare your pressures with theirs
+#        46(6):1121-1127, 2013 (PMC3623562); also J. Van Houcke, E. A. Audenaert, P. R. Atkins,
+#        A. E. Anderson, *A combined geometric morphometric and discrete element modeling approach
+#        for hip cartilage contact mechanics*, Front. Bioeng. Biotechnol. 8:318, 2020
+#      - the modulus: **not verified** (only the abstracts could be read here; Abraham et al.
+#        give their DEA the material properties of their validated FE model). Verified, from the
+#        abstract: DEA peak pressure 9.8-13.6 MPa, mean 3.0-3.7 MPa in walking and on stairs
+#        (their FE model: 6.2-9.8 and 2.0-2.5 MPa)
+#      - not from a source: dea-opt's demo uses 10 MPa (peak strain near 20 %); compare your
+#        pressures with theirs
 #    * - ankle cartilage
 #      - I. Benemerito, L. Modenese, E. Montefiori, C. Mazzà, M. Viceconti, D. Lacroix, L. Guo,
 #        *An extended discrete element method for the estimation of contact pressure at the ankle
-#        joint during stance phase*, Proc. IMechE H 234(5):507-516, 2020
-#      - DEA peak pressure 6.9-7.3 MPa at toe-off, contact area 4.2-4.7 cm² (the modulus: see its
-#        methods; not quoted here)
-#      - start at 10 MPa and compare your pressures with theirs
+#        joint during stance phase*, Proc. IMechE H 234(5):507-516, 2020; also A. M. Kern et al.,
+#        *Expedited patient-specific assessment of contact stress exposure in the ankle joint
+#        following definitive articular fracture reduction*, J. Biomech. 48(12):3427-3432, 2015
+#      - the modulus: **not verified** (only the abstracts could be read here). Verified, from
+#        the abstracts: peak pressure 7.3 MPa (extended DEA) and 6.92 MPa (DEA) at toe-off,
+#        contact area 4.67 and 4.18 cm² (Benemerito); DEA's maximum contact stresses within 19 %
+#        of those measured in two cadaveric ankles (Kern)
+#      - not from a source: start at 10 MPa and compare your pressures with theirs
 #    * - UHMWPE tibial insert (knee replacement)
 #      - the CAMS-Knee M+ model of OpenSim-JAM, ``cams_Mplus_right_contact.osim``; the Grand
 #        Challenge model ``DM.osim`` of the same toolkit (``../shared/data/tka/material.json``)
@@ -217,7 +226,7 @@ print("validity:", solution.validity.summary())
 print(f"peak {solution.peak_pressure:.2f} MPa, contact area {solution.contact_area:.0f} mm^2")
 for name, region in solution.regions().items():
     print(
-        f"  {name}: {region.share:.1%} of the load, peak {region.peak_pressure:.2f} MPa, area {region.contact_area:.0f} mm^2"
+        f"  {name}: {region.share:.1%} of the contact force, peak {region.peak_pressure:.2f} MPa, area {region.contact_area:.0f} mm^2"
     )
 
 # %%
