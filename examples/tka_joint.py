@@ -158,7 +158,6 @@ def main(argv=None):
     parser.add_argument("--out", default=str(DEFAULT_OUT))
     parser.add_argument("--load", type=float, default=700.0, help="N on the femur, along -y")
     parser.add_argument("--quadriceps", type=float, default=300.0, help="N on the patella")
-    parser.add_argument("--coarse", action="store_true", help="the same model (the gallery's builds pass it)")
     args = parser.parse_args(argv)
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
