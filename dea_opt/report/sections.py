@@ -82,12 +82,15 @@ def certificate_section(page: Page, certificate, note: str = "") -> None:
     )
     data = certificate.as_dict()
     tolerance = data.get("tolerance")
+    parts = {"tolerance", "passed", "rounding"}  # the bound, the verdict, a part of equilibrium
     rows = [
         [name, value, tolerance, "yes" if value is not None and value <= tolerance else "no"]
         for name, value in data.items()
-        if isinstance(value, float) and name != "tolerance"
+        if isinstance(value, float) and name not in parts
     ]
     page.add(table(["residual", "value", "tolerance", "within"], rows))
+    if isinstance(data.get("rounding"), float):
+        page.paragraph(f"Of equilibrium, the strains' rounding alone makes {data['rounding']:.3g}.", "note")
     page.paragraph(f"certificate {'passed' if data.get('passed') else 'FAILED'}", "note")
 
 

@@ -207,11 +207,14 @@ class Calibration:
 
     def plot(self, path, title: str | None = None):
         """Measured against predicted pressure (censored points at their film limit) and the map
-        of residuals, to a PNG (written atomically)."""
+        of residuals, to a PNG (written atomically). ``title`` (the scenario's, say) heads the
+        figure above the fitted values with their standard errors and units; a fitted answer
+        outside validity is stamped so (:func:`dea_opt.io.marks.stamp`)."""
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
         from ..io.atomic import write_atomic
+        from ..io.marks import solution_verdict, stamp, verdict_lines
 
         table = self.residual_map()
         if table.empty:
@@ -260,7 +263,10 @@ class Calibration:
             f"{p} = {self.values[p]:.4g} ± {_se_text(self.standard_errors[p])}{_unit_text(self.unit_of(p))}"
             for p in self.parameters
         )
-        fig.suptitle(title or f"calibration: {text}", fontsize=10)
+        verdict = solution_verdict(self.solution)
+        heading = f"calibration: {text}" + verdict_lines(verdict, 110)
+        fig.suptitle(f"{title}\n{heading}" if title else heading, fontsize=10)
+        stamp(fig, verdict)
         return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
 
 

@@ -98,5 +98,5 @@ def calibrate_scenario(
     write_json(summary, files["summary"])
     table = fit.residual_map()
     write_atomic(files["residuals"], lambda tmp: table.to_csv(tmp, index=False))
-    fit.plot(files["plot"])
+    fit.plot(files["plot"], title=scenario.title or None)
     return fit, files
