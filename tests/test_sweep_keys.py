@@ -131,7 +131,7 @@ def test_the_cli_prints_the_stale_summary(plate, tmp_path):
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.stderr
     assert result.stdout.splitlines() == [
-        f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}",
+        f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}, report: {out / 'report.html'}",
         "  recomputed 2 case(s): the scenario changed since its row was computed",
     ]
 
