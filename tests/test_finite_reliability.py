@@ -110,11 +110,11 @@ def test_contact_json_says_the_moment_is_taken_about_the_moved_reference(knee, t
     d.io.to_json(solution, tmp_path / "contact.json")
     written = json.loads((tmp_path / "contact.json").read_text())
     point = np.asarray(reference) + solution.u[6:9]
-    assert np.allclose(written["moment_about"], point, atol=1e-12)
+    assert np.allclose(written["moment_about_mm"], point, atol=1e-12)
     layer = solution.problem.layer
     forces = (solution.pressure * layer.areas)[:, None] * layer.normals
-    moment = np.cross(layer.points - np.asarray(written["moment_about"]), forces).sum(axis=0)
-    assert np.allclose(written["contact_moment"], moment, rtol=1e-9, atol=1e-6)
+    moment = np.cross(layer.points - np.asarray(written["moment_about_mm"]), forces).sum(axis=0)
+    assert np.allclose(written["contact_moment_Nmm"], moment, rtol=1e-9, atol=1e-6)
     # the load has no moment: along the free rotation vector's components the springs' moment
     # about that point, mapped by the rotation's Jacobian, is nil (rz held takes the rest)
     assert np.abs((left_jacobian(solution.u[9:12]).T @ moment)[:2]).max() < 1e-6 * 1000.0 * 30.0

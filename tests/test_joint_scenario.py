@@ -46,7 +46,7 @@ def test_the_example_joint_runs_and_writes_each_layer_and_the_ligament_table(tmp
             assert (tmp_path / f"{name}.{ext}").stat().st_size > 0
     for i, name in enumerate(("lower", "upper")):
         summary = json.loads((tmp_path / f"{name}.json").read_text())
-        assert summary["peak_pressure"] == pytest.approx(solution.contacts[i].peak_pressure, rel=1e-12)
+        assert summary["peak_pressure_MPa"] == pytest.approx(solution.contacts[i].peak_pressure, rel=1e-12)
     rows = _rows(tmp_path / "ligaments.csv")
     assert list(rows[0]) == ["name", "body1", "body2", "force_N", "strain", "length_mm", "slack_length_mm"]
     assert [r["name"] for r in rows] == ["front", "back"]

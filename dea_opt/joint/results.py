@@ -162,7 +162,11 @@ class JointSolution:
         return f"status {self.status!r}: {self.status.description}"
 
     def summary(self) -> dict:
-        """The headline numbers as plain Python values (for JSON)."""
+        """The headline numbers as plain Python values (for JSON), each key of a number ending with
+        its unit (:mod:`dea_opt.units`)."""
+        from ..kinematics import DOFS
+        from ..units import dof_name
+
         return {
             "method": self.method,
             "success": self.success,
@@ -171,20 +175,20 @@ class JointSolution:
             "iterations": self.iterations,
             "bodies": {
                 name: {
-                    "u": b.u.tolist(),
-                    "reactions": b.reactions,
-                    "force": b.force.tolist(),
-                    "moment": b.moment.tolist(),
+                    "u": {dof_name(dof): float(v) for dof, v in zip(DOFS, b.u)},
+                    "reactions": {dof_name(dof, "force"): float(v) for dof, v in b.reactions.items()},
+                    "force_N": b.force.tolist(),
+                    "moment_Nmm": b.moment.tolist(),
                 }
                 for name, b in self.bodies.items()
             },
             "contacts": [
                 {
                     "name": contact.name,
-                    "peak_pressure": s.peak_pressure,
-                    "contact_area": s.contact_area,
-                    "contact_force": s.contact_force.tolist(),
-                    "center_of_pressure": s.center_of_pressure.tolist(),
+                    "peak_pressure_MPa": s.peak_pressure,
+                    "contact_area_mm2": s.contact_area,
+                    "contact_force_N": s.contact_force.tolist(),
+                    "center_of_pressure_mm": s.center_of_pressure.tolist(),
                 }
                 for contact, s in zip(self.joint.contacts, self.contacts)
             ],

@@ -70,7 +70,7 @@ class _Deformed:
 def strain_rounding(state) -> np.ndarray:
     """A bound on the rounding of the springs' strains at ``state``'s pose, shape (N,): ``ROUNDING``
     ulps of the sizes the gaps are computed from (the springs' points, their targets' points and
-    radii, the pose's translation), over ``|n_i . m_i|`` (the ray's incidence on its target) and the
+    radii, the pose's translation), over ``|dot(n_i, m_i)|`` (the ray's incidence on its target) and the
     thickness; 0 where the ray misses its target (open, no force). Far from the origin, or where
     a deep start and the motion cancel to a small gap, the strain keeps only the digits these leave
     (``formulations/energy.md``, "The certificate")."""

@@ -116,6 +116,7 @@ def solve_path(
     threshold: float = 1.0,
     progress: bool = False,
     kinematics: str | None = None,
+    keep_frames=(),
     **options,
 ) -> PathResult:
     """Solve ``problem`` under each load of a path, warm-starting every frame from the last.
@@ -152,6 +153,11 @@ def solve_path(
     keep_pressures : bool
         Keep every frame's pressure per spring (:attr:`PathResult.pressures`; NaN for a
         failed frame). With both False, memory does not grow with the springs x frames.
+    keep_frames : iterable of int or "peak"
+        Frames whose certified solution to keep however ``keep_solutions`` is set
+        (:attr:`PathResult.kept`), ``"peak"`` for the certified frame of the largest peak
+        pressure (kept as the frames stream by: one solution in memory): what
+        :meth:`PathResult.write` draws the pressure maps of.
     series : str or Path, optional
         A folder to write each frame's ``.vtu`` into as it is solved
         (``frame_NNNN.vtu``; :class:`~dea_opt.loadpath.series.FrameSeries`), so that the
@@ -212,6 +218,7 @@ def solve_path(
             threshold=threshold,
             progress=progress,
             kinematics=kinematics,
+            keep_frames=keep_frames,
             options=options,
         )
 
@@ -254,6 +261,7 @@ def _solve_path(
     threshold,
     progress,
     kinematics,
+    keep_frames,
     options,
 ) -> PathResult:
     """The body of :func:`solve_path`."""
@@ -282,6 +290,8 @@ def _solve_path(
         n_regions=n_regions,
     )
     loads, times = read_frames(loads, times)
+    wanted, keep_peak = _kept_frames(keep_frames, len(loads))
+    kept: dict = {}
     if finite:
         poses = check_finite_poses(problem, poses, len(loads))
     else:
@@ -338,6 +348,7 @@ def _solve_path(
                     frame_regions = FrameRegions(_labels(regions, layer), base_regions.prefixes)
                 rows.append(solved_row(k, t, vector, solution, frame_regions, motion))
                 accumulator.add(t, solution.pressure, _sites(layer, moving))
+                _keep(kept, k, solution, wanted, keep_peak)
             certified = None if status else solution
             if keep_pressures:
                 pressures.append(
@@ -362,9 +373,36 @@ def _solve_path(
         moving=moving,
         regions=dict(base_regions.prefixes) if base_regions is not None else {},
         frame_files=frames,
+        kept=kept,
     )
     result.warn_validity()
     return result
+
+
+def _kept_frames(keep_frames, n: int) -> tuple[set, bool]:
+    """``(frame indices, keep the peak frame)`` of ``keep_frames``, each index checked."""
+    if isinstance(keep_frames, (str, int)):
+        keep_frames = [keep_frames]
+    wanted, peak = set(), False
+    for item in keep_frames:
+        if item == "peak":
+            peak = True
+            continue
+        if isinstance(item, bool) or not isinstance(item, (int, np.integer)) or not 0 <= item < n:
+            raise InputError(f"keep_frames must hold frame indices in [0, {n - 1}] or 'peak', got {item!r}")
+        wanted.add(int(item))
+    return wanted, peak
+
+
+def _keep(kept: dict, k: int, solution, wanted: set, keep_peak: bool) -> None:
+    """Keep frame ``k``'s certified ``solution`` if it was asked for, or if it is the peak so far
+    (``kept["peak"]``, replacing the last peak)."""
+    if k in wanted:
+        kept[k] = solution
+    if keep_peak:
+        best = kept.get("peak")
+        if best is None or solution.peak_pressure > best[1].peak_pressure:
+            kept["peak"] = (k, solution)
 
 
 def _check_poses(problem, poses, layer_for_pose, n):

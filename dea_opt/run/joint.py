@@ -54,6 +54,7 @@ def _static(scenario, joint, method, out) -> RunOutcome:
 
     solution = solve_joint(joint, method, certificate_tol=scenario.solve.certificate_tol, strict=False)
     formats, files = scenario.output.formats, {}
+    verdict = _joint_verdict(solution)
     for contact, layer in zip(joint.contacts, solution.contacts):
         stem = _stem(contact.name)
         if "vtk" in formats:
@@ -63,7 +64,10 @@ def _static(scenario, joint, method, out) -> RunOutcome:
         if "json" in formats:
             files[f"{stem}.json"] = io.to_json(layer, out / f"{stem}.json")
         if "png" in formats:
-            files[f"{stem}.png"] = io.plot_pressure(layer, out / f"{stem}.png", anatomy=scenario.output.anatomy)
+            title = f"{scenario.title}: {contact.name}" if scenario.title else contact.name
+            files[f"{stem}.png"] = io.plot_pressure(
+                layer, out / f"{stem}.png", anatomy=scenario.output.anatomy, title=title, verdict=verdict
+            )
     if joint.ligaments:
         files["ligaments"] = write_data(out / "ligaments.csv", _csv(solution.ligaments.rows(), LIGAMENT_COLUMNS))
     files["joint"] = write_json(solution.summary(), out / "joint.json")
@@ -73,7 +77,7 @@ def _static(scenario, joint, method, out) -> RunOutcome:
         "success": solution.success,
         "status": str(solution.status),
         "iterations": solution.iterations,
-        "solve_time": solution.solve_time,
+        "solve_time_s": solution.solve_time,
         "worst_residual": solution.certificate.worst()[1],
         "valid": validity.valid,
         "validity_failed": ";".join(validity.failed),
@@ -103,6 +107,18 @@ def _static(scenario, joint, method, out) -> RunOutcome:
         validity=lines,
         reasons=list(validity.failed),
     )
+
+
+def _joint_verdict(solution):
+    """The joint answer's verdict for its layers' maps (their own would judge one layer alone):
+    ``(mark, reason)``, or :data:`~dea_opt.io.marks.CLEAN` for a certified answer inside validity."""
+    from ..io.marks import CLEAN
+
+    if not solution.success:
+        return "NO CERTIFIED ANSWER", f"{solution.method}: status {solution.status}"
+    if not solution.validity.valid:
+        return "OUTSIDE VALIDITY", ", ".join(map(str, solution.validity.failed))
+    return CLEAN
 
 
 def _status(value: str):
