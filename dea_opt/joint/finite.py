@@ -29,11 +29,12 @@ from ..formulations.energy import single_threaded_blas
 from ..formulations.joint import internal_force, joint_scaling, law_stresses
 from ..kinematics import DOFS
 from ..status import CERTIFIABLE, Status
-from .certificate import body_forces, certify_joint
+from .certificate import certify_joint
 from .checks import check_joint_unresisted, finish, start_vector
 from .configuration import Configuration, initial_states
-from .model import line_operator
+from .elastic import elastic_results
 from .results import JointSolution, body_results, layer_solutions, ligament_results
+from .rows import line_operator
 from .validity import assess_joint
 
 __all__ = ["OPTIONS", "exact_residual", "solve_finite_joint", "stability"]
@@ -80,7 +81,7 @@ def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bo
 
 def _coordinates(joint, x) -> dict:
     """``{body: 6-vector}`` of coordinates from the free vector ``x`` (prescribed values elsewhere)."""
-    return joint.body_u(np.zeros(len(joint.free_index)) if x is None else x)
+    return joint.body_u(joint.start() if x is None else x)
 
 
 def _residual(system) -> float:
@@ -108,7 +109,7 @@ def _step(name: str, system, inner: dict, residual: float):
 def _solve(joint, name, method, tol, own, inner, x0) -> JointSolution:
     start = time.perf_counter()
     free = list(joint.free_index)
-    x = np.zeros(len(free)) if x0 is None else x0.copy()
+    x = joint.start() if x0 is None else x0.copy()
     states = tuple(initial_states(joint))
     config = Configuration(joint, _coordinates(joint, x), states)
     system = config.solver_system()
@@ -167,7 +168,7 @@ def _solve(joint, name, method, tol, own, inner, x0) -> JointSolution:
         evaluations += used
         x = x + alpha * dx
         y = _coordinates(joint, x)
-        if any(np.linalg.norm(v[3:]) > math.pi or np.linalg.norm(v[:3]) > 4 * radius for v in y.values()):
+        if _ran_away(joint, y, radius):
             status = Status.UNBOUNDED
             message = (
                 "the bodies ran away (a turn past 180 deg or a slide past 4 times the joint's extent): nothing in "
@@ -187,6 +188,20 @@ def _solve(joint, name, method, tol, own, inner, x0) -> JointSolution:
         "native_status": str(status),
     }
     return _certified(joint, config, method, status, message, steps, time.perf_counter() - start, tol, info)
+
+
+def _ran_away(joint, y: dict, radius: float) -> bool:
+    """A body whose rotation vector wound past a half turn, or whose reference moved more than 4
+    times the joint's extent (a body of :class:`~dea_opt.joint.Coordinates`: its motion's)."""
+    for name, v in y.items():
+        if name in joint.coordinates:
+            T = joint.motion(name, v)
+            c = np.asarray(joint.bodies[name].reference)
+            if np.linalg.norm(T[:3, :3] @ c + T[:3, 3] - c) > 4 * radius:
+                return True
+        elif np.linalg.norm(v[3:]) > math.pi or np.linalg.norm(v[:3]) > 4 * radius:
+            return True
+    return False
 
 
 def _newton_step(joint, config: Configuration, x) -> np.ndarray | None:
@@ -261,7 +276,7 @@ def _recast(config: Configuration) -> tuple | None:
     return tuple(states) if any_cast else None
 
 
-def _world_forces(config: Configuration, layer_forces, ligament_forces) -> dict:
+def _world_forces(config: Configuration, layer_forces, ligament_forces, elastic_forces=()) -> dict:
     """``{body: 6-vector}`` every element takes from each body, in world axes about its reference at
     the pose (the layers' own answers are written in them)."""
     out = config.world.on_body(layer_forces)
@@ -270,6 +285,12 @@ def _world_forces(config: Configuration, layer_forces, ligament_forces) -> dict:
         idx = list(group.members)
         G = line_operator(p1[idx], p2[idx], config.references[group.body1], config.references[group.body2])
         q = np.asarray(f) @ G
+        out[group.body1] += q[:6]
+        out[group.body2] += q[6:]
+    from .elastic import elastic_groups
+
+    for group, f in zip(elastic_groups(config.joint, config.poses, config.references), elastic_forces):
+        q = np.asarray(f) @ group.G
         out[group.body1] += q[:6]
         out[group.body2] += q[6:]
     return out
@@ -286,8 +307,8 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
     if not success and status in CERTIFIABLE:
         status, message = Status.INACCURATE, f"{message}; the answer fails dea-opt's certificate"
     y = config.y
-    n = len(joint.contacts)
-    on_body = body_forces(config, forces)
+    n, n_ligaments = len(joint.contacts), len(joint.ligament_groups)
+    on_body = _world_forces(config, forces[:n], forces[n : n + n_ligaments], forces[n + n_ligaments :])
     world = config.world
     common = dict(
         certificate=certificate,
@@ -303,7 +324,7 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
     contacts = layer_solutions(
         world,
         {k: np.zeros(6) for k in y},
-        _world_forces(config, forces[:n], forces[n:]),
+        on_body,
         forces[:n],
         [layer.gap / layer.thickness for layer in config.layers],
         common,
@@ -313,7 +334,8 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
     value, along = stability(config) if success else (None, "")
     validity = assess_joint(config, y, ligaments, tuple(c.validity for c in contacts), stability=value, softest=along)
     info = dict(info, stability=value, softest=along)
-    bodies = body_results(joint, y, on_body)
+    bodies = body_results(joint, y, on_body, config.world_loads, config.poses)
+    elastic = elastic_results(joint, config.elastic_groups, forces[n + n_ligaments :])
     return JointSolution(
         joint=joint,
         x=np.array([y[b][DOFS.index(d)] for b, d in joint.free_index]),
@@ -329,6 +351,7 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
         iterations=steps,
         solve_time=elapsed,
         info=info,
+        elastic=elastic,
     )
 
 
