@@ -10,7 +10,7 @@ certificate per body and element, each layer's two-body answer and validity), ag
 layers solved alone (``dea.solve`` of each layer's two-body problem: the femur on the fixed tibia,
 the patella on the femur held where it is), each from fresh objects, best of ``--repeats``.
 Target: at most 2x. (2) A 101-frame load path of the same joint
-(:func:`dea_opt.run.joint.solve_joint_path`, each frame from the previous answer). Target: at most
+(:func:`dea_opt.run.joint_path.solve_joint_path`, each frame from the previous answer). Target: at most
 10 s. Prints the machine's CPU, the timings and the targets; writes
 ``benchmarks/results/joint.csv``. Speed is measured here, never asserted in tests.
 """
@@ -139,8 +139,8 @@ def main(argv=None):
         f"{t_alone * 1e3:.1f} ms: {ratio:.2f}x (target <= 2x: {'met' if ratio <= 2 else 'NOT met'})"
     )
 
-    from dea_opt.run.joint import solve_joint_path
-    from dea_opt.scenario.joint_build import JointPath
+    from dea_opt.run.joint_path import solve_joint_path
+    from dea_opt.scenario.joint_path import JointPath
 
     phase = np.linspace(0.0, 1.0, args.frames)
     shape = 0.3 + 0.7 * np.sin(np.pi * phase) ** 2

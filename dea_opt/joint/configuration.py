@@ -90,10 +90,10 @@ class Configuration:
         return {n: self.joint.motion(n, self.y[n]) for n in self.joint.bodies}
 
     @cached_property
-    def rates(self) -> dict:
+    def rates(self) -> _Rates:
         """Each body's ``B`` (6, 6): its reference's velocity and angular velocity per unit rate of
-        its coordinates (``diag(I, J(theta))`` for a rotation vector)."""
-        return {n: self.joint.rates(n, self.y[n], self.poses[n]) for n in self.joint.bodies}
+        its coordinates (``diag(I, J(theta))`` for a rotation vector); made when first asked for."""
+        return _Rates(self)
 
     @cached_property
     def references(self) -> dict:
@@ -248,10 +248,11 @@ class Configuration:
         """``(P1, P2)`` (n, 3): every bundle's insertions at the pose (mm, world)."""
         n = len(self.joint.ligaments)
         p1, p2 = np.zeros((n, 3)), np.zeros((n, 3))
-        for i, lig in enumerate(self.joint.ligaments):
-            T1, T2 = self.poses[lig.body1], self.poses[lig.body2]
-            p1[i] = T1[:3, :3] @ np.asarray(lig.point1) + T1[:3, 3]
-            p2[i] = T2[:3, :3] @ np.asarray(lig.point2) + T2[:3, 3]
+        for g, (points1, points2, _, _) in zip(self.joint.ligament_groups, self.joint.ligament_arrays):
+            idx = list(g.members)
+            T1, T2 = self.poses[g.body1], self.poses[g.body2]
+            p1[idx] = points1 @ T1[:3, :3].T + T1[:3, 3]
+            p2[idx] = points2 @ T2[:3, :3].T + T2[:3, 3]
         return p1, p2
 
     @cached_property
@@ -273,12 +274,8 @@ class Configuration:
     def elastic_groups(self) -> tuple:
         """The springs and bushings at the pose (exact lengths and relative poses), their rows over
         the coordinates' rates."""
-        from .elastic import elastic_groups
 
-        out = []
-        for g in elastic_groups(self.joint, self.poses, self.references):
-            out.append(replace(g, G=g.G @ self._pair_rates(g.body1, g.body2)))
-        return tuple(out)
+        return tuple(replace(g, G=g.G @ self._pair_rates(g.body1, g.body2)) for g in self._world_elastic)
 
     # --- the arrays of the solve -------------------------------------------------------------
     def _free(self, body1: str, body2: str) -> tuple[list, np.ndarray]:
@@ -301,28 +298,87 @@ class Configuration:
 
     def net_force(self) -> np.ndarray:
         """The net generalized force on the free coordinates at the pose (N, N mm): every element's
-        exact force there taken from the bodies, minus the loads (``J^T`` of the moments). Zero at
-        equilibrium; computed without the arrays of a solve (the tangent's differences call it)."""
-        x = np.zeros(len(self.joint.free_index))
+        exact force there taken from the bodies, minus the loads, projected by each body's rates
+        (``B^T``). Zero at equilibrium. Computed from the elements that carry load alone (compressed
+        springs, taut bundles), without the arrays of a solve: the tangent's differences call it."""
+        from ..kinematics import normal_operator
+
+        taken = {name: np.zeros(6) for name, b in self.joint.bodies.items() if b.free}
+        if not taken:
+            return np.zeros(0)
+
+        def add(body1, body2, q) -> None:
+            if body1 in taken:
+                taken[body1] += q[:6]
+            if body2 in taken:
+                taken[body2] += q[6:]
+
         with np.errstate(invalid="ignore", over="ignore"):
-            for c, G, layer in zip(self.joint.contacts, self.contact_rows, self.layers):
-                f = layer.areas * c.law.stress(np.minimum(layer.gap / layer.thickness, 0.0))
-                cols, dofs = self._free(c.body1, c.body2)
-                x[dofs] += f @ G[:, cols]
-            for g in self.ligament_groups:
-                ligs = [self.joint.ligaments[i] for i in g.members]
-                law = TensionLaw(g.law, np.array([lig.transition_strain for lig in ligs]))
-                f = np.array([lig.stiffness for lig in ligs]) * law.force(g.start / g.slack - 1.0)
-                cols, dofs = self._free(g.body1, g.body2)
-                x[dofs] += f @ g.G[:, cols]
-            for e in self.elastic_groups:
-                cols, dofs = self._free(e.body1, e.body2)
-                x[dofs] += (e.k * e.e0) @ e.G[:, cols]
-        load = [
-            np.asarray(self.bodies[n].load_vector)[[DOFS.index(d) for d in b.free]]
-            for n, b in self.joint.bodies.items()
-        ]
-        return x - (np.concatenate(load) if load else np.zeros(0))
+            for c, state, gaps in zip(self.joint.contacts, self.states, self.gaps):
+                active = np.flatnonzero(gaps.s < 0)  # an open spring (or a missed target) carries nothing
+                if not active.size or (c.body1 not in taken and c.body2 not in taken):
+                    continue
+                layer = state.layer
+                h = np.broadcast_to(layer.thickness, (len(layer),))[active]
+                f = layer.areas[active] * c.law.stress(gaps.s[active] / h)
+                T = self.poses[c.body1]
+                points = layer.points[active] @ T[:3, :3].T + T[:3, 3]
+                normals = layer.normals[active] @ T[:3, :3].T
+                add(
+                    c.body1,
+                    c.body2,
+                    f @ normal_operator(points, normals, self.references[c.body1], self.references[c.body2]),
+                )
+            p1, p2 = self.insertions
+            for g, (_, _, k, law) in zip(self.joint.ligament_groups, self.joint.ligament_arrays):
+                if g.body1 not in taken and g.body2 not in taken:
+                    continue
+                idx = np.asarray(g.members)
+                d = p2[idx] - p1[idx]
+                length = np.linalg.norm(d, axis=1)
+                f = k * law.force(length / g.slack - 1.0)
+                taut = f > 0
+                if taut.any():
+                    add(
+                        g.body1,
+                        g.body2,
+                        f[taut]
+                        @ line_operator(
+                            p1[idx][taut], p2[idx][taut], self.references[g.body1], self.references[g.body2]
+                        ),
+                    )
+            for e in self._world_elastic:
+                add(e.body1, e.body2, (e.k * e.e0) @ e.G)
+        out = np.zeros(len(self.joint.free_index))
+        for name, q in taken.items():
+            body = self.joint.bodies[name]
+            cols = [DOFS.index(d) for d in body.free]
+            out[self.joint.free_of(name)] = (self.rates[name].T @ (q - self.world_loads[name]))[cols]
+        return out
+
+    @cached_property
+    def _world_elastic(self) -> tuple:
+        from .elastic import elastic_groups
+
+        return elastic_groups(self.joint, self.poses, self.references)
+
+    def near(self, within: float) -> tuple:
+        """The contacts' states cut to the springs whose gap at the pose is below ``within`` (mm):
+        the only ones that carry load within that much motion (the tangent's differences)."""
+        out = []
+        for state, gaps in zip(self.states, self.gaps):
+            keep = np.flatnonzero(gaps.s < within)
+            t = state.targets
+            targets = type(t)(
+                t.points[keep],
+                t.normals[keep],
+                t.radius[keep],
+                t.concave[keep],
+                t.frame,
+                None if t.faces is None else t.faces[keep],
+            )
+            out.append(ContactState(state.layer.subset(keep), targets))
+        return tuple(out)
 
     def element_pairs(self) -> list[tuple[str, str]]:
         groups = (*self.ligament_groups, *self.elastic_groups)
@@ -456,6 +512,20 @@ class Configuration:
         volume = np.concatenate(weights)
         zero = np.zeros(volume.size)
         return ElementGroup(name, "bilateral", None, dofs, AT, zero, volume, zero, 1.0, _gram_factor(AT, volume), 0.0)
+
+
+class _Rates(dict):
+    """``{body: B}`` of a :class:`Configuration`, each made when first asked for."""
+
+    def __init__(self, config: Configuration):
+        super().__init__()
+        self.config = config
+
+    def __missing__(self, name: str) -> np.ndarray:
+        c = self.config
+        value = c.joint.rates(name, c.y[name], c.poses[name])
+        self[name] = value
+        return value
 
 
 @dataclass(frozen=True, eq=False)

@@ -31,6 +31,13 @@ def _axis_rotation(axis, angle) -> np.ndarray:
     return rotation(np.asarray(axis) * angle)
 
 
+def _rigid_inverse(T) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = T[:3, :3].T
+    out[:3, 3] = -T[:3, :3].T @ T[:3, 3]
+    return out
+
+
 def _matrix(value, field: str, shape: tuple) -> np.ndarray:
     try:
         out = np.array(value, dtype=float)
@@ -121,7 +128,13 @@ class Coordinates:
             if len(names) != 6 or not all(isinstance(n, str) and n for n in names):
                 raise InputError(f"Coordinates.names must be 6 names in dof order, got {self.names!r}")
             set_(self, "names", names)
-        set_(self, "_start_inverse", np.linalg.inv(self.transform(self.start)))
+        set_(self, "_frame_inverse", _rigid_inverse(frame))
+        a = self._values(self.start)
+        R1, R2, R3 = self._rotations(a)
+        X = np.eye(4)
+        X[:3, :3], X[:3, 3] = R1 @ R2 @ R3, a[:3] @ self.translation_axes
+        set_(self, "_start", X)
+        set_(self, "_start_inverse", _rigid_inverse(X))
 
     # --- the joint's transform ------------------------------------------------------------
     def _values(self, q) -> np.ndarray:
@@ -130,47 +143,94 @@ class Coordinates:
     def _rotations(self, a) -> list[np.ndarray]:
         return [_axis_rotation(self.rotation_axes[k], a[3 + k]) for k in range(3)]
 
+    def _parts(self, q) -> tuple:
+        """``(X, R1, R2)``: the joint's transform and its first two rotations (cached for the last ``q``)."""
+        key = tuple(np.asarray(q, dtype=float).tolist())
+        cache = self.__dict__.setdefault("_cache", {})
+        if cache.get("key") != key:
+            a = self._values(q)
+            R1, R2, R3 = self._rotations(a)
+            X = np.eye(4)
+            X[:3, :3] = R1 @ R2 @ R3
+            X[:3, 3] = a[:3] @ self.translation_axes
+            cache.update(key=key, parts=(X, R1, R2))
+        return cache["parts"]
+
     def transform(self, q) -> np.ndarray:
         """``X(q)`` (4, 4), mm."""
-        a = self._values(q)
-        R1, R2, R3 = self._rotations(a)
-        X = np.eye(4)
-        X[:3, :3] = R1 @ R2 @ R3
-        X[:3, 3] = a[:3] @ self.translation_axes
-        return X
+        return self._parts(q)[0].copy()
 
     def motion(self, q) -> np.ndarray:
         """``D(q)`` (4, 4): the body's rigid motion from its start pose, in the world (mm)."""
-        X = self.transform(q)
-        F = self.frame
+        X = self._parts(q)[0]
+        F, F_inverse = self.frame, self.__dict__["_frame_inverse"]
         if self.inverted:
-            return F @ np.linalg.inv(X) @ np.linalg.inv(self._start_inverse) @ np.linalg.inv(F)
-        return F @ X @ self._start_inverse @ np.linalg.inv(F)
+            return F @ _rigid_inverse(X) @ self.__dict__["_start"] @ F_inverse
+        return F @ X @ self.__dict__["_start_inverse"] @ F_inverse
 
     def rates(self, q, point) -> np.ndarray:
         """``B`` (6, 6): the velocity of the world point ``point`` (where the motion put it, mm) and
         the body's angular velocity per unit rate of each coordinate (columns in dof order)."""
-        a = self._values(q)
-        R1, R2, _ = self._rotations(a)
-        X = self.transform(q)
+        X, R1, R2 = self._parts(q)
         p = X[:3, 3]
-        G = self.frame @ np.linalg.inv(X) if self.inverted else self.frame
+        G = self.frame @ _rigid_inverse(X) if self.inverted else self.frame
         sign = -1.0 if self.inverted else 1.0
-        B = np.zeros((6, 6))
-        point = np.asarray(point, dtype=float)
-        for j in range(6):
-            if j < 3:  # a translation: dp along its axis
-                w_local, dp = np.zeros(3), self.slopes[j] * self.translation_axes[j]  # type: ignore[index]
-            else:  # a rotation about its axis, turned by the rotations before it
-                k = j - 3
-                before = np.eye(3) if k == 0 else (R1 if k == 1 else R1 @ R2)
-                w_local, dp = self.slopes[j] * before @ self.rotation_axes[k], np.zeros(3)  # type: ignore[index]
-            v_local = dp - np.cross(w_local, p)
-            w = sign * G[:3, :3] @ w_local
-            v = sign * (G[:3, :3] @ v_local) - np.cross(w, G[:3, 3])
-            B[:3, j] = np.cross(w, point) + v
-            B[3:, j] = w
+        # columns: the local angular velocity and translation rate per unit of each coordinate
+        w_local = np.zeros((3, 6))
+        dp = np.zeros((3, 6))
+        dp[:, :3] = (self.slopes[:3, None] * self.translation_axes).T  # type: ignore[index]
+        turned = np.stack([self.rotation_axes[0], R1 @ self.rotation_axes[1], R1 @ R2 @ self.rotation_axes[2]], axis=1)
+        w_local[:, 3:] = turned * self.slopes[3:]  # type: ignore[index]
+        v_local = dp - np.cross(w_local.T, p).T
+        w = sign * G[:3, :3] @ w_local
+        v = sign * (G[:3, :3] @ v_local) - np.cross(w.T, G[:3, 3]).T
+        B = np.empty((6, 6))
+        B[:3] = np.cross(w.T, np.asarray(point, dtype=float)).T + v
+        B[3:] = w
         return B
+
+    def inverse(self, motion, guess=None) -> np.ndarray:
+        """The coordinates ``q`` (6,) of the body's motion ``motion`` (4x4, from its start pose): the
+        inverse of :meth:`motion`, the rotations nearest ``guess`` (default :attr:`start`).
+
+        The three angles of ``R = Rot(a_1, e_1) Rot(a_2, e_2) Rot(a_3, e_3)`` are SciPy's Davenport
+        angles where ``e_2`` is perpendicular to ``e_1`` and ``e_3``, refined (and otherwise found)
+        by least squares from ``guess`` and from them; the translations solve ``p = sum a_k e_k``.
+        An :class:`~dea_opt.errors.InputError` where no angles give the rotation to 1e-9.
+        """
+        from scipy.optimize import least_squares
+        from scipy.spatial.transform import Rotation
+
+        D = np.asarray(motion, dtype=float)
+        F, F_inverse, start = self.frame, self.__dict__["_frame_inverse"], self.__dict__["_start"]
+        X = start @ F_inverse @ _rigid_inverse(D) @ F if self.inverted else F_inverse @ D @ F @ start
+        R, p = X[:3, :3], X[:3, 3]
+        guess = self.start if guess is None else np.asarray(guess, dtype=float)
+        a_guess = self._values(guess)[3:]
+        axes = self.rotation_axes
+
+        def residual(a):
+            M = _axis_rotation(axes[0], a[0]) @ _axis_rotation(axes[1], a[1]) @ _axis_rotation(axes[2], a[2])
+            return (M - R).ravel()
+
+        starts = [a_guess]
+        if abs(axes[0] @ axes[1]) < 1e-9 and abs(axes[1] @ axes[2]) < 1e-9:
+            found = Rotation.from_matrix(R).as_davenport(axes, "intrinsic")
+            starts += [found + 2 * np.pi * np.round((a_guess - found) / (2 * np.pi))]
+        best = None
+        for a0 in starts:
+            fit = least_squares(residual, a0, xtol=1e-15, ftol=1e-15, gtol=1e-15)
+            if np.abs(fit.fun).max() <= 1e-9 and (
+                best is None or np.abs(fit.x - a_guess).sum() < np.abs(best - a_guess).sum()
+            ):
+                best = fit.x
+        if best is None:
+            raise InputError(
+                f"no angles about the rotation axes of {self.describe()} give this pose's rotation (to 1e-9): the "
+                f"motion turns the body about an axis its joint does not have"
+            )
+        a = np.concatenate([np.linalg.solve(self.translation_axes.T, p), best])
+        return (a - self.intercepts) / self.slopes  # type: ignore[operator]
 
     def describe(self) -> str:
         names = self.names or ("ux", "uy", "uz", "rx", "ry", "rz")

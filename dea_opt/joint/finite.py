@@ -31,7 +31,7 @@ from ..kinematics import DOFS
 from ..status import CERTIFIABLE, Status
 from .certificate import certify_joint
 from .checks import check_joint_unresisted, finish, start_vector
-from .configuration import Configuration, initial_states
+from .configuration import Configuration, ContactState, initial_states
 from .elastic import elastic_results
 from .results import JointSolution, body_results, layer_solutions, ligament_results
 from .rows import line_operator
@@ -62,20 +62,30 @@ def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bo
     """The certified equilibrium of a ``kinematics="finite"`` joint (see :func:`dea_opt.solve`).
 
     ``method``: ``"auto"`` or ``"newton"`` (each step by the joint's Newton), ``"nlp"`` (by IPOPT);
-    the QP is a small-kinematics method. Options: :data:`OPTIONS`, the inner method's, and ``x0``
-    (the free coordinates' start: translations and rotation vectors).
+    the QP is a small-kinematics method. Options: :data:`OPTIONS`, the inner method's, ``x0``
+    (the free coordinates' start: translations and rotation vectors, or a
+    :class:`~dea_opt.joint.Coordinates`' values) and ``contact_states`` (the contacts' springs to
+    start from: a previous answer's :attr:`~dea_opt.joint.JointSolution.states`, cast where that
+    answer's pose put them; a path's next frame starts there).
     """
     if method == "qp":
         raise InputError(
             "method 'qp' is a small-kinematics method: use 'auto', 'newton' or 'nlp' for kinematics='finite'"
         )
     own = validate("finite joint", OPTIONS, {k: v for k, v in options.items() if k in _OWN})
-    inner = {k: v for k, v in options.items() if k not in _OWN and k != "x0"}
+    inner = {k: v for k, v in options.items() if k not in _OWN and k not in ("x0", "contact_states")}
     x0 = start_vector(joint, options.get("x0"))
+    states = options.get("contact_states")
+    if states is not None and (
+        len(states) != len(joint.contacts) or not all(isinstance(s, ContactState) for s in states)
+    ):
+        raise InputError(
+            f"contact_states must be one ContactState per contact ({len(joint.contacts)}): a previous answer's .states"
+        )
     name = "nlp" if method == "nlp" else "newton"
     validate(name, joint_newton.OPTIONS if name == "newton" else joint_ipopt.NLP_OPTIONS, inner)
     with single_threaded_blas():
-        solution = _solve(joint, name, method, certificate_tol, own, inner, x0)
+        solution = _solve(joint, name, method, certificate_tol, own, inner, x0, states)
     return finish(solution, strict)
 
 
@@ -106,11 +116,11 @@ def _step(name: str, system, inner: dict, residual: float):
     return joint_ipopt.solve_nlp(system, **options)
 
 
-def _solve(joint, name, method, tol, own, inner, x0) -> JointSolution:
+def _solve(joint, name, method, tol, own, inner, x0, states=None) -> JointSolution:
     start = time.perf_counter()
     free = list(joint.free_index)
     x = joint.start() if x0 is None else x0.copy()
-    states = tuple(initial_states(joint))
+    states = tuple(initial_states(joint)) if states is None else tuple(states)
     config = Configuration(joint, _coordinates(joint, x), states)
     system = config.solver_system()
     refused = None
@@ -191,15 +201,15 @@ def _solve(joint, name, method, tol, own, inner, x0) -> JointSolution:
 
 
 def _ran_away(joint, y: dict, radius: float) -> bool:
-    """A body whose rotation vector wound past a half turn, or whose reference moved more than 4
-    times the joint's extent (a body of :class:`~dea_opt.joint.Coordinates`: its motion's)."""
+    """A body whose rotation vector wound past a half turn, or whose elements' centroid moved more
+    than 4 times the joint's extent (a reference far from the elements, a femur's at its hip,
+    would count a turn about the knee as a slide)."""
     for name, v in y.items():
-        if name in joint.coordinates:
-            T = joint.motion(name, v)
-            c = np.asarray(joint.bodies[name].reference)
-            if np.linalg.norm(T[:3, :3] @ c + T[:3, 3] - c) > 4 * radius:
-                return True
-        elif np.linalg.norm(v[3:]) > math.pi or np.linalg.norm(v[:3]) > 4 * radius:
+        if name not in joint.coordinates and np.linalg.norm(v[3:]) > math.pi:
+            return True
+        T = joint.motion(name, v)
+        c = joint.centres[name]
+        if np.linalg.norm(T[:3, :3] @ c + T[:3, 3] - c) > 4 * radius:
             return True
     return False
 
@@ -352,6 +362,7 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
         solve_time=elapsed,
         info=info,
         elastic=elastic,
+        states=tuple(config.states),
     )
 
 
@@ -367,6 +378,8 @@ def tangent(joint, states, x) -> np.ndarray:
     m = len(joint.free_index)
     lengths = joint.lengths
     K = np.zeros((m, m))
+    # a step of 1e-6 mm moves no spring whose gap is above 1e-3 mm into contact: only the others count
+    states = Configuration(joint, _coordinates(joint, x), states).near(1e-3)
     for j, (_, dof) in enumerate(joint.free_index):
         h = 1e-6 if dof[0] == "u" else 1e-6 / lengths[j]
         step = np.zeros(m)

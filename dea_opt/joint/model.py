@@ -236,11 +236,28 @@ class Joint:
             groups.append(LigamentGroup(b1, b2, law, tuple(members), G, slack, start))
         return tuple(groups)
 
+    @cached_property
+    def ligament_arrays(self) -> tuple:
+        """Per group of :attr:`ligament_groups`: ``(point1 (n, 3), point2 (n, 3), stiffness (n,),
+        TensionLaw)`` at the start pose."""
+        out = []
+        for g in self.ligament_groups:
+            ligs = [self.ligaments[i] for i in g.members]
+            out.append(
+                (
+                    np.array([lig.point1 for lig in ligs], dtype=float),
+                    np.array([lig.point2 for lig in ligs], dtype=float),
+                    np.array([lig.stiffness for lig in ligs], dtype=float),
+                    TensionLaw(g.law, np.array([lig.transition_strain for lig in ligs])),
+                )
+            )
+        return tuple(out)
+
     # --- the arrays of the formulations ---------------------------------------------------
     @cached_property
-    def lengths(self) -> np.ndarray:
-        """Per free dof: 1 mm for a translation; for a rotation the RMS distance from the body's
-        reference of every point its elements act at (springs, insertions) (mm)."""
+    def element_points(self) -> dict:
+        """``{body: [arrays (n, 3)]}``: the points each body's elements act at (springs, insertions,
+        spring ends, bushing origins), mm at the start pose."""
         points: dict = {name: [] for name in self.bodies}
         for c in self.contacts:
             points[c.body1].append(c.layer.points)
@@ -251,6 +268,23 @@ class Joint:
         for bushing in self.bushings:
             points[bushing.body1].append(bushing.frame[None, :3, 3])
             points[bushing.body2].append(bushing.frame[None, :3, 3])
+        return points
+
+    @cached_property
+    def centres(self) -> dict:
+        """``{body: (3,)}``: the centroid of the points each body's elements act at (its reference
+        where none do), mm: where a body's motion is measured against the joint's extent."""
+        out = {}
+        for name, blocks in self.element_points.items():
+            n = sum(len(p) for p in blocks)
+            out[name] = sum(p.sum(axis=0) for p in blocks) / n if n else np.asarray(self.bodies[name].reference)
+        return out
+
+    @cached_property
+    def lengths(self) -> np.ndarray:
+        """Per free dof: 1 mm for a translation; for a rotation the RMS distance from the body's
+        reference of every point its elements act at (springs, insertions) (mm)."""
+        points = self.element_points
         out = np.ones(len(self.free_index))
         radii: dict = {}
         for (name, dof), j in self.free_index.items():
@@ -268,7 +302,7 @@ class Joint:
     @cached_property
     def extent(self) -> float:
         """The RMS distance of every point the elements act at (springs, insertions) from their
-        centroid (mm): the joint's size, against which a motion counts as running away."""
+        centroid, at least 1 mm: the joint's size, against which a motion counts as running away."""
         points = [c.layer.points for c in self.contacts]
         points += [np.array([lig.point1, lig.point2]) for lig in (*self.ligaments, *self.springs)]
         points += [b.frame[None, :3, 3] for b in self.bushings]
@@ -276,7 +310,8 @@ class Joint:
             return 1.0
         p = np.vstack(points)
         p = p - p.mean(axis=0)
-        return max(float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p)))), 1e-12)
+        # elements at one point (a bushing alone) have no spread: 1 mm, not a size that any motion exceeds
+        return max(float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p)))), 1.0)
 
     @cached_property
     def load(self) -> np.ndarray:

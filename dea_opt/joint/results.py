@@ -137,6 +137,9 @@ class JointSolution:
     validity : JointValidity
     method, success, status, message, iterations, solve_time, info
         As for a two-body :class:`~dea_opt.Solution`.
+    states : tuple
+        Finite kinematics: each contact's springs where the answer left them (cast again at its
+        pose), to start another solve from (``contact_states=``; a path's next frame).
     """
 
     joint: Joint
@@ -154,6 +157,7 @@ class JointSolution:
     solve_time: float
     info: dict[str, Any] = field(default_factory=dict)
     elastic: list = field(default_factory=list)
+    states: tuple = field(default=(), repr=False)
 
     @property
     def failure(self) -> str:
