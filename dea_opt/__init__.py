@@ -45,6 +45,7 @@ _keep_former_modules(private=True)
 from .certificate import Certificate, certify
 from .errors import (
     DeaError,
+    ImplausibleInputError,
     InputError,
     LoadNotSupportedError,
     MissingDependencyError,
@@ -80,6 +81,7 @@ __all__ = [
     "ContactProblem",
     "CubicLaw",
     "DeaError",
+    "ImplausibleInputError",
     "InputError",
     "Joint",
     "JointSolution",
