@@ -297,15 +297,21 @@ class Configuration:
         return out
 
     def net_force(self) -> np.ndarray:
-        """The net generalized force on the free coordinates at the pose (N, N mm): every element's
-        exact force there taken from the bodies, minus the loads, projected by each body's rates
-        (``B^T``). Zero at equilibrium. Computed from the elements that carry load alone (compressed
-        springs, taut bundles), without the arrays of a solve: the tangent's differences call it."""
+        """``q - load`` of :meth:`forces`: zero at equilibrium."""
+        q, load = self.forces()
+        return q - load
+
+    def forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, load)``: the generalized force on the free coordinates at the pose (N, N mm): every element's
+        exact force there takes from the bodies and their loads, both projected by each body's rates
+        (``B^T``) on the free coordinates (N, N mm). Computed from the elements that carry load alone
+        (compressed springs, taut bundles), without the arrays of a solve: the tangent's differences
+        call it."""
         from ..kinematics import normal_operator
 
         taken = {name: np.zeros(6) for name, b in self.joint.bodies.items() if b.free}
         if not taken:
-            return np.zeros(0)
+            return np.zeros(0), np.zeros(0)
 
         def add(body1, body2, q) -> None:
             if body1 in taken:
@@ -349,12 +355,14 @@ class Configuration:
                     )
             for e in self._world_elastic:
                 add(e.body1, e.body2, (e.k * e.e0) @ e.G)
-        out = np.zeros(len(self.joint.free_index))
+        out, load = np.zeros(len(self.joint.free_index)), np.zeros(len(self.joint.free_index))
         for name, q in taken.items():
             body = self.joint.bodies[name]
             cols = [DOFS.index(d) for d in body.free]
-            out[self.joint.free_of(name)] = (self.rates[name].T @ (q - self.world_loads[name]))[cols]
-        return out
+            B = self.rates[name]
+            out[self.joint.free_of(name)] = (B.T @ q)[cols]
+            load[self.joint.free_of(name)] = (B.T @ self.world_loads[name])[cols]
+        return out, load
 
     @cached_property
     def _world_elastic(self) -> tuple:

@@ -28,6 +28,7 @@ from ..formulations._parts.options import Option, validate
 from ..formulations.energy import single_threaded_blas
 from ..formulations.joint import internal_force, joint_scaling, law_stresses
 from ..kinematics import DOFS
+from ..mesh.springs import NoSpringsError
 from ..status import CERTIFIABLE, Status
 from .certificate import certify_joint
 from .checks import check_joint_unresisted, finish, start_vector
@@ -64,18 +65,25 @@ def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bo
     ``method``: ``"auto"`` or ``"newton"`` (each step by the joint's Newton), ``"nlp"`` (by IPOPT);
     the QP is a small-kinematics method. Options: :data:`OPTIONS`, the inner method's, ``x0``
     (the free coordinates' start: translations and rotation vectors, or a
-    :class:`~dea_opt.joint.Coordinates`' values) and ``contact_states`` (the contacts' springs to
+    :class:`~dea_opt.joint.Coordinates`' values), ``contact_states`` (the contacts' springs to
     start from: a previous answer's :attr:`~dea_opt.joint.JointSolution.states`, cast where that
-    answer's pose put them; a path's next frame starts there).
+    answer's pose put them; a path's next frame starts there) and ``tangent`` (the exact forces'
+    tangent to take the first steps with: a previous answer's ``info["tangent"]``).
     """
     if method == "qp":
         raise InputError(
             "method 'qp' is a small-kinematics method: use 'auto', 'newton' or 'nlp' for kinematics='finite'"
         )
     own = validate("finite joint", OPTIONS, {k: v for k, v in options.items() if k in _OWN})
-    inner = {k: v for k, v in options.items() if k not in _OWN and k not in ("x0", "contact_states")}
+    inner = {k: v for k, v in options.items() if k not in _OWN and k not in ("x0", "contact_states", "tangent")}
     x0 = start_vector(joint, options.get("x0"))
     states = options.get("contact_states")
+    tangent0 = options.get("tangent")
+    m = len(joint.free_index)
+    if tangent0 is not None:
+        tangent0 = np.asarray(tangent0, dtype=float)
+        if tangent0.shape != (m, m) or not np.isfinite(tangent0).all():
+            raise InputError(f"tangent must be a finite ({m}, {m}) matrix over the free dofs: a previous answer's info['tangent']")
     if states is not None and (
         len(states) != len(joint.contacts) or not all(isinstance(s, ContactState) for s in states)
     ):
@@ -85,7 +93,7 @@ def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bo
     name = "nlp" if method == "nlp" else "newton"
     validate(name, joint_newton.OPTIONS if name == "newton" else joint_ipopt.NLP_OPTIONS, inner)
     with single_threaded_blas():
-        solution = _solve(joint, name, method, certificate_tol, own, inner, x0, states)
+        solution = _solve(joint, name, method, certificate_tol, own, inner, x0, states, tangent0)
     return finish(solution, strict)
 
 
@@ -106,6 +114,34 @@ def _residual(system) -> float:
     return float(np.linalg.norm(qt - rt)) / max(float(np.linalg.norm(qt)), float(np.linalg.norm(rt)), 1.0)
 
 
+class _Measure:
+    """The scaled residual of the exact forces (the joint Newton's measure), with the scaling of the
+    last pose it was updated at: cheap between updates (the forces alone), exact after one."""
+
+    def __init__(self, config: Configuration):
+        self.update(config)
+
+    def update(self, config: Configuration) -> None:
+        system = config.solver_system()
+        if not system.n_dofs:
+            self.T, self.E0 = None, 1.0
+            return
+        scale = joint_scaling(system)
+        self.T, self.E0 = scale.T, scale.energy_scale
+
+    def __call__(self, config: Configuration) -> float:
+        if self.T is None:
+            return 0.0
+        q, load = config.forces()
+        qt, rt = self.T.T @ q / self.E0, self.T.T @ load / self.E0
+        return float(np.linalg.norm(qt - rt)) / max(float(np.linalg.norm(qt)), float(np.linalg.norm(rt)), 1.0)
+
+    def exact(self, config: Configuration) -> float:
+        """The measure with the scaling of ``config`` itself."""
+        self.update(config)
+        return self(config)
+
+
 def _step(name: str, system, inner: dict, residual: float):
     """One increment at the pose: the small-kinematics energy there, solved from zero; loose while
     far from equilibrium (the next pose moves the elements anyway)."""
@@ -116,7 +152,7 @@ def _step(name: str, system, inner: dict, residual: float):
     return joint_ipopt.solve_nlp(system, **options)
 
 
-def _solve(joint, name, method, tol, own, inner, x0, states=None) -> JointSolution:
+def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None) -> JointSolution:
     start = time.perf_counter()
     free = list(joint.free_index)
     x = joint.start() if x0 is None else x0.copy()
@@ -134,19 +170,29 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None) -> JointSoluti
     history, steps, recasts, evaluations, newton_steps = [], 0, 0, 0, 0
     status, message = Status.MAX_ITERATIONS, f"no equilibrium within {own['max_steps']} steps at a pose"
     radius = joint.extent
+    measure = _Measure(config)
+    K, last = tangent0, None
     while True:
-        residual = _residual(config.solver_system())
+        residual = measure(config)
+        if residual <= own["gtol"]:
+            residual = measure.exact(config)  # below gtol with its own pose's scaling, or go on
         history.append(residual)
         if not math.isfinite(residual):
             status, message = Status.NON_FINITE, "the forces at the pose are not finite"
             break
         if residual <= own["gtol"]:
-            new = _recast(config) if own["recast"] else None
+            try:
+                new = _recast(config) if own["recast"] else None
+            except NoSpringsError as exc:
+                # the springs left their targets entirely: the solve ends failed, the springs as they were
+                status = Status.MAX_ITERATIONS
+                message = f"no spring is left at the solved pose when cast again there: {exc}"
+                break
             if new is None:
                 status, message = Status.CONVERGED, "the forces balance at the exact pose"
                 break
             config = Configuration(joint, config.y, new)
-            if _residual(config.solver_system()) <= own["gtol"]:
+            if measure.exact(config) <= own["gtol"]:
                 status, message = Status.CONVERGED, "the forces balance at the exact pose, with the springs cast there"
                 break
             if recasts >= own["max_recasts"]:
@@ -158,12 +204,23 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None) -> JointSoluti
                 )
                 break
             recasts += 1
+            last = None
             continue
         if steps >= own["max_steps"]:
             break
         steps += 1
-        dx = _newton_step(joint, config, x) if name == "newton" else None
+        dx = None
+        if name == "newton":
+            # the tangent is kept while each step cuts the residual by 4 or more (a chord step), else made again
+            fresh = K is None or last is None or residual > 0.25 * last
+            K = tangent(joint, config.states, x) if fresh else K
+            dx = _newton_step(config, K)
+            if dx is None and not fresh:
+                K = tangent(joint, config.states, x)
+                dx = _newton_step(config, K)
+        last = residual
         if dx is None:
+            measure.update(config)
             result = _step(name, config.solver_system(), inner, residual)
             if not np.isfinite(result.x).all():
                 status, message = Status(result.status), f"the solve at a pose failed: {result.message}"
@@ -174,7 +231,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None) -> JointSoluti
         turn = max((abs(float(v)) for (body, dof), v in zip(free, dx) if dof[0] == "r"), default=0.0)
         if turn > _MAX_TURN:
             dx = dx * (_MAX_TURN / turn)
-        alpha, used = _along(joint, config.states, x, dx, max(turn, 1e-300))
+        alpha, used = _along(joint, config, x, dx, max(turn, 1e-300))
         evaluations += used
         x = x + alpha * dx
         y = _coordinates(joint, x)
@@ -214,14 +271,13 @@ def _ran_away(joint, y: dict, radius: float) -> bool:
     return False
 
 
-def _newton_step(joint, config: Configuration, x) -> np.ndarray | None:
+def _newton_step(config: Configuration, K) -> np.ndarray | None:
     """Newton's step on the exact forces, ``K dx = -r`` with ``K`` their tangent by differences, where
     it is a descent direction of their power (``r . dx < 0``); None otherwise (then the step of the
     small kinematics at the pose). The small kinematics' step alone knows the material's stiffness
     but not the geometry's (a condyle's curvature under a load, the turn of a line): it converges,
     slowly, where ``K`` converges in a few steps."""
     r = config.net_force()
-    K = tangent(joint, config.states, x)
     if not (np.isfinite(K).all() and np.isfinite(r).all()):
         return None
     try:
@@ -231,13 +287,14 @@ def _newton_step(joint, config: Configuration, x) -> np.ndarray | None:
     return dx if float(r @ dx) < 0 else None
 
 
-def _along(joint, states, x, dx, turn: float) -> tuple[float, int]:
+def _along(joint, config: Configuration, x, dx, turn: float) -> tuple[float, int]:
     """``(alpha, evaluations)``: the step along ``dx`` where the exact forces' power along it,
     ``psi'(alpha) = r(x + alpha dx) . dx``, has fallen to a tenth of its start (the full step where
     it has fallen to half already): the small-kinematics step at a pose knows the material's
     stiffness, not how the pose changes the geometry (a condyle rolling, a line turning), and the
     exact forces along its direction decide how far to go."""
-    slope0 = float(exact_residual(joint, states, x) @ dx)
+    states = config.states
+    slope0 = float(config.net_force() @ dx)
     if not slope0 < 0:
         return 1.0, 1
     limit = _MAX_TURN / turn
@@ -341,9 +398,9 @@ def _certified(joint, config, method, status, message, steps, elapsed, tol, info
         dropped,
     )
     ligaments = ligament_results(config, {k: np.zeros(6) for k in y}, forces, config.insertions)
-    value, along = stability(config) if success else (None, "")
+    value, along, K = stability(config) if success else (None, "", None)
     validity = assess_joint(config, y, ligaments, tuple(c.validity for c in contacts), stability=value, softest=along)
-    info = dict(info, stability=value, softest=along)
+    info = dict(info, stability=value, softest=along, tangent=K)
     bodies = body_results(joint, y, on_body, config.world_loads, config.poses)
     elastic = elastic_results(joint, config.elastic_groups, forces[n + n_ligaments :])
     return JointSolution(
@@ -388,24 +445,25 @@ def tangent(joint, states, x) -> np.ndarray:
     return K
 
 
-def stability(config: Configuration) -> tuple[float, str]:
-    """``(value, along)``: ``-min Re(lambda) / max |lambda|`` over the eigenvalues of the tangent of the
-    exact forces on the free coordinates (central differences, rotations over each body's radius),
-    above 0 where a disturbance grows; and the motion that gives way, in words."""
+def stability(config: Configuration) -> tuple:
+    """``(value, along, K)``: ``-min Re(lambda) / max |lambda|`` over the eigenvalues of the tangent of
+    the exact forces on the free coordinates (central differences, rotations over each body's
+    radius), above 0 where a disturbance grows; the motion that gives way, in words; the tangent
+    ``K`` (N/mm, N, N mm)."""
     joint = config.joint
     free = list(joint.free_index)
     if not free:
-        return 0.0, ""
+        return 0.0, "", None
     x = np.array([config.y[b][DOFS.index(d)] for b, d in free])
     lengths = joint.lengths
     K = tangent(joint, config.states, x)
     scaled = K / lengths[:, None] / lengths[None, :]
     if not np.isfinite(scaled).all():
-        return float("nan"), ""
+        return float("nan"), "", None
     values, vectors = np.linalg.eig(scaled)
     largest = float(np.abs(values).max())
     if largest == 0.0:
-        return 0.0, ""
+        return 0.0, "", K
     k = int(np.argmin(values.real))
     v = vectors[:, k].real
     v = v / v[np.argmax(np.abs(v))]
@@ -414,4 +472,4 @@ def stability(config: Configuration) -> tuple[float, str]:
         for (b, d), z, length in zip(free, v, lengths)
         if abs(z) >= 1e-3
     ]
-    return float(-values.real[k] / largest) + 0.0, ", ".join(words)
+    return float(-values.real[k] / largest) + 0.0, ", ".join(words), K

@@ -47,8 +47,8 @@ def solve_joint_path(
 ):
     """Every frame of ``path`` (:class:`~dea_opt.scenario.joint_path.JointPath`) solved in turn, each
     from the previous frame's answer (its free dofs; under finite kinematics its contacts' springs
-    where it left them, :attr:`~dea_opt.joint.JointSolution.states`); a frame whose warm start fails
-    its certificate is solved once more from the start pose.
+    where it left them, :attr:`~dea_opt.joint.JointSolution.states`, and the tangent of its exact
+    forces); a frame whose warm start fails its certificate is solved once more from the start pose.
 
     Parameters
     ----------
@@ -78,14 +78,21 @@ def solve_joint_path(
             options["x0"] = previous.x
         if finite and previous is not None and previous.states:
             options["contact_states"] = previous.states
+        if finite and warm and previous.info.get("tangent") is not None:
+            options["tangent"] = previous.info["tangent"]
         try:
             s = solve_joint(frame, method, certificate_tol=certificate_tol, strict=False, **options)
         except DeaError:
             if stop_on_error:
                 raise
             s = None
-        if s is not None and not s.success and options:
-            s = solve_joint(frame, method, certificate_tol=certificate_tol, strict=False)  # from the start, once
+        if (s is None or not s.success) and options:
+            try:  # from the start, once
+                s = solve_joint(frame, method, certificate_tol=certificate_tol, strict=False)
+            except DeaError:
+                if stop_on_error:
+                    raise
+                s = None
         if on_frame is not None:
             on_frame(k, frame, s)
         solutions.append(s if keep else None)
