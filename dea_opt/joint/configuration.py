@@ -360,7 +360,8 @@ class Configuration:
             body = self.joint.bodies[name]
             cols = [DOFS.index(d) for d in body.free]
             B = self.rates[name]
-            out[self.joint.free_of(name)] = (B.T @ q)[cols]
+            with np.errstate(invalid="ignore", over="ignore"):  # a law past its domain: inf, which the solve sees
+                out[self.joint.free_of(name)] = (B.T @ q)[cols]
             load[self.joint.free_of(name)] = (B.T @ self.world_loads[name])[cols]
         return out, load
 

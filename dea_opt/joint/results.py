@@ -255,7 +255,8 @@ def layer_solutions(
         problem = pair
         for k, name in ((1, c.body1), (2, c.body2)):
             rest = loads[name] - (on_body[name] - took[6 * (k - 1) : 6 * k])
-            rest = np.where(np.abs(rest) < 1e-30, 0.0, rest)
+            # a failed answer's forces may not be finite: its layers then carry no load of their own
+            rest = np.where((np.abs(rest) < 1e-30) | ~np.isfinite(rest), 0.0, rest)
             problem = problem.with_load(force=rest[:3], moment=rest[3:], body=k)
         with np.errstate(invalid="ignore", over="ignore"):
             pressure = 0.0 - pair.law.stress(np.minimum(strain, 0.0))

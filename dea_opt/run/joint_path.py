@@ -48,7 +48,9 @@ def solve_joint_path(
     """Every frame of ``path`` (:class:`~dea_opt.scenario.joint_path.JointPath`) solved in turn, each
     from the previous frame's answer (its free dofs; under finite kinematics its contacts' springs
     where it left them, :attr:`~dea_opt.joint.JointSolution.states`, and the tangent of its exact
-    forces); a frame whose warm start fails its certificate is solved once more from the start pose.
+    forces). A frame whose warm start fails its certificate is reached in halves of its motion from
+    the previous answer (loads and prescribed dofs interpolated, :meth:`JointPath.between`; at most
+    three halvings), else solved once more from the start pose.
 
     Parameters
     ----------
@@ -68,10 +70,9 @@ def solve_joint_path(
     from ..joint import solve_joint
 
     finite = joint.kinematics == "finite"
-    solutions: list = []
-    previous = None
-    for k in range(len(path)):
-        frame = path.frame(joint, k)
+
+    def attempt(frame, previous):
+        """The frame's answer from ``previous`` (or from the start), None where it raised."""
         warm = previous is not None and previous.joint.free_names == frame.free_names
         options: dict = {}
         if warm:
@@ -81,18 +82,31 @@ def solve_joint_path(
         if finite and warm and previous.info.get("tangent") is not None:
             options["tangent"] = previous.info["tangent"]
         try:
-            s = solve_joint(frame, method, certificate_tol=certificate_tol, strict=False, **options)
+            return solve_joint(frame, method, certificate_tol=certificate_tol, strict=False, **options)
         except DeaError:
             if stop_on_error:
                 raise
-            s = None
-        if (s is None or not s.success) and options:
-            try:  # from the start, once
-                s = solve_joint(frame, method, certificate_tol=certificate_tol, strict=False)
-            except DeaError:
-                if stop_on_error:
-                    raise
-                s = None
+            return None
+
+    def reach(k, previous, before: float, depth: int):
+        """Frame ``k`` from the answer at fraction ``before`` of the way from frame ``k - 1``: where it
+        fails, from an answer halfway first (the motion of one frame in halves, at most 8)."""
+        frame = path.frame(joint, k) if before == 0.0 and depth == 0 else None
+        s = attempt(frame or path.between(joint, k, 1.0), previous)
+        if (s is None or not s.success) and previous is not None and depth < 3:
+            middle = before + (1.0 - before) / 2.0
+            half = attempt(path.between(joint, k, middle), previous)
+            if half is not None and half.success:
+                s = reach(k, half, middle, depth + 1)
+        return s
+
+    solutions: list = []
+    previous = None
+    for k in range(len(path)):
+        frame = path.frame(joint, k)
+        s = reach(k, previous, 0.0, 0) if k > 0 and previous is not None else attempt(frame, previous)
+        if (s is None or not s.success) and previous is not None:
+            s = attempt(frame, None)  # from the start, once
         if on_frame is not None:
             on_frame(k, frame, s)
         solutions.append(s if keep else None)

@@ -57,6 +57,20 @@ class JointPath:
     def __len__(self) -> int:
         return len(self.time)
 
+    def between(self, joint, k: int, fraction: float):
+        """The joint at ``fraction`` of the way from frame ``k - 1`` to frame ``k`` (loads and prescribed
+        dofs interpolated linearly: a path reaching a frame in smaller steps)."""
+        if k == 0 or fraction >= 1.0:
+            return self.frame(joint, k)
+        w = float(fraction)
+
+        def mix(values):
+            return (1.0 - w) * values[k - 1] + w * values[k]
+
+        loads = {b: np.vstack([mix(v)] * (k + 1)) for b, v in self.loads.items()}
+        prescribed = {b: {d: np.full(k + 1, mix(v)) for d, v in dofs.items()} for b, dofs in self.prescribed.items()}
+        return dataclasses.replace(self, loads=loads, prescribed=prescribed).frame(joint, k)
+
     def frame(self, joint, k: int):
         """The joint at frame ``k``: its bodies' loads and prescribed dofs of that frame."""
         from ..problem import Body
