@@ -70,7 +70,7 @@ class TensionLaw:
         e = np.maximum(np.asarray(eps, dtype=float), 0.0)
         if self.kind == "linear":
             return e, None, None
-        et = np.broadcast_to(self.transition, e.shape)
+        et = self.transition if self.transition.shape == e.shape else np.broadcast_to(self.transition, e.shape)
         return e, et, e < et
 
     def force(self, eps) -> np.ndarray:
@@ -185,13 +185,22 @@ class ElementGroup:
         return self.AT @ v
 
     def gram(self, w) -> np.ndarray:
-        """``A^T diag(w) A`` (m_g, m_g) over the elements where ``w`` is nonzero."""
+        """``A^T diag(w) A`` (m_g, m_g) over the elements where ``w`` is nonzero (the last one kept:
+        a Newton iteration whose active set and tangents did not change asks for the same again)."""
+        last = self.__dict__.get("_last_gram")
+        if last is not None and last[0].shape == np.shape(w) and np.array_equal(last[0], w):
+            return last[1]
+        out = self._gram(w)
+        self.__dict__["_last_gram"] = (np.array(w, dtype=float), out)
+        return out
+
+    def _gram(self, w) -> np.ndarray:
         rows = np.flatnonzero(w)
         if self.basis is not None:
             C, E = self.basis
-            E = E[:, rows] if rows.size < E.shape[1] else E
-            M = (E * w[rows]) @ E.T if rows.size < w.size else (E * w) @ E.T
-            return C.T @ M @ C
+            if 3 * rows.size < E.shape[1]:  # few active rows: gathering them is cheaper than the zeros
+                E, w = E[:, rows], w[rows]
+            return C.T @ ((E * w) @ E.T) @ C
         assert self.AT is not None
         AT = self.AT[:, rows]
         return (AT * w[rows]) @ AT.T

@@ -172,9 +172,11 @@ def _body_scales(joint, groups, forces) -> dict:
         radius = max((lengths[(name, d)] for d in DOFS[3:] if (name, d) in lengths), default=1.0)
         radii[name] = radius
         scale[name] = max(float(np.abs(load[:3]).max()), float(np.abs(load[3:]).max()) / radius)
-    for (b1, b2, G, _), g, f in zip(joint.element_bodies(), groups, forces):
+    rows = joint.element_bodies() if any(g.two_sided for g in groups) else None
+    for i, ((b1, b2), g, f) in enumerate(zip(joint.element_pairs(), groups, forces)):
         f = np.abs(f)
-        if g.two_sided:  # a bushing's moments count over the radius, as the loads' do
+        if g.two_sided and rows is not None:  # a bushing's moments count over the radius, as the loads' do
+            G = rows[i][2]
             moments = (np.abs(G[:, 0:3]).max(axis=1) == 0) & (np.abs(G[:, 6:9]).max(axis=1) == 0)
             f = np.where(moments, f / max(radii[b1], radii[b2]), f)
         total = float(f.sum())

@@ -302,6 +302,12 @@ class Configuration:
         return q - load
 
     def forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_forces`, computed once per configuration."""
+        if "_forces_cache" not in self.__dict__:
+            self.__dict__["_forces_cache"] = self._forces()
+        return self.__dict__["_forces_cache"]
+
+    def _forces(self) -> tuple[np.ndarray, np.ndarray]:
         """``(q, load)``: the generalized force on the free coordinates at the pose (N, N mm): every element's
         exact force there takes from the bodies and their loads, both projected by each body's rates
         (``B^T``) on the free coordinates (N, N mm). Computed from the elements that carry load alone

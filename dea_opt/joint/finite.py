@@ -57,6 +57,8 @@ OPTIONS = (
 _OWN = {o.name for o in OPTIONS}
 #: A step turns no body more than this (rad): no linearisation reaches farther.
 _MAX_TURN = 0.5
+#: A Newton step that cut the residual by less than this factor makes the next one take a fresh tangent.
+_CHORD = 0.25
 
 
 def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bool, **options) -> JointSolution:
@@ -212,7 +214,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
         dx = None
         if name == "newton":
             # the tangent is kept while each step cuts the residual by 4 or more (a chord step), else made again
-            fresh = K is None or last is None or residual > 0.25 * last
+            fresh = K is None or last is None or residual > _CHORD * last
             K = tangent(joint, config.states, x) if fresh else K
             dx = _newton_step(config, K)
             if dx is None and not fresh:
@@ -231,10 +233,10 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
         turn = max((abs(float(v)) for (body, dof), v in zip(free, dx) if dof[0] == "r"), default=0.0)
         if turn > _MAX_TURN:
             dx = dx * (_MAX_TURN / turn)
-        alpha, used = _along(joint, config, x, dx, max(turn, 1e-300))
+        alpha, used, reached = _along(joint, config, x, dx, max(turn, 1e-300))
         evaluations += used
         x = x + alpha * dx
-        y = _coordinates(joint, x)
+        y = _coordinates(joint, x) if reached is None else reached.y
         if _ran_away(joint, y, radius):
             status = Status.UNBOUNDED
             message = (
@@ -243,7 +245,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
             )
             config = Configuration(joint, y, config.states)
             break
-        config = Configuration(joint, y, config.states)
+        config = Configuration(joint, y, config.states) if reached is None else reached
     if refused is not None and status not in CERTIFIABLE:
         raise refused
     info = {
@@ -287,32 +289,40 @@ def _newton_step(config: Configuration, K) -> np.ndarray | None:
     return dx if float(r @ dx) < 0 else None
 
 
-def _along(joint, config: Configuration, x, dx, turn: float) -> tuple[float, int]:
-    """``(alpha, evaluations)``: the step along ``dx`` where the exact forces' power along it,
-    ``psi'(alpha) = r(x + alpha dx) . dx``, has fallen to a tenth of its start (the full step where
-    it has fallen to half already): the small-kinematics step at a pose knows the material's
-    stiffness, not how the pose changes the geometry (a condyle rolling, a line turning), and the
-    exact forces along its direction decide how far to go."""
+def _along(joint, config: Configuration, x, dx, turn: float) -> tuple:
+    """``(alpha, evaluations, configuration)``: the step along ``dx`` where the exact forces' power along
+    it, ``psi'(alpha) = r(x + alpha dx) . dx``, has fallen to a tenth of its start (the full step where
+    it has fallen to half already), and the configuration there where it was made (else None): the
+    small-kinematics step at a pose knows the material's stiffness, not how the pose changes the
+    geometry (a condyle rolling, a line turning), and the exact forces along its direction decide
+    how far to go."""
     states = config.states
     slope0 = float(config.net_force() @ dx)
     if not slope0 < 0:
-        return 1.0, 1
+        return 1.0, 1, None
     limit = _MAX_TURN / turn
     lo, s_lo, hi, s_hi = 0.0, slope0, None, 0.0
     alpha, used = 1.0, 1
+    at: dict = {}
+
+    def power(a) -> float:
+        c = Configuration(joint, _coordinates(joint, x + a * dx), states)
+        at[a] = c
+        return float(c.net_force() @ dx)
+
     for used in range(2, 40):
-        s = float(exact_residual(joint, states, x + alpha * dx) @ dx)
+        s = power(alpha)
         if not np.isfinite(s):
             hi, s_hi = alpha, np.inf
         elif abs(s) <= (0.5 if alpha == 1.0 and hi is None and lo == 0.0 else 0.1) * abs(slope0):
-            return alpha, used
+            return alpha, used, at[alpha]
         elif s < 0:
             lo, s_lo = alpha, s
         else:
             hi, s_hi = alpha, s
         if hi is None:
             if alpha >= limit:
-                return alpha, used
+                return alpha, used, at[alpha]
             alpha = min(2.0 * alpha, limit)
         elif np.isfinite(s_hi) and s_hi > s_lo:
             # regula falsi between a descending and a rising end, kept inside the bracket
@@ -320,7 +330,8 @@ def _along(joint, config: Configuration, x, dx, turn: float) -> tuple[float, int
             alpha = min(max(alpha, lo + 0.05 * (hi - lo)), hi - 0.05 * (hi - lo))
         else:
             alpha = 0.5 * (lo + hi)
-    return (lo if lo > 0 else alpha), used
+    final = lo if lo > 0 else alpha
+    return final, used, at.get(final)
 
 
 def _recast(config: Configuration) -> tuple | None:
