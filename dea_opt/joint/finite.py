@@ -213,7 +213,8 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
         steps += 1
         dx = None
         if name == "newton":
-            # the tangent is kept while each step cuts the residual by 4 or more (a chord step), else made again
+            # the tangent is kept, with Broyden's updates, while each step cuts the residual by 4 or more,
+            # else made again
             fresh = K is None or last is None or residual > _CHORD * last
             K = tangent(joint, config.states, x) if fresh else K
             dx = _newton_step(config, K)
@@ -235,6 +236,11 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
             dx = dx * (_MAX_TURN / turn)
         alpha, used, reached = _along(joint, config, x, dx, max(turn, 1e-300))
         evaluations += used
+        if K is not None and reached is not None and name == "newton":
+            # Broyden's update: the kept tangent made exact along the step just taken (the secant)
+            step, change = alpha * dx, reached.net_force() - config.net_force()
+            if np.isfinite(change).all() and step @ step > 0:
+                K = K + np.outer(change - K @ step, step) / (step @ step)
         x = x + alpha * dx
         y = _coordinates(joint, x) if reached is None else reached.y
         if _ran_away(joint, y, radius):
