@@ -1,5 +1,7 @@
 """A joint's load and motion path: every frame solved in turn, its outputs written as it comes.
 
+Written math: ``formulations/joint.md`` ("A path").
+
 Each frame starts from the previous frame's answer (its free coordinates and, under finite
 kinematics, its contacts' springs as they were cast again at that answer's pose: the springs are
 carried from frame to frame, not cast anew from the start pose). The outputs, with units in every
