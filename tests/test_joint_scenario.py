@@ -19,7 +19,8 @@ from typer.testing import CliRunner
 import dea_opt as d
 from dea_opt.cli import app
 from dea_opt.scenario import load_scenario, parse_scenario
-from dea_opt.scenario.joint_build import build_joint, read_joint_path
+from dea_opt.scenario.joint_build import build_joint
+from dea_opt.scenario.joint_path import read_joint_path
 from dea_opt.scenario.joint_schema import JointScenario
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "joint"
