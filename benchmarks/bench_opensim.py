@@ -116,7 +116,9 @@ def gait(tka: Path) -> None:
     certified = sum(1 for s in solutions if s is not None and s.success)
     recasts = sum(s.info["recasts"] for s in solutions if s is not None)
     steps = sum(s.iterations for s in solutions if s is not None)
-    print(f"gait: {len(solutions)} frames, {certified} certified, {steps} Newton steps and {recasts} casts again in all")
+    print(
+        f"gait: {len(solutions)} frames, {certified} certified, {steps} Newton steps and {recasts} casts again in all"
+    )
     print(f"  gait_build_s {build[0]:8.3f} wall {build[1]:8.3f} CPU")
     print(f"  gait_solve_s {solve[0]:8.3f} wall {solve[1]:8.3f} CPU")
     print(

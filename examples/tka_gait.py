@@ -59,11 +59,25 @@ DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME
 DEFAULT_TKA = Path(__file__).resolve().parents[2] / "shared" / "data" / "tka"
 #: Knee contact force in body weights over the gait cycle (per cent): a synthetic double hump shaped
 #: like Kutzner et al. (2010), not measured data.
-PROFILE = ((0, 0.4), (5, 1.2), (15, 2.6), (25, 1.9), (35, 1.7), (47, 2.4), (55, 1.6), (62, 0.6), (75, 0.3), (90, 0.3), (100, 0.4))
+PROFILE = (
+    (0, 0.4),
+    (5, 1.2),
+    (15, 2.6),
+    (25, 1.9),
+    (35, 1.7),
+    (47, 2.4),
+    (55, 1.6),
+    (62, 0.6),
+    (75, 0.3),
+    (90, 0.3),
+    (100, 0.4),
+)
 ROTATIONS = ("knee_flex_r", "knee_add_r", "knee_rot_r")
 
 
-def write_scenario(folder: Path, tka: Path = DEFAULT_TKA, body_weight: float = 700.0, rotations: bool = False, every: int = 1) -> Path:
+def write_scenario(
+    folder: Path, tka: Path = DEFAULT_TKA, body_weight: float = 700.0, rotations: bool = False, every: int = 1
+) -> Path:
     """Write the gait's scenario (and its load table) into ``folder``; return the scenario's path."""
     from dea_opt.opensim import read_model
     from dea_opt.opensim.export import write_scenario as write
@@ -128,7 +142,11 @@ def plot_compartments(run: Path, path: Path) -> Path:
     figure = Figure(figsize=(6.4, 3.6))
     FigureCanvasAgg(figure)
     axes = figure.add_subplot()
-    for key, label in (("knee_contact.force_N", "total"), ("knee_contact.medial.force_N", "medial"), ("knee_contact.lateral.force_N", "lateral")):
+    for key, label in (
+        ("knee_contact.force_N", "total"),
+        ("knee_contact.medial.force_N", "medial"),
+        ("knee_contact.lateral.force_N", "lateral"),
+    ):
         axes.plot(t, [float(r[key]) for r in rows], label=label)
     axes.set_xlabel("gait cycle (%)")
     axes.set_ylabel("contact force (N)")

@@ -87,7 +87,11 @@ def _loads_at_pose(solution) -> dict:
     out = {}
     for name, body in joint.bodies.items():
         T = solution.bodies[name].pose
-        out[name] = [np.array(body.force, dtype=float), np.array(body.moment, dtype=float), T[:3, :3] @ body.reference + T[:3, 3]]
+        out[name] = [
+            np.array(body.force, dtype=float),
+            np.array(body.moment, dtype=float),
+            T[:3, :3] @ body.reference + T[:3, 3],
+        ]
     for load in joint.loads:
         T = solution.bodies[load.body].pose
         R, t = T[:3, :3], T[:3, 3]
@@ -116,7 +120,10 @@ def net_wrench_at_pose(solution) -> dict:
             out[name][0] += sign * push.sum(axis=0)
             out[name][1] += sign * np.cross(layer.points - refs[name], push).sum(axis=0)
     ligaments = solution.ligaments
-    ends = [(lig, ligaments.point1[i], ligaments.point2[i], float(ligaments.force[i])) for i, lig in enumerate(joint.ligaments)]
+    ends = [
+        (lig, ligaments.point1[i], ligaments.point2[i], float(ligaments.force[i]))
+        for i, lig in enumerate(joint.ligaments)
+    ]
     rows = [r for r in solution.elastic if r["kind"] == "spring"]
     for spring, row in zip(joint.springs, rows):
         T1, T2 = solution.bodies[spring.body1].pose, solution.bodies[spring.body2].pose

@@ -125,7 +125,9 @@ def test_a_point_load_in_the_ground_frame_is_its_moment_about_the_reference():
     F, P, M = np.array([2.0, -1.0, 3.0]), np.array([6.0, -4.0, 5.0]), np.array([10.0, 0.0, -20.0])
     moment = M + np.cross(P - (1, 2, 3), F)
     a = _solve(d.Joint(bodies, bushings=[bushing], loads=[BodyLoad("b", F, M, P, "body")]), "newton")
-    b = _solve(d.Joint({"g": GROUND, "b": d.Body(reference=(1, 2, 3), force=F, moment=moment)}, bushings=[bushing]), "newton")
+    b = _solve(
+        d.Joint({"g": GROUND, "b": d.Body(reference=(1, 2, 3), force=F, moment=moment)}, bushings=[bushing]), "newton"
+    )
     np.testing.assert_allclose(a.bodies["b"].u, b.bodies["b"].u, rtol=1e-12, atol=1e-15)
     np.testing.assert_allclose(a.bodies["b"].u[3:], moment / (800, 900, 1000), rtol=1e-12)
     np.testing.assert_allclose(a.bodies["b"].u[:3], F / (50, 60, 70), rtol=1e-12)
@@ -138,8 +140,14 @@ def test_a_follower_load_turns_with_a_body_on_free_coordinates():
     bodies = {"g": GROUND, "b": d.Body(reference=(0, 0, 0))}
     springs = [
         Spring("g", p, "b", q, stiffness=30.0)
-        for p, q in (((-20, 0, 0), (-5, 0, 0)), ((20, 0, 0), (5, 0, 0)), ((0, -20, 0), (0, -5, 0)),
-                     ((0, 20, 0), (0, 5, 0)), ((0, 0, -20), (0, 0, -5)), ((0, 0, 20), (0, 0, 5)))
+        for p, q in (
+            ((-20, 0, 0), (-5, 0, 0)),
+            ((20, 0, 0), (5, 0, 0)),
+            ((0, -20, 0), (0, -5, 0)),
+            ((0, 20, 0), (0, 5, 0)),
+            ((0, 0, -20), (0, 0, -5)),
+            ((0, 0, 20), (0, 0, 5)),
+        )
     ]
     bushing = Bushing("g", "b", rotational_stiffness=(500.0, 700.0, 900.0))
     load = BodyLoad("b", force=(4.0, 1.0, -2.0), moment=(50.0, -80.0, 120.0), point=(3.0, 1.0, 0.0), frame="body")
@@ -222,7 +230,10 @@ rotational_stiffness = [0, 0, 1000.0]
         (lambda: BodyLoad("a", frame="femur"), "BodyLoad.frame"),
         (lambda: BodyLoad("", force=(1, 0, 0)), "BodyLoad.body"),
         (lambda: d.Joint({"g": GROUND}, loads=[BodyLoad("x")]), "not a body"),
-        (lambda: d.Joint({"g": GROUND, "b": d.Body()}, springs=[Spring("g", (0, 0, 0), "c", (1, 0, 0), 1.0)]), "not a body"),
+        (
+            lambda: d.Joint({"g": GROUND, "b": d.Body()}, springs=[Spring("g", (0, 0, 0), "c", (1, 0, 0), 1.0)]),
+            "not a body",
+        ),
         (lambda: d.Joint({"g": GROUND, "b": d.Body()}, loads=[BodyLoad("b", (1, 0, 0))]), "nothing holds"),
     ],
 )

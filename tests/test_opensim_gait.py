@@ -44,7 +44,9 @@ def _rows(path) -> list:
 
 @pytest.fixture(scope="module", params=[False, True], ids=["flexion", "rotations"])
 def gait(request, tmp_path_factory):
-    if not all((TKA / f).is_file() for f in ("DM.osim", "tibial_insert.stl", "femoral_component.stl", "fluoroscopy_poses.csv")):
+    if not all(
+        (TKA / f).is_file() for f in ("DM.osim", "tibial_insert.stl", "femoral_component.stl", "fluoroscopy_poses.csv")
+    ):
         pytest.skip(f"the DM knee is not in {TKA}")
     out = tmp_path_factory.mktemp("gait")
     args = ["--coarse", "--out", str(out)] + (["--rotations"] if request.param else [])
@@ -97,7 +99,9 @@ def test_each_compartment_is_the_sum_of_its_springs_in_the_frame_s_series(gait):
         loaded = data["pressure"] > 0
         assert (data["label"][medial & loaded] == data["label"][medial & loaded][0]).all()
         for name, side in (("medial", medial), ("lateral", ~medial)):
-            assert float(row[f"knee_contact.{name}.force_N"]) == pytest.approx(np.linalg.norm(push[side].sum(axis=0)), rel=1e-6)
+            assert float(row[f"knee_contact.{name}.force_N"]) == pytest.approx(
+                np.linalg.norm(push[side].sum(axis=0)), rel=1e-6
+            )
         assert float(row["knee_contact.force_N"]) == pytest.approx(np.linalg.norm(push.sum(axis=0)), rel=1e-9)
 
 

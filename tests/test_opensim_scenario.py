@@ -23,12 +23,19 @@ from test_cli import invoke
 import dea_opt as d
 
 TKA = SHARED / "data" / "tka"
-MESHES = ("--mesh", f"tibia_implant={TKA / 'tibial_insert.stl'}", "--mesh", f"femur_implant={TKA / 'femoral_component.stl'}")
+MESHES = (
+    "--mesh",
+    f"tibia_implant={TKA / 'tibial_insert.stl'}",
+    "--mesh",
+    f"femur_implant={TKA / 'femoral_component.stl'}",
+)
 KNEE = ("knee_tx_r", "knee_ty_r", "knee_tz_r", "knee_flex_r", "knee_add_r", "knee_rot_r")
 
 
 def _need():
-    if not all((TKA / f).is_file() for f in ("DM.osim", "tibial_insert.stl", "femoral_component.stl", "fluoroscopy_poses.csv")):
+    if not all(
+        (TKA / f).is_file() for f in ("DM.osim", "tibial_insert.stl", "femoral_component.stl", "fluoroscopy_poses.csv")
+    ):
         pytest.skip(f"the DM knee is not in {TKA}")
 
 
@@ -74,7 +81,9 @@ def test_import_osim_writes_a_scenario_run_takes_as_it_is_and_with_the_femur_fre
     insert's axis; the answer balances at its pose by sums written here."""
     _need()
     scenario = tmp_path / "dm.toml"
-    result = invoke("import-osim", TKA / "DM.osim", "-o", scenario, "--fixed", "tibia_r", "--leave-out", "patella_r", *MESHES)
+    result = invoke(
+        "import-osim", TKA / "DM.osim", "-o", scenario, "--fixed", "tibia_r", "--leave-out", "patella_r", *MESHES
+    )
     assert result.exit_code == 0, result.stderr
     assert "not found" not in result.stderr  # the patellar button is left out, with its pair and bundles
     text = scenario.read_text()
@@ -97,7 +106,9 @@ def test_import_osim_writes_a_scenario_run_takes_as_it_is_and_with_the_femur_fre
     load = f"force = [{', '.join(map(repr, map(float, force)))}]\npoint = [{', '.join(map(repr, map(float, at)))}]\n"
     free = text.replace('name = "femur_r"\nreference', f'name = "femur_r"\n{load}reference', 1)
     # flexion held at the model's default (nothing but muscles holds it), the five others free
-    free = re.sub(r'(name = "femur_r"\n(?:.*\n)*?)free = \[\]', r'\1free = ["ux", "uy", "uz", "ry", "rz"]', free, count=1)
+    free = re.sub(
+        r'(name = "femur_r"\n(?:.*\n)*?)free = \[\]', r'\1free = ["ux", "uy", "uz", "ry", "rz"]', free, count=1
+    )
     free = free.replace("max_gap = 0.0\n", "max_gap = 2.0\n", 1)
     scenario.write_text(free)
     from dea_opt.scenario import load_scenario
@@ -118,7 +129,12 @@ def test_import_osim_writes_a_scenario_run_takes_as_it_is_and_with_the_femur_fre
 
     def femur(values):  # the femur's pose in ground with the tibia held where the defaults put it
         P = model.poses(values)
-        return model.poses()["tibia_r"] @ np.linalg.inv(P["tibia_r"]) @ P["femur_r"] @ np.linalg.inv(model.poses()["femur_r"])
+        return (
+            model.poses()["tibia_r"]
+            @ np.linalg.inv(P["tibia_r"])
+            @ P["femur_r"]
+            @ np.linalg.inv(model.poses()["femur_r"])
+        )
 
     T = femur(knee)
     twists = {}
@@ -151,7 +167,11 @@ def _path_scenario(tmp_path, prescribe, motion=None):
         writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
         writer.writeheader()
         writer.writerows(rows)
-    source = f'motion = "{motion}"' if motion else 'poses = "poses.csv"\nmoving = "femur_implant"\nreference = "tibia_implant"'
+    source = (
+        f'motion = "{motion}"'
+        if motion
+        else 'poses = "poses.csv"\nmoving = "femur_implant"\nreference = "tibia_implant"'
+    )
     names = ", ".join(f'"{p}"' for p in prescribe)
     scenario.write_text(scenario.read_text() + f"\n[load_path]\n{source}\nprescribe = [{names}]\n")
     return scenario, rows
@@ -207,8 +227,14 @@ def test_a_sto_of_the_model_s_coordinates_prescribes_them_in_their_units(tmp_pat
 @pytest.mark.parametrize(
     ("section", "words"),
     [
-        ('poses = "poses.csv"\nmoving = "femur_implant"\nreference = "nowhere"', "neither a \\[\\[frames\\]\\] name nor a body"),
-        ('poses = "poses.csv"\nmoving = "femur_implant"\nreference = "tibia_implant"\nprescribe = ["knee_zz"]', "does not give"),
+        (
+            'poses = "poses.csv"\nmoving = "femur_implant"\nreference = "nowhere"',
+            "neither a \\[\\[frames\\]\\] name nor a body",
+        ),
+        (
+            'poses = "poses.csv"\nmoving = "femur_implant"\nreference = "tibia_implant"\nprescribe = ["knee_zz"]',
+            "does not give",
+        ),
         ('poses = "poses.csv"\nmoving = "femur_implant"', "moving and reference"),
         ('prescribe = ["knee_flex_r"]', "give a file"),
     ],

@@ -112,7 +112,7 @@ class Coordinates:
             set_(self, field, axes)
         set_(self, "start", _matrix(self.start, "Coordinates.start", (6,)))
         set_(self, "slopes", _matrix(np.ones(6) if self.slopes is None else self.slopes, "Coordinates.slopes", (6,)))
-        if (self.slopes == 0).any():  # type: ignore[union-attr]
+        if (self.slopes == 0).any():
             raise InputError(
                 f"Coordinates.slopes must be nonzero (a coordinate that moves its axis), got {self.slopes}"
             )
@@ -138,7 +138,7 @@ class Coordinates:
 
     # --- the joint's transform ------------------------------------------------------------
     def _values(self, q) -> np.ndarray:
-        return self.slopes * np.asarray(q, dtype=float) + self.intercepts  # type: ignore[operator]
+        return self.slopes * np.asarray(q, dtype=float) + self.intercepts
 
     def _rotations(self, a) -> list[np.ndarray]:
         return [_axis_rotation(self.rotation_axes[k], a[3 + k]) for k in range(3)]
@@ -230,7 +230,7 @@ class Coordinates:
                 f"motion turns the body about an axis its joint does not have"
             )
         a = np.concatenate([np.linalg.solve(self.translation_axes.T, p), best])
-        return (a - self.intercepts) / self.slopes  # type: ignore[operator]
+        return (a - self.intercepts) / self.slopes
 
     def describe(self) -> str:
         names = self.names or ("ux", "uy", "uz", "rx", "ry", "rz")

@@ -85,7 +85,9 @@ def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bo
     if tangent0 is not None:
         tangent0 = np.asarray(tangent0, dtype=float)
         if tangent0.shape != (m, m) or not np.isfinite(tangent0).all():
-            raise InputError(f"tangent must be a finite ({m}, {m}) matrix over the free dofs: a previous answer's info['tangent']")
+            raise InputError(
+                f"tangent must be a finite ({m}, {m}) matrix over the free dofs: a previous answer's info['tangent']"
+            )
     if states is not None and (
         len(states) != len(joint.contacts) or not all(isinstance(s, ContactState) for s in states)
     ):

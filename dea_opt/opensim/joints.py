@@ -59,7 +59,9 @@ def joint_coordinates(model, joint: str, moving: str, coordinates=None):
     if j.kind != "CustomJoint" or len(j.axes) != 6:
         raise OpenSimModelError(f"{model.path}: joint {joint} is a {j.kind}: only a CustomJoint's axes are coordinates")
     if moving not in (j.parent_body, j.child_body):
-        raise OpenSimModelError(f"{model.path}: joint {joint} connects {j.parent_body} and {j.child_body}, not {moving}")
+        raise OpenSimModelError(
+            f"{model.path}: joint {joint} connects {j.parent_body} and {j.child_body}, not {moving}"
+        )
     inverted = moving == j.parent_body
     held = j.child_body if inverted else j.parent_body
     values = model.values(coordinates)
@@ -91,7 +93,16 @@ def joint_coordinates(model, joint: str, moving: str, coordinates=None):
         start.append(unit * values[name])
     rotation_axes = np.array([j.axes[k].axis for k in range(3)])
     translation_axes = np.array([j.axes[k].axis for k in range(3, 6)])
-    return Coordinates(frame, rotation_axes, translation_axes, start, slopes, intercepts, inverted, tuple(names))
+    return Coordinates(
+        frame,
+        rotation_axes,
+        translation_axes,
+        np.array(start),
+        np.array(slopes),
+        np.array(intercepts),
+        inverted,
+        tuple(names),
+    )
 
 
 def movable_joints(model, fixed) -> dict:

@@ -44,7 +44,13 @@ def _csv(rows: list[dict], columns) -> str:
 
 
 def solve_joint_path(
-    joint, path, method: str = "auto", *, certificate_tol: float = 1e-6, stop_on_error: bool = False, on_frame=None,
+    joint,
+    path,
+    method: str = "auto",
+    *,
+    certificate_tol: float = 1e-6,
+    stop_on_error: bool = False,
+    on_frame=None,
     keep: bool = True,
 ):
     """Every frame of ``path`` (:class:`~dea_opt.scenario.joint_path.JointPath`) solved in turn, each
@@ -237,7 +243,12 @@ class JointPathWriter:
                 forces = [r[f"{contact.name}.{label}.force_N"] for r in good]
                 shares = [r[f"{contact.name}.{label}.share"] for r in good]
                 if not forces:
-                    per[label] = {"largest_force_N": math.nan, "frame": None, "time_s": math.nan, "mean_share": math.nan}
+                    per[label] = {
+                        "largest_force_N": math.nan,
+                        "frame": None,
+                        "time_s": math.nan,
+                        "mean_share": math.nan,
+                    }
                     continue
                 i = int(np.nanargmax(forces)) if np.isfinite(forces).any() else 0
                 per[label] = {
@@ -265,7 +276,11 @@ class JointPathWriter:
             "valid": sum(1 for k in self.good if self.frames[k]["valid"]),
             "failures": failures,
             "peak_pressure_MPa": {
-                c.name: {"value": self.peaks[c.name][0], "frame": self.peaks[c.name][1], "time_s": self.peaks[c.name][2]}
+                c.name: {
+                    "value": self.peaks[c.name][0],
+                    "frame": self.peaks[c.name][1],
+                    "time_s": self.peaks[c.name][2],
+                }
                 if c.name in self.peaks
                 else {"value": math.nan, "frame": None, "time_s": math.nan}
                 for c in self.joint.contacts

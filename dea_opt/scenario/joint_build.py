@@ -10,6 +10,7 @@ pose (``pose1``, ``pose2``: an OpenSim model's contact meshes in their bodies' f
 from __future__ import annotations
 
 import dataclasses
+from typing import Any
 
 import numpy as np
 
@@ -90,8 +91,10 @@ def labelled_cast(cast, regions, frame=None):
     layer = cast.layer
     own = dataclasses.replace(layer, points=(layer.points - T[:3, 3]) @ T[:3, :3])
     labelled = apply_regions(own, regions)  # refuses springs that have labels already
-    cut = float(regions.at) if regions.at != "centroid" else float(
-        own.areas @ (own.points @ axis_vector(regions.split)) / own.areas.sum()
+    cut = (
+        float(regions.at)
+        if regions.at != "centroid"
+        else float(own.areas @ (own.points @ axis_vector(regions.split)) / own.areas.sum())
     )
     centres = (np.asarray(cast.mesh1.triangles_center) - T[:3, 3]) @ T[:3, :3]
     faces = np.where(centres @ axis_vector(regions.split) < cut, regions.names[0], regions.names[1])
@@ -151,9 +154,14 @@ def build_joint(scenario: JointScenario) -> tuple:
         )
         casts.append(cast)
     elements: dict = {"ligaments": [], "springs": [], "bushings": []}
-    for kind, sections in (("ligaments", scenario.ligaments), ("springs", scenario.springs)):
-        for i, e in enumerate(sections):
+    element_sections: tuple[tuple[str, list[Any]], ...] = (
+        ("ligaments", scenario.ligaments),
+        ("springs", scenario.springs),
+    )
+    for kind, element_list in element_sections:
+        for i, e in enumerate(element_list):
             try:
+                item: Ligament | Spring
                 if kind == "ligaments":
                     item = Ligament(
                         e.body1,
@@ -180,7 +188,7 @@ def build_joint(scenario: JointScenario) -> tuple:
                 Bushing(
                     e.body1,
                     e.body2,
-                    np.eye(4) if e.frame is None else np.array(e.frame),
+                    tuple(map(tuple, np.eye(4) if e.frame is None else np.array(e.frame))),
                     tuple(e.translational_stiffness),
                     tuple(e.rotational_stiffness),
                     e.name,
@@ -188,10 +196,10 @@ def build_joint(scenario: JointScenario) -> tuple:
             )
         except DeaError as exc:
             raise ScenarioError(f"{where}: bushings[{i}]: {exc}") from None
-    sections = {b.name: b for b in scenario.bodies}
+    body_sections = {b.name: b for b in scenario.bodies}
     for i, e in enumerate(scenario.loads):
-        body = sections[e.body]
-        R = np.eye(3) if body.pose is None or e.frame == "ground" else np.array(body.pose)[:3, :3]
+        section = body_sections[e.body]
+        R = np.eye(3) if section.pose is None or e.frame == "ground" else np.array(section.pose)[:3, :3]
         try:
             point = None if e.point is None else tuple(e.point)
             loads.append(BodyLoad(e.body, tuple(R @ e.force), tuple(R @ e.moment), point, e.frame))

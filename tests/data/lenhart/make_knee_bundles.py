@@ -65,7 +65,12 @@ def main(osim, cartilage) -> None:
 
     model = read_model(osim)
     source = trimesh.load(cartilage).sample(20000, seed=1) * 1000.0 @ AXES.T  # mm, the MRI knee's axes
-    target = np.vstack([trimesh.load(KNEE / f).sample(20000, seed=2) for f in ("medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")])
+    target = np.vstack(
+        [
+            trimesh.load(KNEE / f).sample(20000, seed=2)
+            for f in ("medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
+        ]
+    )
     tree = cKDTree(target)
     s = np.sqrt(((target - target.mean(0)) ** 2).sum(1).mean() / ((source - source.mean(0)) ** 2).sum(1).mean())
     R, t = np.eye(3), target.mean(0) - s * source.mean(0)
@@ -104,7 +109,11 @@ def main(osim, cartilage) -> None:
         "scale": s,
         "rotation": R.tolist(),
         "translation_mm": t.tolist(),
-        "closest_distance_mm": {"rms": float(np.sqrt((distance**2).mean())), "median": float(np.median(distance)), "max": float(distance.max())},
+        "closest_distance_mm": {
+            "rms": float(np.sqrt((distance**2).mean())),
+            "median": float(np.median(distance)),
+            "max": float(distance.max()),
+        },
         "bundles": len(rows),
     }
     (HERE / "registration.json").write_text(json.dumps(report, indent=1) + "\n")
