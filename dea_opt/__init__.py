@@ -7,7 +7,7 @@ from ._version import __version__
 
 #: Former module paths, kept importable: ``from dea_opt.calibrate import calibrate`` loads
 #: :mod:`dea_opt.sensitivity.calibrate`. Modules that became part of a subpackage are listed
-#: here, old name -> new; ``tests/test_structure.py`` imports every one and reads this table to
+#: here, old name -> new; ``tests/core/test_structure.py`` imports every one and reads this table to
 #: draw the import graph.
 FORMER_MODULES = {
     "dea_opt._validate": "dea_opt._checks.inputs",

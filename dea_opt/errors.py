@@ -2,7 +2,7 @@
 
 ``DeaError`` is the base; catch it to catch everything dea-opt raises on purpose.
 The guide's error catalogue (``docs/guide/errors.md``) lists every subclass, when it is raised and what to do;
-``tests/test_docs.py`` checks that the catalogue and this module agree.
+``tests/docs/test_docs.py`` checks that the catalogue and this module agree.
 """
 
 from __future__ import annotations

@@ -178,3 +178,21 @@ def socket():
 @pytest.fixture(scope="session")
 def bed():
     return sphere_on_bed_layer(radius=25.0, thickness=2.0, extent=7.0, n_rings=120, n_sectors=64)
+
+
+def invoke(*args):
+    """``dea-opt ARGS`` in this process (Typer's runner), its arguments made strings."""
+    from typer.testing import CliRunner
+
+    from dea_opt.cli import app
+
+    return CliRunner().invoke(app, [str(a) for a in args])
+
+
+def one_paragraph_error(result):
+    """The one-paragraph error of a refused command (exit 2, no traceback): its text."""
+    assert result.exit_code == 2, (result.stdout, result.stderr)
+    text = result.stderr.strip()
+    assert text.startswith("dea-opt: error: ")
+    assert "\n" not in text and "Traceback" not in text
+    return text

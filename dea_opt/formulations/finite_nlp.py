@@ -6,7 +6,7 @@ targets, body 2's coordinates, the load; exact rotation, gaps at the current pos
 the springs), solved by IPOPT on a conservative surrogate re-centred at each outer iteration,
 built in CasADi with its own derivatives (:mod:`~dea_opt.formulations._parts.finite_ipopt`); the
 springs are constrained to compression and their forces are the multipliers. Newton and IPOPT
-agree to 1e-6 on every test problem (``tests/test_finite.py``).
+agree to 1e-6 on every test problem (``tests/finite/test_finite.py``).
 """
 
 from __future__ import annotations

@@ -8,7 +8,7 @@ Unless the user gave ``max_time``, they have :func:`budget` seconds together (IP
 Newton means left, :func:`within`): IPOPT took 28 to 34 s wherever it succeeded on the knee
 (Newton there: 0.03 to 0.09 s, and 0.3 s for the 100 iterations of a failed solve), up to 6 s on
 the hip meshes of :func:`dea_opt.geometry.hip_meshes` and at most about 1 s on the closed-form
-layers of ``tests/test_finite.py``. An IPOPT stopped at the budget fails, saying so
+layers of ``tests/finite/test_finite.py``. An IPOPT stopped at the budget fails, saying so
 (:func:`out_of_time`).
 """
 

@@ -5,7 +5,7 @@ millions of faces, a multi-gigabyte mesh file) is a :class:`~dea_opt.errors.Size
 (an :class:`~dea_opt.errors.InputError`)
 that names the parameter and gives an estimate of the memory it would need, rather than a
 process killed by the operating system. The estimates are peak bytes per face, measured on
-this code (``tests/test_mesh_errors.py`` checks one is an upper bound on a measured peak), compared
+this code (``tests/mesh/test_mesh_errors.py`` checks one is an upper bound on a measured peak), compared
 with all the memory the machine has available (:func:`dea_opt._checks.memory.check_memory` with
 ``share=PEAK_SHARE``).
 """

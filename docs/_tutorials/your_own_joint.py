@@ -9,7 +9,7 @@ reference point, the modulus, where pose rotations are centred, and moving betwe
 scenario file.
 
 This page is a script (``docs/_tutorials/your_own_joint.py``) that the documentation build runs
-and the test suite runs too (``tests/test_tutorial.py``): every number on it was computed when
+and the test suite runs too (``tests/docs/test_tutorial.py``): every number on it was computed when
 the page was made. Units: mm, N, MPa.
 """
 

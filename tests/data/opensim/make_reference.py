@@ -1,5 +1,5 @@
 """Record what OpenSim 4.6 itself computes on the Grand Challenge DM model: the reference that
-tests/test_opensim_reference.py checks dea_opt.opensim against.
+tests/opensim/test_opensim_reference.py checks dea_opt.opensim against.
 
 Run it in a venv of its own (the ``opensim`` wheel brings its own CasADi, which cannot share a
 process with dea-opt's), from the repository root::
