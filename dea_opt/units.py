@@ -187,7 +187,7 @@ def _scenario_key_without_unit(name: str) -> bool:
 def unnamed_units(data, where: str = "", stated: bool = False) -> list[str]:
     """Where a JSON document (or a dict) holds a number whose unit its name does not give: the
     paths (``regions.medial.peak``) of numbers (and lists of numbers) whose key has no unit
-    suffix and is not one of :data:`UNITLESS`, in no object that states its unit (a ``unit`` key,
+    suffix and is not one of :data:`UNITLESS`, in no object around it that states its unit (a ``unit`` key,
     or its own key ending with one: ``peak_pressure_MPa: {medial: 2.1, lateral: 1.9}``) nor under
     one of :data:`UNITLESS_OBJECTS`. Empty when every number is named by the convention."""
     found: list[str] = []
@@ -202,7 +202,7 @@ def unnamed_units(data, where: str = "", stated: bool = False) -> list[str]:
                 if not (stated or named or is_unitless(str(key))):
                     found.append(path)
             else:
-                found += unnamed_units(value, path, named)
+                found += unnamed_units(value, path, stated or named)
     elif isinstance(data, list):
         for k, value in enumerate(data):
             found += unnamed_units(value, f"{where}[{k}]", stated)

@@ -5,20 +5,17 @@ The reduced problem over the ``m`` free degrees of freedom ``x`` (``formulations
     eps(x) = e0 + A x                                   (N,)
     Phi(x) = sum_i V_i w(min(eps_i, 0)) - r . x         V_i = S_i h_i
 
-``A`` holds the rows ``n_i^T B_i / h_i`` of Eq. (11) restricted to the free dofs and ``e0``
-the strain at ``x = 0`` (gap and prescribed motion). Spring stress is ``sigma_i`` (MPa,
-tension positive); the spring force is ``S_i sigma_i``.
+``A`` holds the rows ``n_i^T B_i / h_i`` of Eq. (11) restricted to the free dofs and ``e0`` the strain at ``x = 0``
+(gap and prescribed motion). Spring stress is ``sigma_i`` (MPa, tension positive); the spring force is ``S_i sigma_i``.
 
 Names in the code: the page's ``x`` is ``u_free`` (the free entries of the 12-vector ``u``,
 mm and rad; ``Solution.x`` is scipy's alias of ``u``), its scaled form ``xi``; ``eps`` is a
 strain array, ``strain_scale`` and ``energy_scale`` the sizes of :class:`Scaling`; ``energy``
 alone is a law's energy density ``w``.
 
-Also here: the one test of "no spring resists this direction" (:func:`unresisted`,
-:func:`resistance`), the guards every formulation runs before compiled code
-(:func:`require_finite`, :func:`start_vector`), the answers that need no solver
-(:func:`trivial_result`) and the one test of a crushed layer (:func:`crushed`).
-"""
+Also here: the one test of "no spring resists this direction" (:func:`unresisted`, :func:`resistance`), the guards
+every formulation runs before compiled code (:func:`require_finite`, :func:`start_vector`), the answers that need
+no solver (:func:`trivial_result`) and the one test of a crushed layer (:func:`crushed`)."""
 
 from __future__ import annotations
 

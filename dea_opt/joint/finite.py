@@ -32,10 +32,11 @@ from ..mesh.springs import NoSpringsError
 from ..status import CERTIFIABLE, Status
 from .certificate import certify_joint
 from .checks import check_joint_unresisted, finish, start_vector
-from .configuration import Configuration, ContactState, initial_states
+from .configuration import Configuration
 from .elastic import elastic_results
 from .results import JointSolution, body_results, layer_solutions, ligament_results
 from .rows import line_operator
+from .states import ContactState, initial_states
 from .validity import assess_joint
 
 __all__ = ["OPTIONS", "exact_residual", "solve_finite_joint", "stability"]

@@ -117,7 +117,7 @@ class PathResult:
         return table.loc[table["success"] & ~table["valid"], "frame"].astype(int).tolist()
 
     def failures(self) -> list[dict]:
-        """``[{frame, time, status, message}]`` of every failed frame."""
+        """``[{frame, time_s, status, message}]`` of every failed frame."""
         failed = ~self.table["success"].to_numpy(dtype=bool)
         if not failed.any():
             return []
