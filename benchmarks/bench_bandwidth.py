@@ -15,7 +15,8 @@ thread, ``single_threaded_blas``; NumPy's kernels use one):
 * ``newton_s``: Newton's own solve time (``FormulationResult.solve_time``, best of five), cold
   start, the box at 1e6 springs;
 * ``newton_bytes``: the bytes its kernels read, from the kernels it ran (counted in a separate,
-  instrumented run: each tangent with its number of springs, each line-search evaluation)
+  instrumented run: each fused sweep, with the springs of the tangents it sums, each line-search
+  evaluation)
   and the arrays each kernel reads (:func:`bytes_read`); the temporaries kernels write, and
   read back, are not counted, so this is a lower bound of its memory traffic;
 * ``newton_GBs = newton_bytes / newton_s`` and ``fraction = newton_GBs / copy_GBs``;
@@ -42,6 +43,7 @@ COLUMNS = [
     "iterations",
     "tangents",
     "tangent_springs",
+    "sweeps",
     "slopes",
     "energies",
     "newton_s",
@@ -77,67 +79,57 @@ def copy_bandwidth(megabytes: int = 512, repeats: int = 5) -> tuple[float, float
 
 
 def bytes_read(n: int, m: int, k: int, counts: dict) -> int:
-    """The bytes Newton's kernels read (``formulations/newton.py``, ``_solve``), for N = ``n``
-    springs, ``m`` free dofs, ``k`` of them resisted, and the kernel ``counts`` of one solve.
+    """The bytes Newton's kernels read (``formulations/newton.py``, ``_iterate``, and its fused
+    sweeps ``formulations/_parts/sweeps.py``), for N = ``n`` springs, ``m`` free dofs, ``k`` of them
+    resisted, and the kernel ``counts`` of one solve.
 
     Per kernel, the arrays it reads (float64: 8 bytes a value; ``AT`` is k x N):
 
     * set-up: the scaling ``T^T A^T`` (8mN) and the first strains ``e0 + xi AT`` (8kN + 8N);
-    * every iteration's residual: ``min(eps, 0)``, the stress, ``V * sigma`` and ``AT @ w``
-      (40N + 8kN); all but the last also ``compressed = min(eps, 0)`` (8N), the direction
-      ``d @ AT`` (8kN) and, after the line search, ``eps < 0`` and the comparison of active
-      sets (9N + N);
-    * the bilateral residual of the extended first iteration (32N + 8kN);
-    * a tangent over ``n_t`` springs: ``AT_t * w`` and ``(AT_t w) @ AT_t^T`` (24k n_t + 8 n_t); over
-      the compressed springs also ``eps < 0`` with ``flatnonzero`` (9N), the gather of their
-      columns of ``AT`` (8k n_t) and of ``V``, the strains, the law's tangent and their product
-      (40 n_t); over every spring, the law's tangent and ``V *`` it (24N);
-    * a line-search slope: ``alpha Ad``, ``eps +``, ``min(, 0)``, the stress, ``V * sigma`` and
-      ``@ Ad`` (72N); an energy: ``alpha Ad``, ``eps +``, ``min``, the energy density and ``V @ w``
-      (56N);
-    * the confirmation of a step below ``xtol`` (48N + 8kN) and the stress of the answer (16N).
+    * every sweep (:func:`~dea_opt.formulations._parts.sweeps.state`: the residual with the
+      tangent over the compressed springs, or the confirmation's residual alone): ``AT``, the
+      strains and the volumes (8kN + 16N);
+    * every iteration but the last: the direction ``d @ AT`` (8kN) and the active set's comparison
+      (9N);
+    * a line-search slope or energy: the strains, the direction and the volumes (24N);
+    * the stress of the answer (8N).
     """
     iterations = counts["iterations"]
     total = 8 * m * n + 8 * k * n + 8 * n
-    total += iterations * (40 * n + 8 * k * n) + (iterations - 1) * (8 * n + 8 * k * n + 10 * n)
-    if counts["extended"]:
-        total += 32 * n + 8 * k * n
-    for springs in counts["tangent_springs"]:
-        total += 24 * k * springs + 8 * springs
-        total += 24 * n if springs == n else 9 * n + 8 * k * springs + 40 * springs
-    total += 72 * n * counts["slopes"] + 56 * n * counts["energies"]
-    total += (48 * n + 8 * k * n) * counts["confirmed"] + 16 * n
+    total += counts["sweeps"] * (8 * k * n + 16 * n)
+    total += (iterations - 1) * (8 * k * n + 9 * n)
+    total += 24 * n * (counts["slopes"] + counts["energies"])
+    total += 8 * n
     return int(total)
 
 
 def bytes_written(n: int, m: int, k: int, counts: dict) -> int:
     """The bytes Newton's kernels write (the arrays of N values or more they make), with the
-    kernels of :func:`bytes_read`: the scaled ``AT`` (8kN) and the first strains (16N); per
-    iteration the residual's three temporaries (24N), and but for the last ``compressed``, the
-    direction ``Ad`` and the active mask (17N); the bilateral residual (16N); per tangent
-    ``AT_t * w`` (8k n_t), over the compressed springs also their mask, indices, gathered
-    columns and values (N + 8k n_t + 40 n_t), over every spring the law's tangent times ``V``
-    (16N); 40N per slope, 32N per energy, 24N for the confirmation and 16N for the answer."""
+    kernels of :func:`bytes_read`: the scaled ``AT`` (8kN) and the first strains (8N); per
+    iteration but the last the direction ``Ad`` and the active mask (9N); 8N per slope (the trial
+    strains; a sweep and an energy write nothing of N values) and 16N for the answer's stress."""
     iterations = counts["iterations"]
-    total = 8 * k * n + 16 * n + iterations * 24 * n + (iterations - 1) * 17 * n
-    if counts["extended"]:
-        total += 16 * n
-    for springs in counts["tangent_springs"]:
-        total += 8 * k * springs + (16 * n if springs == n else n + 8 * k * springs + 40 * springs)
-    total += 40 * n * counts["slopes"] + 32 * n * counts["energies"] + 24 * n * counts["confirmed"] + 16 * n
+    total = 8 * k * n + 8 * n + (iterations - 1) * 9 * n + 8 * n * counts["slopes"] + 16 * n
     return int(total)
 
 
 def count_kernels(system, law) -> dict:
-    """Newton's kernels in one cold solve: its tangents (springs each), slopes and energies."""
+    """Newton's kernels in one cold solve: its sweeps (each tangent's springs), slopes and energies."""
+    import numpy as np
+
     from dea_opt.formulations import newton
+    from dea_opt.formulations._parts import sweeps
 
-    counts = {"tangent_springs": [], "slopes": 0, "energies": 0}
-    real_tangent, real_slope, real_phi = newton._tangent, newton._Line.slope, newton._Line.phi
+    counts = {"tangent_springs": [], "sweeps": 0, "slopes": 0, "energies": 0}
+    real_state, real_slope, real_phi = sweeps.state, newton._Line.slope, newton._Line.phi
 
-    def tangent(AT, weight):
-        counts["tangent_springs"].append(int(AT.shape[1]))
-        return real_tangent(AT, weight)
+    def state(AT, V, eps, law, *, tangent=True, extended=False):
+        counts["sweeps"] += 1
+        if extended:
+            counts["tangent_springs"].append(int(eps.size))
+        if tangent:
+            counts["tangent_springs"].append(int(np.count_nonzero(eps < 0)))
+        return real_state(AT, V, eps, law, tangent=tangent, extended=extended)
 
     def slope(self, alpha):
         counts["slopes"] += 1
@@ -147,16 +139,12 @@ def count_kernels(system, law) -> dict:
         counts["energies"] += 1
         return real_phi(self, alpha)
 
-    newton._tangent, newton._Line.slope, newton._Line.phi = tangent, slope, phi
+    sweeps.state, newton._Line.slope, newton._Line.phi = state, slope, phi
     try:
         result = newton.NewtonModel(system, law).solve()
     finally:
-        newton._tangent, newton._Line.slope, newton._Line.phi = real_tangent, real_slope, real_phi
-    n = system.n_springs
+        sweeps.state, newton._Line.slope, newton._Line.phi = real_state, real_slope, real_phi
     counts["iterations"] = result.iterations
-    # The extended first iteration's tangent is over every spring, and it is the first tangent.
-    counts["extended"] = bool(counts["tangent_springs"]) and counts["tangent_springs"][0] == n
-    counts["confirmed"] = int("xtol" in result.message)
     return counts
 
 
@@ -191,6 +179,7 @@ def measure(problem: str = "box", n: int = 1_000_000, repeats: int = 5) -> dict:
         "iterations": counts["iterations"],
         "tangents": len(counts["tangent_springs"]),
         "tangent_springs": " ".join(map(str, counts["tangent_springs"])),
+        "sweeps": counts["sweeps"],
         "slopes": counts["slopes"],
         "energies": counts["energies"],
         "newton_s": best,

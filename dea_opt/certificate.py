@@ -28,6 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .certificate_sums import sums
 from .formulations.energy import (
     modulus_scale,
     require_finite,
@@ -120,7 +121,7 @@ def _ratio(numerator: float, scale: float) -> float:
     return numerator / scale if scale > 0 else float("inf")
 
 
-def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate:
+def certify(problem, u, reported_stress, tolerance: float = 1e-6, strain=None) -> Certificate:
     """Check ``u`` against the law: equilibrium, sign, complementarity, optimality.
 
     Every residual is defined in :class:`Certificate`; they use dea_opt's own arrays and
@@ -133,38 +134,36 @@ def certify(problem, u, reported_stress, tolerance: float = 1e-6) -> Certificate
     reported_stress : ndarray, shape (N,)
         Spring stress as the formulation reported it (MPa, tension positive).
     tolerance : float
+    strain : ndarray, shape (N,), optional
+        ``problem.strain(u)``, where the caller has it already (computed here otherwise).
     """
     with single_threaded_blas():
-        return _certify(problem, u, reported_stress, tolerance)
+        return _certify(problem, u, reported_stress, tolerance, strain)
 
 
-def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
+def _certify(problem, u, reported_stress, tolerance: float, strain=None) -> Certificate:
     layer, law = problem.layer, problem.law
     system = problem.system()
     res = system.resistance
     free = problem.free_indices
-    u_free = np.asarray(u, dtype=float)[free]
-    eps = problem.strain(u)
-    compressed = np.minimum(eps, 0.0)
-    with np.errstate(invalid="ignore", over="ignore"):
-        sigma = law.stress(compressed)
-        force = layer.areas * sigma
-        reported = layer.areas * np.asarray(reported_stress, dtype=float)
-        # A^T (V sigma) = G_free^T (S sigma): the generalized spring force on the free dofs.
-        q = system.AT @ (system.volume * sigma)
-    if not (np.isfinite(sigma).all() and np.isfinite(reported).all() and np.isfinite(q).all()):
+    u = np.asarray(u, dtype=float)
+    u_free = u[free]
+    eps = problem.strain(u) if strain is None else np.asarray(strain, dtype=float)
+    # Every sum over the springs in one sweep (dea_opt/certificate_sums.py).
+    total = sums(problem, u, eps, np.asarray(reported_stress, dtype=float), tolerance, tangent=bool(free.size))
+    if not total.finite:
         nan = float("nan")
         return Certificate(nan, nan, nan, nan, nan, tolerance)
     r, L = system.load, system.lengths
     # What is in equilibrium at the answer: the load, or without one the springs' forces there
     # (which make every reaction). Never a force of the start (springs that overlapped there and
     # opened carry nothing), nor, under a load, forces larger than it that would dilute its imbalance.
-    F = _force_scale(r, L, force)
-    g = q - r
+    load = float(np.abs(r / L).max(initial=0.0))
+    F = load if load > 0 else total.force
+    g = total.q - r
     # How far the strains' rounding can move each generalized force: a load the answer can resolve
     # only below that is not certified (an overlap of gaps and motion cancelling to a tiny strain).
-    rounding = np.asarray(problem.strain_rounding(u), dtype=float)
-    spread = _rounding_force(system, law, eps, sigma, rounding)
+    spread = total.spread
     equilibrium = _ratio(float(((np.abs(g) + spread) / L).max(initial=0.0)), F)
     rounding_part = _ratio(float((spread / L).max(initial=0.0)), F)
     if res.null.shape[1]:
@@ -172,62 +171,28 @@ def _certify(problem, u, reported_stress, tolerance: float) -> Certificate:
         z = res.motion_part(u_free)
         if z.any():
             with np.errstate(invalid="ignore", over="ignore"):
+                force = layer.areas * law.stress(np.minimum(eps, 0.0))
                 held = layer.areas * law.stress(np.minimum(eps - z @ system.AT, 0.0))
             equilibrium = max(equilibrium, _ratio(float(np.nan_to_num(np.abs(force - held), nan=np.inf).sum()), F))
-    tension = _ratio(float(np.maximum(reported, 0.0).sum()), F)
-    complementarity = _ratio(float(np.abs(reported) @ np.maximum(eps, 0.0)), F)
+    tension = _ratio(total.tension, F)
+    complementarity = _ratio(total.complementarity, F)
     # A reported force is consistent when the law gives it at a strain within the certified
     # precision of the answer's compression (and the strain's own rounding): springs on the edge
     # of the contact, where interior-point duals are of order sqrt(mu), are judged on what the
     # strain allows.
-    delta = tolerance * float(-compressed.min(initial=0.0)) + rounding
-    with np.errstate(invalid="ignore", over="ignore"):
-        low = layer.areas * law.stress(np.minimum(eps - delta, 0.0))
-        high = layer.areas * law.stress(np.minimum(eps + delta, 0.0))
-    excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
-    consistency = _ratio(float(np.nan_to_num(excess, nan=np.inf).sum()), F)
-    decrement = _energy_residual(system, res, law, eps, g, modulus_scale(law.modulus)) if free.size else 0.0
+    consistency = _ratio(total.consistency, F)
+    decrement = _energy_residual(system, res, law, total, g, modulus_scale(law.modulus)) if free.size else 0.0
     return Certificate(equilibrium, tension, complementarity, consistency, decrement, tolerance, rounding_part)
 
 
-def _force_scale(r, L, force) -> float:
-    """``F`` (N): the load's largest component ``max_j |r_j| / L_j`` on the free dofs, or, without a
-    load, the springs' total force ``sum_i |f_i|`` at the answer."""
-    load = float(np.abs(r / L).max(initial=0.0))
-    return load if load > 0 else float(np.abs(force).sum())
-
-
-def _rounding_force(system, law, eps, sigma, rounding) -> np.ndarray:
-    """``rho_j = sum_i |A_ij| V_i max |sigma(eps_i +- delta_i) - sigma(eps_i)|`` (m,): how far
-    strains rounded by ``delta`` (N,) can move the generalized spring force on each free dof
-    (N, N mm). Only springs within ``delta`` of contact count; NaN (beyond the law's domain) is
-    ``inf``."""
-    near = np.flatnonzero(eps - rounding < 0)
-    if not near.size or not system.n_dofs:
-        return np.zeros(system.n_dofs)
-    e, d = eps[near], rounding[near]
-    with np.errstate(invalid="ignore", over="ignore"):
-        low = law.stress(np.minimum(e - d, 0.0))
-        high = law.stress(np.minimum(e + d, 0.0))
-        spread = np.maximum(np.abs(low - sigma[near]), np.abs(high - sigma[near]))
-    spread = np.nan_to_num(spread, nan=np.inf)
-    with np.errstate(invalid="ignore", over="ignore"):
-        return np.abs(system.AT[:, near]) @ (system.volume[near] * spread)
-
-
-def _energy_residual(system, res, law, eps, g, H) -> float:
+def _energy_residual(system, res, law, total, g, H) -> float:
     """``g^T K^+ g / 2`` over the resisted directions, relative to the energy at the answer of what
     ``F`` measures: the load's ``r^T K^+ r / 2`` through the same compliance, or without a load the
-    springs' stored energy."""
-    rows = np.flatnonzero(eps < 0)
-    if not rows.size or not res.n_resisted:
+    springs' stored energy. ``K`` and the stored energy are the sweep's (``total``,
+    :class:`~dea_opt.certificate_sums.Sums`)."""
+    if not total.compressed or not res.n_resisted:
         return 0.0
-    compressed = eps[rows]
-    with np.errstate(invalid="ignore", over="ignore"):
-        weight = system.volume[rows] * law.tangent(compressed)
-        stored = float(system.volume[rows] @ law.energy(compressed))
-    AT = system.AT[:, rows]
-    K = (AT * weight) @ AT.T
+    K, stored = total.K, total.stored
     if not (np.isfinite(K).all() and np.isfinite(stored)):
         return float("nan")
     # In the resisted basis (T1^T K0 T1 = I at the law's modulus) the bonded layer's

@@ -232,7 +232,7 @@ def certified_solution(
         # 0.0 - sigma keeps an unloaded spring at +0.0 MPa, not -0.0.
         pressure = 0.0 - problem.law.stress(np.minimum(strain, 0.0)) if finite else strain
     if finite:
-        certificate = certify(problem, u, result.stress, certificate_tol)
+        certificate = certify(problem, u, result.stress, certificate_tol, strain=strain)
     else:
         certificate = certify(problem, np.zeros(12), np.full(n, np.nan), certificate_tol)
     success = bool(finite and certificate.passed and np.isfinite(pressure).all())

@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from ..status import Status
+from ._parts import sweeps
 from ._parts.options import Capabilities, Option, validate
 from ._parts.recentre import RECENTRE
 from .energy import (
@@ -46,8 +47,9 @@ _EXACT_STEP = 1e-8  # a unit step whose phi'(1) is below this |phi'(0)| is accep
 
 
 def _tangent(AT, weight) -> np.ndarray:
-    """``AT diag(weight) AT^T``, shape (k, k): Eq. (16) as one matrix product."""
-    return (AT * weight) @ AT.T
+    """``AT diag(weight) AT^T``, shape (k, k): Eq. (16), summed by blocks of springs
+    (:func:`~dea_opt.formulations._parts.sweeps.tangent`)."""
+    return sweeps.tangent(AT, weight)
 
 
 def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
@@ -91,17 +93,18 @@ def _solve_step(K, g, K_all_fn) -> tuple[np.ndarray, bool]:
 
 
 class _Line:
-    """``phi'(a) = g(x + a d) . d`` along one Newton direction: one pass per evaluation."""
+    """``phi'(a) = g(x + a d) . d`` along one Newton direction: one pass per evaluation, which
+    reads the strains, the direction and the volumes once and writes the trial strains to
+    ``out`` (a buffer of N values that is not ``eps``; ``slope`` returns it)."""
 
-    def __init__(self, law, V, r, eps, Ad, d):
+    def __init__(self, law, V, r, eps, Ad, d, out=None):
         self.law, self.V, self.eps, self.Ad = law, V, eps, Ad
         self.rd = float(r @ d)
+        self.out = np.empty_like(eps) if out is None else out
 
     def phi(self, alpha) -> float:
         """``phi(a) = Phi(x + a d)`` up to a constant (one pass)."""
-        with np.errstate(over="ignore", invalid="ignore"):
-            w = self.law.energy(np.minimum(self.eps + alpha * self.Ad, 0.0))
-        value = float(self.V @ w) - alpha * self.rd
+        value = sweeps.energy(self.law, self.V, self.eps, self.Ad, alpha) - alpha * self.rd
         return value if np.isfinite(value) else np.inf
 
     def touch(self, alpha) -> float | None:
@@ -117,12 +120,9 @@ class _Line:
         return max(float(at.min()), alpha)
 
     def slope(self, alpha):
-        trial = self.eps + alpha * self.Ad
-        if self.law.bounded_strain and trial.min(initial=0.0) <= -1.0:
-            return np.inf, trial  # beyond the law's domain: an overshoot
-        sigma = self.law.stress(np.minimum(trial, 0.0))
-        value = float((self.V * sigma) @ self.Ad) - self.rd
-        return (value if np.isfinite(value) else np.inf), trial
+        # (inf beyond a bounded law's domain: an overshoot)
+        value = sweeps.slope(self.law, self.V, self.eps, self.Ad, alpha, self.out) - self.rd
+        return (value if np.isfinite(value) else np.inf), self.out
 
 
 #: The step (in units of the Newton step) beyond which a line on which ``Phi`` still descends
@@ -389,7 +389,7 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
     AT, V, e0 = scale.AT, scale.volume, system.e0
     r = scale.load(system.load)
     r_norm = float(np.linalg.norm(r))
-    stiffness = V * modulus_scale(law.modulus)
+    stiffness_scale = modulus_scale(law.modulus)
     k = AT.shape[0]
     xi = np.zeros(k) if x0 is None else scale.to_xi(x0)
     eps = e0 + xi @ AT
@@ -397,6 +397,8 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         xi = np.zeros(k)  # a warm start outside the law's domain is no start
         eps = e0.copy()
     previous_active = None
+    spare = np.empty_like(eps)  # the line search's trial strains: two buffers, swapped per step
+    Ad = np.empty_like(eps)
     status, message, success = "max_iter", f"no convergence in {max_iter} iterations", False
     history: list = []
     evaluations = 0
@@ -404,9 +406,10 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
     for it in range(1, max_iter + 1):
         # The extended range (first iteration) uses the law in tension too.
         extended = it == 1 and extended_start and x0 is None
-        compressed = np.minimum(eps, 0.0)
-        sigma = law.stress(compressed)
-        internal = AT @ (V * sigma)
+        # One sweep: the residual, the tangent over the compressed springs and (extended) the
+        # bilateral ones (formulations/newton.md).
+        here = sweeps.state(AT, V, eps, law, extended=extended)
+        internal = here.internal
         g = internal - r
         # Without a load, the scaling makes the overlap at this stage's origin of size 1: that floor
         # keeps a press fit (internal forces cancelling, r = 0) from being judged against rounding.
@@ -430,28 +433,25 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         if may_recentre and it > 1:
             # What is in equilibrium here, in units of the stage's scale: the load and the springs'
             # compression (the scaled volumes are V / s^2).
-            size = max(r_norm, float(np.sqrt(stiffness @ (compressed * compressed))))
+            size = max(r_norm, float(np.sqrt(stiffness_scale * here.compression)))
             if 0.0 < size <= RECENTRE:
                 return _Run(xi, eps, status, "re-centred", False, it - 1, history[:-1], evaluations, recentre=True)
         if gnorm <= gtol:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
 
-        def all_springs(compressed=compressed):  # this iteration's strains
-            return _tangent(AT, V * law.tangent(compressed))
+        def all_springs(eps=eps):  # this iteration's strains
+            return _tangent(AT, V * law.tangent(np.minimum(eps, 0.0)))
 
         d = None
-        if extended:
-            with np.errstate(over="ignore", invalid="ignore"):
-                bilateral = AT @ (V * law.stress(eps)) - r
-                K = _tangent(AT, V * law.tangent(eps))
+        if extended and here.bilateral is not None and here.K_all is not None:
+            bilateral, K = here.bilateral - r, here.K_all
             if np.isfinite(K).all() and np.isfinite(bilateral).all():
                 d, safe = _solve_step(K, bilateral, all_springs)
                 if not (g @ d < 0):
                     d = None  # the bilateral step is no descent for the unilateral Phi
         if d is None:
-            rows = np.flatnonzero(eps < 0)
-            K = _tangent(AT[:, rows], V[rows] * law.tangent(compressed[rows])) if rows.size else np.zeros((k, k))
+            K = here.K if here.K is not None else np.zeros((k, k))
             if not np.isfinite(K).all():
                 status, message = "nan", "the law returned a non-finite tangent"
                 break
@@ -460,11 +460,11 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         if not slope < 0:
             status, message = "stalled", "no descent direction (a load along a direction no spring resists?)"
             break
-        Ad = d @ AT
+        np.matmul(d, AT, out=Ad)
         # A safe step only knows the missing directions roughly: search the line closely, so
         # that the next spring to touch is reached rather than crept up on.
         curvature = _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE
-        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d), slope, curvature)
+        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d, spare), slope, curvature)
         evaluations += used
         if alpha is None or not np.isfinite(alpha):
             # (springs at eps = -1 make it "crushed" below)
@@ -474,13 +474,13 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
             break
         step = alpha * d
         xi = xi + step
-        eps = trial
+        eps, spare = trial, eps
         active = eps < 0
         settled = previous_active is not None and np.array_equal(active, previous_active)
         previous_active = active
         if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(float(np.linalg.norm(xi)), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
-            internal = AT @ (V * law.stress(np.minimum(eps, 0.0)))
+            internal = sweeps.state(AT, V, eps, law, tangent=False).internal
             norm = max(r_norm, float(np.linalg.norm(internal)), 0.0 if r_norm else 1.0)
             if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True

@@ -1,0 +1,130 @@
+"""The certificate's sums over the springs, in one sweep by blocks (:func:`sums`).
+
+:func:`dea_opt.certificate.certify` measures every residual from sums over the springs: the
+generalized spring force ``q = A^T (V sigma)``, the force scale without a load ``sum |f_i|``, the
+strains' rounding and how far it moves ``q`` (``rho``), tension, complementarity, consistency, and
+the tangent over the compressed springs with their stored energy (the Newton decrement). Written
+whole-array, each was its own pass over N values with its temporaries (about twenty in all, and
+a copy of the compressed springs' columns of ``A^T``); here the springs go by in blocks of
+:data:`~dea_opt.formulations._parts.sweeps.BLOCK` whose temporaries stay in the processor's cache,
+and every spring array is read once. The definitions are those of ``formulations/energy.md``
+("The certificate"); the sums differ from the whole-array ones only in the order of the additions.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .formulations._parts.sweeps import blocks
+from .formulations.energy import ROUNDING
+from .problem import ContactProblem
+
+
+@dataclass
+class Sums:
+    """The certificate's sums at one answer (``k`` free dofs).
+
+    Attributes
+    ----------
+    finite : bool
+        Every stress, reported stress and ``q`` is finite.
+    q : ndarray, shape (k,)
+        ``A^T (V sigma)`` (N, N mm).
+    force : float
+        ``sum_i |f_i|`` (N).
+    spread : ndarray, shape (k,)
+        ``rho``: how far the strains' rounding can move ``q`` (``inf`` where beyond the law's domain).
+    tension, complementarity, consistency : float
+        ``sum max(f^rep, 0)``, ``sum |f^rep| max(eps, 0)`` and the consistency excess (N).
+    K : ndarray, shape (k, k)
+        ``A_act^T diag(V sigma'(eps)) A_act`` over the compressed springs.
+    stored : float
+        ``sum V w(eps)`` over the compressed springs (N mm).
+    compressed : int
+        How many springs are compressed.
+    """
+
+    finite: bool
+    q: np.ndarray
+    force: float
+    spread: np.ndarray
+    tension: float
+    complementarity: float
+    consistency: float
+    K: np.ndarray
+    stored: float
+    compressed: int
+
+
+def rounding(problem, u, part: slice) -> np.ndarray:
+    """``problem.strain_rounding(u)`` over the springs ``part``: ``ROUNDING`` ulps of the sizes of the
+    terms each strain is summed from (formulations/energy.md, "The certificate"). The distance of a
+    spring from a body's reference is computed only where that body rotates."""
+    layer = problem.layer
+    size = np.abs(layer.gap[part])
+    for k, body in enumerate((problem.body1, problem.body2)):
+        turn = float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum())
+        shift = float(np.abs(u[6 * k : 6 * k + 3]).sum())
+        if turn:
+            arm = np.linalg.norm(layer.points[part] - np.asarray(body.reference, dtype=float), axis=1)
+            size = size + (shift + arm * turn)
+        else:
+            size = size + shift
+    return ROUNDING * np.finfo(float).eps * size / layer.thickness[part]
+
+
+def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = True) -> Sums:
+    """One sweep over ``problem``'s springs at the answer ``u`` (12,), strains ``eps`` (N,) and the
+    formulation's ``reported_stress`` (N, MPa): the certificate's :class:`Sums`. ``tangent``: sum the
+    compressed springs' tangent and energy too (for the Newton decrement)."""
+    layer, law = problem.layer, problem.law
+    system = problem.system()
+    AT, V, areas = system.AT, system.volume, layer.areas
+    k = AT.shape[0]
+    q, spread, K = np.zeros(k), np.zeros(k), np.zeros((k, k))
+    finite = True
+    force = tension = complementarity = consistency = stored = 0.0
+    compressed = 0
+    # The consistency window: the certified precision of the answer's compression.
+    window = tolerance * float(-min(float(np.min(eps, initial=0.0)), 0.0))
+    # A contact problem's rounding is summed here block by block; another problem (a finite
+    # kinematics' deformed state) gives its own whole.
+    whole = None if type(problem).strain_rounding is ContactProblem.strain_rounding else problem.strain_rounding(u)
+    with np.errstate(invalid="ignore", over="ignore"):
+        for part in blocks(eps.size):
+            e, v, a, A = eps[part], V[part], areas[part], AT[:, part]
+            c = np.minimum(e, 0.0)
+            sigma = law.stress(c)
+            reported = a * reported_stress[part]
+            finite = finite and bool(np.isfinite(sigma).all() and np.isfinite(reported).all())
+            if not finite:
+                break
+            q += A @ (v * sigma)
+            force += float(np.abs(a * sigma).sum())
+            delta = rounding(problem, u, part) if whole is None else np.array(whole[part], dtype=float)
+            near = np.flatnonzero(e - delta < 0)
+            if near.size and k:
+                en, dn, sn = e[near], delta[near], sigma[near]
+                moved = np.maximum(
+                    np.abs(law.stress(np.minimum(en - dn, 0.0)) - sn), np.abs(law.stress(np.minimum(en + dn, 0.0)) - sn)
+                )
+                spread += np.abs(A[:, near]) @ (v[near] * np.nan_to_num(moved, nan=np.inf))
+            tension += float(np.maximum(reported, 0.0).sum())
+            complementarity += float(np.abs(reported) @ np.maximum(e, 0.0))
+            delta += window
+            low = a * law.stress(np.minimum(e - delta, 0.0))
+            high = a * law.stress(np.minimum(e + delta, 0.0))
+            excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
+            consistency += float(np.nan_to_num(excess, nan=np.inf).sum())
+            if tangent:
+                rows = np.flatnonzero(e < 0)
+                if rows.size:
+                    compressed += rows.size
+                    cr = e[rows]
+                    Ar = A[:, rows]
+                    K += (Ar * (v[rows] * law.tangent(cr))) @ Ar.T
+                    stored += float(v[rows] @ law.energy(cr))
+    finite = finite and bool(np.isfinite(q).all())
+    return Sums(finite, q, force, spread, tension, complementarity, consistency, K, stored, compressed)

@@ -1,0 +1,136 @@
+"""Newton's passes over the springs, fused: each reads every spring array it needs once.
+
+Written math: ``formulations/newton.md`` (the iteration's residual, tangent and line search).
+NumPy evaluates one expression at a time, each a pass over arrays of N values that writes a
+temporary of N values and reads it back: the residual ``A^T (V sigma(min(eps, 0)))`` alone made
+four such passes, and the tangent over the compressed springs gathered their columns of ``A^T``
+into a copy of up to ``8 k N`` bytes. Here the springs go by in blocks of :data:`BLOCK`, small
+enough that a block's temporaries stay in the processor's cache: the residual, the tangent over
+the compressed springs, the bilateral ones of the extended first iteration and the size of the
+compression are summed in one sweep (:func:`state`), and a line-search slope or energy reads
+the strains, the direction and the volumes once (:func:`slope`, :func:`energy`). No NumPy
+function sums a tangent over a masked subset of columns without copying them, and a compiled
+kernel would have to evaluate any law: blocks of NumPy keep every law working.
+
+The sums are the same as the whole-array ones up to the order of the additions (rounding);
+``tests/test_sweeps.py`` compares each with a plain NumPy computation.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Springs per block: ``k`` rows of ``A^T`` over a block (6 x 16384 x 8 bytes = 786 kB) and its
+#: few temporaries stay in the second- or third-level cache, and the Python per block (a dozen
+#: NumPy calls) is under a tenth of the block's memory time.
+BLOCK = 1 << 14
+
+
+def blocks(n: int):
+    """``slice``s of at most :data:`BLOCK` springs covering ``range(n)``."""
+    return (slice(start, min(start + BLOCK, n)) for start in range(0, n, BLOCK))
+
+
+@dataclass
+class State:
+    """What one sweep at the strains ``eps`` sums (shapes for ``k`` rows of ``A^T``).
+
+    Attributes
+    ----------
+    internal : ndarray, shape (k,)
+        ``A^T (V sigma(min(eps, 0)))``: the springs' generalized force.
+    compression : float
+        ``sum_i V_i min(eps_i, 0)^2``.
+    K : ndarray, shape (k, k) or None
+        ``A_act^T diag(V sigma'(eps)) A_act`` over the compressed springs (``eps < 0``).
+    bilateral : ndarray, shape (k,) or None
+        ``A^T (V sigma(eps))``, every spring, tension included (the extended range).
+    K_all : ndarray, shape (k, k) or None
+        ``A^T diag(V sigma'(eps)) A``, every spring.
+    """
+
+    internal: np.ndarray
+    compression: float
+    K: np.ndarray | None = None
+    bilateral: np.ndarray | None = None
+    K_all: np.ndarray | None = None
+
+
+def state(AT, V, eps, law, *, tangent: bool = True, extended: bool = False) -> State:
+    """One sweep over the springs at strains ``eps`` (N,): the :class:`State` there.
+
+    Parameters
+    ----------
+    AT : ndarray, shape (k, N)
+    V : ndarray, shape (N,)
+    eps : ndarray, shape (N,)
+    law : Law
+    tangent : bool
+        Sum the tangent over the compressed springs too.
+    extended : bool
+        Sum the bilateral residual and tangent over every spring too.
+    """
+    k, n = AT.shape
+    internal = np.zeros(k)
+    compression = 0.0
+    K = np.zeros((k, k)) if tangent else None
+    bilateral = np.zeros(k) if extended else None
+    K_all = np.zeros((k, k)) if extended else None
+    with np.errstate(over="ignore", invalid="ignore"):
+        for part in blocks(n):
+            A, v, e = AT[:, part], V[part], eps[part]
+            c = np.minimum(e, 0.0)
+            internal += A @ (v * law.stress(c))
+            compression += float(v @ (c * c))
+            if K is not None:
+                active = e < 0
+                if active.all():
+                    K += (A * (v * law.tangent(c))) @ A.T
+                elif active.any():
+                    Aa = A[:, active]
+                    K += (Aa * (v[active] * law.tangent(c[active]))) @ Aa.T
+            if bilateral is not None and K_all is not None:
+                bilateral += A @ (v * law.stress(e))
+                K_all += (A * (v * law.tangent(e))) @ A.T
+    return State(internal, compression, K, bilateral, K_all)
+
+
+def tangent(AT, weight) -> np.ndarray:
+    """``AT diag(weight) AT^T``, shape (k, k), summed by blocks (no copy of ``AT``)."""
+    k, n = AT.shape
+    K = np.zeros((k, k))
+    for part in blocks(n):
+        A = AT[:, part]
+        K += (A * weight[part]) @ A.T
+    return K
+
+
+def slope(law, V, eps, Ad, alpha: float, out) -> float:
+    """``sum_i V_i sigma(min(eps_i + alpha Ad_i, 0)) Ad_i``, with the trial strains
+    ``eps + alpha Ad`` written to ``out`` (N,); ``inf`` where a bounded law's trial reaches
+    ``eps <= -1`` (beyond its domain)."""
+    total = 0.0
+    beyond = False
+    with np.errstate(over="ignore", invalid="ignore"):
+        for part in blocks(eps.size):
+            trial = np.multiply(Ad[part], alpha, out=out[part])
+            trial += eps[part]
+            if beyond:
+                continue
+            if law.bounded_strain and trial.min(initial=0.0) <= -1.0:
+                beyond = True
+                continue
+            total += float((V[part] * law.stress(np.minimum(trial, 0.0))) @ Ad[part])
+    return np.inf if beyond else total
+
+
+def energy(law, V, eps, Ad, alpha: float) -> float:
+    """``sum_i V_i w(min(eps_i + alpha Ad_i, 0))``: the springs' energy along the line."""
+    total = 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        for part in blocks(eps.size):
+            trial = eps[part] + alpha * Ad[part]
+            total += float(V[part] @ law.energy(np.minimum(trial, 0.0)))
+    return total
