@@ -13,7 +13,7 @@ function sums a tangent over a masked subset of columns without copying them, an
 kernel would have to evaluate any law: blocks of NumPy keep every law working.
 
 The sums are the same as the whole-array ones up to the order of the additions (rounding);
-``tests/test_sweeps.py`` compares each with a plain NumPy computation.
+``tests/formulations/test_sweeps.py`` compares each with a plain NumPy computation.
 """
 
 from __future__ import annotations
