@@ -73,7 +73,7 @@ class Solution:
         if not self.certificate.passed:
             name, value = self.certificate.worst()
             return f"certificate residual {name} = {value:.3g} > {self.certificate.tolerance:g}"
-        return self.info.get("failure") or f"status {self.status!r}: {self.status.description}"
+        return self.info.get("failure") or f"status '{self.status}': {self.status.description}"
 
     @property
     def body1_displacement(self) -> np.ndarray:

@@ -343,7 +343,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
             _raise_if_unsupported(problem)
             fallback, fallback_options, _ = plan[1]
             reason = (
-                f"{name} ended with status {solution.status!r} and certificate residual {solution.certificate.worst()}"
+                f"{name} ended with status '{solution.status}' and certificate residual {solution.certificate.worst()}"
             )
             solution = _run(problem, fallback, certificate_tol, fallback_options)
             solution.info["fallback"] = reason
@@ -353,7 +353,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
         _raise_if_unsupported(problem)
     if not solution.success and strict:
         raise SolverError(
-            f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
+            f"{solution.method} returned no certified answer (status '{solution.status}': {solution.message}); "
             f"{solution.failure}. Try method='auto', a tighter "
             f"solver tolerance, or check the problem for loads no spring resists.",
             status=solution.status,

@@ -10,9 +10,9 @@ import warnings
 
 import numpy as np
 import pytest
-from dea_opt._validate import LARGEST, SMALLEST
 
 import dea_opt as d
+from dea_opt._checks.inputs import LARGEST, SMALLEST
 from dea_opt.geometry import plate_layer, sphere_on_bed_layer
 
 

@@ -10,10 +10,10 @@ import struct
 
 import numpy as np
 import pytest
-from dea_opt.regions import split_by_axis
 
 import dea_opt as d
 from dea_opt import io
+from dea_opt.anatomy.regions import split_by_axis
 from dea_opt.errors import InputError
 from dea_opt.geometry import sphere_on_bed_layer
 

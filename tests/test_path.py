@@ -155,7 +155,7 @@ def test_uncertified_frames_are_flagged_or_raised(hip, gait):
     result = solve_path(hip, gait.iloc[:3], method="newton", max_iter=1)
     assert not result.success and result.failed_frames == [0, 1, 2]
     with pytest.raises(SolverError, match="frame 0"):
-        solve_path(hip, gait.iloc[:3], method="newton", max_iter=1, strict=True)
+        solve_path(hip, gait.iloc[:3], method="newton", max_iter=1, stop_on_error=True)
 
 
 # --- exposure ---------------------------------------------------------------------------

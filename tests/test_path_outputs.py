@@ -16,9 +16,9 @@ import meshio
 import numpy as np
 import pandas as pd
 import pytest
-from dea_opt.regions import label_by_axis
 
 import dea_opt as d
+from dea_opt.anatomy.regions import label_by_axis
 from dea_opt.geometry import plate_layer
 from dea_opt.loadpath import REGION_COLUMNS, TABLE_COLUMNS, solve_path
 

@@ -16,7 +16,6 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import COARSE_SOCKET, KNEE
-from dea_opt.law_registry import Range
 from typer.testing import CliRunner
 
 import dea_opt as d
@@ -24,6 +23,7 @@ from dea_opt.cli import app
 from dea_opt.geometry import plate_layer
 from dea_opt.io.publish import read_manifest
 from dea_opt.laws import LAWS, Law, register_law
+from dea_opt.laws.registry import Range
 from dea_opt.scenario import parse_scenario, schema_text
 from dea_opt.status import RunStatus
 

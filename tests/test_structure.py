@@ -1,4 +1,4 @@
-"""The package's layout: no import cycle, small modules, and the old import paths still work.
+"""The package's layout: no import cycle, small modules.
 
 The import graph is read from the source with :mod:`ast` (nothing is imported to build it):
 a node per module of ``dea_opt`` (a package is its ``__init__``), an edge per import of
@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import ast
 import graphlib
-import importlib
 import tomllib
 from pathlib import Path
 
@@ -45,12 +44,7 @@ MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
 
 
 def _target(name: str) -> str | None:
-    """The dea_opt module ``name`` loads: itself, or the longest prefix that is a module (a former
-    module path, :data:`dea_opt.FORMER_MODULES`, is the module it names now)."""
-    for old, new in dea_opt.FORMER_MODULES.items():
-        if name == old or name.startswith(old + "."):
-            name = new + name[len(old) :]
-            break
+    """The dea_opt module ``name`` loads: itself, or the longest prefix that is a module."""
     while name:
         if name in MODULES:
             return name
@@ -153,7 +147,6 @@ NEVER_SEEN_BY_FORMULATIONS = (
     "dea_opt.io",
     "dea_opt.scenario",
     "dea_opt.loadpath",
-    "dea_opt.path",
     "dea_opt.problem",
     "dea_opt.layer",
     "dea_opt.solution",
@@ -162,16 +155,14 @@ NEVER_SEEN_BY_FORMULATIONS = (
 )
 #: What they may import besides each other: errors, statuses, input checks, tolerances, laws and
 #: the kinematics' array helpers, and the loader of optional dependencies and compiled parts
-#: (``dea_opt._checks.dependencies``, formerly ``dea_opt._optional``).
+#: (``dea_opt._checks.dependencies``).
 SEEN_BY_FORMULATIONS = (
     "dea_opt.errors",
     "dea_opt.status",
-    "dea_opt._validate",
-    "dea_opt._tolerances",
+    "dea_opt._checks.inputs",
+    "dea_opt._checks.thresholds",
     "dea_opt.laws",
-    "dea_opt.law_registry",
     "dea_opt.kinematics",
-    "dea_opt._optional",
     "dea_opt._checks.dependencies",
 )
 
@@ -211,108 +202,3 @@ def test_version_is_the_projects():
     from dea_opt._version import __version__
 
     assert dea_opt.__version__ == __version__ == project["version"]
-
-
-# The public names of the modules that became packages, as they were before the split.
-FORMER_NAMES = {
-    "dea_opt.io": [
-        "CSV_COLUMNS",
-        "SurfaceData",
-        "atomic_open",
-        "atomic_path",
-        "best_fit_frame",
-        "contact_surface",
-        "label_codes",
-        "plot_pressure",
-        "read_csv",
-        "read_json",
-        "read_vtk",
-        "summary_dict",
-        "to_csv",
-        "to_json",
-        "to_vtk",
-        "vtk_differences",
-        "write_atomic",
-        "write_data",
-        "write_results",
-    ],
-    "dea_opt.mesh": [
-        "ENGINES",
-        "LOADERS",
-        "MAX_ANGLE",
-        "MAX_GAP",
-        "MAX_OVERLAP",
-        "SpringCast",
-        "TwoWaySprings",
-        "as_mesh",
-        "cast_springs",
-        "check_pose",
-        "concatenate_meshes",
-        "load_mesh",
-        "springs_both_ways",
-        "springs_from_meshes",
-        "surface_thickness",
-    ],
-    "dea_opt.scenario": [
-        "Scenario",
-        "ScenarioError",
-        "LoadPathData",
-        "load_scenario",
-        "parse_scenario",
-        "build_problem",
-        "build_layer",
-        "build_geometry",
-        "build_law",
-        "pose_builder",
-        "read_load_path",
-        "read_springs",
-        "write_springs",
-        "parse_set",
-        "apply_overrides",
-        "schema_text",
-        "METHOD_NAMES",
-        "FORMATS",
-        "GEOMETRY_KINDS",
-        "pose_matrices",
-        "load_meshes",
-        "springs_from_mesh_section",
-        "MeshGeometry",
-        "LawSection",
-    ],
-    "dea_opt.path": ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"],
-}
-
-
-@pytest.mark.parametrize("module", sorted(FORMER_NAMES))
-def test_former_import_paths_still_work(module):
-    loaded = importlib.import_module(module)
-    missing = [name for name in FORMER_NAMES[module] if not hasattr(loaded, name)]
-    assert not missing, f"{module} lost {missing}"
-    for name in getattr(loaded, "__all__", ()):
-        assert hasattr(loaded, name), f"{module}.__all__ names {name}, which it does not have"
-
-
-@pytest.mark.parametrize("old, new", sorted(dea_opt.FORMER_MODULES.items()))
-def test_each_former_module_path_is_its_module_now(old, new):
-    assert old not in MODULES, f"{old} is both a module and a former name"
-    assert new in MODULES
-    assert importlib.import_module(old) is importlib.import_module(new)
-    # ``import dea_opt.x`` then ``dea_opt.x.name``, unless the package has another ``x``
-    name = old.rpartition(".")[2]
-    assert getattr(dea_opt, name) is importlib.import_module(new) or name == "calibrate"
-
-
-def test_a_former_private_path_is_mapped_in_the_graph():
-    # a branch written before the move imports ``.._validate``: the edge goes to the module it is now
-    assert _target("dea_opt._validate") == "dea_opt._checks.inputs"
-    assert _target("dea_opt.regions.label_by_axis") == "dea_opt.anatomy.regions"
-
-
-def test_path_is_loadpath():
-    import dea_opt.path
-
-    import dea_opt.loadpath
-
-    for name in dea_opt.path.__all__:
-        assert getattr(dea_opt.path, name) is getattr(dea_opt.loadpath, name)
-    assert dea_opt.solve_path is dea_opt.loadpath.solve_path

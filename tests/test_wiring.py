@@ -332,9 +332,8 @@ def test_the_guide_documents_the_sweep_statuses():
 
 
 def test_hip_regions_label_the_dome_and_the_walls():
-    from dea_opt.demo import hip_regions
-
     from dea_opt.geometry import socket_layer
+    from dea_opt.run.demo import hip_regions
 
     layer = socket_layer(25.0, 3.0, 80.0, 16, 36)
     frame = {"medial": (1.0, 0.0, 0.0), "proximal": (0.0, 0.0, -1.0), "side": "right"}

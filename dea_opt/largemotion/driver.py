@@ -245,7 +245,7 @@ def solve(
             solution.info["requested"] = "auto"
     if not solution.success and strict:
         raise SolverError(
-            f"{solution.method} (finite kinematics) returned no certified answer (status {solution.status!r}: "
+            f"{solution.method} (finite kinematics) returned no certified answer (status '{solution.status}': "
             f"{solution.message}); {solution.failure}"
             + (f"; before it, {solution.info['fallback']}" if solution.method != steps[0][0] else ""),
             status=solution.status,
@@ -465,7 +465,7 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     info = {k: v for k, v in inner.info.items() if k not in ("stress", "loose", "softest")}
     info.update(solver_success=inner.success, native_status=inner.status, kinematics="finite", residual_history=history)
     if cert.passed and not settled:
-        why = "max_recasts" if inner.success else f"{method} ended {inner.status!r} short of it"
+        why = "max_recasts" if inner.success else f"{method} ended '{inner.status}' short of it"
         info["failure"] = f"its certificate passed for springs not brought up to date at the solved pose ({why})"
     elif cert.passed and crushed:
         info["failure"] = "its certificate passed, but the layer is crushed: the load is beyond what it can bear"

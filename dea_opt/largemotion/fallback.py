@@ -46,7 +46,7 @@ def not_tried(solution) -> str | None:
 def why(name: str, solution) -> str:
     """How Newton (``name``) ended: ``info["fallback"]`` of the answer IPOPT gives after it."""
     return (
-        f"{name} ended with status {solution.status!r} ({solution.message}) and certificate "
+        f"{name} ended with status '{solution.status}' ({solution.message}) and certificate "
         f"residual {solution.certificate.worst()}"
     )
 

@@ -61,7 +61,7 @@ class FiniteStepper:
                 **self.options,
             )
             if not solution.success:  # what the start nearer the path found says as much
-                said = f"from the previous frame's pose, status {warm.status.value!r}: {warm.message}"
+                said = f"from the previous frame's pose, status '{warm.status.value}': {warm.message}"
                 object.__setattr__(solution, "message", f"{solution.message}; {said}")
                 solution.info["warm_start"] = {"status": warm.status.value, "message": warm.message}
         object.__setattr__(solution, "build_time", solution.build_time + setup)

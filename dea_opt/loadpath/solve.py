@@ -79,7 +79,7 @@ def _solve_frame(stepper, frame, new_geometry, setup):
     except SolverError as exc:
         return exc.solution, Status.of_error(exc), str(exc), exc
     message = (
-        f"{solution.method} returned no certified answer (status {solution.status!r}): {solution.failure}; "
+        f"{solution.method} returned no certified answer (status '{solution.status}'): {solution.failure}; "
         f"{solution.message}"
     )
     return solution, solution.status, message, None
@@ -107,7 +107,6 @@ def solve_path(
     body: int = 2,
     certificate_tol: float = 1e-6,
     stop_on_error: bool = False,
-    strict: bool = False,
     keep_solutions: bool = True,
     keep_pressures: bool = True,
     series=None,
@@ -144,8 +143,6 @@ def solve_path(
         for a load the springs cannot carry, :class:`SolverError` otherwise, naming the
         frame. Default: record the frame (``success`` False, its ``status`` and
         ``message`` in the table, NaN results), start the next frame cold and go on.
-    strict : bool
-        The former name of ``stop_on_error``.
     keep_solutions : bool
         Keep every frame's :class:`Solution` (the uncertified one, or None, for a failed
         frame): what :meth:`PathResult.to_pvd` writes the series from without ``series``.
@@ -203,7 +200,7 @@ def solve_path(
             times=times,
             body=body,
             certificate_tol=certificate_tol,
-            stop=bool(stop_on_error or strict),
+            stop=bool(stop_on_error),
             keep_solutions=keep_solutions,
             keep_pressures=keep_pressures,
             series=series,
