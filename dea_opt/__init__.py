@@ -24,17 +24,17 @@ from .sensitivity import Sensitivities, sensitivities
 from .sensitivity.calibrate import calibrate
 from .sensitivity.uncertainty import propagate
 from .solution import Solution
-from .solver import METHODS, check_load_supported, compare, solve
+from .solver import Comparison, check_load_supported, compare, solve
 from .status import Status
 
 __all__ = [
     "DOFS",
     "LAWS",
-    "METHODS",
     "AteshianLaw",
     "BlankevoortLaw",
     "Body",
     "Certificate",
+    "Comparison",
     "Contact",
     "ContactProblem",
     "CubicLaw",

@@ -56,8 +56,9 @@ class Solution:
     # scipy.optimize names
     @property
     def x(self) -> np.ndarray:
-        """Alias of ``u`` (the 12-vector of Eq. 7), as in ``scipy.optimize.OptimizeResult``."""
-        return self.u
+        """The optimized variables, as ``scipy.optimize.OptimizeResult.x``: ``u`` at the free dofs,
+        shape (m,), mm and rad, in the order of ``problem.free_names`` (what ``x0`` takes)."""
+        return self.u[self.problem.free_indices]
 
     @property
     def nit(self) -> int:

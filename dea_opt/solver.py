@@ -9,7 +9,7 @@ import warnings
 import numpy as np
 
 from . import formulations, loadcheck
-from .agreement import disagreement
+from .agreement import Comparison, disagreement
 from .certificate import certify
 from .errors import InputError, SolverError, ValidityWarning
 from .formulations.energy import (
@@ -26,7 +26,7 @@ from .solution import Solution
 from .status import CERTIFIABLE, Status
 
 __all__ = [
-    "METHODS",
+    "Comparison",
     "certified_solution",
     "check_load_supported",
     "check_method",
@@ -35,10 +35,6 @@ __all__ = [
     "formulation_result",
     "solve",
 ]
-
-#: The methods built in: ``"auto"`` and the formulations registered when dea_opt was imported
-#: (:func:`dea_opt.formulations.names` is the live list, with any registered since).
-METHODS = ("auto", *formulations.names())
 
 
 def _warn_validity(solution: Solution) -> None:
@@ -387,7 +383,7 @@ def _raise_if_unsupported(problem: ContactProblem) -> None:
         check_load_supported(problem)
 
 
-def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1e-6, **options) -> dict:
+def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1e-6, **options) -> Comparison:
     """Solve with several methods and measure their largest disagreement.
 
     ``methods`` defaults to every registered formulation. The methods are chosen as by
@@ -399,14 +395,14 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
 
     Returns
     -------
-    dict
-        ``{"solutions": {formulation: Solution}, "displacement": float, "pressure": float,
-        "skipped": {formulation: reason}, "notes": [str]}``: the largest pairwise difference of
-        ``u`` relative to ``max |u|`` and of pressure relative to the peak pressure
-        (:func:`dea_opt.agreement.disagreement`; finite answers matched by mesh face).
+    Comparison
+        The solutions by formulation, the largest pairwise difference of ``u`` relative to
+        ``max |u|`` (``.displacement``) and of pressure relative to the peak pressure
+        (``.pressure``; :func:`dea_opt.agreement.disagreement`, finite answers matched by mesh
+        face), the methods ``.skipped`` and why, and ``.notes``.
 
     A :class:`~dea_opt.joint.Joint` is compared by :func:`dea_opt.joint.compare.compare_joint`
-    (methods ``newton``, ``qp``, ``nlp``; its result also holds ``ligament_force``).
+    (methods ``newton``, ``qp``, ``nlp``; its comparison also holds ``ligament_force``).
 
     Raises
     ------
@@ -431,5 +427,4 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
         given = {k: v for alias, to in aliases.items() if to == name for k, v in options.get(alias, {}).items()}
         solutions[name] = solve(problem, name, certificate_tol=certificate_tol, **(given | options.get(name, {})))
     du, dp = disagreement(solutions.values())
-    out = {"solutions": solutions, "displacement": du, "pressure": dp}
-    return out | {"skipped": chosen.skipped, "notes": chosen.notes}
+    return Comparison(solutions, du, dp, skipped=chosen.skipped, notes=tuple(chosen.notes))

@@ -40,6 +40,7 @@ import pandas as pd
 from scipy.optimize import brentq
 
 import dea_opt
+from dea_opt import formulations
 from dea_opt.gait import hip_gait_load, load_hip_gait
 from dea_opt.geometry import socket_layer
 from dea_opt.io import write_atomic
@@ -277,7 +278,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument(
         "--method",
         default="auto",
-        choices=dea_opt.METHODS,
+        choices=("auto", *formulations.names()),
         help="solver for every frame (default auto: warm-started Newton)",
     )
     parser.add_argument("--no-series", action="store_true", help="skip the ParaView series (.pvd and .vtu files)")

@@ -148,8 +148,8 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
     layer, problem = _punch()
     loaded = problem.with_load(force=(0, 0, -50.0), moment=(0, 30.0, 0))
     out = quiet(d.compare, loaded)
-    assert set(out["solutions"]) == {"finite", "finite_nlp"} and out["displacement"] < 1e-6
-    assert list(out["skipped"]) == ["qp"] and out["notes"] == []  # newton and nlp stand for the finite ones
+    assert set(out.solutions) == {"finite", "finite_nlp"} and out.displacement < 1e-6
+    assert list(out.skipped) == ["qp"] and out.notes == ()  # newton and nlp stand for the finite ones
     # the small kinematics' names stand for the finite formulations
     assert quiet(d.solve, loaded, "newton").method == "finite"
     assert quiet(d.solve, loaded, "nlp").method == "finite_nlp"

@@ -145,8 +145,8 @@ def test_a_registered_formulation_through_solve_path_warm_starts(toy, monkeypatc
 def test_a_registered_formulation_in_compare_and_a_study(toy):
     problem = plate()
     out = d.compare(problem, methods=("newton", "toy"))
-    assert set(out["solutions"]) == {"newton", "toy"} and out["skipped"] == {}
-    assert out["pressure"] <= 1e-6 and out["displacement"] <= 1e-6
+    assert set(out.solutions) == {"newton", "toy"} and out.skipped == {}
+    assert out.pressure <= 1e-6 and out.displacement <= 1e-6
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         study = run_study(problem, methods=("newton", "toy"), accuracy=("low", "default"))
@@ -241,7 +241,7 @@ def test_capabilities_decide_where_it_applies():
         with pytest.raises(d.InputError, match="method 'toy_linear' needs a LinearLaw"):
             d.solve_path(nonlinear, [(0, 0, -1.0)], method="toy_linear")
         out = d.compare(nonlinear, methods=("newton", "toy_linear"))
-        assert out["skipped"] == {"toy_linear": "toy_linear needs a linear law"}
+        assert out.skipped == {"toy_linear": "toy_linear needs a linear law"}
         assert d.solve(plate(), "toy_linear").success
     finally:
         formulations.unregister("toy_linear")

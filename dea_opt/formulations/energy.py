@@ -10,7 +10,7 @@ the strain at ``x = 0`` (gap and prescribed motion). Spring stress is ``sigma_i`
 tension positive); the spring force is ``S_i sigma_i``.
 
 Names in the code: the page's ``x`` is ``u_free`` (the free entries of the 12-vector ``u``,
-mm and rad; ``Solution.x`` is scipy's alias of ``u``), its scaled form ``xi``; ``eps`` is a
+mm and rad; ``Solution.x`` too, as scipy names it), its scaled form ``xi``; ``eps`` is a
 strain array, ``strain_scale`` and ``energy_scale`` the sizes of :class:`Scaling`; ``energy``
 alone is a law's energy density ``w``.
 
