@@ -180,13 +180,13 @@ def gait_case(frames: int = 101) -> dict:
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = dea.solve_path(problem, loads, poses, keep_solutions=False)
+        result = dea.solve_path(problem, loads, poses, outputs=dea.PathOutputs(keep_solutions=False))
     wall = time.perf_counter() - start
     small = dea.ContactProblem(cast.layer, law, reference=reference, free=("uz", "ry"))
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        dea.solve_path(small, loads, keep_solutions=False)
+        dea.solve_path(small, loads, outputs=dea.PathOutputs(keep_solutions=False))
     table = result.table
     return {
         "case": f"knee gait {frames} frames",

@@ -18,7 +18,7 @@ from .joint import Contact, Joint, JointSolution, Ligament
 from .kinematics import DOFS
 from .laws import LAWS, AteshianLaw, BlankevoortLaw, CubicLaw, Law, LinearLaw, PolynomialLaw, register_law
 from .layer import SpringLayer
-from .loadpath import solve_path
+from .loadpath import PathOutputs, solve_path
 from .problem import Body, ContactProblem, Load
 from .sensitivity import Sensitivities, sensitivities
 from .sensitivity.calibrate import calibrate
@@ -50,6 +50,7 @@ __all__ = [
     "MissingDependencyError",
     "OpenSimModelError",
     "OutputFolderError",
+    "PathOutputs",
     "PolynomialLaw",
     "ScenarioError",
     "Sensitivities",

@@ -214,7 +214,7 @@ def run(
     mesh = MESH[1 if coarse else 0]
     problem = hip_problem(H, **mesh)
     loads = gait_loads(N_FRAMES[1 if coarse else 0])
-    path = dea_opt.solve_path(problem, loads, method=method, threshold=threshold)
+    path = dea_opt.solve_path(problem, loads, method=method, outputs=dea_opt.PathOutputs(threshold=threshold))
     closed = closed_form_table(path, H, HIP["coverage"])
     # solve_path's own writers: the table, the ParaView series, the exposure and both plots.
     formats = ("csv", "json", "vtk", "png") if series else ("csv", "json", "png")

@@ -46,7 +46,9 @@ def _solve(scale: float):
     problem = d.ContactProblem(plate_layer(40.0, 10.0, 40, 10, thickness=2.0), d.LinearLaw(10.0), free=("uz", "ry"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return solve_path(problem, LOADS * scale, times=[0.0, 0.1, 0.2], method="newton", keep_solutions=True)
+        return solve_path(
+            problem, LOADS * scale, times=[0.0, 0.1, 0.2], method="newton", outputs=d.PathOutputs(keep_solutions=True)
+        )
 
 
 @pytest.fixture(scope="module")

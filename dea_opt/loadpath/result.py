@@ -69,7 +69,7 @@ class PathResult:
     regions : dict {name: column prefix}
         The regions with columns in the table (empty without labels).
     frame_files : FrameSeries or None
-        The frames' ``.vtu`` files written while solving (``series=``).
+        The frames' ``.vtu`` files written while solving (``PathOutputs.series``).
     """
 
     table: pd.DataFrame
@@ -299,7 +299,7 @@ class PathResult:
     def to_pvd(self, path) -> Path:
         """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame.
 
-        The frames written while solving (``series=``) when there are any, else written now
+        The frames written while solving (``PathOutputs.series``) when there are any, else written now
         from the kept solutions into the folder ``<stem>_frames`` next to ``path``.
         """
         path = Path(path)
@@ -309,8 +309,8 @@ class PathResult:
             return self.frame_files.write_pvd(path)
         if self.solutions is None:
             raise InputError(
-                "the .pvd series needs the frames' solutions (keep_solutions=True) or frames written "
-                "while solving (series=<folder>)"
+                "the .pvd series needs the frames' solutions (PathOutputs(keep_solutions=True)) or frames "
+                "written while solving (PathOutputs(series=<folder>))"
             )
         series = FrameSeries(path.with_name(f"{path.stem}_frames"), len(self))
         for k, (t, solution) in enumerate(zip(self.times, self.solutions)):
@@ -323,7 +323,7 @@ class PathResult:
             return solution.problem.layer
         if self.moving:
             raise InputError(
-                f"frame {k} failed before its springs were cast; write the series while solving (series=<folder>)"
+                f"frame {k} failed before its springs were cast; write the series while solving (PathOutputs(series=<folder>))"
             )
         return self.problem.layer
 

@@ -38,7 +38,7 @@ def run_path_outputs(
     the re-cast force goes into ``summary.json`` (``recast``). ``pictures``: a
     :class:`~dea_opt.io.pictures.PictureWorker` that draws the PNGs while the rest is written.
     """
-    from ..loadpath import solve_path
+    from ..loadpath import PathOutputs, solve_path
     from ..scenario import pose_caster, read_load_path
 
     data = read_load_path(scenario.load_path)
@@ -62,11 +62,13 @@ def run_path_outputs(
         body=data.body,
         certificate_tol=scenario.solve.certificate_tol,
         stop_on_error=stop,
-        keep_solutions=False,
-        keep_pressures=False,
-        series=out / "series_frames" if "vtk" in formats else None,
+        outputs=PathOutputs(
+            keep_solutions=False,
+            keep_pressures=False,
+            series=out / "series_frames" if "vtk" in formats else None,
+            threshold=scenario.output.exposure_threshold,
+        ),
         layer_for_pose=layer_for_pose,
-        threshold=scenario.output.exposure_threshold,
         progress=progress,
         **options,
     )

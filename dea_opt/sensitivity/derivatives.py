@@ -377,8 +377,10 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
 
 
 def path_sensitivities(path, wrt=("H",), **options) -> list:
-    """``[Sensitivities]`` of every frame of a load path (``solve_path(..., keep_solutions=True)``),
+    """``[Sensitivities]`` of every frame of a load path (kept by default, ``PathOutputs(keep_solutions=True)``),
     each from its own certified solution; ``None`` for a frame that failed its certificate."""
     if not getattr(path, "solutions", None):
-        raise InputError("path_sensitivities needs the frames' solutions: solve_path(..., keep_solutions=True)")
+        raise InputError(
+            "path_sensitivities needs the frames' solutions: solve_path(..., outputs=PathOutputs(keep_solutions=True))"
+        )
     return [sensitivities(s, wrt, **options) if s is not None and s.success else None for s in path.solutions]
