@@ -81,14 +81,8 @@ def _from_generator(section: GeneratorGeometry):
 
     function = getattr(geometry, section.function, None)
     if section.function.startswith("_") or not callable(function):
-        public = sorted(
-            n
-            for n in dir(geometry)
-            if not n.startswith("_")
-            and callable(getattr(geometry, n))
-            and getattr(getattr(geometry, n), "__module__", "") == geometry.__name__
-            and not isinstance(getattr(geometry, n), type)
-        )
+        # the mesh builders (dea_opt.geometry.meshes), not the exact layers nor MeshPair itself
+        public = sorted(n for n in geometry.meshes.__all__ if not isinstance(getattr(geometry, n), type))
         raise ScenarioError(
             f"geometry.function must name a builder in dea_opt.geometry ({', '.join(public)}), got {section.function!r}"
         )

@@ -1,11 +1,9 @@
-"""Embedded geometries, made in code: the reference problems of the tests and the demo.
+"""Embedded meshes, made in code: triangle surfaces (``trimesh.Trimesh``) of the demo and the tests.
 
-The ``*_layer`` functions (from :mod:`dea_opt.reference_layers`) build a
-:class:`~dea_opt.layer.SpringLayer` directly with exact cell areas, for the closed-form checks. The mesh builders beside them return triangle
-surfaces (``trimesh.Trimesh``): closed cartilage volumes (:func:`slab_mesh`,
-:func:`spherical_shell_mesh`) and pairs of them in contact (:class:`MeshPair`:
-:func:`plate_meshes`, :func:`sphere_on_bed_meshes`, :func:`hip_meshes`, :func:`knee_meshes`),
-whose springs come from ray casting (:mod:`dea_opt.mesh`).
+Closed cartilage volumes (:func:`slab_mesh`, :func:`spherical_shell_mesh`) and pairs of them in
+contact (:class:`MeshPair`: :func:`plate_meshes`, :func:`sphere_on_bed_meshes`,
+:func:`hip_meshes`, :func:`knee_meshes`), whose springs come from ray casting
+(:mod:`dea_opt.mesh`). Units: mm and degrees.
 """
 
 from __future__ import annotations
@@ -16,31 +14,25 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ._checks.inputs import number_in_range, positive_integer
-from ._checks.memory import check_memory, format_count
-from .errors import InputError
-from .mesh.budget import BYTES_PER_GENERATED_FACE, PEAK_SHARE
-from .reference_layers import plate_layer, socket_layer, sphere_on_bed_layer
+from .._checks.inputs import number_in_range, positive_integer
+from .._checks.memory import check_memory, format_count
+from ..errors import InputError
+from ..mesh.budget import BYTES_PER_GENERATED_FACE, PEAK_SHARE
 
 if TYPE_CHECKING:
     import trimesh
 
-    from .layer import SpringLayer
+    from ..layer import SpringLayer
 
 __all__ = [
     "MeshPair",
     "hip_meshes",
     "knee_meshes",
-    "plate_layer",
     "plate_meshes",
     "slab_mesh",
-    "socket_layer",
-    "sphere_on_bed_layer",
     "sphere_on_bed_meshes",
     "spherical_shell_mesh",
 ]
-
-_FEWER = "use fewer cells (a coarser grid) for a joint-sized layer"
 
 
 def _check_faces(what: str, n_faces: int) -> None:
@@ -319,13 +311,13 @@ class MeshPair:
     def cast(self, **options):
         """The :class:`~dea_opt.mesh.SpringCast` of :meth:`layer` (for
         :func:`~dea_opt.mesh.recast` and :func:`~dea_opt.mesh.recast_at_solution`)."""
-        from .mesh import cast_springs
+        from ..mesh import cast_springs
 
         return cast_springs(self.mesh1, self.mesh2, **{**self.options, **options})
 
     def problem(self, law, force=(0.0, 0.0, 0.0), moment=(0.0, 0.0, 0.0), free=("uz",), **options):
         """A :class:`~dea_opt.problem.ContactProblem`: body 1 fixed, body 2 loaded at ``reference2``."""
-        from .problem import Body, ContactProblem
+        from ..problem import Body, ContactProblem
 
         body1 = Body(reference=self.reference1, free=())
         body2 = Body(reference=self.reference2, free=free, force=force, moment=moment)

@@ -2,18 +2,19 @@
 
 Each builds a :class:`~dea_opt.layer.SpringLayer` directly, with exact cell areas, normals and
 gaps (no meshes, no ray casting), for the reference problems of the tests, the paper's examples
-and the benchmarks. :mod:`dea_opt.geometry` re-exports them beside its mesh builders.
+and the benchmarks. :mod:`dea_opt.geometry` exports them beside its mesh builders
+(:mod:`dea_opt.geometry.meshes`).
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ._checks.inputs import as_float_array, positive_integer
-from ._checks.memory import check_memory, format_count
-from .errors import InputError
-from .layer import SpringLayer
-from .mesh.budget import BYTES_PER_LAYER_SPRING, PEAK_SHARE
+from .._checks.inputs import as_float_array, positive_integer
+from .._checks.memory import check_memory, format_count
+from ..errors import InputError
+from ..layer import SpringLayer
+from ..mesh.budget import BYTES_PER_LAYER_SPRING, PEAK_SHARE
 
 __all__ = ["plate_layer", "socket_layer", "sphere_on_bed_layer"]
 
