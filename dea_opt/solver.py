@@ -9,17 +9,12 @@ import warnings
 import numpy as np
 
 from . import formulations, loadcheck
+from ._checks.threads import single_threaded_blas
 from .agreement import Comparison, disagreement
 from .certificate import certify
 from .errors import InputError, SolverError, ValidityWarning
-from .formulations.energy import (
-    CRUSHED_MESSAGE,
-    crushed,
-    failed_result,
-    single_threaded_blas,
-    start_vector,
-    trivial_result,
-)
+from .formulations.crush import CRUSHED_MESSAGE, crushed
+from .formulations.system import failed_result, start_vector, trivial_result
 from .loadcheck import check_load_supported
 from .problem import ContactProblem
 from .solution import Solution

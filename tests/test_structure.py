@@ -164,6 +164,7 @@ SEEN_BY_FORMULATIONS = (
     "dea_opt.laws",
     "dea_opt.kinematics",
     "dea_opt._checks.dependencies",
+    "dea_opt._checks.threads",
 )
 
 

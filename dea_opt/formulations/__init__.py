@@ -4,9 +4,9 @@ A formulation is a module (or any object with these attributes):
 
 ``Model``
     ``Model(system, law, **options)`` builds once for a
-    :class:`~dea_opt.formulations.energy.SpringSystem` and a law;
+    :class:`~dea_opt.formulations.system.SpringSystem` and a law;
     ``model.solve(load=None, *, x0=None)`` re-solves for a new load (default the system's
-    own) and returns a :class:`~dea_opt.formulations.energy.FormulationResult` whose
+    own) and returns a :class:`~dea_opt.formulations.system.FormulationResult` whose
     ``status`` is a :class:`~dea_opt.status.Status` (the solver's own in
     ``info["native_status"]``) and whose ``build_time`` is the build's on the first solve
     and 0 after. ``x0`` (one value per free dof) is a start; without it a formulation that
@@ -36,7 +36,7 @@ from typing import NamedTuple
 
 from ..errors import InputError
 from ._parts.options import Capabilities, Option, Variant, validate
-from .energy import FormulationResult, SpringSystem, start_vector
+from .system import FormulationResult, SpringSystem, start_vector
 
 #: name -> module, or its import path (imported on first use: cvxpy and CasADi are heavy).
 #: The order is the order of preference where several fit (:func:`fallback_for`).

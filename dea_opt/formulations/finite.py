@@ -28,7 +28,8 @@ from ._parts.finite_motion import motion
 from ._parts.finite_newton import InnerResult, escape_step
 from ._parts.finite_system import FiniteSystem, State, generalized
 from ._parts.options import Capabilities, Option
-from .energy import SpringSystem, modulus_scale, resistance, start_vector
+from .resistance import modulus_scale, resistance
+from .system import SpringSystem, start_vector
 
 __all__ = [
     "ALIASES",
@@ -139,7 +140,7 @@ def scale(T1, load, system: FiniteSystem, law, e0=None) -> tuple[np.ndarray, flo
 
 
 def small_system(system: FiniteSystem, law) -> SpringSystem:
-    """The small kinematics' :class:`~dea_opt.formulations.energy.SpringSystem` of ``system`` at
+    """The small kinematics' :class:`~dea_opt.formulations.system.SpringSystem` of ``system`` at
     ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
     strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
     a rotation), with its resisted directions decided, and, for targets not cast from meshes, as

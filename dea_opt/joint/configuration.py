@@ -20,8 +20,8 @@ from types import MappingProxyType
 import numpy as np
 
 from ..formulations._parts.finite_geometry import evaluate, left_jacobian, pose_matrix
-from ..formulations.energy import modulus_scale
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
+from ..formulations.resistance import modulus_scale
 from ..kinematics import DOFS, normal_operator
 from ..layer import SpringLayer
 from ..problem import Body

@@ -19,8 +19,8 @@ from dataclasses import replace
 import numpy as np
 
 from .. import formulations
+from .._checks.threads import single_threaded_blas
 from ..errors import InputError, SolverError, ValidityWarning
-from ..formulations.energy import SpringSystem, single_threaded_blas, start_vector
 from ..formulations.finite import (
     ALIASES,
     SHARED,
@@ -32,6 +32,7 @@ from ..formulations.finite import (
     small_system,
     status_of,
 )
+from ..formulations.system import SpringSystem, start_vector
 from ..kinematics import DOFS
 from ..mesh import SpringCast, check_pose
 from . import fallback
@@ -137,7 +138,7 @@ def build_system(problem, targets, tracker=None) -> FiniteSystem:
 
 
 def scaled_directions(system, law) -> tuple[np.ndarray, float, SpringSystem]:
-    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.energy.scaling`,
+    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.scaling.scaling`,
     from the resistance of the springs' small system at zero displacement (held directions left
     out; :func:`~dea_opt.formulations.finite.small_system`: the springs of this solve at body 2's
     base pose, exact gaps), sized by the larger of the load and the overlap of those gaps."""

@@ -37,6 +37,7 @@ from dataclasses import replace
 import numpy as np
 
 from .._checks.inputs import as_numeric
+from .._checks.threads import single_threaded_blas
 from ..errors import (
     DeaError,
     InputError,
@@ -44,7 +45,6 @@ from ..errors import (
     SolverError,
     ValidityWarning,
 )
-from ..formulations.energy import single_threaded_blas
 from ..problem import ContactProblem
 from ..status import Status
 from .exposure import ExposureAccumulator

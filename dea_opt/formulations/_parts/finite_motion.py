@@ -10,7 +10,7 @@ each target along itself, and a spring whose ray misses its target (a target fac
 body 1) has no gap to change. Where no free motion changes a gap, the springs' forces stay those
 of the base pose whatever body 2 does, however their lever arms could turn it: a load they do not
 already balance is not carried (``formulations/finite.md``). :func:`motion` decides it with the
-same test as the forces' resistance (:func:`~dea_opt.formulations.energy.resistance`);
+same test as the forces' resistance (:func:`~dea_opt.formulations.resistance.resistance`);
 ``dea_opt.solve``'s load check raises on it.
 """
 
@@ -20,7 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..energy import Resistance, SpringSystem, resistance
+from ..resistance import Resistance, resistance
+from ..system import SpringSystem
 from .finite_geometry import FACING
 
 __all__ = ["Motion", "motion"]
