@@ -4,6 +4,7 @@ from ._version import __version__
 from .certificate import Certificate, certify
 from .errors import (
     DeaError,
+    ImplausibleInputError,
     InputError,
     LoadNotSupportedError,
     MissingDependencyError,
@@ -39,6 +40,7 @@ __all__ = [
     "ContactProblem",
     "CubicLaw",
     "DeaError",
+    "ImplausibleInputError",
     "InputError",
     "Joint",
     "JointSolution",

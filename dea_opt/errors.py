@@ -26,6 +26,22 @@ class ScenarioError(InputError):
     """
 
 
+class ImplausibleInputError(ScenarioError):
+    """A scenario's input is implausible for a joint, and was stopped before anything was solved.
+
+    Raised by the checks a run makes before solving (:mod:`dea_opt.run.preflight`): meshes whose
+    size says metres or micrometres, a body free to turn about a reference point left at the
+    origin far from the contact, a load that lies along the contact's surface or whose moments
+    are far beyond what the contact's size allows. The message names the cause first and the
+    scenario key to change; ``[solve] check_inputs = false`` solves such a scenario anyway.
+    ``key`` is that key (``"geometry.scale"``).
+    """
+
+    def __init__(self, message: str, key: str = ""):
+        super().__init__(message)
+        self.key = key
+
+
 class OpenSimModelError(InputError):
     """An OpenSim model file (``.osim``) cannot be read, or uses what dea-opt cannot evaluate.
 

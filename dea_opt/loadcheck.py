@@ -135,13 +135,49 @@ def check_cone(problem: ContactProblem, system) -> None:
         f"moments counted over the layer's radius, {', '.join(radii)}, as the certificate does" if radii else "in N"
     )
     raise LoadNotSupportedError(
-        f"compression-only springs cannot carry this load: {_cone_cause(problem, names, system.load, D, Q, columns)}. "
+        f"compression-only springs cannot carry this load: {_reference_note(problem)}"
+        f"{_cone_cause(problem, names, system.load, D, Q, columns)}. "
         f"Smallest unbalanced part ({measure}): {describe_direction(problem, names, unbalanced)}, "
         f"{residual_norm / rnorm:.3g} of the load in that measure; the nearest load the springs can carry is "
         f"{describe_direction(problem, names, carried)}. Check the load's sign (body 2 is pushed toward body 1 by "
         f"a load along -normal) and its units (N, N mm), fix the unresisted dofs, or add springs.",
         direction=dict(zip(names, unbalanced.tolist())),
     )
+
+
+def _reference_note(problem: ContactProblem) -> str:
+    """The likely cause when a body free to turn has its reference point farther from the centre
+    of the contact (the springs' area-weighted centroid ``c``) than the layer's radius (half the
+    diagonal of the springs' bounding box) and its load's moment about ``c`` along the free
+    rotations, ``M + (reference - c) x F``, is more than half the force times that radius: a
+    force given without a point acts at the reference point, far from where the springs can
+    balance it. Empty otherwise."""
+    layer = problem.layer
+    if not len(layer) or not float(np.sum(layer.areas)) > 0:
+        return ""
+    points, areas = np.asarray(layer.points, dtype=float), np.asarray(layer.areas, dtype=float)
+    centre = areas @ points / areas.sum()
+    radius = 0.5 * float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    for k, body in ((2, problem.body2), (1, problem.body1)):
+        turns = [dof for dof in ("rx", "ry", "rz") if dof in set(body.free)]
+        reference = np.asarray(body.reference, dtype=float)
+        distance = float(np.linalg.norm(reference - centre))
+        force = np.asarray(body.force, dtype=float)
+        about = np.asarray(body.moment, dtype=float) + np.cross(reference - centre, force)
+        about *= np.array([f"r{axis}" in turns for axis in "xyz"], dtype=float)
+        size = float(np.linalg.norm(about))
+        if not turns or distance <= radius or size <= 0.5 * float(np.linalg.norm(force)) * radius:
+            continue
+        where = ", ".join(f"{c:.4g}" for c in reference)
+        middle = ", ".join(f"{c:.4g}" for c in centre)
+        return (
+            f"likely because body {k}'s reference point ({where}) mm is {distance:.3g} mm from the centre of the "
+            f"contact ({middle}) mm, beyond the layer's radius ({radius:.3g} mm): body {k} turns "
+            f"({', '.join(turns)}) about it and a force given without a point acts there, so the load's moment "
+            f"about the contact is {size:.3g} N mm; put the reference at the contact (a scenario's reference = "
+            f'"contact") or give the force\'s point. In detail: '
+        )
+    return ""
 
 
 def _cone_residual(columns, rhs):

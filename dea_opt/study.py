@@ -401,8 +401,8 @@ def run_study(
         The load cannot be carried (no method could answer).
     """
     import pandas as pd
-    from tqdm.auto import tqdm
 
+    from .progress import bar, showing
     from .solver import check_load_supported, solve
 
     if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
@@ -418,15 +418,18 @@ def run_study(
     check_load_supported(problem)
     import warnings
 
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        solved = solve(problem, formulations.DEFAULT, strict=False)
-    reference = solved if solved.success else None
-    rows = []
-    for acc, method, label, options, r in tqdm(
-        cases, desc="compare", unit="run", leave=False, disable=None if progress else True
-    ):
-        rows.append(_run_one(problem, acc, method, label, options, r, reference))
+    with showing(progress) as shown:
+        if shown is not None:
+            shown.stage(f"solving the reference answer ({formulations.DEFAULT})")
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            solved = solve(problem, formulations.DEFAULT, strict=False)
+        reference = solved if solved.success else None
+        rows = []
+        with bar(len(cases), "compare", "run", progress) as counted:
+            for acc, method, label, options, r in cases:
+                rows.append(_run_one(problem, acc, method, label, options, r, reference))
+                counted.update()
     table = pd.DataFrame(rows)
     return StudyResult(
         table=table,

@@ -81,7 +81,7 @@ nitpick_ignore_regex = [
         r"py:.*",
         r"(numpy|np|scipy|pandas|pd|trimesh|pydantic|typer|click|casadi|cvxpy|dask|distributed|matplotlib)(\..*)?",
     ),
-    (r"py:mod", r"(csv|json|io|os|sys|tomllib)"),
+    (r"py:mod", r"(csv|json|io|os|sys|tomllib|xml)(\..*)?"),
     (r"py:func", r"(open|print|repr|isinstance)"),
     (r"py:.*", r"(pathlib|typing|collections|dataclasses|enum|os|io|concurrent|contextlib|types|abc)(\..*)?"),
     (r"py:class", r"(ndarray|DataFrame|Path|PathLike|Trimesh|ArrayLike|BaseModel|Enum|StrEnum|array_like|optional)"),

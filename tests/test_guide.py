@@ -46,7 +46,16 @@ def short_example(namespace: dict) -> dict:
 
 
 def test_every_page_with_python_is_covered_here():
-    covered = {"concepts.md", "laws.md", "meshes.md", "finite.md", "sensitivities.md", "sweeps.md"}
+    covered = {
+        "concepts.md",
+        "laws.md",
+        "meshes.md",
+        "joint.md",
+        "opensim.md",
+        "finite.md",
+        "sensitivities.md",
+        "sweeps.md",
+    }
     with_python = {p.name for p in GUIDE.glob("*.md") if blocks(p.name, "python")}
     assert with_python == covered, f"a guide page's Python is not run by tests/test_guide.py: {with_python - covered}"
 
@@ -86,6 +95,40 @@ def test_sensitivities():
         run("sensitivities.md", namespace)
     sens = namespace["sens"]
     assert sens.unit("peak_pressure", "H") == "MPa/MPa" and sens.u["Fz"].shape == (12,)
+
+
+def test_joint(capsys):
+    from joint_checks import net_wrench, worst_imbalance
+
+    namespace = run("joint.md", {})
+    solution = namespace["solution"]
+    assert solution.success and solution.certificate.passed and solution.validity.valid
+    assert worst_imbalance(solution) < 1e-9  # forces and moments summed in tests/joint_checks.py
+    # the plateaus carry the 800 N and the bundles' pull: their vertical parts, summed here
+    pull = sum(
+        row["force_N"] * (lig.point2[2] - lig.point1[2]) / np.linalg.norm(np.subtract(lig.point2, lig.point1))
+        for row, lig in zip(namespace["rows"], solution.joint.ligaments)
+    )
+    carried = sum(float(np.sum(c.pressure * c.problem.layer.areas)) for c in solution.contacts)
+    assert carried == pytest.approx(800.0 + pull, rel=1e-9) and pull > 0
+    assert np.allclose(net_wrench(solution)["femur"][0], 0.0, atol=1e-7)
+    assert [r["name"] for r in namespace["rows"]] == ["ACL", "PCL", "MCL", "LCL"]
+    assert capsys.readouterr().out.startswith("converged True valid")
+
+
+TKA = KNEE.parent / "tka"
+
+
+@pytest.mark.skipif(not (TKA / "DM.osim").is_file(), reason="no TKA model")
+def test_opensim_models(capsys, monkeypatch):
+    monkeypatch.chdir(ROOT)  # the page reads ../shared/data/tka from the repository's folder
+    namespace = run("opensim.md", {})
+    model, state, gait = namespace["model"], namespace["state"], namespace["gait"]
+    assert model.name == "DM" and len(state.force) == 149 and len(gait) == 101
+    assert namespace["law"].H == pytest.approx(0.54 * 46.3 / (1.46 * 0.08), rel=1e-12)  # (1-nu)E/((1+nu)(1-2nu))
+    assert namespace["pair"].thickness == 10.0
+    assert {"femur_r", "tibia_r", "patella_r"} <= set(namespace["poses"])
+    assert capsys.readouterr().out.startswith("145 things of DM.osim that dea-opt does not model")
 
 
 @needs_knee

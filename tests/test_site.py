@@ -147,6 +147,18 @@ def test_the_math_and_the_code_link_both_ways(site):
         assert any(f"math/pages/{name}.html" in link for link in api_links), f"{module} -> math/{name}"
 
 
+def test_every_math_page_shows_its_typeset_equations_as_mathml(site):
+    """Each display equation (``$$``) of ``formulations/*.md`` is MathML in its built page (made
+    at build time: no script renders it), and no TeX is left in the page's text."""
+    for source in sorted((ROOT / "formulations").glob("*.md")):
+        displays = sum(1 for line in source.read_text().splitlines() if line.strip() == "$$") // 2
+        page = (site / "math" / "pages" / f"{source.stem}.html").read_text(encoding="utf-8")
+        blocks = len(re.findall(r'<math[^>]*display="block"', page))
+        text = html.unescape(re.sub(r"<math.*?</math>|<[^>]+>", " ", page, flags=re.S))
+        assert displays >= 2 and blocks >= displays, f"{source.name}: {displays} displays, {blocks} rendered"
+        assert not re.search(r"\$\$|\\(frac|begin|varepsilon|sum)\b", text), f"{source.name} shows TeX"
+
+
 def test_the_index_reaches_the_six_tasks_in_one_click(site):
     links = set(_parse(site / "index.html").links)
     for task, target in {
@@ -202,6 +214,7 @@ PAGES = (
     "gallery/hip_gait.html",
     "tutorial/your_own_joint.html",
     "math/pages/energy.html",
+    "math/pages/joint.html",
 )
 
 
@@ -217,6 +230,8 @@ def test_a_page_renders_in_chromium(site, browser, page, tmp_path):
     assert pixels.shape[0] >= 600 and float(pixels[..., :3].std()) > 0.02, "the screenshot is blank"
     if page == "guide/concepts.html":
         assert report.maths >= 10  # the model's equations, rendered as MathML with a size
+    if page.startswith("math/pages/"):
+        assert report.maths >= 5  # the page's key equations, typeset, each with a size
 
 
 def test_search_works_from_file(site, browser):

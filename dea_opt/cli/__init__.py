@@ -1,4 +1,4 @@
-"""The ``dea-opt`` command: run, compare, sweep, demo, calibrate, import-osim, schema, version (and ``--version``).
+"""The ``dea-opt`` command: run, compare, sweep, demo, calibrate, import-osim, init, schema, version (and ``--version``).
 
 Exit codes:
 
@@ -90,8 +90,8 @@ def run(
     _report_outcome(outcome, quiet)
 
 
-# compare and calibrate, then import-osim, registered on the app in the order the help lists them
-from . import analyses, osim  # noqa: E402, F401
+# compare and calibrate, then import-osim and init, registered on the app in the order the help lists them
+from . import analyses, init, osim  # noqa: E402, F401
 
 
 @app.command()

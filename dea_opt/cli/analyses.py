@@ -12,6 +12,7 @@ from .common import (
     EXIT_OK,
     EXIT_UNCERTIFIED,
     ForceOpt,
+    QuietOpt,
     RunStatus,
     ScenarioArg,
     SetOpt,
@@ -70,6 +71,7 @@ def compare(
     ] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
+    quiet: QuietOpt = False,
 ):
     """Solve one problem by every method x solver x accuracy and tabulate the results.
 
@@ -77,6 +79,14 @@ def compare(
     the accuracy's tolerance, and the answer agrees with Newton to that tolerance. Writes
     compare.csv and compare_summary.csv (and manifest.json) into <output>/compare.
     """
+    from ..progress import showing
+
+    with showing(not quiet):
+        _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, output, set_, force, quiet)
+
+
+def _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, output, set_, force, quiet) -> None:
+    """The body of :func:`compare`, inside its progress."""
     from ..io.publish import check_output_folder, output_run
     from ..run import run_info
     from ..scenario import load_scenario
@@ -90,7 +100,8 @@ def compare(
         from ..run.joint_compare import compare_joint_scenario
 
         return compare_joint_scenario(loaded, folder, _split(methods), force)
-    problem = _compare_problem(loaded, frame)
+    problem, suspicions = _compare_problem(loaded, frame)
+    _warn(f"suspicious input: {line}" for line in suspicions)
     section = loaded.solve
     with captured() as messages, output_run(folder, force=force, info=run_info(loaded, "compare")) as publication:
         # The default list is cut to the installed solvers by run_study; a list given is checked.
@@ -102,7 +113,7 @@ def compare(
             accuracy=_split(accuracy) or section.accuracy,
             repeat=section.repeat if repeat is None else repeat,
             nlp_forms=_split(nlp_forms),
-            progress=True,
+            progress=not quiet,
         )
         files = result.to_csv(publication.folder)
         messages.collect()
@@ -130,15 +141,16 @@ def compare(
 
 
 def _compare_problem(loaded, frame):
+    """``(problem, suspicions)``: the problem compared (a load path's frame ``frame``, default the
+    largest force), built and checked as a run's is (:func:`dea_opt.run.prepare_run`)."""
     from ..errors import InputError
-    from ..scenario import build_problem, read_load_path
+    from ..run import prepare_run
 
-    problem = build_problem(loaded)
+    problem, _, data, suspicions = prepare_run(loaded)
     if loaded.load_path is None:
         if frame is not None:
             raise InputError("--frame applies to scenarios with a [load_path] only")
-        return problem
-    data = read_load_path(loaded.load_path)
+        return problem, suspicions
     if data.poses is not None:
         raise InputError(
             "compare on a load path with poses is not supported; compare one pose as a static [load] scenario"
@@ -148,7 +160,7 @@ def _compare_problem(loaded, frame):
     k = int(np.argmax(np.linalg.norm(data.loads[:, :3], axis=1))) if frame is None else frame
     if not 0 <= k < len(data):
         raise InputError(f"--frame must be in 0..{len(data) - 1}, got {frame}")
-    return problem.with_load(data.load_objects()[k], body=data.body)
+    return problem.with_load(data.load_objects()[k], body=data.body), suspicions
 
 
 @app.command()
@@ -205,6 +217,7 @@ def calibrate(
     ] = None,
     set_: SetOpt = None,
     force: ForceOpt = False,
+    quiet: QuietOpt = False,
 ):
     """Fit law parameters to a measured pressure map (film or sensor) by least squares.
 
@@ -238,6 +251,7 @@ def calibrate(
             noise=noise,
             max_distance=max_distance,
             correlation_length=correlation_length,
+            progress=not quiet,
         )
         messages.collect()
         publication.publish(

@@ -178,6 +178,14 @@ SetOpt = Annotated[
     list[str] | None,
     typer.Option("--set", help="Override a scenario value, e.g. --set law.H=0.45 (repeatable).", show_default=False),
 ]
+QuietOpt = Annotated[
+    bool,
+    typer.Option(
+        "--quiet",
+        "-q",
+        help="No progress on the terminal (it shows only on a terminal anyway: nothing is drawn into a pipe or a file).",
+    ),
+]
 ForceOpt = Annotated[
     bool,
     typer.Option(

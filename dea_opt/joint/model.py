@@ -373,7 +373,7 @@ class Joint:
 
     @cached_property
     def bases(self) -> tuple:
-        """Each contact layer's :class:`LayerBasis` between its two bodies."""
+        """Each contact layer's :class:`~dea_opt.joint.model.LayerBasis` between its two bodies."""
         return tuple(
             layer_basis(c.layer, self.bodies[c.body1].reference, self.bodies[c.body2].reference) for c in self.contacts
         )

@@ -359,10 +359,10 @@ def _check_poses(problem, poses, layer_for_pose, n):
 
 
 def _progress(total: int, enabled: bool):
-    from tqdm.auto import tqdm
+    from ..progress import bar
 
-    # disable=None turns the bar off when stderr is not a terminal (logs, pipes, tests).
-    return tqdm(total=total, desc="frames", unit="frame", disable=None if enabled else True, leave=False)
+    # Off when stderr is not a terminal (logs, pipes, tests): dea_opt.progress.
+    return bar(total, "solving frames", "frame", enabled)
 
 
 def _sites(layer, moving: bool) -> np.ndarray | None:

@@ -31,7 +31,7 @@ at the command line).
 
 from .outcome import EXIT_CODES, RunOutcome, status_of
 from .path import peak_recast, run_path_outputs
-from .runner import check_method, publish_run, run_info, run_scenario, solve_options
+from .runner import check_method, prepare_run, publish_run, run_info, run_scenario, solve_options
 from .static import recast_solution
 
 __all__ = [
@@ -39,6 +39,7 @@ __all__ = [
     "RunOutcome",
     "check_method",
     "peak_recast",
+    "prepare_run",
     "publish_run",
     "recast_solution",
     "run_info",

@@ -47,6 +47,9 @@ class RunOutcome:
         The statuses of the answers without a certificate (a load path's frames), counted.
     folder : Path or None
         The output folder; ``manifest`` its manifest once published.
+    suspicions : list of str
+        What the check before solving found plausible but suspicious (a modulus in kPa, a load
+        in kN; :mod:`dea_opt.run.preflight`), one line each: said first among the warnings.
     """
 
     kind: str
@@ -64,6 +67,7 @@ class RunOutcome:
     failures: dict = field(default_factory=dict)
     folder: Path | None = None
     manifest: dict | None = None
+    suspicions: list = field(default_factory=list)
 
     @property
     def status(self) -> RunStatus:

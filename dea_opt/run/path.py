@@ -27,6 +27,8 @@ def run_path_outputs(
     stop: bool = False,
     cast=None,
     pictures=None,
+    data=None,
+    suspicions=(),
 ) -> RunOutcome:
     """Solve the load path of ``scenario`` and write its outputs into ``out`` (staged by the caller).
 
@@ -37,11 +39,18 @@ def run_path_outputs(
     at its solved pose (:func:`peak_recast`): its ``dropped_springs`` check is evaluated and
     the re-cast force goes into ``summary.json`` (``recast``). ``pictures``: a
     :class:`~dea_opt.io.pictures.PictureWorker` that draws the PNGs while the rest is written.
+    ``data``: the path's frames read already (:func:`dea_opt.scenario.read_load_path`);
+    ``suspicions``: what the check before solving found (they head the verdict and
+    ``summary.json``'s ``suspicious_input``). Frames without a certified answer are told grouped
+    by cause, one complete line each (:func:`dea_opt.run.diagnose.failure_lines`).
     """
     from ..loadpath import PathOutputs, solve_path
+    from ..progress import stage
     from ..scenario import pose_caster, read_load_path
+    from .diagnose import LoadSource, failure_lines
 
-    data = read_load_path(scenario.load_path)
+    if data is None:
+        data = read_load_path(scenario.load_path)
     caster = layer_for_pose = None
     poses = data.poses
     if poses is not None:
@@ -75,6 +84,7 @@ def run_path_outputs(
     notes = []
     recast = None
     if cast is not None or caster is not None:
+        stage("re-casting the springs at the peak frame's solved pose")
 
         def frame_cast(k):
             return cast if caster is None or poses is None else caster(poses[k])
@@ -91,7 +101,10 @@ def run_path_outputs(
         )
         if recast is not None and "error" in recast:
             notes.append(recast["error"])
+    stage("writing outputs")
     extra = {"title": scenario.title, **(extra_summary or {})}
+    if suspicions:
+        extra["suspicious_input"] = list(suspicions)
     if recast is not None:
         extra["recast"] = recast
     summary = result.summary(anatomy)
@@ -130,8 +143,13 @@ def run_path_outputs(
             f"{summary['solve_time_total']:.2f} s solving"
         )
     if not result.success:
-        message += f"; {result.failure_message()} (status and message of each in frames.csv)"
+        failed = failure_lines(result.failures(), loads, problem, LoadSource.of(scenario), data.body, len(loads))
+        message = (
+            f"{len(result.failures())} of {summary['frames']} frames without a certified answer: "
+            f"{'; '.join(failed)} (status and message of each in frames.csv); {message}"
+        )
     reasons = []
+    suspicious = [f"input: suspicious: {line}" for line in suspicions]
     if outside:
         parts = [
             f"{name} in {len(c['frames'])} frame(s) (worst {c['worst']:.4g} at frame {c['worst_frame']})"
@@ -147,6 +165,7 @@ def run_path_outputs(
         lines = [f"validity: not judged: none of the {summary['frames']} frames has a certified answer"]
     else:
         lines = [f"validity: valid (every one of the {certified} certified frames)"]
+    lines = suspicious + lines
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose of the peak frame {recast['frame']}: {recast['describe']}")
     if summary["motion"] and summary["peak_frame"] is not None:

@@ -9,7 +9,15 @@ from .outcome import RunOutcome
 from .path import run_path_outputs
 from .static import run_static
 
-__all__ = ["check_method", "picture_worker", "publish_run", "run_info", "run_scenario", "solve_options"]
+__all__ = [
+    "check_method",
+    "picture_worker",
+    "prepare_run",
+    "publish_run",
+    "run_info",
+    "run_scenario",
+    "solve_options",
+]
 
 
 def solve_options(section, method: str, law) -> dict:
@@ -94,7 +102,9 @@ def run_scenario(
     method : str, optional
         Overrides ``[solve].method``.
     progress : bool
-        Progress bar over the frames of a load path (on a terminal).
+        Show the run's stages (reading meshes, casting springs, checking the inputs, solving,
+        writing outputs) and a bar over a load path's frames with the time left, on stderr when
+        it is a terminal (:mod:`dea_opt.progress`); nothing when it is not, or with False.
     force : bool
         Write into a folder that holds other files.
     stop_on_error : bool
@@ -115,13 +125,14 @@ def run_scenario(
     ------
     DeaError
         Bad input (:class:`~dea_opt.errors.OutputFolderError` for a folder of someone
-        else's), a load no spring can carry, a solver that fails outright. Nothing is
+        else's; :class:`~dea_opt.errors.ImplausibleInputError` from the check before solving,
+        :func:`prepare_run`), a load no spring can carry, a solver that fails outright. Nothing is
         published then, and the folder keeps what it held.
     dea_opt.io.publish.RunInterrupted
         Ctrl-C; its ``report`` says what the folder holds.
     """
     from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
-    from ..scenario import build_problem_cast
+    from ..progress import showing
     from ..scenario.joint_schema import JointScenario
 
     if isinstance(scenario, JointScenario):
@@ -131,24 +142,36 @@ def run_scenario(
     method = check_method(method, scenario.solve.method)
     out = check_output_folder(scenario.output_dir(output_dir), force)
     try:
-        with captured() as messages, picture_worker(scenario, background_pictures) as pictures:
-            problem, cast = build_problem_cast(scenario)
+        with (
+            showing(progress) as shown,
+            captured() as messages,
+            picture_worker(scenario, background_pictures) as pictures,
+        ):
+            problem, cast, data, suspicions = prepare_run(scenario)
+            for line in suspicions:
+                if shown is not None:
+                    shown.note(f"dea-opt: warning: suspicious input: {line}")
             options = solve_options(scenario.solve, method, problem.law)
 
             def solve_and_write(folder):
                 if scenario.load_path is None:
-                    return run_static(scenario, problem, method, options, folder, cast)
-                return run_path_outputs(
-                    scenario,
-                    problem,
-                    method,
-                    options,
-                    folder,
-                    progress,
-                    stop=stop_on_error,
-                    cast=cast,
-                    pictures=pictures,
-                )
+                    outcome = run_static(scenario, problem, method, options, folder, cast, suspicions)
+                else:
+                    outcome = run_path_outputs(
+                        scenario,
+                        problem,
+                        method,
+                        options,
+                        folder,
+                        progress,
+                        stop=stop_on_error,
+                        cast=cast,
+                        pictures=pictures,
+                        data=data,
+                        suspicions=suspicions,
+                    )
+                outcome.suspicions = list(suspicions)
+                return outcome
 
             outcome = publish_run(
                 scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "run", method)
@@ -158,6 +181,38 @@ def run_scenario(
     except KeyboardInterrupt:  # before the publication began (casting) or after it ended (closing)
         raise RunInterrupted(interrupted_report(out)) from None
     return outcome
+
+
+def prepare_run(scenario) -> tuple:
+    """``(problem, cast, data, suspicions)``: a scenario read, its springs cast, its load path
+    read and the check before solving made (:mod:`dea_opt.run.preflight`): the meshes' units
+    right after they are read (before a cast that would take long in the wrong units), the rest
+    once the springs exist. ``data`` is the :class:`~dea_opt.scenario.LoadPathData` (None for
+    ``[load]``); ``suspicions`` the lines of what is plausible but suspicious.
+
+    Raises
+    ------
+    ImplausibleInputError, LoadNotSupportedError
+        What the check stops (``[solve] check_inputs = false`` turns it off).
+    """
+    from ..progress import stage
+    from ..scenario import build_problem_cast, load_meshes, read_load_path
+    from ..scenario.schema import MeshGeometry
+    from .preflight import check_inputs, check_meshes
+
+    meshes = None
+    if isinstance(scenario.geometry, MeshGeometry):
+        meshes = load_meshes(scenario.geometry)
+        check_meshes(scenario, meshes)
+    else:
+        stage("building the springs")
+    problem, cast = build_problem_cast(scenario, meshes=meshes)
+    data = None
+    if scenario.load_path is not None:
+        stage("reading the load path")
+        data = read_load_path(scenario.load_path)
+    stage("checking the inputs")
+    return problem, cast, data, check_inputs(scenario, problem, data)
 
 
 def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario) -> RunOutcome:
@@ -229,6 +284,7 @@ def _drop_repeats(outcome: RunOutcome, messages, notes=()) -> None:
     every check."""
     assessed = outcome.valid is not None
     outcome.warnings = [
+        *(f"suspicious input: {line}" for line in outcome.suspicions),
         *notes,
         *outcome.warnings,
         *(w for w in messages.own if not (assessed and messages.categories.get(w) == "ValidityWarning")),

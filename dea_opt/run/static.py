@@ -10,18 +10,24 @@ from .outcome import RunOutcome
 __all__ = ["recast_solution", "run_static"]
 
 
-def run_static(scenario, problem, method, options, out, cast=None) -> RunOutcome:
+def run_static(scenario, problem, method, options, out, cast=None, suspicions=()) -> RunOutcome:
+    """Solve one load, re-cast its springs at the solved pose and write the outputs into ``out``;
+    ``suspicions`` (:func:`dea_opt.run.preflight.check_inputs`) head the verdict and the JSON."""
     from .. import io
     from ..io.summary import summary_dict, write_json
+    from ..progress import stage
     from ..solver import solve
 
+    stage(f"solving ({method})")
     solution = solve(problem, method, certificate_tol=scenario.solve.certificate_tol, strict=False, **options)
     notes = []
     recast = None
     if cast is not None:
+        stage("re-casting the springs at the solved pose")
         solution, recast = recast_solution(solution, cast)
         if "error" in recast:
             notes.append(recast["error"])
+    stage("writing outputs")
     formats, anatomy = scenario.output.formats, scenario.output.anatomy
     files = {}
     if "vtk" in formats:
@@ -32,6 +38,8 @@ def run_static(scenario, problem, method, options, out, cast=None) -> RunOutcome
         summary = summary_dict(solution, anatomy=anatomy)
         if recast is not None:
             summary["recast"] = recast
+        if suspicions:
+            summary["suspicious_input"] = list(suspicions)
         files["json"] = write_json(summary, out / "contact.json")
     if "png" in formats:
         files["png"] = io.plot_pressure(solution, out / "contact.png", anatomy=anatomy)
@@ -62,7 +70,8 @@ def run_static(scenario, problem, method, options, out, cast=None) -> RunOutcome
             f"{solution.failure}); "
             f"the outputs hold the uncertified answer"
         )
-    lines = [f"validity: {validity.summary()}"]
+    lines = [f"input: suspicious: {line}" for line in suspicions]
+    lines.append(f"validity: {validity.summary()}")
     lines += [f"  {check.describe()}" for check in validity.checks]
     if recast is not None and "error" not in recast:
         lines.append(f"re-cast at the solved pose: {recast['describe']}")

@@ -34,6 +34,7 @@ __all__ = [
     "build_problem_cast",
     "cast_from_mesh_section",
     "check_kinematics_method",
+    "contact_centre",
     "key_origin",
     "load_meshes",
     "pose_builder",
@@ -168,10 +169,12 @@ def build_geometry(section) -> tuple:
     return layer, references
 
 
-def build_geometry_cast(section) -> tuple:
+def build_geometry_cast(section, meshes: dict | None = None) -> tuple:
     """``(layer, (reference1, reference2), cast)``: as :func:`build_geometry`, with the
     :class:`~dea_opt.mesh.SpringCast` the springs came from when they were cast from meshes
-    (files or a generated pair), else None; :func:`dea_opt.mesh.recast_at_solution` takes it."""
+    (files or a generated pair), else None; :func:`dea_opt.mesh.recast_at_solution` takes it.
+    ``meshes``: what :func:`load_meshes` read of a ``kind = "meshes"`` section already (not
+    read again)."""
     if isinstance(section, GeneratorGeometry):
         built = _from_generator(section)
         references = (getattr(built, "reference1", None), getattr(built, "reference2", None))
@@ -182,7 +185,11 @@ def build_geometry_cast(section) -> tuple:
         cast = _cast_of(built, section.function)
         return cast.layer, references, cast
     if isinstance(section, MeshGeometry):
-        cast = cast_from_mesh_section(section, load_meshes(section))
+        from ..progress import stage
+
+        meshes = load_meshes(section) if meshes is None else meshes
+        stage("casting springs")
+        cast = cast_from_mesh_section(section, meshes)
         return cast.layer, (None, None), cast
     return build_layer(section), (None, None), None
 
@@ -249,6 +256,9 @@ def load_meshes(section: MeshGeometry) -> dict:
     """Read the meshes of a ``kind = "meshes"`` geometry: ``mesh1``, ``mesh2`` (a table of labelled
     meshes joined into one), their face labels ``labels1``, ``labels2`` (None for one mesh) and any
     bone meshes ``bone1``, ``bone2``."""
+    from ..progress import stage
+
+    stage("reading meshes")
     meshes = {}
     for k in (1, 2):
         meshes[f"mesh{k}"], meshes[f"labels{k}"] = _load_part(getattr(section, f"mesh{k}"), section.scale)
@@ -338,11 +348,27 @@ def apply_regions(layer, regions, cut: float | None = None):
     return dataclasses.replace(layer, labels=np.where(below, regions.names[0], regions.names[1]))
 
 
-def _body(section: BodySection, default_free, default_reference):
+def contact_centre(layer) -> tuple:
+    """The centre of the contact, what ``reference = "contact"`` names (mm): the area-weighted
+    centroid of the springs' points as cast, ``sum(area_i p_i) / sum(area_i)`` over every spring
+    of the layer (points on body 1's surface; springs not yet in contact count too)."""
+    points = np.asarray(layer.points, dtype=float)
+    areas = np.asarray(layer.areas, dtype=float)
+    if not len(points) or not areas.sum() > 0:
+        raise ScenarioError('reference = "contact" needs springs to take the centre of, and the layer has none')
+    return tuple(float(v) for v in areas @ points / areas.sum())
+
+
+def _body(section: BodySection, default_free, default_reference, layer=None):
     from ..problem import Body
 
     free = default_free if section.free is None else tuple(section.free)
-    reference = section.reference if section.reference is not None else (default_reference or (0.0, 0.0, 0.0))
+    reference: tuple
+    if section.reference == "contact":
+        reference = contact_centre(layer)
+    else:
+        given = section.reference if section.reference is not None else default_reference
+        reference = tuple(given) if given is not None else (0.0, 0.0, 0.0)
     prescribed = dict(section.prescribed)
     if free is None:  # Body's default: every dof the body does not prescribe
         return Body(reference=tuple(reference), prescribed=prescribed)
@@ -360,12 +386,12 @@ def build_problem(scenario: Scenario, layer=None):
     return _problem_cast(scenario, layer, (None, None), None)[0]
 
 
-def build_problem_cast(scenario: Scenario) -> tuple:
+def build_problem_cast(scenario: Scenario, meshes: dict | None = None) -> tuple:
     """``(problem, cast)``: :func:`build_problem` and the :class:`~dea_opt.mesh.SpringCast` its
     springs were cast by (None unless they came from meshes), to re-cast them at the solved
     pose (:func:`dea_opt.mesh.recast_at_solution`); finite kinematics re-casts from it as body 2
-    moves."""
-    layer, references, cast = build_geometry_cast(scenario.geometry)
+    moves. ``meshes``: the section's meshes read already (:func:`load_meshes`)."""
+    layer, references, cast = build_geometry_cast(scenario.geometry, meshes)
     return _problem_cast(scenario, layer, references, cast)
 
 
@@ -381,8 +407,8 @@ def _problem_cast(scenario: Scenario, layer, references, cast) -> tuple:
     problem = ContactProblem(
         layer,
         build_law(scenario.law),
-        body1=_body(scenario.body1, (), reference1),
-        body2=_body(scenario.body2, None, reference2),
+        body1=_body(scenario.body1, (), reference1, layer),
+        body2=_body(scenario.body2, None, reference2, layer),
         kinematics=scenario.solve.kinematics,
         targets=cast if scenario.solve.kinematics == "finite" else None,
     )

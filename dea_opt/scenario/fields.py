@@ -54,8 +54,25 @@ def _existing_file(value: str, info: ValidationInfo) -> str:
     if not path.is_absolute() and base is not None:
         path = Path(base) / path
     if not path.is_file():
-        raise ValueError(f"file not found: {path}")
+        raise ValueError(f"file not found: {path}{_nearby(path)}")
     return str(path.resolve())
+
+
+def _nearby(path: Path) -> str:
+    """``; did you mean femur.stl?`` (a file of the same folder with a close name), or where the
+    path stops existing, or ""."""
+    import difflib
+
+    folder = path.parent
+    if not folder.is_dir():
+        existing = next((p for p in path.parents if p.is_dir()), None)
+        return f" (the folder {folder} does not exist{f'; {existing} does' if existing is not None else ''})"
+    try:
+        names = sorted(p.name for p in folder.iterdir() if p.is_file())
+    except OSError:
+        return ""
+    close = difflib.get_close_matches(path.name, names, n=1, cutoff=0.6)
+    return f"; did you mean {close[0]}?" if close else ""
 
 
 def _anatomy(value):

@@ -188,7 +188,8 @@ def _origin(key: str, loc: tuple, text: str, overrides: dict, missing: bool = Fa
 
 def _describe_errors(exc: ValidationError, name: str, text: str, data: dict, overrides: dict) -> str:
     parts = []
-    for error in exc.errors():
+    # A misspelt key first: the missing key it was meant to be is its consequence, not its cause.
+    for error in sorted(exc.errors(), key=lambda e: e["type"] != "extra_forbidden"):
         loc = _clean_loc(error["loc"])
         if error["type"] in ("union_tag_invalid", "union_tag_not_found"):
             loc = (*loc, "kind")
@@ -229,11 +230,12 @@ def _message(error: Mapping[str, Any], loc: tuple, data: dict) -> str:
             return f"law kind {law.name!r} takes no {loc[-1]} (it takes {_names(law)})"
         others = sorted({p.name for k in LAWS.values() for p in k.parameters} - {p.name for p in law.parameters})
         also = f" (other kinds take {', '.join(others)})" if others else ""
-        return f"unknown key {loc[-1]!r}; law kind {law.name!r} takes kind, {_names(law)}{also}"
+        meant = _did_you_mean(loc[-1], ["kind", *(p.name for p in law.parameters)])
+        return f"unknown key {loc[-1]!r}{meant}; law kind {law.name!r} takes kind, {_names(law)}{also}"
     if kind == "extra_forbidden":
         allowed = _allowed_keys(loc[:-1], data)
         hint = f"; allowed here: {', '.join(allowed)}" if allowed else ""
-        return f"unknown key {loc[-1]!r}{hint}"
+        return f"unknown key {loc[-1]!r}{_did_you_mean(loc[-1], allowed)}{hint}"
     if kind == "missing" and law is not None:
         parameter = law.parameter(loc[-1])
         return f"law kind {law.name!r} needs {loc[-1]}" + (f" ({parameter.describe()})" if parameter else "")
@@ -268,6 +270,17 @@ def _message(error: Mapping[str, Any], loc: tuple, data: dict) -> str:
     ):
         message += f", got {_short(given)}" + (" (a string)" if isinstance(given, str) else "")
     return message
+
+
+def _did_you_mean(key, allowed) -> str:
+    """``: did you mean 'free'?`` for the allowed key nearest a misspelt one (case aside), or ""."""
+    import difflib
+
+    if not isinstance(key, str):
+        return ""
+    lower = {name.lower(): name for name in allowed}
+    close = difflib.get_close_matches(key.lower(), list(lower), n=1, cutoff=0.6)
+    return f": did you mean {lower[close[0]]!r}?" if close else ""
 
 
 def _law_kind(loc: tuple, data: dict):

@@ -237,8 +237,11 @@ def law_model(kind) -> type[BaseModel]:
 class BodySection(_Section):
     """One rigid body. Default: body 1 fixed, body 2 free in all six dofs."""
 
-    reference: Vector3 | None = Field(
-        None, description="centre of rotation, moments about it (mm); default the generator's, else the origin"
+    reference: Vector3 | Literal["contact"] | None = Field(
+        None,
+        description='centre of rotation, moments about it (mm); or "contact": the centre of the contact, the '
+        "area-weighted centroid of the springs as cast (their points on body 1's surface); default the "
+        "generator's, else the origin",
     )
     free: DofList | None = Field(None, description='free dofs, e.g. ["ux", "uy", "uz"], or "all" / "none"')
     prescribed: dict[Dof, float] = Field(
@@ -366,6 +369,12 @@ class SolveSection(_Section):
         None,
         description="finite kinematics: updates of the springs after converged solves, at most (default 10); an "
         "answer whose springs still change at the last one fails as max_iterations",
+    )
+    check_inputs: bool = Field(
+        True,
+        description="run the implausibility checks before solving (units of meshes, loads and moduli, a reference "
+        "point far from the contact, a load that pulls the bodies apart or lies along the surface); false solves "
+        "what they would stop (the validity checks still judge the answer)",
     )
     allow_outside_validity: bool = Field(
         False,

@@ -290,6 +290,7 @@ def calibrate(
     method: str = "newton",
     ftol: float = 1e-10,
     xtol: float = 1e-10,
+    progress: bool = False,
 ) -> Calibration:
     """Fit ``parameters`` of ``problem`` to ``data`` by least squares with the exact Jacobian.
 
@@ -315,6 +316,9 @@ def calibrate(
         The solve method (``newton``; others are tried when it fails).
     ftol, xtol : float
         ``least_squares``'s tolerances.
+    progress : bool
+        Count the solves on a terminal (:mod:`dea_opt.progress`; their number is not known
+        ahead, so no time left is shown).
 
     Returns
     -------
@@ -344,9 +348,12 @@ def calibrate(
             f"the start of {', '.join(np.array(parameters)[logs])} must be > 0 (fitted in logarithms), "
             f"got {theta0[logs].tolist()}"
         )
+    from ..progress import bar
+
     model = _Model(problem, data, parameters, logs, method)
     z0 = np.where(logs, np.log(np.where(logs, theta0, 1.0)), theta0)
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), bar(None, "fitting", "solve", progress) as counted:
+        model.on_solve = counted.update
         warnings.simplefilter("ignore", ValidityWarning)
         # within three decades of the start: a step can never leave the law's range
         span = np.where(logs, np.log(1e3), np.inf)
@@ -401,6 +408,7 @@ class _Model:
         self.problem, self.data, self.parameters, self.logs, self.method = problem, data, parameters, logs, method
         self.last = None
         self.solves = 0
+        self.on_solve = None  # called after each solve (a progress counter)
         self.caches = [{} for _ in data]
         self.starts = {}
         self.sizes = [0] * len(data)
@@ -415,6 +423,8 @@ class _Model:
         except SolverError:
             solution = solve(problem, "auto")
         self.solves += 1
+        if self.on_solve is not None:
+            self.on_solve()
         self.starts[key] = solution.u[problem.free_indices]
         return solution
 

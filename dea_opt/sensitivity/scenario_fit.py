@@ -45,6 +45,7 @@ def calibrate_scenario(
     noise: float | None = None,
     max_distance=None,
     correlation_length: float | None = None,
+    progress: bool = False,
 ) -> tuple:
     """``dea-opt calibrate``: fit a scenario's parameters to a pressure map CSV and write the results.
 
@@ -53,18 +54,34 @@ def calibrate_scenario(
     (:func:`~dea_opt.sensitivity.covariance.spatial_correlation`). Writes ``calibration.json``
     (the summary), ``residuals.csv`` (:meth:`Calibration.residual_map`) and ``calibration.png``
     (:meth:`Calibration.plot`) into ``folder`` (the command stages and publishes it like every
-    run's folder). Returns ``(Calibration, {name: path})``.
+    run's folder). ``progress``: the stages (reading meshes, casting springs, fitting with its
+    count of solves) on a terminal (:mod:`dea_opt.progress`). Returns ``(Calibration, {name:
+    path})``.
     """
+    from ..progress import showing, stage
+
+    check_scenario(scenario)
+    with showing(progress):
+        return _calibrate_and_write(
+            scenario, data_path, folder, parameters, film, noise, max_distance, correlation_length, progress, stage
+        )
+
+
+def _calibrate_and_write(
+    scenario, data_path, folder, parameters, film, noise, max_distance, correlation_length, progress, stage
+) -> tuple:
+    """The body of :func:`calibrate_scenario`, inside its progress."""
     import dataclasses
     from pathlib import Path
 
     from ..io.atomic import write_atomic
     from ..io.summary import write_json
-    from ..scenario import build_problem
+    from ..run import prepare_run
     from .covariance import spatial_correlation
 
-    check_scenario(scenario)
-    problem = build_problem(scenario)
+    # read, cast and checked as a run's (the check before solving stops a unit or sign slip)
+    problem, _, _, suspicions = prepare_run(scenario)
+    stage("reading the pressure map")
     names = tuple(parameters) if parameters else problem.law.parameter_names
     data = PressureMap.from_csv(data_path, film=film, noise=noise, max_distance=max_distance)
     if correlation_length is not None:
@@ -73,7 +90,10 @@ def calibrate_scenario(
         except InputError as exc:
             raise InputError(f"correlation_length: {exc}") from None
         data = dataclasses.replace(data, correlation=correlation)
-    fit = calibrate(problem, data, names)
+    fit = calibrate(problem, data, names, progress=progress)
+    if suspicions:
+        fit = dataclasses.replace(fit, notes=(*fit.notes, *(f"suspicious input: {line}" for line in suspicions)))
+    stage("writing outputs")
     folder = Path(folder)
     files = {
         "summary": folder / "calibration.json",

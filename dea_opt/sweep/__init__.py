@@ -278,7 +278,7 @@ def run_sweep(
     MissingDependencyError
         Dask is not installed.
     """
-    from tqdm.auto import tqdm
+    from ..progress import bar as progress_bar
 
     method = _check(workers, method)
     outputs = check_outputs(outputs)
@@ -343,14 +343,7 @@ def run_sweep(
                 logfile.write(line + "\n")
             if on_report is not None:
                 on_report(line)
-        bar = tqdm(
-            total=len(cases),
-            initial=len(skipped),
-            desc="sweep",
-            unit="case",
-            file=sys.stdout,
-            disable=None if progress else True,
-        )
+        bar = progress_bar(len(cases), "sweep", "case", progress, file=sys.stdout, initial=len(skipped))
         publisher = journal.TablePublisher(out)
         overrides = {c.id: c.overrides for c in cases}
 

@@ -60,8 +60,10 @@ print(sorted(p.name for p in folder.iterdir()))
 # dea-opt works in millimetres, newtons and megapascals. A mesh file has no units: look at its
 # size. Human cartilage layers span 10-100 mm; a plateau 0.06 units wide is in metres. Load such
 # a file with ``load_mesh(path, scale=1000)`` (in a scenario: ``[geometry] scale = 1000``).
-# A mesh in metres still solves, and every answer's validity report then fails its ``extent``
-# check (the layer's size, 1-1000 mm): the check is there because nothing else would tell.
+# In Python a mesh in metres still solves, and every answer's validity report then fails its
+# ``extent`` check (the layer's size, 1-1000 mm); ``dea-opt run`` stops such a scenario before
+# it solves, naming ``[geometry] scale = 1000`` (:ref:`the check before solving
+# <checks-before-solving>`), and ``dea-opt init`` reads the size and writes the scale itself.
 #
 # Labelled meshes become one mesh 1 whose springs carry their part's label:
 # :func:`dea_opt.mesh.concatenate_meshes`.
@@ -114,10 +116,12 @@ except dea.LoadNotSupportedError as error:
     print(type(error).__name__ + ":", error)
 
 # %%
-# The message names the reference point, ``(0, 0, 0) mm``, and a moment of about 3e4 N mm: the
-# 1000 N force 70 mm away from the contact. Put the reference point at the centre of the joint:
-# the springs' area-weighted centroid, or the point where your load acts (the knee's centre of
-# your gait model); give a force acting elsewhere with ``dea.Load(force, point=...)``.
+# The message starts with the likely cause: the reference point, ``(0, 0, 0) mm``, lies about 70 mm
+# from the centre of the contact, so the 1000 N acting there has a moment about the contact that
+# no spring of the knee can balance. Put the reference point at the centre of the joint: the
+# springs' area-weighted centroid (in a scenario, ``reference = "contact"`` takes exactly this
+# point), or the point where your load acts (the knee's centre of your gait model); give a force
+# acting elsewhere with ``dea.Load(force, point=...)``.
 
 centre = (layer.points * layer.areas[:, None]).sum(axis=0) / layer.areas.sum()
 problem = dea.ContactProblem(layer, dea.LinearLaw(10.0), force=(0.0, 0.0, -1000.0), reference=centre, free=("uz", "ry"))
@@ -147,51 +151,11 @@ print("H = 0.45 MPa:", soft.validity.summary())
 # modulus ``E`` with a Poisson's ratio ``nu`` (an elastic-foundation model then uses the
 # confined modulus ``H = (1 - nu) E / ((1 + nu)(1 - 2 nu))``, as OpenSim-JAM's lumped model of Bei
 # & Fregly does) or the spring's modulus itself (then ``H = E``): check which before you copy a
-# number.
+# number. The table is dea-opt's own (:mod:`dea_opt.laws.moduli`): ``dea-opt init --material``
+# writes a row's ``H`` with its source into the scenario it makes, and the check before solving
+# takes its range as the range of plausible moduli.
 #
-# .. list-table::
-#    :header-rows: 1
-#    :widths: 14 38 24 24
-#
-#    * - joint, material
-#      - source
-#      - what it gives
-#      - ``H`` for dea-opt
-#    * - cartilage, any joint, slow loading
-#      - K. Y. Volokh, E. Y. S. Chao, M. Armand, *On foundations of discrete element analysis of
-#        contact in diarthrodial joints* (the paper dea-opt implements)
-#      - aggregate (equilibrium) modulus 0.3-0.6 MPa
-#      - 0.3-0.6 MPa for loads held for minutes only; not for gait
-#    * - knee cartilage
-#      - R. L. Lenhart, J. Kaiser, C. R. Smith, D. G. Thelen, *Prediction and validation of
-#        load-dependent behavior of the tibiofemoral and patellofemoral joints during movement*,
-#        Ann. Biomed. Eng. 43(11):2675-2685, 2015; its model ``lenhart2015.osim`` in OpenSim-JAM
-#        (C. R. Smith, github.com/clnsmith/opensim-jam)
-#      - elastic foundation, E = 10 MPa, nu = 0.45, 3 mm per layer
-#      - 10 MPa read as the spring's modulus; 37.9 MPa as JAM's lumped model uses it
-#    * - hip cartilage
-#      - C. L. Abraham, S. A. Maas, J. A. Weiss, B. J. Ellis, C. L. Peters, A. E. Anderson, *A new
-#        discrete element analysis method for predicting hip joint contact stresses*, J. Biomech.
-#        46(6):1121-1127, 2013 (DEA against a validated FE model, same material properties)
-#      - DEA peak pressures 9.8-13.6 MPa, mean 3.0-3.7 MPa in walking and stairs (the modulus:
-#        see its methods; not quoted here)
-#      - dea-opt's demo uses 10 MPa (peak strain near 20 %); compare your pressures with theirs
-#    * - ankle cartilage
-#      - I. Benemerito, L. Modenese, E. Montefiori, C. Mazzà, M. Viceconti, D. Lacroix, L. Guo,
-#        *An extended discrete element method for the estimation of contact pressure at the ankle
-#        joint during stance phase*, Proc. IMechE H 234(5):507-516, 2020
-#      - DEA peak pressure 6.9-7.3 MPa at toe-off, contact area 4.2-4.7 cm² (the modulus: see its
-#        methods; not quoted here)
-#      - start at 10 MPa and compare your pressures with theirs
-#    * - UHMWPE tibial insert (knee replacement)
-#      - the CAMS-Knee M+ model of OpenSim-JAM, ``cams_Mplus_right_contact.osim``; the Grand
-#        Challenge model ``DM.osim`` of the same toolkit (``../shared/data/tka/material.json``)
-#      - E = 463 MPa, nu = 0.45, 3 mm layers; DM: E = 46.3 MPa, nu = 0.46, 5 mm
-#      - 1756 MPa (CAMS) or 214 MPa (DM), lumped: the two models differ tenfold, check yours
-#    * - UHMWPE bearing (ankle replacement)
-#      - a finite element foot model with a total ankle arthroplasty, PMC9579782, Table 1
-#      - polyethylene E = 475 MPa, nu = 0.38
-#      - 889 MPa (confined)
+# .. dea-moduli::
 #
 # Whatever you choose, the validity report says whether the answer stays inside the model
 # (strain below the law's range, 30 % for the linear law), and
@@ -217,7 +181,7 @@ print("validity:", solution.validity.summary())
 print(f"peak {solution.peak_pressure:.2f} MPa, contact area {solution.contact_area:.0f} mm^2")
 for name, region in solution.regions().items():
     print(
-        f"  {name}: {region.share:.1%} of the load, peak {region.peak_pressure:.2f} MPa, area {region.contact_area:.0f} mm^2"
+        f"  {name}: {region.share:.1%} of the contact force, peak {region.peak_pressure:.2f} MPa, area {region.contact_area:.0f} mm^2"
     )
 
 # %%
@@ -274,18 +238,25 @@ for name, pose in (("about the origin", about_origin), ("about the joint", about
 # sweeps, and its pieces are Python objects: :func:`dea_opt.scenario.load_scenario` reads and
 # checks a file, :func:`dea_opt.scenario.build_problem` builds its ``ContactProblem``, and
 # :func:`dea_opt.run.run_scenario` does what ``dea-opt run`` does. Going back, every argument
-# above is a key of the file (:doc:`/reference/scenario` lists them all).
+# above is a key of the file (:doc:`/reference/scenario` lists them all); the reference point
+# is ``reference = "contact"``, the same centroid as above. ``dea-opt init`` writes such a file
+# from the meshes alone, every choice a comment (:doc:`/guide/scenarios`):
+#
+# .. code-block:: bash
+#
+#    dea-opt init --body1 medial=medial_tibial_cartilage.stl --body1 lateral=lateral_tibial_cartilage.stl \
+#        --body2 femoral_cartilage.stl --load 1000 -o knee.toml
+#    dea-opt run knee.toml
 
 from dea_opt.run import run_scenario
 from dea_opt.scenario import build_problem, load_scenario
 
-reference = ", ".join(repr(float(v)) for v in centre)
-(folder / "knee.toml").write_text(f"""
+(folder / "knee.toml").write_text("""
 title = "my knee, 1000 N"
 
 [geometry]
 kind = "meshes"
-mesh1 = {{ medial = "medial_tibial_cartilage.stl", lateral = "lateral_tibial_cartilage.stl" }}
+mesh1 = { medial = "medial_tibial_cartilage.stl", lateral = "lateral_tibial_cartilage.stl" }
 mesh2 = "femoral_cartilage.stl"
 max_gap = 2.0
 
@@ -294,7 +265,7 @@ kind = "linear"
 H = 10.0
 
 [body2]
-reference = [{reference}]
+reference = "contact"
 free = ["uz", "ry"]
 
 [load]
@@ -302,10 +273,12 @@ force = [0.0, 0.0, -1000.0]
 
 [output]
 directory = "knee-out"
-anatomy = {{ medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right" }}
+anatomy = { medial = [1.0, 0.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "right" }
 """)
 scenario = load_scenario(folder / "knee.toml")
-from_file = dea.solve(build_problem(scenario))
+built = build_problem(scenario)
+print('reference = "contact":', np.round(built.body2.reference, 2), "mm")
+from_file = dea.solve(built)
 print(f"from the file: peak {from_file.peak_pressure:.4f} MPa (in Python: {solution.peak_pressure:.4f} MPa)")
 outcome = run_scenario(scenario, background_pictures=False)
 print(

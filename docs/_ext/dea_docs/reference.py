@@ -5,7 +5,8 @@
   (type, unit, default, allowed values, meaning) and the law registry;
 - ``{dea-formulation-options}`` and ``{dea-formulation-capabilities}``: the formulations'
   options and what each can do, from the registry;
-- ``{dea-frame-columns}``: the columns of a load path's ``frames.csv`` with their units.
+- ``{dea-frame-columns}``: the columns of a load path's ``frames.csv`` with their units;
+- ``{dea-moduli}``: the table of moduli with their sources (the tutorial *Your own joint*).
 
 Each directive writes reStructuredText and parses it in place; a Markdown page calls it inside
 ``{eval-rst}``.
@@ -260,7 +261,22 @@ class FrameColumnsDirective(_Generated):
         return _table(["column", "unit and meaning"], rows, "30 70")
 
 
+class ModuliDirective(_Generated):
+    """dea-opt's table of moduli (:data:`dea_opt.laws.moduli.MODULI`): the tutorial's "Which
+    modulus", the rows ``dea-opt init --material`` names and the check before solving's range."""
+
+    def lines(self) -> list[str]:
+        from dea_opt.laws.moduli import MODULI
+
+        rows = [
+            [row.material, row.source, row.gives, f"{row.advice} (``--material {row.key}``: H = {row.H:g} MPa)"]
+            for row in MODULI
+        ]
+        return _table(["joint, material", "source", "what it gives", "``H`` for dea-opt"], rows, "14 38 24 24")
+
+
 def setup(app) -> None:
+    app.add_directive("dea-moduli", ModuliDirective)
     app.add_directive("dea-frame-columns", FrameColumnsDirective)
     app.add_directive("dea-cli", CliDirective)
     app.add_directive("dea-scenario-keys", ScenarioKeysDirective)
