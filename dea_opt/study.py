@@ -269,7 +269,7 @@ class StudyResult:
         """``compare.csv`` and ``compare_summary.csv`` in ``directory``."""
         from pathlib import Path
 
-        from .io import write_data
+        from .files import write_data
 
         directory = Path(directory)
         return {

@@ -41,9 +41,9 @@ from scipy.optimize import brentq
 
 import dea_opt
 from dea_opt import formulations
+from dea_opt.files import write_atomic
 from dea_opt.gait import hip_gait_load, load_hip_gait
 from dea_opt.geometry import socket_layer
-from dea_opt.io import write_atomic
 
 NAME = "hip_gait"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME

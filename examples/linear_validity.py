@@ -52,8 +52,8 @@ import pandas as pd  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 import dea_opt  # noqa: E402
+from dea_opt.files import write_data  # noqa: E402
 from dea_opt.geometry import socket_layer, sphere_on_bed_layer  # noqa: E402
-from dea_opt.io import write_data  # noqa: E402
 
 NAME = "linear_validity"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME

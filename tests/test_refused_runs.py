@@ -14,9 +14,9 @@ from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError, OutputFolderError
-from dea_opt.io import folderlock
-from dea_opt.io.atomic import write_data
-from dea_opt.io.publish import LOCK_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
+from dea_opt.files.atomic import write_data
+from dea_opt.run import folderlock
+from dea_opt.run.publish import LOCK_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
 
 runner = CliRunner()
 

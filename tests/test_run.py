@@ -21,9 +21,9 @@ from typer.testing import CliRunner
 import dea_opt as d
 from dea_opt.cli import app
 from dea_opt.geometry import plate_layer
-from dea_opt.io.publish import read_manifest
 from dea_opt.laws import LAWS, Law, register_law
 from dea_opt.laws.registry import Range
+from dea_opt.run.publish import read_manifest
 from dea_opt.scenario import parse_scenario, schema_text
 from dea_opt.status import RunStatus
 

@@ -22,8 +22,8 @@ from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError, SizeLimitError
-from dea_opt.io.atomic import TEMPORARY_NAME
-from dea_opt.io.publish import check_outputs, read_manifest
+from dea_opt.files.atomic import TEMPORARY_NAME
+from dea_opt.run.publish import check_outputs, read_manifest
 from dea_opt.scenario import load_scenario, parse_scenario, read_load_path, schema_text
 from dea_opt.status import RunStatus
 
@@ -414,7 +414,7 @@ def test_kill_9_of_a_first_run_mid_path_then_rerun(tmp_path):
 
 
 def test_two_runs_into_one_folder_at_once(tmp_path):
-    from dea_opt.io.publish import output_run
+    from dea_opt.run.publish import output_run
 
     scenario = socket_path(tmp_path, [(0.0, 0.0, 0.0, -500.0)])
     with output_run(tmp_path / "out"):  # another run holds the folder

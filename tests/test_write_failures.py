@@ -17,8 +17,8 @@ import textwrap
 
 import pytest
 
-from dea_opt.io.atomic import atomic_path, write_atomic, write_data
-from dea_opt.io.publish import MANIFEST_NAME
+from dea_opt.files.atomic import atomic_path, write_atomic, write_data
+from dea_opt.run.publish import MANIFEST_NAME
 from dea_opt.sweep import journal
 
 

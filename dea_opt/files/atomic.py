@@ -7,11 +7,11 @@ umask's for a new file) and is removed when writing fails. :func:`atomic_path` i
 implementation; :func:`write_atomic`, :func:`write_data` and :func:`atomic_open` are fronts
 to it for a writer function, for ``str``/``bytes`` and for an open file.
 
-Inside :func:`staged` (a run's output folder, :mod:`dea_opt.io.publish`), a finished file is
+Inside :func:`staged` (a run's output folder, :mod:`dea_opt.run.publish`), a finished file is
 not renamed into place: its temporary file waits, complete and fsynced, until the run
 publishes every output at once, so a reader never sees files of two runs as one. A target
 that is itself a temporary file (one :func:`atomic_path` yielded, handed to a writer in another
-process or drawn later: :class:`dea_opt.io.pictures.PictureFiles`) is filled in place, never
+process or drawn later: :class:`dea_opt.run.pictures.PictureFiles`) is filled in place, never
 staged: the one who holds it stages it when its :func:`atomic_path` block ends.
 
 A write that fails (a full disk, a file-size limit, an I/O error) raises an :class:`OSError`
@@ -229,7 +229,7 @@ def atomic_open(
 class Staging:
     """The finished but unpublished files of one output folder: ``{target: temporary file}``.
 
-    Made by :func:`staged`; :mod:`dea_opt.io.publish` renames them into place together.
+    Made by :func:`staged`; :mod:`dea_opt.run.publish` renames them into place together.
     """
 
     def __init__(self, root: Path):

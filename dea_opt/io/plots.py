@@ -16,7 +16,7 @@ import numpy as np
 
 from .._checks.dependencies import require
 from ..errors import InputError
-from .atomic import file_path, write_atomic
+from ..files.atomic import file_path, write_atomic
 from .draw import RASTER_LIMIT, boundary_edges, draw_regions, draw_values, map_geometry
 from .mapframe import best_fit_frame, map_frame
 from .surface import contact_surface

@@ -8,14 +8,14 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from importlib import import_module
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InputError, ValidityWarning
-from ..io.atomic import write_data
-from ..io.pictures import DrawHere, PictureFiles
+from ..files.atomic import write_data
 from ..io.summary import write_json
 from ..problem import ContactProblem
 from .anatomical import COP_COLUMNS, anatomical_columns, anatomical_frame_table, anatomical_origin
@@ -348,14 +348,14 @@ class PathResult:
     def plot_cycle(self, path, title: str | None = None, anatomy=None) -> Path:
         """Applied force and moment, pressure, contact area and the regions' force shares over
         the path (PNG); failed frames and frames outside validity marked."""
-        return DrawHere().draw(self._cycle_job(path, title, anatomy))
+        return _draw(self._cycle_job(path, title, anatomy))
 
     def plot_exposure(self, path, title: str | None = None, anatomy=None) -> Path:
         """The exposure map: pressure-time integral and time above the threshold (PNG)."""
-        return DrawHere().draw(self._exposure_job(path, title, anatomy))
+        return _draw(self._exposure_job(path, title, anatomy))
 
     def _cycle_job(self, path, title=None, anatomy=None) -> tuple:
-        """The cycle plot as a job of :mod:`dea_opt.io.pictures`: ``(module, function, args, kwargs)``."""
+        """The cycle plot as a picture job ``(module, function, args, kwargs)`` (:mod:`dea_opt.run.pictures`)."""
         kwargs = {"title": title, "regions": self.regions or None, "anatomy": anatomy}
         return "dea_opt.io.cycle", "plot_cycle", (self.table, path), kwargs
 
@@ -382,23 +382,21 @@ class PathResult:
         :meth:`anatomical_table`'s columns and ``summary.json`` holds
         :meth:`anatomical_summary`'s keys. ``summary``: :meth:`summary`, when the caller
         already has it (it is computed once). ``pictures``: a
-        :class:`~dea_opt.io.pictures.PictureWorker` to draw the PNGs in while the other files are
+        :class:`~dea_opt.run.pictures.PictureWorker` to draw the PNGs in while the other files are
         written (the same pictures, drawn here if it fails).
         """
         directory = Path(directory)
         unknown = set(formats) - set(FORMATS)
         if unknown:
             raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
-        if pictures is not None and not (
-            callable(getattr(pictures, "submit", None)) and callable(getattr(pictures, "result", None))
-        ):
+        if pictures is not None and not callable(getattr(pictures, "files", None)):
             raise InputError(
-                f"pictures must be a dea_opt.io.pictures.PictureWorker (or None: drawn here), got {type(pictures).__name__}"
+                f"pictures must be a dea_opt.run.pictures.PictureWorker (or None: drawn here), got {type(pictures).__name__}"
             )
         files = {}
-        # The PNGs are drawn into temporary files reserved beside them and staged here once drawn
-        # (a PictureWorker's process does not see this run's staging): published with the rest.
-        with PictureFiles(DrawHere() if pictures is None else pictures) as drawn:
+        # A PictureWorker draws the PNGs into temporary files reserved beside them and stages them here
+        # once drawn (its process does not see this run's staging): published with the rest.
+        with _DrawnHere() if pictures is None else pictures.files() as drawn:
             if "png" in formats:  # handed over first: a PictureWorker draws them while the rest is written
                 drawn.submit("cycle_plot", directory / "cycle.png", lambda p: self._cycle_job(p, anatomy=anatomy))
                 drawn.submit(
@@ -417,3 +415,33 @@ class PathResult:
             self.to_json(files["summary"], extra, summary=summary, anatomy=anatomy)
         self.files.update(files)
         return files
+
+
+def _draw(job: tuple):
+    """Run a picture job ``(module, function, args, kwargs)`` in this process; its value."""
+    module, function, args, kwargs = job
+    return getattr(import_module(module), function)(*args, **kwargs)
+
+
+class _DrawnHere:
+    """The pictures of :meth:`PathResult.write` without a worker: each drawn in this process into
+    its output (written atomically, so staged with the run's other files) when :meth:`results`
+    is asked for, as :class:`dea_opt.run.pictures.PictureFiles` does for a worker."""
+
+    def __init__(self):
+        self._jobs: dict = {}
+
+    def submit(self, name: str, target, job) -> None:
+        self._jobs[name] = (Path(target), job)
+
+    def results(self) -> dict:
+        jobs, self._jobs = self._jobs, {}
+        for target, job in jobs.values():
+            _draw(job(target))
+        return {name: target for name, (target, _) in jobs.items()}
+
+    def __enter__(self) -> _DrawnHere:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._jobs = {}

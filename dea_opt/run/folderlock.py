@@ -2,7 +2,7 @@
 published nothing takes away again.
 
 A run holds the lock (``flock`` on the file; the kernel releases it when the process ends, even
-after ``kill -9``) while it writes into its folder (:func:`dea_opt.io.publish.output_run`). A run
+after ``kill -9``) while it writes into its folder (:func:`dea_opt.run.publish.output_run`). A run
 that leaves without publishing (bad input refused, exit 2) removes what it made for itself: the
 lock file, if it made it, and the folders it made, if nothing else is in them. So a refused run
 leaves no trace, and a folder that was there before, or holds anything else, stays.

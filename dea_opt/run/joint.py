@@ -48,7 +48,7 @@ def run_joint_scenario(scenario, out, method: str, *, progress: bool = False, st
 
 def _static(scenario, joint, method, out) -> RunOutcome:
     from .. import io
-    from ..io.atomic import write_data
+    from ..files.atomic import write_data
     from ..io.summary import write_json
     from ..joint import solve_joint
 
@@ -146,7 +146,7 @@ def solve_joint_path(joint, path, method: str = "auto", *, certificate_tol: floa
 
 
 def _path(scenario, joint, path, method, out, stop_on_error) -> RunOutcome:
-    from ..io.atomic import write_data
+    from ..files.atomic import write_data
     from ..io.summary import write_json
 
     solutions = solve_joint_path(

@@ -25,12 +25,12 @@ def compare_joint_scenario(scenario, folder, methods=None, force: bool = False) 
     one that solves it), print the table and publish ``compare.csv`` into ``folder``."""
     import typer
 
-    from ..io.atomic import write_data
-    from ..io.publish import output_run
+    from ..files.atomic import write_data
     from ..joint.compare import compare_joint
     from ..scenario.joint_build import build_joint
     from ..status import RunStatus
     from .log import captured
+    from .publish import output_run
     from .runner import run_info
 
     joint, _ = build_joint(scenario)

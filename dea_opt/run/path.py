@@ -38,7 +38,7 @@ def run_path_outputs(
     meshes of a path with poses), the peak frame is solved once more and its springs re-cast
     at its solved pose (:func:`peak_recast`): its ``dropped_springs`` check is evaluated and
     the re-cast force goes into ``summary.json`` (``recast``). ``pictures``: a
-    :class:`~dea_opt.io.pictures.PictureWorker` that draws the PNGs while the rest is written.
+    :class:`~dea_opt.run.pictures.PictureWorker` that draws the PNGs while the rest is written.
     ``data``: the path's frames read already (:func:`dea_opt.scenario.read_load_path`);
     ``suspicions``: what the check before solving found (they head the verdict and
     ``summary.json``'s ``suspicious_input``). Frames without a certified answer are told grouped

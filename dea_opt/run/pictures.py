@@ -17,10 +17,10 @@ Jobs are ``(module, function, args, kwargs)`` of :mod:`dea_opt.io`'s picture fun
 pickled into files of a temporary folder whose names go through the pipe; the answers come
 back pickled through the other pipe: ``("ok", value)`` or ``("error", text)``.
 
-A run's outputs are staged in the run's process (:func:`dea_opt.io.atomic.staged`), which the
+A run's outputs are staged in the run's process (:func:`dea_opt.files.atomic.staged`), which the
 worker does not see: given the output's own name it would rename its picture straight into the
 output folder, outside the manifest. :class:`PictureFiles` therefore hands the drawer a
-temporary file reserved beside each output (:func:`~dea_opt.io.atomic.atomic_path`) and,
+temporary file reserved beside each output (:func:`~dea_opt.files.atomic.atomic_path`) and,
 once the picture is drawn there, stages it (or renames it into place) in the run's process,
 like every other output: published with the others and listed in ``manifest.json``.
 """
@@ -37,7 +37,7 @@ import sys
 import tempfile
 from pathlib import Path
 
-from .atomic import atomic_path
+from ..files.atomic import atomic_path
 
 __all__ = ["DrawHere", "PictureFiles", "PictureWorker"]
 
@@ -69,6 +69,10 @@ class DrawHere:
         """Run ``job`` ``(module, function, args, kwargs)`` now; its value."""
         return self.result(self.submit(*job))
 
+    def files(self) -> PictureFiles:
+        """:class:`PictureFiles` drawn in this process (as :meth:`PictureWorker.files`)."""
+        return PictureFiles(self)
+
 
 class _Drawer:
     """One worker process: the jobs sent to it and the answers read back, in order."""
@@ -78,7 +82,7 @@ class _Drawer:
         self.answers: list = []
         try:
             self.process: subprocess.Popen | None = subprocess.Popen(
-                [sys.executable, "-m", "dea_opt.io.pictures"],
+                [sys.executable, "-m", "dea_opt.run.pictures"],
                 stdin=subprocess.PIPE,
                 stdout=subprocess.PIPE,
                 stderr=subprocess.DEVNULL,
@@ -171,6 +175,11 @@ class PictureWorker:
                 return answer[1]
         return _call(*job)
 
+    def files(self) -> PictureFiles:
+        """The run's pictures drawn here, as outputs: :class:`PictureFiles` of this worker (what
+        :meth:`dea_opt.loadpath.PathResult.write` draws its PNGs through)."""
+        return PictureFiles(self)
+
     def close(self) -> None:
         """End the worker (it finishes the job it is drawing first) and remove the job files."""
         self._drawer.stop()
@@ -193,9 +202,9 @@ class PictureFiles:
     """Pictures that are outputs of a run, drawn by ``drawer`` (a :class:`PictureWorker` or
     :class:`DrawHere`) and written like every other output.
 
-    :meth:`submit` reserves a temporary file beside the output (:func:`~dea_opt.io.atomic.atomic_path`)
+    :meth:`submit` reserves a temporary file beside the output (:func:`~dea_opt.files.atomic.atomic_path`)
     and hands the drawer the job that draws into it; :meth:`results` waits for the drawings
-    and then stages each file in this process (inside :func:`~dea_opt.io.atomic.staged`; else
+    and then stages each file in this process (inside :func:`~dea_opt.files.atomic.staged`; else
     renames it into place). Use it as a context manager: leaving the block with an error, or
     without :meth:`results`, removes the reserved files.
     """

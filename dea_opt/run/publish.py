@@ -7,10 +7,10 @@ folder through :func:`output_run`:
    the ``INCOMPLETE.json`` of an interrupted one); any other folder is an
    :class:`~dea_opt.errors.OutputFolderError` naming it, unless ``force`` (so no file of the
    user's is ever overwritten by surprise).
-2. A lock (``.dea-opt.lock``, :mod:`dea_opt.io.folderlock`) keeps two runs out of one folder;
+2. A lock (``.dea-opt.lock``, :mod:`dea_opt.run.folderlock`) keeps two runs out of one folder;
    temporary files left by a process killed earlier (``.name.<hex>.tmp.*``) are removed. A run
    that publishes nothing removes the lock file and the folders it made, if nothing else is in them.
-3. Every output is written atomically but *staged* (:func:`dea_opt.io.atomic.staged`): complete
+3. Every output is written atomically but *staged* (:func:`dea_opt.files.atomic.staged`): complete
    temporary files wait beside their targets, and the folder still holds the previous run.
 4. :meth:`OutputRun.publish` hashes the staged files, writes ``INCOMPLETE.json``, removes the
    old ``manifest.json`` and the old run's files, renames the new files into place, writes the
@@ -36,7 +36,7 @@ from pathlib import Path
 
 from .._version import __version__
 from ..errors import InputError, OutputFolderError
-from .atomic import TEMPORARY_NAME, staged, write_data
+from ..files.atomic import TEMPORARY_NAME, staged, write_data
 from .folderlock import LOCK_NAME, folder_lock, remove_made
 
 __all__ = [
@@ -376,7 +376,7 @@ def interrupted_report(folder) -> str:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    from .summary import jsonable
+    from ..io.summary import jsonable
 
     write_data(path, json.dumps(jsonable(data), indent=2, allow_nan=False) + "\n")
 
@@ -422,7 +422,7 @@ def output_run(folder, *, force: bool = False, info: dict | None = None):
         Write the outputs into ``run.folder`` (they are staged), then call
         :meth:`OutputRun.publish`. Leaving the block without publishing removes the staged
         files and leaves the folder as it was: the lock file and the folders this run made are
-        removed too, those that hold nothing else (:mod:`dea_opt.io.folderlock`); Ctrl-C becomes
+        removed too, those that hold nothing else (:mod:`dea_opt.run.folderlock`); Ctrl-C becomes
         :class:`RunInterrupted`, whose ``report`` says what the folder holds.
 
     Raises

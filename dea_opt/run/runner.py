@@ -98,7 +98,7 @@ def run_scenario(
     scenario : Scenario
     output_dir : str or Path, optional
         Default ``[output].directory`` (relative to the scenario file). It must be new,
-        empty or hold an earlier dea-opt run (:func:`dea_opt.io.publish.check_output_folder`).
+        empty or hold an earlier dea-opt run (:func:`dea_opt.run.publish.check_output_folder`).
     method : str, optional
         Overrides ``[solve].method``.
     progress : bool
@@ -112,7 +112,7 @@ def run_scenario(
         nothing published) instead of recording it and going on.
     background_pictures : bool
         Draw a load path's PNGs in a second process while the run solves and writes
-        (:class:`~dea_opt.io.pictures.PictureWorker`): for a single run, which leaves a core idle.
+        (:class:`~dea_opt.run.pictures.PictureWorker`): for a single run, which leaves a core idle.
         A sweep's cases run one per core and draw in their own process (Matplotlib imported
         once per worker, not once per case).
 
@@ -128,12 +128,12 @@ def run_scenario(
         else's; :class:`~dea_opt.errors.ImplausibleInputError` from the check before solving,
         :func:`prepare_run`), a load no spring can carry, a solver that fails outright. Nothing is
         published then, and the folder keeps what it held.
-    dea_opt.io.publish.RunInterrupted
+    dea_opt.run.publish.RunInterrupted
         Ctrl-C; its ``report`` says what the folder holds.
     """
-    from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
     from ..progress import showing
     from ..scenario.joint_schema import JointScenario
+    from .publish import RunInterrupted, check_output_folder, interrupted_report
 
     if isinstance(scenario, JointScenario):
         from .joint import run_joint_scenario
@@ -218,8 +218,8 @@ def prepare_run(scenario) -> tuple:
 def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario) -> RunOutcome:
     """A joint scenario (``[[bodies]]``): its method checked, solved and published like a two-body run."""
     from ..errors import InputError
-    from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
     from ..joint import JOINT_METHODS
+    from .publish import RunInterrupted, check_output_folder, interrupted_report
 
     method = scenario.solve.method if method is None else method.strip().lower()
     if method not in JOINT_METHODS:
@@ -244,21 +244,21 @@ def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_sce
 
 
 def picture_worker(scenario, background: bool = True):
-    """A :class:`~dea_opt.io.pictures.PictureWorker` when the run draws a load path's pictures
+    """A :class:`~dea_opt.run.pictures.PictureWorker` when the run draws a load path's pictures
     (it imports matplotlib while the run casts and solves) and ``background``, else a context
     that gives None (the pictures are drawn in the run's process)."""
     from contextlib import nullcontext
 
     if not background or scenario.load_path is None or "png" not in scenario.output.formats:
         return nullcontext(None)
-    from ..io.pictures import PictureWorker
+    from .pictures import PictureWorker
 
     return PictureWorker()
 
 
 def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, info: dict) -> RunOutcome:
     """Run ``solve_and_write(folder) -> RunOutcome`` in the staged folder ``out`` and publish it."""
-    from ..io.publish import output_run
+    from .publish import output_run
 
     with output_run(out, force=force, info=info) as publication:
         outcome = solve_and_write(publication.folder)
@@ -267,7 +267,7 @@ def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, 
         _drop_repeats(outcome, messages, scenario.notes)
         log = messages.log_text(f"dea-opt {info.get('command', 'run')} of {scenario.source or scenario.title}")
         if log:
-            from ..io.atomic import write_data
+            from ..files.atomic import write_data
 
             outcome.files["log"] = write_data(publication.folder / LOG_NAME, log)
         failures = {"failures": {str(k): int(n) for k, n in outcome.failures.items()}} if outcome.failures else {}

@@ -249,7 +249,7 @@ def init_scenario(
         files, scale, max_gap, H, row, modulus, free, (shape, stiffness, len(layer)), anatomy, output, title, loaded
     )
     suspicions = _check(text, output, layer)
-    from ..io.atomic import write_data
+    from ..files.atomic import write_data
 
     write_data(output, text)
     notes.append(

@@ -193,7 +193,7 @@ class Calibration:
         of residuals, to a PNG (written atomically)."""
         import matplotlib.pyplot as plt
 
-        from ..io.atomic import write_atomic
+        from ..files.atomic import write_atomic
 
         table = self.residual_map()
         if table.empty:

@@ -39,7 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, MissingDependencyError
-from ..io.publish import RunInterrupted
+from ..run.publish import RunInterrupted
 from ..scenario import check_method_name, load_scenario
 from ..status import RunStatus
 from . import journal

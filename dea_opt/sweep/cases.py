@@ -192,7 +192,7 @@ def run_case(
         row |= {"status": str(RunStatus.ERROR), "message": f"{type(exc).__name__}: {exc} ({where})"}
     row |= {
         "wall_time": time.perf_counter() - start,
-        # a case refused before it wrote anything leaves no folder (dea_opt.io.folderlock): none named
+        # a case refused before it wrote anything leaves no folder (dea_opt.run.folderlock): none named
         "output_dir": str(case_dir) if Path(case_dir).is_dir() else "",
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "pid": os.getpid(),

@@ -37,7 +37,7 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io.atomic import naming
+from ..files.atomic import naming
 
 __all__ = [
     "JOURNAL_NAME",
@@ -226,7 +226,7 @@ def results_table(records: dict):
 
 def publish_table(out):
     """Rewrite sweep.csv atomically from the journal (under its lock, so writers never interleave)."""
-    from ..io import write_data
+    from ..files import write_data
 
     out = Path(out)
     path = out / JOURNAL_NAME
@@ -298,7 +298,7 @@ def seed_from_csv(out, table) -> None:
         lines = []
         for row in table.to_dict("records"):
             lines.append(line_of({k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}))
-        from ..io import write_data
+        from ..files import write_data
 
         write_data(path, b"".join(lines))
 
@@ -343,7 +343,7 @@ def read_case_record(out, case_id: str) -> dict:
 def write_case_record(out, case_id: str, record: dict, runs: int, pointer) -> None:
     """Replace ``.sweep/records/<id>.json`` atomically; call it only while holding the case's claim.
 
-    Unlike :func:`dea_opt.io.write_data` the temporary file has a fixed name: the claim makes
+    Unlike :func:`dea_opt.files.write_data` the temporary file has a fixed name: the claim makes
     this process its only writer, and a kill -9 leaves at most one temporary file per case,
     overwritten by the next computation, instead of one more random name each time.
     """

@@ -152,7 +152,7 @@ def _read_entry(path: Path, key: str):
 
 
 def _write_entry(path: Path, key: str, springs, caught: list) -> None:
-    from ..io.atomic import write_atomic
+    from ..files.atomic import write_atomic
 
     layer = springs.layer
     arrays = {
