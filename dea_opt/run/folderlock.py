@@ -1,15 +1,15 @@
 """The lock that keeps two runs out of one output folder (``.dea-opt.lock``), and what a run that
 published nothing takes away again.
 
-A run holds the lock (``flock`` on the file; the kernel releases it when the process ends, even
-after ``kill -9``) while it writes into its folder (:func:`dea_opt.run.publish.output_run`). A run
+A run holds the lock (:mod:`dea_opt.files.locks`, the one lock of dea-opt: the kernel releases
+it when the process ends, even after ``kill -9``) while it writes into its folder (:func:`dea_opt.run.publish.output_run`). A run
 that leaves without publishing (bad input refused, exit 2) removes what it made for itself: the
 lock file, if it made it, and the folders it made, if nothing else is in them. So a refused run
 leaves no trace, and a folder that was there before, or holds anything else, stays.
 
 It removes them while it still holds the lock. Another run may have opened the lock file before
 it was removed and lock it once it is released: that run then holds a file no longer at the path,
-which keeps no one out, so it looks again (:func:`_same_file`) and makes the folder and lock anew.
+which keeps no one out, so it looks again (:func:`dea_opt.files.locks.held_at`) and makes the folder and lock anew.
 """
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from ..errors import OutputFolderError
+from ..files.locks import held_at, holder, mark_holder, try_lock
 
 __all__ = ["LOCK_NAME", "Made", "folder_lock", "remove_made"]
 
@@ -66,13 +67,6 @@ def _open_lock(path: Path) -> tuple[int | None, bool]:
     return None, False  # made by another run, then removed by it: look again
 
 
-def _same_file(fd: int, path: Path) -> bool:
-    """Whether ``fd`` is the file at ``path`` (not one a run removed after it was opened)."""
-    with contextlib.suppress(OSError):
-        return os.path.samestat(os.fstat(fd), os.stat(path))
-    return False
-
-
 @contextlib.contextmanager
 def folder_lock(folder: Path):
     """Make ``folder`` if needed and hold its lock for the block; yields what was made (:class:`Made`).
@@ -83,34 +77,25 @@ def folder_lock(folder: Path):
         Another run holds the lock (naming its pid), or the folder cannot be made or locked.
     """
     made = Made()
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - Windows: one run per folder is then the user's to keep
-        _make_folder(folder, made)
-        yield made
-        return
     for _ in range(_TRIES):
         _make_folder(folder, made)
         fd, made.lock = _open_lock(folder / LOCK_NAME)
         if fd is None:
             continue
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError:
-            holder = os.pread(fd, 32, 0).decode(errors="replace").strip()
+        if not try_lock(fd, wait=False):
+            pid = holder(fd)
             os.close(fd)
             raise OutputFolderError(
-                f"another dea-opt run (pid {holder or 'unknown'}) is writing into the output "
+                f"another dea-opt run (pid {pid or 'unknown'}) is writing into the output "
                 f"folder {folder}: wait for it, or choose another folder (-o)"
-            ) from None
-        if _same_file(fd, folder / LOCK_NAME):
+            )
+        if held_at(fd, folder / LOCK_NAME):
             break
         os.close(fd)
     else:  # pragma: no cover - a hundred runs, one after the other, made and removed the folder meanwhile
         raise OutputFolderError(f"the output folder {folder} keeps being removed by other runs: try again")
     try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)
+        mark_holder(fd)
         yield made
     finally:
         os.close(fd)  # releases the lock, as the end of the process does

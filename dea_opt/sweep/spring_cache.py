@@ -13,7 +13,7 @@ worker has:
   and nothing that the meshes give again; :func:`dea_opt.mesh.springs.assemble_cast` turns
   it back into the very :class:`~dea_opt.mesh.SpringCast` (same bytes);
 * it is written atomically (a complete file or none) while its lock (``<key>.lock``,
-  ``flock``, released by the kernel when a process dies) is held, so concurrent workers cast
+  :mod:`dea_opt.files.locks`, released by the kernel when a process dies) is held, so concurrent workers cast
   it once: the others wait for the lock and read the file. An entry that cannot be read (or
   whose key differs) is cast again and replaced.
 
@@ -216,9 +216,9 @@ def cast(mesh1, mesh2, *, pose=None, **options):
         _prepared[inputs] = prepare_cast(mesh1, mesh2, **options)
     m1, m2, resolved = _prepared[inputs]
     path = folder / f"{key}.npz"
-    from .journal import _flock
+    from ..files.locks import hold
 
-    with _flock(folder / f"{key}.lock"):
+    with hold(folder / f"{key}.lock"):
         entry = _read_entry(path, key)
         if entry is not None:
             _STATS["hits_disk"] += 1
