@@ -174,7 +174,7 @@ def test_the_knee_re_cast_afresh_at_the_solved_pose_carries_the_load(knee, knee_
     print(f"\nknee: rotation {degrees:.2f} deg, {solution.info['recast']}")
     assert degrees > 2.0  # beyond the small kinematics' 3-degree range of validity or near it
     layer = quiet(
-        d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_overlap=WIDE, **knee["options"]
+        M.springs_from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_overlap=WIDE, **knee["options"]
     )
     pressure = -d.LinearLaw(10.0).stress(np.minimum(layer.gap / layer.thickness, 0.0))
     push = (pressure * layer.areas)[:, None] * layer.normals
@@ -349,7 +349,7 @@ def test_springs_that_did_not_settle_within_max_recasts_fail_as_max_iterations(k
         quiet(d.solve, problem, "newton", max_recasts=0)
     unchecked = quiet(d.solve, problem, "newton", strict=False, max_recasts=0)
     fresh = quiet(
-        d.SpringLayer.from_meshes, cast.mesh1, cast.mesh2, pose=unchecked.pose, max_overlap=WIDE, **knee["options"]
+        M.springs_from_meshes, cast.mesh1, cast.mesh2, pose=unchecked.pose, max_overlap=WIDE, **knee["options"]
     )
     pressure = -d.LinearLaw(10.0).stress(np.minimum(fresh.gap / fresh.thickness, 0.0))
     carried = float(((pressure * fresh.areas)[:, None] * fresh.normals).sum(axis=0)[2])

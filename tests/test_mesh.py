@@ -201,7 +201,7 @@ def test_a_clean_mesh_gives_no_warning():
 # --------------------------------------------------------------------------------------------
 def test_plate_pair_springs_are_the_top_faces():
     pair = geometry.plate_meshes(nx=20, ny=5)
-    layer = d.SpringLayer.from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0)
+    layer = M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0)
     top = np.flatnonzero(np.isclose(pair.mesh1.triangles_center[:, 2], 0.0) & (pair.mesh1.face_normals[:, 2] > 0.5))
     assert np.array_equal(np.sort(layer.source_face), top)
     np.testing.assert_allclose(layer.normals, np.tile([0, 0, 1.0], (len(layer), 1)), atol=1e-12)
@@ -430,7 +430,7 @@ def sphere_levels(tmp_path_factory):
         pair = geometry.sphere_on_bed_meshes(R, H_BED, extent=6.0, n_bed=n_bed, step=step)
         pair.mesh1.export(folder / "bed.stl")
         pair.mesh2.export(folder / "sphere.stl")
-        layer = d.SpringLayer.from_meshes(folder / "bed.stl", folder / "sphere.stl", thickness2=0.0, max_gap=0.8)
+        layer = M.springs_from_meshes(folder / "bed.stl", folder / "sphere.stl", thickness2=0.0, max_gap=0.8)
         out.append((layer, M.load_mesh(folder / "bed.stl"), M.load_mesh(folder / "sphere.stl")))
     return out
 

@@ -153,7 +153,7 @@ class FiniteSolution(Solution):
     @property
     def pose(self) -> np.ndarray:
         """Body 2's mesh pose in body 1's frame (4x4): the exact motion of ``u`` composed with the pose
-        the springs' targets were cast at; ``SpringLayer.from_meshes(..., pose=solution.pose)``
+        the springs' targets were cast at; ``dea_opt.mesh.springs_from_meshes(..., pose=solution.pose)``
         casts the springs afresh there."""
         frame = np.eye(4) if self.targets is None else self.targets.frame
         return pose_matrix(self.u[6:], self.problem.body2.reference) @ frame

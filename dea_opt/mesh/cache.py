@@ -127,7 +127,7 @@ def _digest(*values) -> str:
 def cast_key(mesh1, mesh2, pose, options: dict) -> str:
     """The key of a cast: the meshes' bytes, the options of :func:`~dea_opt.mesh.cast_springs`
     (the engine as it resolves here), the pose (identity for None), the format and dea-opt's version."""
-    from ..mesh.raycast import _engine
+    from .raycast import _engine
 
     resolved = {**options, "engine": _engine(options.get("engine", "auto"))}
     return _digest(
@@ -193,7 +193,7 @@ def _replay(caught: list) -> None:
 
 def cast(mesh1, mesh2, *, pose=None, **options):
     """:func:`dea_opt.mesh.cast_springs`, through the active cache (directly without one)."""
-    from ..mesh.springs import (
+    from .springs import (
         _cast,
         assemble_cast,
         cast_springs,

@@ -10,7 +10,7 @@ once and decides, saying why in the file's comments:
 - the free dofs: those the springs resist (:func:`choose_free`);
 - the load's direction: pressing body 2 onto body 1 along the contact's mean normal; for a file,
   its sign (negated when it pulls the bodies apart) and, for an OpenSim ``.sto``, which columns
-  and which units (:mod:`dea_opt.scenario.init_load`);
+  and which units (:mod:`dea_opt.run.init_load`);
 - ``H`` with its source, from :data:`dea_opt.laws.moduli.MODULI`;
 - the compartments (the files' labels), the anatomical frame (landmarks or axes given) and the
   outputs.
@@ -239,7 +239,7 @@ def init_scenario(
     anatomy = _anatomy(landmarks, axes, side, scale)
     probe = _text(files, scale, max_gap, H, row, modulus, ["uz"], None, anatomy, output, title, None)
     scenario, layer, problem = _cast(probe, output)
-    from ..run.contact_shape import ContactShape
+    from .contact_shape import ContactShape
 
     shape = ContactShape.of(layer)
     free, stiffness = choose_free(layer, shape.centre)
@@ -287,8 +287,8 @@ def _anatomy(landmarks, axes, side, scale: float):
 def _cast(text: str, output: Path):
     """The scenario of ``text`` read, its springs cast and its problem built."""
     from ..progress import stage
-    from .build import build_problem_cast
-    from .parse import parse_scenario
+    from ..scenario.build import build_problem_cast
+    from ..scenario.parse import parse_scenario
 
     scenario = parse_scenario(text, name=output.name, base_dir=output.parent)
     stage("casting springs")
@@ -301,10 +301,10 @@ def _cast(text: str, output: Path):
 def _check(text: str, output: Path, layer) -> list:
     """Read ``text`` back, build its problem on the springs cast and make the check every run
     makes before solving; its suspicions."""
-    from ..run.preflight import check_inputs
-    from .build import build_problem
-    from .load_path import read_load_path
-    from .parse import parse_scenario
+    from ..scenario.build import build_problem
+    from ..scenario.load_path import read_load_path
+    from ..scenario.parse import parse_scenario
+    from .preflight import check_inputs
 
     scenario = parse_scenario(text, name=output.name, base_dir=output.parent)
     problem = build_problem(scenario, layer=layer)

@@ -1,4 +1,4 @@
-"""The load section ``dea-opt init`` writes (:mod:`dea_opt.scenario.init`): a force pressing the
+"""The load section ``dea-opt init`` writes (:mod:`dea_opt.run.init`): a force pressing the
 bodies together, or a load file read, its sign and (OpenSim ``.sto``) its columns and units
 sniffed against the contact the springs make. Units: N, N mm, mm, s.
 """
@@ -114,7 +114,7 @@ def _static(value: float, shape) -> LoadSection:
 
 def _pressing(shape, forces) -> tuple[int, int]:
     """``(pulling, loaded)``: how many loaded frames' forces on body 2 pull it away from body 1."""
-    from ..run.preflight import loaded_frames
+    from .preflight import loaded_frames
 
     frames = loaded_frames(forces)
     pulling = int(np.sum(forces[frames] @ shape.normal > 0.0))
@@ -233,8 +233,8 @@ def _storage(path: Path, shape, folder: Path, prefix: str | None) -> LoadSection
 def _units(storage, group, forces, shape) -> tuple[str, str]:
     """``("SI" | "mm", why)``: OpenSim's N m, unless the moments read so need a lever arm of a
     hundred layer radii about the contact and read as N mm one inside it."""
-    from ..run.contact_shape import MOMENT_ARMS
-    from ..run.preflight import loaded_frames
+    from .contact_shape import MOMENT_ARMS
+    from .preflight import loaded_frames
 
     if not {"mx", "my", "mz"} <= set(group):
         return "SI", 'units = "SI" (OpenSim\'s N, N m, m); the file gives no moments'

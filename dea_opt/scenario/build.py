@@ -238,8 +238,8 @@ def pose_caster(scenario):
 
 def _load_part(files, scale: float):
     """``(mesh, labels)``: one mesh (labels None), or a table of labelled meshes joined into one;
-    read once per process inside a sweep's cache (:mod:`dea_opt.sweep.spring_cache`)."""
-    from ..sweep import spring_cache
+    read once per process inside a sweep's cache (:mod:`dea_opt.mesh.cache`)."""
+    from ..mesh import cache as spring_cache
 
     return spring_cache.mesh_part(files, scale, _read_part)
 
@@ -282,7 +282,7 @@ def cast_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
     """The :class:`~dea_opt.mesh.SpringCast` of :func:`springs_from_mesh_section` (its layer labelled)."""
     import dataclasses
 
-    from ..sweep import spring_cache
+    from ..mesh import cache as spring_cache
 
     options = {}
     for k in (1, 2):

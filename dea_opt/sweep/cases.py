@@ -12,9 +12,10 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DeaError, InputError, ScenarioError
+from ..mesh import cache as spring_cache
 from ..scenario import check_kinematics_method, parse_scenario, parse_set
 from ..status import RunStatus
-from . import journal, spring_cache
+from . import journal
 from .keys import ContentKey, FileHashes, content_key
 
 __all__ = [
@@ -36,7 +37,7 @@ __all__ = [
 #: a worker hashes the meshes of its first case only.
 _HASHES = FileHashes()
 
-#: Where a sweep's workers share their spring casts (:mod:`dea_opt.sweep.spring_cache`).
+#: Where a sweep's workers share their spring casts (:mod:`dea_opt.mesh.cache`).
 SPRING_CACHE = ".sweep/springs"
 
 #: Every status a case's row can have: a run's (:class:`~dea_opt.status.RunStatus`: ``ok``,
