@@ -48,7 +48,7 @@ def run(method: str, problem, loads, options: dict | None = None, label: str | N
             break  # repeats are for short paths only
     wall = min(walls)
     table = result.table
-    first = table["solve_time"].iloc[0] + table["build_time"].iloc[0]
+    first = table["solve_time_s"].iloc[0] + table["build_time_s"].iloc[0]
     row = {
         "method": label or method,
         "n_springs": len(problem.layer),
@@ -56,9 +56,9 @@ def run(method: str, problem, loads, options: dict | None = None, label: str | N
         "wall_s": wall,
         "wall_first_s": walls[0],
         "repeats": len(walls),
-        "solve_s": table["solve_time"].sum(),
+        "solve_s": table["solve_time_s"].sum(),
         "first_frame_s": first,
-        "later_frame_mean_s": table["solve_time"].iloc[1:].mean(),
+        "later_frame_mean_s": table["solve_time_s"].iloc[1:].mean(),
         "iterations": int(table["iterations"].sum()),
         "success": result.success,
     }
@@ -66,7 +66,7 @@ def run(method: str, problem, loads, options: dict | None = None, label: str | N
         # Clarabel's own time per frame, from a fresh path with the solutions kept.
         kept = dea.solve_path(problem, loads.iloc[:11], method="qp", **options)
         own = np.array([s.info.get("solver_time", np.nan) for s in kept.solutions[1:]])
-        per_frame = kept.table["solve_time"].iloc[1:].to_numpy()
+        per_frame = kept.table["solve_time_s"].iloc[1:].to_numpy()
         row["overhead_ratio"] = float(np.mean(per_frame / own))
     return row
 

@@ -154,7 +154,7 @@ def sweep(scenario: str, out: str, cases: int, workers: int) -> dict:
     result = run_sweep(scenario, [f"law.H={_values(cases)}"], out, workers=workers, outputs="csv,json")
     wall = time.perf_counter() - start
     table = result.table
-    own = float(table["wall_time"].sum())
+    own = float(table["wall_time_s"].sum())
     return {
         "sweep_s": wall,
         "case_wall_mean_s": own / len(table),

@@ -153,7 +153,7 @@ def gait(args):
     table = result.table
     print(
         f"gait: {len(problem.layer)} springs, {len(table)} frames: {wall:.3f} s in all; Newton's own solve time "
-        f"{table['solve_time'].sum():.3f} s, {int(table['iterations'].sum())} iterations"
+        f"{table['solve_time_s'].sum():.3f} s, {int(table['iterations'].sum())} iterations"
     )
     _profile(
         lambda: dea.solve_path(problem, loads, method="newton", outputs=dea.PathOutputs(keep_solutions=False)), top=30

@@ -7,7 +7,7 @@ tension positive), ``f^rep_i`` the forces the formulation reported, ``q = G_free
 generalized spring force on the free dofs and ``r`` the load there (N; N mm for rotations),
 ``L_j`` 1 for a translation and the layer's radius about the body's reference for a
 rotation (mm), every force residual is relative to one force scale, what is in equilibrium at
-the answer:
+the answer::
 
     F = max_j |r_j| / L_j        (under a load)
     F = sum_i |f_i|              (without one)

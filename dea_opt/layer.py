@@ -85,6 +85,8 @@ class SpringLayer:
     target_points: np.ndarray | None = None
     target_normals: np.ndarray | None = None
     target_faces: np.ndarray | None = None
+    #: The cast these springs came from (:attr:`cast`); set by the cast, not a field.
+    _cast = None
 
     def __post_init__(self):
         points = as_float_array("points", self.points, (None, 3))
@@ -186,6 +188,16 @@ class SpringLayer:
         return layer
 
     @property
+    def cast(self):
+        """The :class:`~dea_opt.mesh.SpringCast` whose rays made these springs
+        (:func:`~dea_opt.mesh.springs_from_meshes`, ``cast_springs(...).layer``, and a subset of
+        either), else None. With
+        ``kinematics="finite"`` and no ``targets``, a layer that is its cast's own is re-cast from
+        it as body 2 moves, and a subset's tangent planes are measured against its meshes (the
+        ``gap_error`` validity check)."""
+        return self._cast
+
+    @property
     def has_targets(self) -> bool:
         """Whether the springs know their targets on mesh 2 (layers cast from meshes)."""
         return self.target_points is not None
@@ -212,7 +224,7 @@ class SpringLayer:
         def take(arr):
             return None if arr is None else np.asarray(arr)[index]
 
-        return SpringLayer(
+        subset = SpringLayer(
             self.points[index],
             self.normals[index],
             self.areas[index],
@@ -225,6 +237,9 @@ class SpringLayer:
             target_normals=take(self.target_normals),
             target_faces=take(self.target_faces),
         )
+        if self._cast is not None:  # its springs came from the same meshes
+            object.__setattr__(subset, "_cast", self._cast)
+        return subset
 
     @staticmethod
     def concatenate(layers, labels=None) -> SpringLayer:

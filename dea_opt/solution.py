@@ -236,27 +236,32 @@ class Solution:
         return {DOF_NAMES[i]: float(reaction[i]) for i in held}
 
     def summary(self) -> dict:
-        """The headline numbers as plain Python values (for tables and JSON)."""
+        """The headline numbers as plain Python values (for tables and JSON), each name ending with
+        its unit (:mod:`dea_opt.units`): ``peak_pressure_MPa``, ``contact_area_mm2``, ...; ``u`` the
+        motion of every dof (``body2_uz_mm``, ``body2_rx_rad``), ``reactions`` the generalized force
+        of every held dof (``body1_ux_N``, ``body1_rx_Nmm``)."""
+        from .units import dof_name
+
         return {
             "method": self.method,
             "success": self.success,
             "status": self.status,
             "law": self.problem.law.describe(),
             "n_springs": len(self.pressure),
-            "peak_pressure": self.peak_pressure,
-            "mean_pressure": self.mean_pressure,
-            "contact_area": self.contact_area,
-            "center_of_pressure": self.center_of_pressure.tolist(),
-            "contact_force": self.contact_force.tolist(),
-            "contact_moment": self.contact_moment.tolist(),
+            "peak_pressure_MPa": self.peak_pressure,
+            "mean_pressure_MPa": self.mean_pressure,
+            "contact_area_mm2": self.contact_area,
+            "center_of_pressure_mm": self.center_of_pressure.tolist(),
+            "contact_force_N": self.contact_force.tolist(),
+            "contact_moment_Nmm": self.contact_moment.tolist(),
             "max_compressive_strain": self.max_compressive_strain,
-            "u": self.u.tolist(),
+            "u": {dof_name(name): float(value) for name, value in zip(DOF_NAMES, self.u)},
             "iterations": self.iterations,
-            "build_time": self.build_time,
-            "solve_time": self.solve_time,
+            "build_time_s": self.build_time,
+            "solve_time_s": self.solve_time,
             "certificate": self.certificate.as_dict(),
             "validity": self.validity.as_dict(),
-            "reactions": self.reactions,
+            "reactions": {dof_name(name, "force"): value for name, value in self.reactions.items()},
         }
 
     def __repr__(self) -> str:

@@ -314,7 +314,7 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
             method,
             certificate_tol=certificate_tol,
             strict=strict,
-            load_checks=(loadcheck.check_unresisted, loadcheck.check_cone),
+            unresisted=loadcheck.check_unresisted,
             **options,
         )
     with single_threaded_blas():

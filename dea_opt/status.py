@@ -79,19 +79,17 @@ _DESCRIPTIONS = {
     Status.INACCURATE: "the solver stopped at an answer it doubts (Clarabel's AlmostSolved, cvxpy's "
     "optimal_inaccurate, IPOPT's acceptable level), or claimed one that fails dea-opt's certificate",
     Status.MAX_ITERATIONS: "the iteration (or time) limit was reached before convergence; for finite kinematics "
-    "also: the springs still changed at the last update max_recasts allows",
+    "also: the springs still changed at the last update max_recasts allows, or the solve did not converge where "
+    "its iterates met crushed springs or ran away, which proves nothing about the load (info['unproved'])",
     Status.LINE_SEARCH_FAILED: "no step along the search direction decreased the energy enough (Newton's line "
     "search, IPOPT's failed restoration)",
     Status.STALLED: "no descent direction, or a search direction too small to make progress",
     Status.CRUSHED: "springs reach a strain of -1 (crushed through their thickness) before the load is carried: "
-    "the load is beyond what the layer can bear",
+    "the load is beyond what the layer can bear (for finite kinematics proved: every spring the layer can have, "
+    "crushed to strain -1, carries less than the load along a balance that holds at every pose)",
     Status.INFEASIBLE: "the solver found its problem infeasible",
-    Status.UNBOUNDED: "the solver found its problem unbounded (its iterates diverged); for finite kinematics, Newton found "
-    "the energy decreasing without bound along its direction (checked over a whole turn): the load turns "
-    "or slides body 2 along a motion no spring resists (a sphere turning about its own centre), or its "
-    "iterates ran away (a turn past 180 deg, a slide past 4 times the layer's radius): no stable "
-    "equilibrium near the start carries the load (a torsion past the largest a knee's surfaces hold; "
-    "IPOPT may find an unstable one, which fails the stability check); auto does not run IPOPT then",
+    Status.UNBOUNDED: "the solver found its problem unbounded (its iterates diverged); not given with finite "
+    "kinematics, where iterates that ran away prove nothing about the load (max_iterations)",
     Status.NON_FINITE: "a NaN or an infinity: in the data bound for compiled code (never passed on) or from the law",
     Status.SOLVER_ERROR: "the solver failed or raised without an answer",
     Status.NOT_SUPPORTED: "compression-only springs cannot carry the load: a load path's frame or a study's row "

@@ -185,7 +185,7 @@ def _run_one(problem, accuracy, method, solver, variant_options, repeat, referen
             "agrees": False,
             "status": Status.of_error(exc),
             "message": str(exc).splitlines()[0][:200],
-            "total_time": elapsed,
+            "total_time_s": elapsed,
         }
     certificate = solution.certificate
     dp, du = _difference(solution, reference)
@@ -200,10 +200,10 @@ def _run_one(problem, accuracy, method, solver, variant_options, repeat, referen
         "agrees": agrees,
         "status": solution.status,
         "message": _verdict(solution, agrees, accuracy, dp, du),
-        "build_time": solution.build_time,
-        "solve_time": solution.solve_time,
-        "total_time": solution.build_time + solution.solve_time,
-        "solver_time": solution.info.get("solver_time", float("nan")),
+        "build_time_s": solution.build_time,
+        "solve_time_s": solution.solve_time,
+        "total_time_s": solution.build_time + solution.solve_time,
+        "solver_time_s": solution.info.get("solver_time_s", float("nan")),
         "iterations": solution.iterations,
         "equilibrium": certificate.equilibrium,
         "tension": certificate.tension,
@@ -212,8 +212,8 @@ def _run_one(problem, accuracy, method, solver, variant_options, repeat, referen
         "energy": certificate.energy,
         "worst_residual": worst,
         "worst_name": worst_name,
-        "peak_pressure": solution.peak_pressure,
-        "contact_area": solution.contact_area,
+        "peak_pressure_MPa": solution.peak_pressure,
+        "contact_area_mm2": solution.contact_area,
         "d_pressure": dp,
         "d_displacement": du,
     }
@@ -248,8 +248,8 @@ class StudyResult:
     table : pandas.DataFrame
         One row per run (see :func:`run_study` for the columns).
     summary : pandas.DataFrame
-        Per accuracy, method and solver: ``runs``, ``success_rate`` (%),
-        ``shifted_gm_time`` (s), ``relative_time`` (1 = fastest at that accuracy),
+        Per accuracy, method and solver: ``runs``, ``success_rate_percent``,
+        ``shifted_gm_time_s``, ``relative_time`` (1 = fastest at that accuracy),
         ``worst_residual``, ``max_d_pressure``.
     reference : Solution or None
         The default formulation's (Newton's) solution differences are measured against.
@@ -290,7 +290,7 @@ class StudyResult:
             "success",
             "status",
             "iterations",
-            "total_time",
+            "total_time_s",
             "worst_residual",
             "d_pressure",
             "d_displacement",
@@ -314,8 +314,8 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
             columns=[
                 *keys,
                 "runs",
-                "success_rate",
-                "shifted_gm_time",
+                "success_rate_percent",
+                "shifted_gm_time_s",
                 "relative_time",
                 "worst_residual",
                 "max_d_pressure",
@@ -323,23 +323,23 @@ def summarize(table, time_limit: float = TIME_LIMIT, shift: float = SHIFT):
         )
     for (accuracy, method, solver), group in table.groupby(keys, sort=False):
         success = group["success"].astype(bool)
-        times = np.where(success, group["total_time"].astype(float), time_limit)
+        times = np.where(success, group["total_time_s"].astype(float), time_limit)
         rows.append(
             {
                 "accuracy": accuracy,
                 "method": method,
                 "solver": solver,
                 "runs": len(group),
-                "success_rate": 100.0 * success.mean(),
-                "shifted_gm_time": shifted_geometric_mean(times, shift),
+                "success_rate_percent": 100.0 * success.mean(),
+                "shifted_gm_time_s": shifted_geometric_mean(times, shift),
                 "worst_residual": float(group.get("worst_residual", pd.Series([math.nan])).max()),
                 "max_d_pressure": float(group.get("d_pressure", pd.Series([math.nan])).max()),
             }
         )
     summary = pd.DataFrame(rows)
     if len(summary):
-        fastest = summary.groupby("accuracy")["shifted_gm_time"].transform("min")
-        summary.insert(6, "relative_time", summary["shifted_gm_time"] / fastest)
+        fastest = summary.groupby("accuracy")["shifted_gm_time_s"].transform("min")
+        summary.insert(6, "relative_time", summary["shifted_gm_time_s"] / fastest)
     return summary
 
 
@@ -387,10 +387,10 @@ def run_study(
     -------
     StudyResult
         ``table`` columns: accuracy, method, solver, repeat, check_tol, solver_tol,
-        success, solver_success, certified, agrees, status, message, build_time,
-        solve_time, total_time, solver_time (s), iterations, the certificate's
+        success, solver_success, certified, agrees, status, message, build_time_s,
+        solve_time_s, total_time_s, solver_time_s, iterations, the certificate's
         equilibrium, tension, complementarity, consistency, energy, worst_residual and
-        worst_name, peak_pressure (MPa), contact_area (mm^2), d_pressure and
+        worst_name, peak_pressure_MPa, contact_area_mm2, d_pressure and
         d_displacement (relative differences from the Newton reference).
 
     Raises

@@ -164,7 +164,7 @@ def closed_form_table(result, H: float = H_DEFAULT, coverage: float = HIP["cover
     rim = polar >= polar.max() - 1e-9
     rows = []
     for k, solution in enumerate(result.solutions):
-        load = result.table.loc[k, ["Fx", "Fy", "Fz"]].to_numpy(dtype=float)
+        load = result.table.loc[k, ["Fx_N", "Fy_N", "Fz_N"]].to_numpy(dtype=float)
         force = float(np.linalg.norm(load))
         direction = load / force
         cf = ball_in_socket(force, H=H, radius=radius, thickness=thickness, gap=gap)
@@ -237,7 +237,7 @@ def run(
 def report(result: dict) -> str:
     """A few lines for the terminal, every number from ``result``."""
     s, table, closed = result["summary"], result["path"].table, result["closed_form"]
-    cycle = float(table["time"].iloc[-1] - table["time"].iloc[0])
+    cycle = float(table["time_s"].iloc[-1] - table["time_s"].iloc[0])
     exposure = s["exposure"]
     # Where the closed form holds: its contact cap lies inside the rim, and no spring of the
     # outermost ring (whose centre sits half a ring inside the rim) is touched either.
@@ -245,14 +245,14 @@ def report(result: dict) -> str:
     lines = [
         f"{s['frames']} frames, {s['n_springs']} springs, {s['law']}, method {s['method']}: "
         f"{'every frame certified' if s['success'] else 'failed frames ' + str(s['failed_frames'])}",
-        f"peak pressure {s['peak_pressure']:.4g} MPa at {s['peak_time']:.3g} s "
-        f"({100 * s['peak_time'] / cycle:.0f} % of the cycle), under {table['resultant'].max():.4g} N",
-        f"contact area {table['contact_area'].min():.4g} to {s['max_contact_area']:.4g} mm^2; "
+        f"peak pressure {s['peak_pressure_MPa']:.4g} MPa at {s['peak_time_s']:.3g} s "
+        f"({100 * s['peak_time_s'] / cycle:.0f} % of the cycle), under {table['resultant_N'].max():.4g} N",
+        f"contact area {table['contact_area_mm2'].min():.4g} to {s['max_contact_area_mm2']:.4g} mm^2; "
         f"largest compressive strain {s['max_compressive_strain']:.3f}",
-        f"exposure: up to {exposure['max_pressure_time_integral']:.3g} MPa s, "
-        f"{exposure['max_time_above_threshold']:.3g} s above {exposure['threshold']:g} MPa "
+        f"exposure: up to {exposure['max_pressure_time_integral_MPa_s']:.3g} MPa s, "
+        f"{exposure['max_time_above_threshold_s']:.3g} s above {exposure['threshold_MPa']:g} MPa "
         f"({exposure['sites_above_threshold']} springs ever above it)",
-        f"solving: {s['solve_time_total']:.2f} s, {s['iterations_mean']:.1f} solver iterations a frame",
+        f"solving: {s['solve_time_total_s']:.2f} s, {s['iterations_mean']:.1f} solver iterations a frame",
     ]
     if len(inside):
         lines.append(

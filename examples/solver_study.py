@@ -35,7 +35,7 @@ into ``--out`` (default ``examples/output/solver_study/``), and prints the summa
 
 Times are wall-clock seconds of the whole :func:`dea_opt.solve` call (model building, the
 load-support check the constrained methods run first, the solve and the certificate), the
-best of the repeats; ``build_time`` and ``solve_time`` are what the formulation reports.
+best of the repeats; ``build_time_s`` and ``solve_time_s`` are what the formulation reports.
 Every method is run once on a small problem first (not with ``--coarse``), so that imports and
 first-call set-up do not land in the smallest size. With Eq. (2), IPOPT's trial steps in the
 reduced form may crush a spring; CasADi then prints "NaN detected for output f" and IPOPT
@@ -176,7 +176,7 @@ def run_case(problem: dea_opt.ContactProblem, case: dict, reference, repeat: int
                 "status": "error",
                 "message": str(exc)[:200],
                 "wall_time": wall,
-                "total_time": wall,
+                "total_time_s": wall,
             }
     wall = time.perf_counter() - start
     dp, du = _difference(s, reference)
@@ -203,14 +203,14 @@ def run_case(problem: dea_opt.ContactProblem, case: dict, reference, repeat: int
         "status": s.status,
         "message": message,
         "wall_time": wall,
-        "build_time": s.build_time,
-        "solve_time": s.solve_time,
-        "total_time": s.build_time + s.solve_time,
+        "build_time_s": s.build_time,
+        "solve_time_s": s.solve_time,
+        "total_time_s": s.build_time + s.solve_time,
         "iterations": s.iterations,
         "worst_residual": worst,
         "worst_name": name,
-        "peak_pressure": s.peak_pressure,
-        "contact_area": s.contact_area,
+        "peak_pressure_MPa": s.peak_pressure,
+        "contact_area_mm2": s.contact_area,
         "d_pressure": dp,
         "d_displacement": du,
     }
@@ -247,7 +247,7 @@ def run_study(
     pandas.DataFrame
         ``law, n_target, n_springs, n_rings, n_sectors, label, method, solver, repeat,
         success, solver_success, certified, agrees, status, message, wall_time,
-        build_time, solve_time, total_time`` (s), ``iterations, worst_residual, worst_name,
+        build_time_s, solve_time_s, total_time_s``, ``iterations, worst_residual, worst_name,
         peak_pressure`` (MPa), ``contact_area`` (mm^2), ``d_pressure, d_displacement``
         (relative differences from the Newton reference), plus ``accuracy`` ("default") and
         ``check_tol`` for :func:`dea_opt.study.summarize`.
@@ -314,10 +314,10 @@ def summary_table(table: pd.DataFrame) -> pd.DataFrame:
                     "method": key[0],
                     "solver": key[1],
                     "runs": len(runs),
-                    "success_rate": float(sgm.loc[key, "success_rate"]),
+                    "success_rate_percent": float(sgm.loc[key, "success_rate_percent"]),
                     "best_time": float(ok["wall_time"].min()) if len(ok) else float("nan"),
-                    "sgm_time": float(sgm.loc[key, "shifted_gm_time"]),
-                    "formulation_time": float(ok["total_time"].min()) if len(ok) else float("nan"),
+                    "sgm_time": float(sgm.loc[key, "shifted_gm_time_s"]),
+                    "formulation_time": float(ok["total_time_s"].min()) if len(ok) else float("nan"),
                     "iterations": int(runs["iterations"].max()) if "iterations" in runs else -1,
                     "d_pressure": float(runs["d_pressure"].max()),
                     "worst_residual": float(runs["worst_residual"].max()),
@@ -377,7 +377,7 @@ def plot_study(summary: pd.DataFrame):
         for label, g in rows.groupby("label", sort=False):
             colour, marker, ls = _STYLE.get(label, ("0.4", ".", ":"))
             ax.plot(g["n_springs"], g["best_time"], ls=ls, marker=marker, color=colour, label=label, ms=5)
-            failed = g[g["success_rate"] < 100]
+            failed = g[g["success_rate_percent"] < 100]
             if len(failed):
                 ax.plot(failed["n_springs"], failed["sgm_time"], "x", color=colour, ms=9)
             if label != "newton":  # Newton is the reference: its difference is zero by definition
@@ -473,9 +473,9 @@ def summary_markdown(
             k = exponents[(exponents["law"] == law) & (exponents["label"] == label)]["exponent"]
             lines.append(
                 f"| {label} | {times} | {k.iloc[0]:.2f} | {g['d_pressure'].max():.1e} | "
-                f"{g['success_rate'].mean():.0f} % |"
+                f"{g['success_rate_percent'].mean():.0f} % |"
                 if len(k)
-                else f"| {label} | {times} | - | {g['d_pressure'].max():.1e} | {g['success_rate'].mean():.0f} % |"
+                else f"| {label} | {times} | - | {g['d_pressure'].max():.1e} | {g['success_rate_percent'].mean():.0f} % |"
             )
         lines.append("")
     return "\n".join(lines)

@@ -237,6 +237,42 @@ class Browser:
         finally:
             self.call("Target.closeTarget", {"targetId": target})
 
+    def element_screenshot(self, url: str, selector: str, path: Path, until: str, timeout: float = 60.0) -> dict:
+        """Open ``url``, wait until the JavaScript ``until`` is true, then write a PNG of the element
+        ``selector`` (scrolled into view) to ``path``; returns its box ``{x, y, width, height}``."""
+        target = self.call("Target.createTarget", {"url": url})["targetId"]
+        session = self.call("Target.attachToTarget", {"targetId": target, "flatten": True})["sessionId"]
+        deadline = time.monotonic() + timeout
+        try:
+            while True:
+                done = self.call(
+                    "Runtime.evaluate", {"expression": f"!!({until})", "returnByValue": True}, session=session
+                )
+                if done.get("result", {}).get("value"):
+                    break
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f"{until} did not come true within {timeout} s on {url}")
+                self._pump(0.25)
+            self._pump(1.0)  # the first frames of a WebGL view
+            where = (
+                f"(() => {{ const e = document.querySelector({json.dumps(selector)}); e.scrollIntoView(); "
+                "const r = e.getBoundingClientRect(); return {x: r.x + window.scrollX, y: r.y + window.scrollY, "
+                "width: r.width, height: r.height}; })()"
+            )
+            box = self.call("Runtime.evaluate", {"expression": where, "returnByValue": True}, session=session)[
+                "result"
+            ]["value"]
+            self._pump(0.5)
+            shot = self.call(
+                "Page.captureScreenshot",
+                {"format": "png", "clip": {**box, "scale": 1}, "captureBeyondViewport": True},
+                session=session,
+            )["data"]
+            Path(path).write_bytes(base64.b64decode(shot))
+            return box
+        finally:
+            self.call("Target.closeTarget", {"targetId": target})
+
     def close(self) -> None:
         try:
             self.call("Browser.close", timeout=10.0)

@@ -79,13 +79,40 @@ def _scale(solution, name) -> float:
     return max(total, 1e-300)
 
 
+def _loads_at_pose(solution) -> dict:
+    """``{body: [force, moment about its reference where it is]}`` of every load at the solved pose:
+    a body's own force and moment, and each BodyLoad with its point moved by the body's pose and, in
+    the body frame, its components turned."""
+    joint = solution.joint
+    out = {}
+    for name, body in joint.bodies.items():
+        T = solution.bodies[name].pose
+        out[name] = [
+            np.array(body.force, dtype=float),
+            np.array(body.moment, dtype=float),
+            T[:3, :3] @ body.reference + T[:3, 3],
+        ]
+    for load in joint.loads:
+        T = solution.bodies[load.body].pose
+        R, t = T[:3, :3], T[:3, 3]
+        point = np.asarray(joint.bodies[load.body].reference if load.point is None else load.point, dtype=float)
+        F, M = np.array(load.force, dtype=float), np.array(load.moment, dtype=float)
+        if load.frame == "body":
+            F, M = R @ F, R @ M
+        ref = out[load.body][2]
+        out[load.body][0] += F
+        out[load.body][1] += M + np.cross(R @ point + t - ref, F)
+    return out
+
+
 def net_wrench_at_pose(solution) -> dict:
     """Finite kinematics: ``{body: (force, moment about its reference where it is)}`` of loads and
     element forces at the solved pose: each layer's springs where its answer puts them (world
-    frame), each bundle along its line between its insertions there."""
+    frame), each bundle along its line between its insertions there, each spring along the line
+    between its ends moved by the poses, every load moved with its body."""
     joint = solution.joint
-    refs = {n: np.asarray(b.reference, dtype=float) + solution.bodies[n].u[:3] for n, b in joint.bodies.items()}
-    out = {n: [np.array(b.force, dtype=float), np.array(b.moment, dtype=float)] for n, b in joint.bodies.items()}
+    out = _loads_at_pose(solution)
+    refs = {n: v[2] for n, v in out.items()}
     for contact, layer_solution in zip(joint.contacts, solution.contacts):
         layer = layer_solution.problem.layer
         push = (layer_solution.pressure * layer.areas)[:, None] * layer.normals
@@ -93,27 +120,43 @@ def net_wrench_at_pose(solution) -> dict:
             out[name][0] += sign * push.sum(axis=0)
             out[name][1] += sign * np.cross(layer.points - refs[name], push).sum(axis=0)
     ligaments = solution.ligaments
-    for i, lig in enumerate(joint.ligaments):
-        p1, p2 = ligaments.point1[i], ligaments.point2[i]
+    ends = [
+        (lig, ligaments.point1[i], ligaments.point2[i], float(ligaments.force[i]))
+        for i, lig in enumerate(joint.ligaments)
+    ]
+    rows = [r for r in solution.elastic if r["kind"] == "spring"]
+    for spring, row in zip(joint.springs, rows):
+        T1, T2 = solution.bodies[spring.body1].pose, solution.bodies[spring.body2].pose
+        p1 = T1[:3, :3] @ np.asarray(spring.point1) + T1[:3, 3]
+        p2 = T2[:3, :3] @ np.asarray(spring.point2) + T2[:3, 3]
+        ends.append((spring, p1, p2, float(row["force_N"])))
+    for element, p1, p2, f in ends:
         e = (p2 - p1) / np.linalg.norm(p2 - p1)
-        f = float(ligaments.force[i])
-        out[lig.body1][0] += f * e
-        out[lig.body1][1] += f * np.cross(p1 - refs[lig.body1], e)
-        out[lig.body2][0] -= f * e
-        out[lig.body2][1] -= f * np.cross(p2 - refs[lig.body2], e)
+        out[element.body1][0] += f * e
+        out[element.body1][1] += f * np.cross(p1 - refs[element.body1], e)
+        out[element.body2][0] -= f * e
+        out[element.body2][1] -= f * np.cross(p2 - refs[element.body2], e)
+    assert not joint.bushings, "the sums here leave bushings out"
     return {name: (v[0], v[1]) for name, v in out.items()}
 
 
-def assert_balanced_at_pose(solution, tol):
+def assert_balanced_at_pose(solution, tol, twists=None):
     """Finite kinematics: on every body, the net force along each free translation, and the net
     moment where all three rotations are free, at most ``tol`` of the forces on the joint (moments
-    over 30 mm)."""
+    over 30 mm). ``twists`` ``{body: {dof: (v (3,), w (3,))}}`` gives, for a body whose coordinates
+    are not world axes, each free coordinate's velocity of its reference and angular velocity: there
+    the net generalized force ``F . v + M . w`` on each (moments over 30 mm) is checked instead."""
     wrench = net_wrench_at_pose(solution)
     scale = max(1.0, float(np.abs(solution.ligaments.force).sum()) if len(solution.ligaments) else 1.0)
     scale = max([scale] + [float((c.pressure * c.problem.layer.areas).sum()) for c in solution.contacts])
     for name, body in solution.joint.bodies.items():
         force, moment = wrench[name]
         scale_b = max(scale, float(np.abs(body.force).max()))
+        if twists is not None and name in twists:
+            for dof, (v, w) in twists[name].items():
+                arm = 1.0 if dof[0] == "u" else 30.0
+                assert abs(force @ v + moment @ w) <= tol * scale_b * arm, (name, dof, force @ v + moment @ w)
+            continue
         for j, dof in enumerate(("ux", "uy", "uz")):
             if dof in body.free:
                 assert abs(force[j]) <= tol * scale_b, (name, dof, force)

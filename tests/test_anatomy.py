@@ -145,13 +145,13 @@ def test_summary_gives_centres_of_pressure_in_the_anatomical_frame(tmp_path):
     cop = solution.center_of_pressure - origin
     assert abs(cop[1]) > 0.5  # the moment about x moves it off the axis
     assert summary["center_of_pressure_anatomical"] == pytest.approx(
-        {"medial": -cop[0], "anterior": cop[1], "proximal": cop[2]}, abs=1e-12
+        {"medial_mm": -cop[0], "anterior_mm": cop[1], "proximal_mm": cop[2]}, abs=1e-12
     )
     for name in ("medial", "lateral"):
         mask = layer.labels == name
         weight = solution.pressure[mask] * layer.areas[mask]
         region_cop = weight @ layer.points[mask] / weight.sum() - origin
-        assert summary["regions"][name]["center_of_pressure_anatomical"]["medial"] == pytest.approx(-region_cop[0])
+        assert summary["regions"][name]["center_of_pressure_anatomical"]["medial_mm"] == pytest.approx(-region_cop[0])
     paths = io.write_results(solution, tmp_path, anatomy=anatomy)
     assert paths["png"].read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     assert io.read_json(paths["json"])["anatomy"]["side"] == "right"

@@ -76,10 +76,10 @@ def knee_problem():
 def test_synthetic_recovery_on_the_real_knee(knee_problem, tmp_path):
     fit = check_recovery(knee_problem)
     table = fit.residual_map()
-    assert set(table.columns) >= {"x", "y", "z", "measured", "predicted", "state", "residual"}
+    assert set(table.columns) >= {"x_mm", "y_mm", "z_mm", "measured_MPa", "predicted_MPa", "state", "residual"}
     assert set(table.state) == {"below", "measured", "saturated"}
     # censored points the model agrees with add nothing
-    agree = (table.state == "below") & (table.predicted < 0.5 * FILMS["LLW"].lower)
+    agree = (table.state == "below") & (table.predicted_MPa < 0.5 * FILMS["LLW"].lower)
     assert np.abs(table.residual[agree]).max() < 1e-6
     path = fit.plot(tmp_path / "knee_fit.png")
     assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

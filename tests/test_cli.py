@@ -59,7 +59,7 @@ def test_demo_writes_table_series_plots_and_exposure_map(tmp_path):
     comparison = pd.read_csv(tmp_path / "comparison.csv")
     assert len(comparison) == 5 and comparison["success"].all()
     linear = comparison[comparison["law"].str.startswith("linear")]
-    assert np.allclose(linear["peak_pressure"], linear["peak_pressure"].iloc[0], rtol=1e-6)
+    assert np.allclose(linear["peak_pressure_MPa"], linear["peak_pressure_MPa"].iloc[0], rtol=1e-6)
     frames = pd.read_csv(tmp_path / "frames.csv")
     assert len(frames) == 6 and frames["success"].all()
     datasets = ET.parse(tmp_path / "series.pvd").getroot().find("Collection").findall("DataSet")
@@ -80,7 +80,7 @@ def test_run_plate_springs_reproduces_the_closed_form(tmp_path):
     summary = json.loads((tmp_path / "contact.json").read_text())
     P, B, L, e = 500.0, 40.0, 10.0, 5.0
     closed = P / (B * L) * (1 + 6 * e / B)
-    assert summary["peak_pressure"] == pytest.approx(closed, rel=0.005)
+    assert summary["peak_pressure_MPa"] == pytest.approx(closed, rel=0.005)
     assert summary["n_springs"] == 4000 and summary["success"]
     for name in ("contact.vtu", "contact.csv", "contact.png"):
         assert (tmp_path / name).is_file()
@@ -98,8 +98,8 @@ def test_run_on_a_mesh_scenario_writes_every_output(tmp_path):
     springs = pd.read_csv(tmp_path / "contact.csv", comment="#")
     assert len(springs) == len(mesh.cell_data["pressure"][0])
     summary = json.loads((tmp_path / "contact.json").read_text())
-    assert summary["success"] and summary["peak_pressure"] > 0
-    assert np.allclose(summary["contact_force"], [-820.85, 0.0, 2255.26], rtol=1e-6)
+    assert summary["success"] and summary["peak_pressure_MPa"] > 0
+    assert np.allclose(summary["contact_force_N"], [-820.85, 0.0, 2255.26], rtol=1e-6)
     assert (tmp_path / "contact.png").read_bytes()[:4] == b"\x89PNG"
 
 

@@ -71,8 +71,8 @@ def test_calibrate_writes_the_fit(case):
     assert result.exit_code == 0, (result.stdout, result.stderr)
     out = scenario.parent / "out" / "calibration"
     summary = json.loads((out / "calibration.json").read_text())
-    assert summary["parameters"] == ["H", "beta"] and summary["film"]["upper"] == 0.4
-    for name, true in (("H", 0.6), ("beta", 0.3)):
+    assert summary["parameters"] == ["H", "beta"] and summary["film"]["upper_MPa"] == 0.4
+    for name, true in (("H_MPa", 0.6), ("beta", 0.3)):
         assert abs(summary["values"][name] - true) < 3 * summary["standard_errors"][name]
         assert f"{summary['values'][name]:12.6g}" in result.stdout
     table = pd.read_csv(out / "residuals.csv")
@@ -91,7 +91,7 @@ def test_calibrate_one_parameter_into_a_folder(case, tmp_path):
     )
     assert result.exit_code == 0, result.stderr
     summary = json.loads((tmp_path / "fit" / "calibration.json").read_text())
-    assert summary["parameters"] == ["H"] and summary["values"]["H"] == pytest.approx(0.6, rel=0.01)
+    assert summary["parameters"] == ["H"] and summary["values"]["H_MPa"] == pytest.approx(0.6, rel=0.01)
 
 
 @pytest.mark.parametrize(
@@ -130,16 +130,16 @@ def test_the_standard_errors_say_where_they_come_from(case, tmp_path):
     stated = invoke(*args, "--noise", "0.1", "-o", tmp_path / "stated")
     assert stated.exit_code == 0, stated.stderr
     summary = json.loads((tmp_path / "stated" / "calibration.json").read_text())
-    assert summary["errors"] == "stated" and summary["noise"] == 0.1 and summary["standard_errors"]["H"] > 0
+    assert summary["errors"] == "stated" and summary["noise"] == 0.1 and summary["standard_errors"]["H_MPa"] > 0
     assert "standard errors: from the stated noise" in stated.stdout
     doubled = invoke(*args, "--noise", "0.2", "-o", tmp_path / "doubled")
     assert doubled.exit_code == 0, doubled.stderr
-    se = json.loads((tmp_path / "doubled" / "calibration.json").read_text())["standard_errors"]["H"]
-    assert se == pytest.approx(2.0 * summary["standard_errors"]["H"], rel=1e-6)  # the noise through the slope
+    se = json.loads((tmp_path / "doubled" / "calibration.json").read_text())["standard_errors"]["H_MPa"]
+    assert se == pytest.approx(2.0 * summary["standard_errors"]["H_MPa"], rel=1e-6)  # the noise through the slope
     unstated = invoke(*args, "-o", tmp_path / "unstated")
     assert unstated.exit_code == 0, unstated.stderr
     summary = json.loads((tmp_path / "unstated" / "calibration.json").read_text())
-    assert summary["errors"] == "estimated" and summary["standard_errors"] == {"H": None}
+    assert summary["errors"] == "estimated" and summary["standard_errors"] == {"H_MPa": None}
     assert summary["noise"] is None and "undefined" in summary["notes"][0]
     assert "undefined" in unstated.stdout and "note: the standard errors are undefined" in unstated.stdout
     assert "nan" not in unstated.stdout.lower()
@@ -148,7 +148,7 @@ def test_the_standard_errors_say_where_they_come_from(case, tmp_path):
     )
     assert correlated.exit_code == 0, correlated.stderr
     with_length = json.loads((tmp_path / "c" / "calibration.json").read_text())
-    assert with_length["correlation_length"] == 2.0 and with_length["errors"] == "stated"
+    assert with_length["correlation_length_mm"] == 2.0 and with_length["errors"] == "stated"
     independent = invoke(*args[:3], film, *args[4:], "--noise", "0.05", "-o", tmp_path / "i")
     assert independent.exit_code == 0, independent.stderr
     without = json.loads((tmp_path / "i" / "calibration.json").read_text())
@@ -161,5 +161,5 @@ def test_the_standard_errors_say_where_they_come_from(case, tmp_path):
     data = PressureMap(data.points, data.pressure, noise=0.05, correlation=spatial_correlation(data.points, 2.0))
     problem = build_problem(load_scenario(scenario, {"law.beta": 0.3}))
     fit = calibrate(problem, data, ("H",))
-    assert with_length["standard_errors"]["H"] == pytest.approx(fit.standard_errors["H"], rel=1e-6)
-    assert with_length["standard_errors"]["H"] != pytest.approx(without["standard_errors"]["H"], rel=1e-3)
+    assert with_length["standard_errors"]["H_MPa"] == pytest.approx(fit.standard_errors["H"], rel=1e-6)
+    assert with_length["standard_errors"]["H_MPa"] != pytest.approx(without["standard_errors"]["H_MPa"], rel=1e-3)

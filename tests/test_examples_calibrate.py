@@ -37,17 +37,18 @@ def test_calibrate_from_film_coarse(tmp_path):
     counts = summary["readings"]
     assert counts["below"] == int((film.p <= 0.5).sum()) and counts["saturated"] == int((film.p >= 2.5).sum())
     fit = summary["fit"]
-    assert fit["success"] and fit["start"] == {"H": 10.0, "beta": 1.2}
+    assert fit["success"] and fit["start"] == {"H_MPa": 10.0, "beta": 1.2}  # each named with its unit
     for name, true in example.TRUE.items():
         # a coarse layer (2400 springs) still brings the fit near the truth, within 3 standard errors
-        assert abs(fit["values"][name] - true) < 3 * fit["standard_errors"][name] + 1e-3 * true
+        key = {"H": "H_MPa"}.get(name, name)
+        assert abs(fit["values"][key] - true) < 3 * fit["standard_errors"][key] + 1e-3 * true
     residuals = pd.read_csv(tmp_path / "residuals.csv")
     assert set(residuals.state) <= {"below", "measured", "saturated"} and len(residuals) == len(film)
     within = residuals.state == "measured"
     # a reading within the range: (log predicted - log measured) / noise
     np.testing.assert_allclose(
         residuals.residual[within],
-        np.log(np.hypot(residuals.predicted[within], 5e-4) / residuals.measured[within]) / 0.05,
+        np.log(np.hypot(residuals.predicted_MPa[within], 5e-4) / residuals.measured_MPa[within]) / 0.05,
         rtol=1e-9,
     )
     unc = summary["uncertainty"]

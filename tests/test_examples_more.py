@@ -87,11 +87,11 @@ def test_hip_every_frame_certified_and_balanced(hip):
     for solution, load in zip(path.solutions, loads):
         # Only translations are free: the springs' resultant is exactly minus the load.
         np.testing.assert_allclose(solution.contact_force, -load, rtol=0, atol=1e-6 * np.linalg.norm(load))
-    np.testing.assert_allclose(path.table["resultant"], np.linalg.norm(loads, axis=1), rtol=1e-6)
+    np.testing.assert_allclose(path.table["resultant_N"], np.linalg.norm(loads, axis=1), rtol=1e-6)
     # The peak pressure follows the peak load, in the first hump of stance.
     table = path.table
-    assert table["peak_pressure"].idxmax() == table["resultant"].idxmax()
-    assert table.loc[table["peak_pressure"].idxmax(), "time"] < 0.3
+    assert table["peak_pressure_MPa"].idxmax() == table["resultant_N"].idxmax()
+    assert table.loc[table["peak_pressure_MPa"].idxmax(), "time_s"] < 0.3
 
 
 def test_hip_frames_match_the_ball_in_socket_where_contact_clears_the_rim(hip):
@@ -154,7 +154,7 @@ def test_hip_files(hip):
     _, result, out = hip
     path = result["path"]
     frames = pd.read_csv(out / "frames.csv")
-    np.testing.assert_allclose(frames["peak_pressure"], path.table["peak_pressure"], rtol=1e-12)
+    np.testing.assert_allclose(frames["peak_pressure_MPa"], path.table["peak_pressure_MPa"], rtol=1e-12)
     closed = pd.read_csv(out / "closed_form.csv")
     np.testing.assert_allclose(closed["dev_peak"], result["closed_form"]["dev_peak"], rtol=1e-9, atol=1e-15)
     # The ParaView series: one existing .vtu per frame, at the frame times.
@@ -175,7 +175,7 @@ def test_hip_files(hip):
     for name in ("cycle.png", "exposure.png"):
         assert (out / name).read_bytes()[:8] == PNG
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["peak_pressure"] == pytest.approx(path.table["peak_pressure"].max())
+    assert summary["peak_pressure_MPa"] == pytest.approx(path.table["peak_pressure_MPa"].max())
     assert not list(out.glob(".*.tmp*")), "a temporary file was left behind"
 
 
@@ -367,8 +367,8 @@ def test_study_rows_agree_with_newton(study):
             warnings.simplefilter("ignore", d.ValidityWarning)
             s = d.solve(problem, "newton")
         np.testing.assert_allclose(s.contact_force, -module.peak_force(), atol=1e-6 * module.PEAK_LOAD)
-        np.testing.assert_allclose(rows["peak_pressure"], s.peak_pressure, rtol=1e-6)
-        np.testing.assert_allclose(rows["contact_area"], s.contact_area, rtol=1e-9)
+        np.testing.assert_allclose(rows["peak_pressure_MPa"], s.peak_pressure, rtol=1e-6)
+        np.testing.assert_allclose(rows["contact_area_mm2"], s.contact_area, rtol=1e-9)
 
 
 def test_study_load_and_grid(study):
@@ -390,7 +390,7 @@ def test_study_files_and_summary(study):
     for row in summary.itertuples(index=False):
         runs = table[(table["law"] == row.law) & (table["n_springs"] == row.n_springs) & (table["label"] == row.label)]
         assert row.best_time == pytest.approx(runs["wall_time"].min(), rel=1e-12)
-        assert row.success_rate == 100.0
+        assert row.success_rate_percent == 100.0
     assert (summary[summary["label"] == "newton"]["relative"] == 1.0).all()
     assert (out / "solver_study.png").read_bytes()[:8] == PNG
     assert (out / "solver_study.md").read_text() == result["markdown"]

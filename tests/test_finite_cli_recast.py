@@ -59,9 +59,9 @@ def check_recast_report(recast: dict, solution_force) -> None:
     # the frame solved once more for the re-cast is the written one: to 1e-5 along the fixed dofs,
     # where the springs kept up to date along the path may differ from a cold solve's at the margin
     scale = np.linalg.norm(solution_force)
-    np.testing.assert_allclose(recast["solution_force"], solution_force, rtol=0, atol=1e-4 * scale)
-    difference = np.subtract(recast["force"], recast["solution_force"])
-    error = np.linalg.norm(difference) / np.linalg.norm(recast["solution_force"])
+    np.testing.assert_allclose(recast["solution_force_N"], solution_force, rtol=0, atol=1e-4 * scale)
+    difference = np.subtract(recast["force_N"], recast["solution_force_N"])
+    error = np.linalg.norm(difference) / np.linalg.norm(recast["solution_force_N"])
     assert recast["force_error"] == pytest.approx(error, rel=1e-9, abs=1e-15) and error < 0.01
 
 
@@ -82,9 +82,9 @@ def check_peak_frame(out, stdout: str, loads) -> tuple[int, dict]:
     summary = json.loads((out / "summary.json").read_text())
     frames = pd.read_csv(out / "frames.csv")
     assert frames["success"].all() and frames["valid"].all()
-    k = int(frames["peak_pressure"].idxmax())
+    k = int(frames["peak_pressure_MPa"].idxmax())
     recast = summary["recast"]
-    assert recast["frame"] == k == summary["peak_frame"] and recast["time"] == pytest.approx(frames.loc[k, "time"])
+    assert recast["frame"] == k == summary["peak_frame"] and recast["time_s"] == pytest.approx(frames.loc[k, "time_s"])
     # every finite frame counts what its own updates dropped; the peak frame's is the whole re-cast's
     assert frames.loc[k, "validity_dropped_springs"] == recast["dropped"] == 0
     assert f"re-cast at the solved pose of the peak frame {k}: " in stdout
@@ -92,8 +92,8 @@ def check_peak_frame(out, stdout: str, loads) -> tuple[int, dict]:
     own = written_force(cells)
     check_recast_report(recast, own)
     fz, my = loads[k]
-    assert own[2] == pytest.approx(-fz, rel=1e-9) and recast["solution_force"][2] == pytest.approx(-fz, rel=1e-9)
-    assert recast["solution_moment"][1] == pytest.approx(-my, abs=1e-6)
+    assert own[2] == pytest.approx(-fz, rel=1e-9) and recast["solution_force_N"][2] == pytest.approx(-fz, rel=1e-9)
+    assert recast["solution_moment_Nmm"][1] == pytest.approx(-my, abs=1e-6)
     return k, summary
 
 
@@ -101,11 +101,11 @@ def check_fresh_cast(recast, solution, frames_row, mesh1, mesh2, **options) -> N
     """The re-cast force is what a fresh cast at the frame's solved pose carries (computed here
     with a window wide enough to drop nothing), for the answer ``dea-opt run`` wrote."""
     # (to 1e-4: springs kept up to date along the path and a cold solve's differ within recast_shift)
-    assert solution.success and solution.peak_pressure == pytest.approx(frames_row["peak_pressure"], rel=1e-4)
+    assert solution.success and solution.peak_pressure == pytest.approx(frames_row["peak_pressure_MPa"], rel=1e-4)
     fresh = M.cast_springs(mesh1, mesh2, pose=solution.pose, **options)
     assert fresh.dropped.counts["overlap"] == 0 and fresh.dropped.counts["through_layer"] == 0
     assert len(fresh.layer) == recast["springs"]
-    np.testing.assert_allclose(recast["force"], law_force(fresh.layer), rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(recast["force_N"], law_force(fresh.layer), rtol=1e-9, atol=1e-6)
 
 
 # --- a load path with prescribed poses (generated knee: no data needed) -----------------------------
@@ -188,7 +188,7 @@ def test_a_finite_run_with_regions_recasts_with_their_labels_and_the_regions_add
         assert re.search(rf"region {name}: [\d.]+% of the contact force \([\d.]+ N of [\d.]+ N along it", result.stdout)
     summary = json.loads((folder / "static" / "contact.json").read_text())
     springs = pd.read_csv(folder / "static" / "contact.csv", comment="#")
-    cells = {"pressure": springs["pressure"], "area": springs["area"], "normal": springs[["nx", "ny", "nz"]]}
+    cells = {"pressure": springs["pressure_MPa"], "area": springs["area_mm2"], "normal": springs[["nx", "ny", "nz"]]}
     own = written_force(cells)
     assert own[2] == pytest.approx(1000.0, rel=1e-9)
     check_recast_report(summary["recast"], own)
@@ -196,18 +196,18 @@ def test_a_finite_run_with_regions_recasts_with_their_labels_and_the_regions_add
     # the re-cast force is a fresh cast's at the written pose, labelled by the same cut
     fresh = M.cast_springs(knee["mesh1"], knee["mesh2"], max_gap=2.0, max_overlap=2.0, pose=np.array(summary["pose"]))
     assert fresh.dropped.counts["overlap"] == 0 and len(fresh.layer) == summary["recast"]["springs"]
-    np.testing.assert_allclose(summary["recast"]["force"], law_force(fresh.layer), rtol=1e-9, atol=1e-6)
+    np.testing.assert_allclose(summary["recast"]["force_N"], law_force(fresh.layer), rtol=1e-9, atol=1e-6)
     # per region: the labels are the plateaus', each region's force is its springs' sum, and they add up
     check_labels(knee, springs["label"], springs["source_face"])
     regions = summary["regions"]
     assert set(regions) == {"lateral", "medial"}
     for name, region in regions.items():
         mine = (springs["label"] == name).to_numpy()
-        np.testing.assert_allclose(region["force_vector"], written_force(cells, mine), rtol=1e-9, atol=1e-6)
+        np.testing.assert_allclose(region["force_vector_N"], written_force(cells, mine), rtol=1e-9, atol=1e-6)
         assert region["n_springs"] == mine.sum() and 0.3 < region["share"] < 0.7
-    np.testing.assert_allclose(sum(np.array(r["force_vector"]) for r in regions.values()), own, rtol=1e-9)
-    magnitudes = sum(r["force_magnitude_sum"] for r in regions.values())
-    assert magnitudes == pytest.approx(summary["force_magnitude_sum"], rel=1e-9)
+    np.testing.assert_allclose(sum(np.array(r["force_vector_N"]) for r in regions.values()), own, rtol=1e-9)
+    magnitudes = sum(r["force_magnitude_sum_N"] for r in regions.values())
+    assert magnitudes == pytest.approx(summary["force_magnitude_sum_N"], rel=1e-9)
     assert sum(r["share"] for r in regions.values()) == pytest.approx(1.0, rel=1e-12)
 
 
@@ -240,6 +240,6 @@ def test_a_finite_path_with_poses_and_regions_recasts_its_peak_frame_with_their_
     assert np.allclose(frames["lateral_force_share"] + frames["medial_force_share"], 1.0)
     for name in ("lateral", "medial"):
         magnitudes = (cells["pressure"] * cells["area"])[labels == name].sum()
-        assert frames.loc[k, f"{name}_force_magnitude_sum"] == pytest.approx(magnitudes, rel=1e-9)
-        written = [frames.loc[k, f"{name}_force_{c}"] for c in "xyz"]
+        assert frames.loc[k, f"{name}_force_magnitude_sum_N"] == pytest.approx(magnitudes, rel=1e-9)
+        written = [frames.loc[k, f"{name}_force_{c}_N"] for c in "xyz"]
         np.testing.assert_allclose(written, forces[name], rtol=1e-9, atol=1e-9 * np.linalg.norm(total))

@@ -88,18 +88,18 @@ def test_the_study_names_what_it_ran_and_summarizes_failed_and_empty_tables(fini
     assert list(study.table["method"]) == ["finite"] and study.notes == [
         "newton stands for finite with finite kinematics"
     ]
-    assert study.summary["success_rate"].tolist() == [100.0]
+    assert study.summary["success_rate_percent"].tolist() == [100.0]
     # an empty table and a table of failures only (rows without residuals) summarize
     empty = summarize(pd.DataFrame())
-    assert len(empty) == 0 and {"method", "success_rate", "relative_time"} <= set(empty.columns)
+    assert len(empty) == 0 and {"method", "success_rate_percent", "relative_time"} <= set(empty.columns)
     failed = pd.DataFrame(
         [
-            {"accuracy": "default", "method": m, "solver": "-", "success": False, "total_time": 0.1}
+            {"accuracy": "default", "method": m, "solver": "-", "success": False, "total_time_s": 0.1}
             for m in ("finite", "finite_nlp")
         ]
     )
     summary = summarize(failed)
-    assert summary["success_rate"].tolist() == [0.0, 0.0] and summary["worst_residual"].isna().all()
+    assert summary["success_rate_percent"].tolist() == [0.0, 0.0] and summary["worst_residual"].isna().all()
 
 
 def test_pressures_of_answers_on_different_springs_are_matched_by_face():

@@ -89,6 +89,7 @@ def test_the_budget_is_the_larger_of_a_floor_and_a_multiple_of_newton_s_time_unl
     assert fallback.budget(1e-3, {}, declared)["max_time"] == fallback.FLOOR
     slow = 2.0 * fallback.FLOOR / fallback.MULTIPLE
     assert fallback.budget(slow, {}, declared) == {"max_time": 2.0 * fallback.FLOOR, "newton_time": slow}
+    assert fallback.budget(10.0, {}, declared)["max_time"] == fallback.CEILING >= 2.0 * fallback.FLOOR
     assert fallback.budget(1e-3, {"max_time": 5.0}, declared) is None  # the user's own
     assert fallback.budget(1e-3, {}, declared - {"max_time"}) is None  # a fallback without a clock
     assert 0 < fallback.FLOOR < math.inf and 0 < fallback.MULTIPLE < math.inf

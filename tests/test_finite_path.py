@@ -57,9 +57,9 @@ def test_a_path_of_tilting_moments_is_frame_by_frame_the_closed_form():
     for k_frame, solution in enumerate(result.solutions):
         assert abs(np.degrees(solution.u[10]) - degrees[k_frame]) < 1e-9
     # the table reports the motion found, frame by frame: tan(theta) = M / (k I)
-    assert list(result.table.columns).count("body2_ry") == 1 and "body2_rx" not in result.table
-    assert np.abs(np.degrees(result.table["body2_ry"].to_numpy()) - degrees).max() < 1e-9
-    assert np.array_equal(result.table["body2_uz"].to_numpy(), [s.u[8] for s in result.solutions])
+    assert list(result.table.columns).count("body2_ry_rad") == 1 and "body2_rx_rad" not in result.table
+    assert np.abs(np.degrees(result.table["body2_ry_rad"].to_numpy()) - degrees).max() < 1e-9
+    assert np.array_equal(result.table["body2_uz_mm"].to_numpy(), [s.u[8] for s in result.solutions])
     for k_frame, solution in enumerate(result.solutions):
         alone = quiet(d.solve, problem.with_load(force=loads[k_frame, :3], moment=loads[k_frame, 3:]))
         assert np.abs(alone.u - solution.u).max() < 1e-10

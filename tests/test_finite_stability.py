@@ -118,7 +118,8 @@ def instability(layer, reference, K) -> float:
 
 
 def test_ipopt_certifies_a_tipping_equilibrium_that_fails_the_stability_check(layer):
-    solution = quiet(d.solve, ball(layer, TIPPING, ABOVE), "nlp")
+    # from rest (IPOPT's own start is the small kinematics' answer, from which it turns past its range)
+    solution = quiet(d.solve, ball(layer, TIPPING, ABOVE), "nlp", x0=np.zeros(3))
     assert solution.success  # the forces balance there: the certificate passes
     K, net = stiffness_of(layer, TIPPING, ABOVE, solution)
     assert np.abs(net).max() < 1e-5 * 227.0  # equilibrium, summed here
@@ -134,8 +135,8 @@ def test_ipopt_certifies_a_tipping_equilibrium_that_fails_the_stability_check(la
     assert "unstable" in check.advice and "ligaments" in check.advice
     # Newton, descending the energy, does not stop there
     newton = quiet(d.solve, ball(layer, TIPPING, ABOVE), "newton", strict=False)
-    assert newton.status is d.Status.UNBOUNDED and not newton.success
-    assert "no stable equilibrium near the start" in newton.message
+    assert newton.status is d.Status.MAX_ITERATIONS and not newton.success
+    assert newton.info["unproved"] == "unbounded" and "the energy decreases without bound" in newton.message
     assert newton.validity["stability"].passed is None  # no equilibrium to test
 
 

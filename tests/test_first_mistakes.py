@@ -195,7 +195,7 @@ def test_a_load_in_kn_is_solved_and_said_first(tmp_path, meshes):
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     assert code == 0 and summary["validity"]["valid"]
     # solved as given (1 N, not scaled): the springs' resultant carries 1 N
-    assert np.linalg.norm(summary["contact_force"]) == pytest.approx(1.0, rel=1e-6)
+    assert np.linalg.norm(summary["contact_force_N"]) == pytest.approx(1.0, rel=1e-6)
 
 
 def test_modulus_in_gpa_is_said(tmp_path, meshes):

@@ -149,7 +149,7 @@ def test_init_then_run_solves_the_knee_as_written(tmp_path, meshes):
     assert ran.exit_code == 0, ran.output
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     assert summary["validity"]["valid"] and set(summary["regions"]) == {"medial", "lateral"}
-    assert np.linalg.norm(summary["contact_force"]) == pytest.approx(1000.0, rel=1e-6)
+    assert np.linalg.norm(summary["contact_force_N"]) == pytest.approx(1000.0, rel=1e-6)
 
 
 def test_init_writes_the_scale_of_meshes_in_metres(tmp_path):

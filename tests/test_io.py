@@ -265,18 +265,18 @@ def test_csv_round_trip(solution, tmp_path):
     assert tuple(table) == io.CSV_COLUMNS
     layer = solution.problem.layer
     want = {
-        "x": layer.points[:, 0],
-        "y": layer.points[:, 1],
-        "z": layer.points[:, 2],
+        "x_mm": layer.points[:, 0],
+        "y_mm": layer.points[:, 1],
+        "z_mm": layer.points[:, 2],
         "nx": layer.normals[:, 0],
         "ny": layer.normals[:, 1],
         "nz": layer.normals[:, 2],
-        "area": layer.areas,
-        "thickness": layer.thickness,
-        "gap": layer.gap,
+        "area_mm2": layer.areas,
+        "thickness_mm": layer.thickness,
+        "gap_mm": layer.gap,
         "strain": solution.strain,
-        "pressure": solution.pressure,
-        "spring_force": solution.spring_force,
+        "pressure_MPa": solution.pressure,
+        "spring_force_N": solution.spring_force,
     }
     for name, value in want.items():
         np.testing.assert_allclose(table[name], value, rtol=0, atol=1e-12, err_msg=name)
@@ -314,35 +314,35 @@ def test_json_contents(surface_solution, tmp_path):
     assert data["method"] == "newton" and data["success"] is True
     assert data["law"] == s.problem.law.describe()
     assert data["n_springs"] == len(s.problem.layer)
-    for key in ("peak_pressure", "mean_pressure", "contact_area"):
-        assert data[key] == pytest.approx(getattr(s, key), rel=1e-15), key
+    for key, name in (("peak_pressure", "MPa"), ("mean_pressure", "MPa"), ("contact_area", "mm2")):
+        assert data[f"{key}_{name}"] == pytest.approx(getattr(s, key), rel=1e-15), key
     magnitudes = float(s.pressure @ s.problem.layer.areas)  # no force on anything: named for what it is
-    assert data["force_magnitude_sum"] == pytest.approx(magnitudes, rel=1e-14) and "total_normal_force" not in data
-    np.testing.assert_allclose(data["center_of_pressure"], s.center_of_pressure, rtol=1e-15)
-    np.testing.assert_allclose(data["contact_force"], s.contact_force, rtol=1e-15)
-    np.testing.assert_allclose(data["contact_moment"], s.contact_moment, rtol=1e-15, atol=1e-12)
-    assert data["moment_about"] == list(s.problem.body2.reference)
+    assert data["force_magnitude_sum_N"] == pytest.approx(magnitudes, rel=1e-14) and "total_normal_force" not in data
+    np.testing.assert_allclose(data["center_of_pressure_mm"], s.center_of_pressure, rtol=1e-15)
+    np.testing.assert_allclose(data["contact_force_N"], s.contact_force, rtol=1e-15)
+    np.testing.assert_allclose(data["contact_moment_Nmm"], s.contact_moment, rtol=1e-15, atol=1e-12)
+    assert data["moment_about_mm"] == list(s.problem.body2.reference)
     assert data["certificate"]["passed"] is True
     assert data["certificate"]["equilibrium"] == s.certificate.equilibrium
-    assert data["solve_time"] == s.solve_time and data["build_time"] == s.build_time
-    assert data["units"]["pressure"] == "MPa"
+    assert data["solve_time_s"] == s.solve_time and data["build_time_s"] == s.build_time
+    assert "units" not in data  # every key of a number names its unit
     assert set(data["regions"]) == {"lateral", "medial", "posterior", "anterior"}
     label_stats = s.regions()
     for name in ("medial", "lateral"):
-        np.testing.assert_allclose(data["regions"][name]["force_vector"], label_stats[name].force_vector, rtol=1e-15)
+        np.testing.assert_allclose(data["regions"][name]["force_vector_N"], label_stats[name].force_vector, rtol=1e-15)
         assert data["regions"][name]["share"] == pytest.approx(label_stats[name].share, rel=1e-15)
         assert "force" not in data["regions"][name]
     np.testing.assert_allclose(
-        np.add(data["regions"]["medial"]["force_vector"], data["regions"]["lateral"]["force_vector"]),
-        data["contact_force"],
+        np.add(data["regions"]["medial"]["force_vector_N"], data["regions"]["lateral"]["force_vector_N"]),
+        data["contact_force_N"],
         rtol=1e-12,
-        atol=1e-12 * np.linalg.norm(data["contact_force"]),
+        atol=1e-12 * np.linalg.norm(data["contact_force_N"]),
     )
     assert sum(data["regions"][n]["share"] for n in ("medial", "lateral")) == pytest.approx(1.0, rel=1e-12)
-    assert sum(data["regions"][n]["force_magnitude_sum"] for n in ("medial", "lateral")) == pytest.approx(
+    assert sum(data["regions"][n]["force_magnitude_sum_N"] for n in ("medial", "lateral")) == pytest.approx(
         magnitudes, rel=1e-12
     )
-    assert data["regions"]["anterior"]["resultant"] == pytest.approx(split["anterior"].resultant, rel=1e-15)
+    assert data["regions"]["anterior"]["resultant_N"] == pytest.approx(split["anterior"].resultant, rel=1e-15)
     assert data["label_codes"] == {"lateral": 0, "medial": 1}
 
 
@@ -350,9 +350,9 @@ def test_json_without_contact_writes_null(point_solution, tmp_path):
     s = point_solution
     idle = dataclasses.replace(s, pressure=np.zeros_like(s.pressure), strain=np.abs(s.strain) + 1e-3)
     data = strict_load(io.to_json(idle, tmp_path / "idle.json", planes={"right": ((0, 0, 0), (1, 0, 0))}))
-    assert data["center_of_pressure"] == [None, None, None]
+    assert data["center_of_pressure_mm"] == [None, None, None]
     assert data["regions"]["right"]["share"] is None
-    assert data["contact_area"] == 0.0 and data["peak_pressure"] == 0.0
+    assert data["contact_area_mm2"] == 0.0 and data["peak_pressure_MPa"] == 0.0
 
 
 def test_json_bad_regions(point_solution, tmp_path):
@@ -433,7 +433,7 @@ def test_csv_quotes_awkward_labels(surface_solution, tmp_path):
     )
     table = io.read_csv(io.to_csv(solution, tmp_path / "awkward.csv"))
     np.testing.assert_array_equal(table["label"], awkward)
-    np.testing.assert_array_equal(table["pressure"], solution.pressure)
+    np.testing.assert_array_equal(table["pressure_MPa"], solution.pressure)
 
 
 def test_read_csv_rejects_bad_numbers(point_solution, tmp_path):
@@ -441,5 +441,5 @@ def test_read_csv_rejects_bad_numbers(point_solution, tmp_path):
     lines = path.read_text().splitlines()
     lines[1] = "oops" + lines[1][lines[1].index(",") :]
     path.write_text("\n".join(lines) + "\n")
-    with pytest.raises(InputError, match="column 'x' .* does not parse"):
+    with pytest.raises(InputError, match="column 'x_mm' .* does not parse"):
         io.read_csv(path)

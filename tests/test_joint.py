@@ -270,7 +270,7 @@ def test_a_layer_s_answer_is_a_two_body_solution_with_its_files(tmp_path):
     layer.to_json(tmp_path / "upper.json")
     assert (tmp_path / "upper.csv").stat().st_size > 0
     summary = s.summary()
-    assert summary["contacts"][1]["contact_force"][2] == pytest.approx(300.0)
+    assert summary["contacts"][1]["contact_force_N"][2] == pytest.approx(300.0)
     assert set(summary["certificate"]["bodies"]) == {"middle", "top"}
 
 

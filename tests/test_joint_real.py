@@ -1,15 +1,15 @@
-"""Real joints: the pymskt knee held by published bundles with six free dofs, and the three-body TKA.
+"""Real joints: the MRI knee held by published native-knee bundles with six free dofs, and the three-body TKA.
 
-The knee's cartilage (``../shared/data/knee``) carries no bones: its bundles are the femur-tibia
-bundles of OpenSim-JAM's Grand Challenge DM model (``../shared/data/tka/ligaments.csv``, from
-DM.osim, Apache 2.0: the collaterals, the posterior cruciate's two bundles, the posterior capsule,
-the posteromedial corner and the popliteofibular ligament; a posterior-cruciate-retaining knee, so
-no anterior cruciate), their insertions carried onto this knee by the implant frames' anatomical
-axes (posterior, superior, medial) and each bone's articular centroid (the tibial insert's onto the
-tibial plateaus', the femoral component's onto the femoral cartilage's; their medial-lateral widths
-agree to 1 %), each bundle at the strain DM.osim gives it at its default pose. The TKA is
-``examples/tka_joint.py``. Both solve with finite kinematics and are checked by the sums of
-``tests/joint_checks.py`` at the solved pose. Skipped cleanly where the data are absent.
+The knee's cartilage (``../shared/data/knee``) carries no bones: its bundles are the collateral and
+cruciate bundles of Lenhart et al. 2015's native knee model (OpenSim-JAM's ``lenhart2015.osim``,
+Apache 2.0: the medial collateral's superficial, deep and posterior oblique bundles, the lateral
+collateral, the anterior cruciate's anteromedial and posterolateral bundles and the posterior
+cruciate's anterolateral and posteromedial ones), their published insertions carried onto this
+knee by the model's tibial cartilage fitted to this knee's (``tests/data/lenhart/``: the
+insertions, and ``make_knee_bundles.py`` that made them), each at the strain the model gives it at
+its default pose (extension). The TKA is ``examples/tka_joint.py``. Both solve with finite
+kinematics and are checked by the sums of ``tests/joint_checks.py`` at the solved pose. Skipped
+cleanly where the data are absent.
 """
 
 from __future__ import annotations
@@ -30,8 +30,11 @@ pytestmark = pytest.mark.slow
 
 DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
 KNEE, TKA = DATA / "knee", DATA / "tka"
-#: The DM implant frames' axes (posterior, superior, medial) onto the knee's (medial, posterior, superior).
-AXES = np.array([[0.0, 0.0, 1.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]])
+BUNDLES = Path(__file__).resolve().parent / "data" / "lenhart" / "bundles.csv"
+#: The collateral and cruciate bundles of the model (not its posterior capsule nor popliteofibular ligament).
+HELD_BY = ("MCLs", "MCLd", "MCLp", "LCL", "ACLam", "ACLpl", "PCLal", "PCLpm")
+#: A reflection across the sagittal plane (x is medial-lateral): the mirrored knee.
+MIRROR = np.diag([-1.0, 1.0, 1.0])
 
 
 def _need(folder, *files):
@@ -39,79 +42,86 @@ def _need(folder, *files):
         pytest.skip(f"the data are not in {folder}")
 
 
-def _centroid(mesh, faces=None):
-    area, centre = mesh.area_faces, mesh.triangles_center
-    if faces is not None:
-        area, centre = area[faces], centre[faces]
-    return area @ centre / area.sum()
-
-
-@pytest.fixture(scope="module")
-def knee():
+def _knee(mirror: bool = False) -> d.Joint:
+    """The MRI knee with six free dofs under 700 N of compression and an extension moment of 4 N m
+    (held by the posterior structures: nothing but muscles holds the knee in flexion); with
+    ``mirror``, all of it reflected across the sagittal plane."""
     _need(KNEE, "femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
-    _need(TKA, "ligaments.csv", "tibial_insert.stl", "femoral_component.stl")
     from dea_opt.mesh import cast_springs, concatenate_meshes, load_mesh
 
+    S = MIRROR if mirror else np.eye(3)
+    T = np.eye(4)
+    T[:3, :3] = S
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        tibia, labels = concatenate_meshes(
-            {
-                "medial": load_mesh(KNEE / "medial_tibial_cartilage.stl"),
-                "lateral": load_mesh(KNEE / "lateral_tibial_cartilage.stl"),
-            }
-        )
+        parts = {side: load_mesh(KNEE / f"{side}_tibial_cartilage.stl") for side in ("medial", "lateral")}
         femur = load_mesh(KNEE / "femoral_cartilage.stl")
+        for mesh in (*parts.values(), femur):
+            mesh.apply_transform(T)  # a reflection: trimesh turns the faces' winding back outward
+        tibia, labels = concatenate_meshes(parts)
         cast = cast_springs(tibia, femur, labels=labels, max_gap=2.0, max_overlap=2.0)
-        plateau = _centroid(tibia, np.flatnonzero(tibia.face_normals[:, 2] > 0.5))
-        place = {
-            "tibia_r": (_centroid(load_mesh(TKA / "tibial_insert.stl")), plateau),
-            "femur_r": (_centroid(load_mesh(TKA / "femoral_component.stl")), _centroid(femur)),
-        }
+    up = np.flatnonzero(np.nan_to_num(tibia.face_normals[:, 2]) > 0.5)
+    plateau = tibia.area_faces[up] @ tibia.triangles_center[up] / tibia.area_faces[up].sum()
     ligaments = []
-    with open(TKA / "ligaments.csv", newline="") as handle:
+    with open(BUNDLES, newline="") as handle:
         for row in csv.DictReader(handle):
-            if {row["body1"], row["body2"]} != {"femur_r", "tibia_r"}:
+            if not row["name"].startswith(HELD_BY):
                 continue
-            ends = []
-            for k in "12":
-                p = np.array([float(row[f"p{k}_implant_{a}_mm"]) for a in "xyz"])
-                source, target = place[row[f"body{k}"]]
-                ends.append(AXES @ (p - source) + target)
+            ends = [S @ [float(row[f"p{k}_{a}_mm"]) for a in "xyz"] for k in "12"]
             ligaments.append(
                 d.Ligament(
-                    row["body1"][:-2],
+                    row["body1"],
                     ends[0],
-                    row["body2"][:-2],
+                    row["body2"],
                     ends[1],
-                    stiffness=float(row["linear_stiffness_N_per_strain"]),
-                    reference_strain=float(row["strain_at_dm_defaults"]),
+                    stiffness=float(row["stiffness_N_per_strain"]),
+                    reference_strain=float(row["reference_strain"]),
                     transition_strain=float(row["transition_strain"]),
                     name=row["name"],
                 )
             )
-    # 700 N along -z through a point 20 mm above the plateaus, and an extension moment of 4 N m
-    # that the posterior structures hold (the flexion is otherwise held by nothing but muscles)
+    # a moment is a pseudovector: reflected, it is -S M (here unchanged, about the medial-lateral axis)
+    moment = -S @ [4000.0, 0.0, 0.0] if mirror else np.array([4000.0, 0.0, 0.0])
     bodies = {
         "tibia": d.Body(free=()),
-        "femur": d.Body(reference=plateau + [0, 0, 20.0], force=(0, 0, -700.0), moment=(4000.0, 0, 0)),
+        "femur": d.Body(reference=plateau + [0, 0, 20.0], force=(0, 0, -700.0), moment=moment),
     }
     contact = d.Contact(cast.layer, d.AteshianLaw(10.0, 0.3), body1="tibia", body2="femur", targets=cast)
     return d.Joint(bodies, [contact], ligaments, kinematics="finite")
 
 
-def test_the_real_knee_with_six_free_dofs_held_by_its_bundles_is_stable_and_certified(knee):
-    assert {lig.name[:3] for lig in knee.ligaments} >= {"MCL", "LCL", "PCL"}
+@pytest.fixture(scope="module")
+def knee():
+    return _knee()
+
+
+def test_the_real_knee_with_six_free_dofs_held_by_published_bundles_is_stable_and_certified(knee):
+    assert {lig.name.rstrip("0123456789") for lig in knee.ligaments} == set(HELD_BY)
     s = d.solve(knee)
     assert s.success and s.status == "converged"
     assert s.validity.valid, s.validity.summary()
     assert s.validity["stability"].value < 0  # every free direction resists a disturbance
     assert s.info["recasts"] >= 1  # the springs were cast again where the femur came to rest
     assert_balanced_at_pose(s, 1e-9)
-    assert (s.ligaments.force > 0).sum() >= 20  # the bundles hold it, not only the contact
+    taut = {name.rstrip("0123456789") for name, f in zip(s.ligaments.names, s.ligaments.force) if f > 0}
+    assert {"PCLal", "LCL"} <= taut  # the femur slides forward on the tibia: the posterior cruciate holds it
     layer = s.contacts[0]
     labels = layer.problem.layer.labels
     medial = float((layer.pressure * layer.problem.layer.areas)[labels == "medial"].sum())
     assert 0.2 < medial / layer.total_normal_force < 0.8
+
+
+def test_the_mirrored_knee_gives_the_mirrored_answer(knee):
+    """Reflected across the sagittal plane (meshes, insertions, reference and loads), the knee must
+    come to the reflected pose: translations ``S t``, rotation vectors ``-S theta`` (a pseudovector),
+    the same forces in the mirrored bundles."""
+    s = d.solve(knee)
+    m = d.solve(_knee(mirror=True))
+    assert m.success
+    u, v = s.bodies["femur"].u, m.bodies["femur"].u
+    np.testing.assert_allclose(v[:3], MIRROR @ u[:3], rtol=0, atol=1e-6 * max(1.0, np.abs(u[:3]).max()))
+    np.testing.assert_allclose(v[3:], -MIRROR @ u[3:], rtol=0, atol=1e-8)
+    np.testing.assert_allclose(m.ligaments.force, s.ligaments.force, rtol=1e-5, atol=1e-6 * s.ligaments.force.max())
 
 
 def _example():

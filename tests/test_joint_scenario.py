@@ -19,7 +19,8 @@ from typer.testing import CliRunner
 import dea_opt as d
 from dea_opt.cli import app
 from dea_opt.scenario import load_scenario, parse_scenario
-from dea_opt.scenario.joint_build import build_joint, read_joint_path
+from dea_opt.scenario.joint_build import build_joint
+from dea_opt.scenario.joint_path import read_joint_path
 from dea_opt.scenario.joint_schema import JointScenario
 
 EXAMPLE = Path(__file__).resolve().parents[1] / "examples" / "scenarios" / "joint"
@@ -46,7 +47,7 @@ def test_the_example_joint_runs_and_writes_each_layer_and_the_ligament_table(tmp
             assert (tmp_path / f"{name}.{ext}").stat().st_size > 0
     for i, name in enumerate(("lower", "upper")):
         summary = json.loads((tmp_path / f"{name}.json").read_text())
-        assert summary["peak_pressure"] == pytest.approx(solution.contacts[i].peak_pressure, rel=1e-12)
+        assert summary["peak_pressure_MPa"] == pytest.approx(solution.contacts[i].peak_pressure, rel=1e-12)
     rows = _rows(tmp_path / "ligaments.csv")
     assert list(rows[0]) == ["name", "body1", "body2", "force_N", "strain", "length_mm", "slack_length_mm"]
     assert [r["name"] for r in rows] == ["front", "back"]

@@ -45,12 +45,18 @@ def test_the_scenario_holds_the_bodies_contacts_and_ligaments_at_the_default_pos
         assert np.allclose(body["reference"], poses[name][:3, 3], rtol=0, atol=1e-12)
     (contact,) = scenario["contacts"]
     assert (contact["name"], contact["body1"], contact["body2"]) == ("contact", "a", "b")
-    assert contact["mesh1"] == "../model/a.stl" and contact["mesh2"] == "b.stl"  # found / as named
+    geometry = contact["geometry"]
+    assert geometry["kind"] == "meshes"
+    assert geometry["mesh1"] == "../model/a.stl" and geometry["mesh2"] == "b.stl"  # found / as named
     assert "# mesh2 (mesh_b): NOT FOUND" in text
-    assert (contact["scale1"], contact["thickness1"], contact["thickness2"]) == (1000.0, 5.0, 4.0)
-    assert (contact["max_gap"], contact["max_overlap"]) == (0.0, 20.0)
+    assert (geometry["scale1"], geometry["thickness1"], geometry["thickness2"]) == (1000.0, 5.0, 4.0)
+    assert (geometry["max_gap"], geometry["max_overlap"]) == (0.0, 20.0)
     assert contact["law"] == {"kind": "linear", "H": pytest.approx(0.54 * 46.3 / (1.46 * 0.08), rel=1e-15)}
-    assert np.allclose(contact["pose1"], poses["a"] @ model.frame_in_body("/bodyset/a/a_offset"), atol=1e-12)
+    assert np.allclose(geometry["pose1"], poses["a"] @ model.frame_in_body("/bodyset/a/a_offset"), atol=1e-12)
+    assert scenario["solve"] == {"kinematics": "finite"}
+    frames = {f["name"]: f for f in scenario["frames"]}
+    assert frames["a_offset"]["body"] == "a"
+    assert np.allclose(frames["a_offset"]["pose"], geometry["pose1"], atol=1e-12)
     (lig,) = scenario["ligaments"]
     x1 = poses["a"][:3, :3] @ [10.0, 20.0, 30.0] + poses["a"][:3, 3]
     assert (lig["body1"], lig["body2"], lig["law"], lig["transition_strain"]) == ("a", "b", "blankevoort", 0.06)
@@ -64,8 +70,8 @@ def test_a_mesh_given_on_the_command_line_is_taken_in_mm(toy, tmp_path):
     out = tmp_path / "s.toml"
     result = invoke("import-osim", toy, "-o", out, "--mesh", f"mesh_b={stl}")
     assert result.exit_code == 0 and "not found" not in result.stderr
-    contact = tomllib.loads(out.read_text())["contacts"][0]
-    assert (contact["mesh2"], contact["scale2"]) == ("b_mm.stl", 1.0)
+    geometry = tomllib.loads(out.read_text())["contacts"][0]["geometry"]
+    assert (geometry["mesh2"], geometry["scale2"]) == ("b_mm.stl", 1.0)
 
 
 def test_it_keeps_an_existing_file_unless_forced(toy, tmp_path):

@@ -61,7 +61,7 @@ def consistent(folder: Path) -> bool:
     assert check_outputs(folder) == [], check_outputs(folder)
     summary = json.loads((folder / "summary.json").read_text())
     frames = pd.read_csv(folder / "frames.csv")
-    assert summary["peak_pressure"] == frames["peak_pressure"].max()
+    assert summary["peak_pressure_MPa"] == frames["peak_pressure_MPa"].max()
     assert summary["frames"] == len(frames)
     assert set(manifest["files"]) >= {"summary.json", "frames.csv", "series.pvd"}
     return True
@@ -81,7 +81,7 @@ def test_staged_files_appear_together_with_the_manifest_last(tmp_path):
         manifest = run.publish(status="ok")
     assert (folder / "a.txt").read_text() == "new a" and (folder / "sub" / "b.txt").read_text() == "new b"
     assert set(manifest["files"]) == {"a.txt", "sub/b.txt"} and manifest["status"] == "ok"
-    assert manifest["files"]["a.txt"]["size"] == 5
+    assert manifest["files"]["a.txt"]["size_bytes"] == 5
     assert read_manifest(folder)["run_id"] == manifest["run_id"] == run.run_id
     assert check_outputs(folder) == [] and temporary_files(folder) == [] and not (folder / INCOMPLETE_NAME).exists()
 

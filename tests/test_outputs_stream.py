@@ -63,7 +63,7 @@ def test_chunked_csv_equals_the_reference(plate_solution, tmp_path, monkeypatch,
     path = io.to_csv(plate_solution, tmp_path / "contact.csv")
     assert path.read_text(encoding="utf-8") == reference_csv(plate_solution)
     back = io.read_csv(path)
-    np.testing.assert_array_equal(back["pressure"], plate_solution.pressure)
+    np.testing.assert_array_equal(back["pressure_MPa"], plate_solution.pressure)
     np.testing.assert_array_equal(back["label"], plate_solution.problem.layer.labels)
 
 

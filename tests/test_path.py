@@ -64,17 +64,17 @@ def test_newton_path_table(newton_path, gait):
     # labels: no region columns)
     assert list(table.columns)[: len(TABLE_COLUMNS)] == list(TABLE_COLUMNS)
     extra = list(table.columns)[len(TABLE_COLUMNS) :]
-    assert extra[:3] == ["body2_ux", "body2_uy", "body2_uz"]
+    assert extra[:3] == ["body2_ux_mm", "body2_uy_mm", "body2_uz_mm"]
     assert all(c.startswith("validity_") for c in extra[3:])
     found = np.array([s.u[6:9] for s in newton_path.solutions])
-    assert np.array_equal(table[["body2_ux", "body2_uy", "body2_uz"]].to_numpy(), found)
-    assert (table["body2_uz"] < 0).all()  # the head sinks into the socket under every frame's load
+    assert np.array_equal(table[["body2_ux_mm", "body2_uy_mm", "body2_uz_mm"]].to_numpy(), found)
+    assert (table["body2_uz_mm"] < 0).all()  # the head sinks into the socket under every frame's load
     assert table["valid"].all() and (table["message"] == "").all()
     assert len(table) == len(gait) and newton_path.success
-    assert np.allclose(table["time"], gait["time"])
-    assert np.allclose(table["resultant"], np.linalg.norm(gait[["Fx", "Fy", "Fz"]].to_numpy(), axis=1), rtol=1e-8)
+    assert np.allclose(table["time_s"], gait["time"])
+    assert np.allclose(table["resultant_N"], np.linalg.norm(gait[["Fx", "Fy", "Fz"]].to_numpy(), axis=1), rtol=1e-8)
     assert (table["certificate_residual"] <= 1e-6).all()
-    assert table["peak_pressure"].idxmax() == table["resultant"].idxmax()
+    assert table["peak_pressure_MPa"].idxmax() == table["resultant_N"].idxmax()
 
 
 def test_warm_start_matches_cold_solves_with_fewer_iterations(hip, gait, newton_path):
@@ -100,7 +100,7 @@ def test_constrained_paths_reuse_one_model(hip, gait, newton_path, monkeypatch, 
     result = solve_path(hip, gait.iloc[:4], method=method, **options)
     assert len(built) == 1
     assert result.success
-    assert result.table["build_time"].iloc[1:].eq(0).all()
+    assert result.table["build_time_s"].iloc[1:].eq(0).all()
     for pressure, reference in zip(result.pressures, newton_path.pressures):
         assert np.abs(pressure - reference).max() <= 1e-6 * reference.max()
 
@@ -116,7 +116,7 @@ def test_loads_as_arrays_and_load_objects(hip, newton_path, gait):
 
 def test_ateshian_path_by_newton(hip, gait):
     result = solve_path(hip.with_law(d.AteshianLaw(10.0, 0.3)), gait.iloc[:3], method="newton")
-    assert result.success and result.table["peak_pressure"].gt(0).all()
+    assert result.success and result.table["peak_pressure_MPa"].gt(0).all()
 
 
 @pytest.mark.parametrize(
@@ -188,7 +188,7 @@ def test_path_exposure_matches_the_table(newton_path):
     P = np.array(newton_path.pressures)
     assert np.allclose(e.peak, P.max(axis=0))
     assert np.allclose(e.pressure_time_integral, np.trapezoid(P, newton_path.times, axis=0))
-    assert e.summary()["max_pressure_time_integral"] == pytest.approx(e.pressure_time_integral.max())
+    assert e.summary()["max_pressure_time_integral_MPa_s"] == pytest.approx(e.pressure_time_integral.max())
 
 
 # --- files ------------------------------------------------------------------------------
@@ -200,7 +200,9 @@ def test_writes_table_series_plots_and_exposure(newton_path, tmp_path):
     files = newton_path.write(tmp_path, extra_summary={"note": "test"})
     assert set(files) == {"table", "series", "exposure_vtk", "cycle_plot", "exposure_map", "summary"}
     table = pd.read_csv(files["table"])
-    assert len(table) == len(newton_path) and np.allclose(table["peak_pressure"], newton_path.table["peak_pressure"])
+    assert len(table) == len(newton_path) and np.allclose(
+        table["peak_pressure_MPa"], newton_path.table["peak_pressure_MPa"]
+    )
     datasets = ET.parse(files["series"]).getroot().find("Collection").findall("DataSet")
     assert len(datasets) == len(newton_path)
     assert np.allclose([float(x.get("timestep")) for x in datasets], newton_path.times)
@@ -263,6 +265,6 @@ def test_poses_recast_the_springs_each_frame():
     result = solve_path(problem, np.tile([0.0, 0.0, -100.0], (3, 1)), poses, layer_for_pose=layer_for_pose)
     assert len(calls) == 3 and result.success and result.moving
     # The contact follows the sphere: the centre of pressure moves with the pose.
-    assert np.allclose(result.table["cop_x"], shifts, atol=0.15)
+    assert np.allclose(result.table["cop_x_mm"], shifts, atol=0.15)
     n_faces = len(problem.layer.surface[1])
     assert result.exposure.pressure_time_integral.shape == (n_faces,)

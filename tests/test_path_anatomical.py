@@ -43,9 +43,9 @@ LOADS = np.array(
     ]
 )
 CERTIFIED = [0, 1, 3]
-TRANSLATION = [f"body2_translation_{a}" for a in ("medial", "anterior", "proximal")]
-ROTATION = [f"body2_rotation_{a}" for a in ("medial", "anterior", "proximal")]
-COP = ["cop_medial", "cop_anterior", "cop_proximal"]
+TRANSLATION = [f"body2_translation_{a}_mm" for a in ("medial", "anterior", "proximal")]
+ROTATION = [f"body2_rotation_{a}_rad" for a in ("medial", "anterior", "proximal")]
+COP = ["cop_medial_mm", "cop_anterior_mm", "cop_proximal_mm"]
 
 
 def invoke(*args):
@@ -79,9 +79,9 @@ def closed_form_motion(layer) -> np.ndarray:
 
 def expected_columns(table, origin) -> dict:
     """The anatomical columns worked out here: the meshes'-frame columns dotted with the axes."""
-    cop = table[["cop_x", "cop_y", "cop_z"]].to_numpy() - origin
-    translation = np.column_stack([np.zeros((len(table), 2)), table["body2_uz"]])
-    rotation = np.column_stack([table["body2_rx"], table["body2_ry"], np.zeros(len(table))])
+    cop = table[["cop_x_mm", "cop_y_mm", "cop_z_mm"]].to_numpy() - origin
+    translation = np.column_stack([np.zeros((len(table), 2)), table["body2_uz_mm"]])
+    rotation = np.column_stack([table["body2_rx_rad"], table["body2_ry_rad"], np.zeros(len(table))])
     return {
         **{c: cop @ axis for c, axis in zip(COP, AXES)},
         **{c: translation @ axis for c, axis in zip(TRANSLATION, AXES)},
@@ -108,7 +108,9 @@ def test_the_plate_s_columns_are_its_table_along_the_turned_axes(plate_path, ana
         np.testing.assert_allclose(columns[column], values, rtol=1e-12, atol=1e-12, err_msg=column)
     # the found motion is the plate's closed form, so each axis carries its share of it
     found = closed_form_motion(layer)[CERTIFIED]
-    np.testing.assert_allclose(table.loc[CERTIFIED, ["body2_uz", "body2_rx", "body2_ry"]], found, rtol=1e-9, atol=1e-15)
+    np.testing.assert_allclose(
+        table.loc[CERTIFIED, ["body2_uz_mm", "body2_rx_rad", "body2_ry_rad"]], found, rtol=1e-9, atol=1e-15
+    )
     np.testing.assert_allclose(columns.loc[CERTIFIED, TRANSLATION], np.outer(found[:, 0], AXES[:, 2]), rtol=1e-9)
     rotation = np.column_stack([found[:, 1], found[:, 2], np.zeros(len(found))]) @ AXES.T
     np.testing.assert_allclose(columns.loc[CERTIFIED, ROTATION], rotation, rtol=1e-9, atol=1e-15)
@@ -129,9 +131,9 @@ def test_the_summary_gives_the_ranges_over_the_certified_frames(plate_path):
     assert "motion_anatomical" not in plate_path.summary()  # only with a frame
     layer = plate_path.problem.layer
     centroid = layer.areas @ layer.points / layer.areas.sum()
-    assert summary["anatomy"]["origin_used"] == pytest.approx(centroid.tolist())
+    assert summary["anatomy"]["origin_used_mm"] == pytest.approx(centroid.tolist())
     expected = expected_columns(plate_path.table, centroid)
-    peak = int(plate_path.table["peak_pressure"].idxmax())  # NaN of the failed frame skipped
+    peak = int(plate_path.table["peak_pressure_MPa"].idxmax())  # NaN of the failed frame skipped
     assert peak == 1
     ranges = {**summary["center_of_pressure_anatomical"], **summary["motion_anatomical"]}
     assert list(summary["center_of_pressure_anatomical"]) == COP
@@ -155,9 +157,9 @@ def test_write_puts_the_columns_in_frames_csv_and_the_ranges_in_summary_json(pla
         frames[COP + TRANSLATION + ROTATION], plate_path.anatomical_table(TURNED)[COP + TRANSLATION + ROTATION]
     )
     summary = json.loads((tmp_path / "with" / "summary.json").read_text())
-    assert summary["motion_anatomical"]["body2_translation_proximal"]["unit"] == "mm"
+    assert summary["motion_anatomical"]["body2_translation_proximal_mm"]["unit"] == "mm"
     assert set(summary["center_of_pressure_anatomical"]) == set(COP)
-    assert summary["anatomy"]["side"] == "left" and len(summary["anatomy"]["origin_used"]) == 3
+    assert summary["anatomy"]["side"] == "left" and len(summary["anatomy"]["origin_used_mm"]) == 3
     without = json.loads((tmp_path / "without" / "summary.json").read_text())
     assert "motion_anatomical" not in without and "anatomy" not in without
 
@@ -188,14 +190,14 @@ def test_a_run_projects_every_free_translation_and_says_it(tmp_path):
     result = invoke("run", socket_scenario(tmp_path, anatomy), "-o", tmp_path / "out")
     assert result.exit_code == 1, result.stderr  # frame 2 pulls the head out: no certified answer
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
-    translation = frames[["body2_ux", "body2_uy", "body2_uz"]].to_numpy()
+    translation = frames[["body2_ux_mm", "body2_uy_mm", "body2_uz_mm"]].to_numpy()
     for column, axis in zip(TRANSLATION, AXES):
         np.testing.assert_allclose(frames[column], translation @ axis, rtol=1e-12, atol=1e-15)
     assert not any(c.startswith("body2_rotation") for c in frames.columns)  # no rotation is free
     assert frames.loc[2, COP + TRANSLATION].isna().all()
     motion = json.loads((tmp_path / "out" / "summary.json").read_text())["motion_anatomical"]
-    low, high = motion["body2_translation_proximal"]["min"], motion["body2_translation_proximal"]["max"]
-    assert f"body2 translation medial {motion['body2_translation_medial']['min']:.3g} to" in result.stdout
+    low, high = motion["body2_translation_proximal_mm"]["min"], motion["body2_translation_proximal_mm"]["max"]
+    assert f"body2 translation medial {motion['body2_translation_medial_mm']['min']:.3g} to" in result.stdout
     assert f"proximal {low:.3g} to {high:.3g} mm" in result.stdout
 
 
@@ -255,17 +257,17 @@ def test_the_real_knee_s_stance_along_its_anatomical_axes(tmp_path):
     assert list(frames.columns)[-9:] == COP + TRANSLATION + ROTATION
     assert np.allclose(summary["anatomy"]["anterior"], anterior) and summary["anatomy"]["side"] == "right"
     axes = np.array([medial, anterior, proximal])
-    cop = (frames[["cop_x", "cop_y", "cop_z"]].to_numpy() - reference) @ axes.T
+    cop = (frames[["cop_x_mm", "cop_y_mm", "cop_z_mm"]].to_numpy() - reference) @ axes.T
     np.testing.assert_allclose(frames[COP], cop, rtol=1e-9, atol=1e-9)
-    translation = np.outer(frames["body2_uz"], proximal) @ axes.T
+    translation = np.outer(frames["body2_uz_mm"], proximal) @ axes.T
     np.testing.assert_allclose(frames[TRANSLATION], translation, rtol=1e-12, atol=1e-15)
-    rotation = np.outer(frames["body2_ry"], [0.0, 1.0, 0.0]) @ axes.T
+    rotation = np.outer(frames["body2_ry_rad"], [0.0, 1.0, 0.0]) @ axes.T
     np.testing.assert_allclose(frames[ROTATION], rotation, rtol=1e-12, atol=1e-15)
     # the femur sinks along proximal under every frame, and tilts about medial and anterior
-    assert (frames["body2_translation_proximal"] < 0).all()
+    assert (frames["body2_translation_proximal_mm"] < 0).all()
     motion, cop_ranges = summary["motion_anatomical"], summary["center_of_pressure_anatomical"]
     assert set(motion) == set(TRANSLATION + ROTATION) and set(cop_ranges) == set(COP)
-    peak = frames["peak_pressure"].idxmax()
+    peak = frames["peak_pressure_MPa"].idxmax()
     for column in ROTATION + COP:
         ranges = {**motion, **cop_ranges}[column]
         assert ranges["min"] == pytest.approx(frames[column].min(), rel=1e-12, abs=1e-15)

@@ -50,8 +50,15 @@ def test_a_frame_the_springs_cannot_carry_is_recorded_and_the_path_goes_on(hip, 
     row = table.iloc[1]
     assert not row["success"] and not row["valid"] and row["status"] == "load_not_supported"
     assert "cannot carry" in row["message"] and "frame" not in row["message"][:6]
-    assert row["Fz"] == 400.0 and row["time"] == 0.5  # the load and time are kept
-    for column in ("peak_pressure", "mean_pressure", "contact_area", "cop_x", "resultant", "max_compressive_strain"):
+    assert row["Fz_N"] == 400.0 and row["time_s"] == 0.5  # the load and time are kept
+    for column in (
+        "peak_pressure_MPa",
+        "mean_pressure_MPa",
+        "contact_area_mm2",
+        "cop_x_mm",
+        "resultant_N",
+        "max_compressive_strain",
+    ):
         assert math.isnan(row[column]), column
     assert np.isnan(result.pressures[1]).all() and result.solutions[1] is None
     # the frames around it are certified answers: equilibrium summed here
@@ -60,7 +67,7 @@ def test_a_frame_the_springs_cannot_carry_is_recorded_and_the_path_goes_on(hip, 
         assert own_equilibrium(result.solutions[k], LOADS[k]) < 1e-6
         cold = d.solve(hip.with_load(force=LOADS[k]), "newton")
         assert np.abs(result.pressures[k] - cold.pressure).max() <= 1e-6 * cold.peak_pressure
-    assert result.failures() == [{"frame": 1, "time": 0.5, "status": "load_not_supported", "message": row["message"]}]
+    assert result.failures() == [{"frame": 1, "time_s": 0.5, "status": "load_not_supported", "message": row["message"]}]
     line = result.failure_message()
     assert line.startswith("1 of 3 frames have no certified answer: frame 1 (0.5 s) load_not_supported: ")
     assert "\n" not in line and len(line) < 300
@@ -103,9 +110,9 @@ def test_every_output_has_every_frame(hip, tmp_path):
     files = result.write(tmp_path)
     table = pd.read_csv(files["table"], keep_default_na=False, na_values=[""])
     assert table["status"].tolist()[1] == "load_not_supported" and table["success"].tolist() == [True, False, True]
-    assert math.isnan(table["peak_pressure"].iloc[1]) and table["peak_pressure"].iloc[[0, 2]].gt(0).all()
+    assert math.isnan(table["peak_pressure_MPa"].iloc[1]) and table["peak_pressure_MPa"].iloc[[0, 2]].gt(0).all()
     # the motion found: a number for a certified frame only
-    motion = table[["body2_ux", "body2_uy", "body2_uz"]]
+    motion = table[["body2_ux_mm", "body2_uy_mm", "body2_uz_mm"]]
     assert motion.iloc[1].isna().all() and np.isfinite(motion.iloc[[0, 2]].to_numpy()).all()
     datasets = ET.parse(files["series"]).getroot().find("Collection").findall("DataSet")
     assert [float(x.get("timestep")) for x in datasets] == TIMES.tolist()
@@ -135,11 +142,11 @@ def test_uncertified_frames_have_nan_results_and_the_solver_status(hip):
     result = solve_path(hip, LOADS[[0, 2]], method="newton", max_iter=1)
     table = result.table
     assert result.failed_frames == [0, 1] and (table["status"] != "").all()
-    assert table["peak_pressure"].isna().all() and (table["iterations"] == 1).all()
+    assert table["peak_pressure_MPa"].isna().all() and (table["iterations"] == 1).all()
     assert table["message"].str.contains("no certified answer").all()
     assert table["certificate_residual"].gt(1e-6).all()  # how it failed is kept
     summary = result.summary()
-    assert math.isnan(summary["peak_pressure"]) and summary["peak_frame"] is None
+    assert math.isnan(summary["peak_pressure_MPa"]) and summary["peak_frame"] is None
     assert not result.solutions[0].success  # the uncertified answer, for inspection
     with pytest.raises(SolverError, match="frame 0") as caught:
         solve_path(hip, LOADS[[0, 2]], method="newton", max_iter=1, stop_on_error=True)

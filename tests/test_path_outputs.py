@@ -62,16 +62,16 @@ def test_region_columns_are_the_sums_over_each_half(path, labelled):
             force = float(p[mask] @ a[mask])
             vector = (p[mask] * a[mask]) @ n[mask]
             row = table.iloc[k]
-            assert [row[f"{name}_force_{c}"] for c in "xyz"] == pytest.approx(vector.tolist(), rel=1e-12, abs=1e-9)
-            assert row[f"{name}_resultant"] == pytest.approx(np.linalg.norm(vector), rel=1e-12)
-            assert row[f"{name}_force_magnitude_sum"] == pytest.approx(force, rel=1e-12)
+            assert [row[f"{name}_force_{c}_N"] for c in "xyz"] == pytest.approx(vector.tolist(), rel=1e-12, abs=1e-9)
+            assert row[f"{name}_resultant_N"] == pytest.approx(np.linalg.norm(vector), rel=1e-12)
+            assert row[f"{name}_force_magnitude_sum_N"] == pytest.approx(force, rel=1e-12)
             assert row[f"{name}_force_share"] == pytest.approx(vector @ total / (total @ total), rel=1e-12)
-            assert row[f"{name}_peak_pressure"] == p[mask].max()
+            assert row[f"{name}_peak_pressure_MPa"] == p[mask].max()
             contact = mask & (solution.strain < 0)
-            assert row[f"{name}_contact_area"] == pytest.approx(a[contact].sum(), rel=1e-12)
+            assert row[f"{name}_contact_area_mm2"] == pytest.approx(a[contact].sum(), rel=1e-12)
             if force > 0:
                 cop = (p[mask] * a[mask]) @ labelled.points[mask] / force
-                assert [row[f"{name}_cop_{c}"] for c in "xyz"] == pytest.approx(cop.tolist(), abs=1e-9)
+                assert [row[f"{name}_cop_{c}_mm"] for c in "xyz"] == pytest.approx(cop.tolist(), abs=1e-9)
         assert table["medial_force_share"].iloc[k] + table["lateral_force_share"].iloc[k] == pytest.approx(1.0)
     # Closed form of the plate in full contact, p_i = P/A + M x_i / I over the springs at
     # x_i = +-0.5, ..., +-19.5 mm (1 mm apart): I = S sum x_i^2, and the moment adds
@@ -85,7 +85,7 @@ def test_region_columns_are_the_sums_over_each_half(path, labelled):
 def test_validity_per_frame(path):
     table = path.table
     # the linear law's range is 30 % compressive strain: the last frame is outside it
-    strain = table["peak_pressure"] / H  # linear law: p = -H eps
+    strain = table["peak_pressure_MPa"] / H  # linear law: p = -H eps
     assert table["valid"].tolist() == [True, True, True, False]
     assert table["validity_failed"].tolist() == ["", "", "", "strain"]
     np.testing.assert_allclose(table["validity_strain"], strain, rtol=1e-12)

@@ -101,7 +101,7 @@ def test_the_manifest_lists_the_pictures_with_their_sha256(paths, tmp_path, monk
     for name in PNGS:
         png = folder / name
         assert png.read_bytes().startswith(b"\x89PNG\r\n\x1a\n")
-        assert listed[name] == {"size": png.stat().st_size, "sha256": _sha256(png)}, name
+        assert listed[name] == {"size_bytes": png.stat().st_size, "sha256": _sha256(png)}, name
     summary = json.loads((folder / "summary.json").read_text())
     assert summary["files"]["cycle_plot"] == str(folder / "cycle.png")
     assert check_outputs(folder) == [] and _temporary(folder) == [] and not (folder / INCOMPLETE_NAME).exists()
@@ -200,7 +200,7 @@ def test_check_outputs_finds_a_picture_that_differs_from_the_manifest(paths, tmp
 
 
 def test_a_picture_that_cannot_be_drawn_leaves_no_reserved_file(paths, tmp_path):
-    broken = paths[0].table.drop(columns=["time"])
+    broken = paths[0].table.drop(columns=["time_s"])
     with pytest.raises(KeyError), PictureFiles(DrawHere()) as drawn:
         drawn.submit(
             "cycle_plot", tmp_path / "cycle.png", lambda p: ("dea_opt.io.cycle", "plot_cycle", (broken, p), {})

@@ -54,7 +54,7 @@ def test_the_worker_draws_the_same_files_as_the_run(path, tmp_path):
 
 
 def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_path):
-    broken = path.table.drop(columns=["time"])
+    broken = path.table.drop(columns=["time_s"])
     from dea_opt.io.cycle import plot_cycle
 
     with pytest.raises(Exception) as here:

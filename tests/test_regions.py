@@ -145,7 +145,7 @@ def test_region_without_contact(tilted):
     idle = dataclasses.replace(tilted, pressure=np.zeros_like(tilted.pressure), strain=np.ones_like(tilted.strain))
     halves = split_by_axis(idle, "x")  # no centre of pressure: cut at the area centroid
     assert all(np.isnan(s.share) for s in halves.values())
-    assert np.isnan(halves["medial"].as_dict()["center_of_pressure"]).all()
+    assert np.isnan(halves["medial"].as_dict()["center_of_pressure_mm"]).all()
     assert halves["medial"].n_springs + halves["lateral"].n_springs == len(x)
 
 
@@ -168,8 +168,8 @@ def test_regions_of_a_socket_carry_the_load_by_their_resultants():
     assert sum(s.resultant for s in stats.values()) > size  # two resultants at an angle
     assert sum(s.force_magnitude_sum for s in stats.values()) > 1.05 * sum(s.resultant for s in stats.values())
     assert stats["lateral"].share > stats["medial"].share > 0  # the load leans toward +x
-    assert set(stats["medial"].as_dict()) >= {"force_vector", "resultant", "share", "force_magnitude_sum"}
-    assert "force" not in stats["medial"].as_dict()  # no number called a force that is none
+    assert set(stats["medial"].as_dict()) >= {"force_vector_N", "resultant_N", "share", "force_magnitude_sum_N"}
+    assert "force_N" not in stats["medial"].as_dict()  # no number called a force that is none
 
 
 def test_bad_input(tilted):

@@ -55,7 +55,7 @@ def test_a_valid_answer_exits_0_and_reports_every_check(tmp_path):
     checks = summary["validity"]["checks"]
     assert summary["validity"]["valid"] and {"strain", "rotation", "peak_pressure"} <= set(checks)
     # the plate's closed form: peak strain = peak pressure / H, well inside the linear law's 30 %
-    assert checks["strain"]["value"] == pytest.approx(summary["peak_pressure"] / 10.0, rel=1e-9)
+    assert checks["strain"]["value"] == pytest.approx(summary["peak_pressure_MPa"] / 10.0, rel=1e-9)
     assert checks["strain"]["limit"] == 0.3 and checks["strain"]["status"] == "passed"
     assert "validity: valid" in result.stdout and "strain 0.2" in result.stdout
     manifest = read_manifest(tmp_path / "out")
@@ -68,7 +68,7 @@ def test_outside_validity_exits_3_with_the_reason_unless_allowed(tmp_path):
     assert result.exit_code == 3
     summary = json.loads((tmp_path / "a" / "contact.json").read_text())
     assert summary["validity"]["valid"] is False and summary["validity"]["failed"] == ["strain"]
-    strain = summary["peak_pressure"] / 5.0
+    strain = summary["peak_pressure_MPa"] / 5.0
     assert summary["validity"]["checks"]["strain"]["value"] == pytest.approx(strain, rel=1e-9)
     last = stderr_lines(result)[-1]
     assert last.startswith(f"dea-opt: solved outside validity: strain {strain:.4g} > 0.3")
@@ -134,8 +134,8 @@ def test_a_load_path_with_any_frame_outside_validity_exits_3(tmp_path, H, code):
     # the motion each frame found, per free dof: a column of frames.csv, its range in summary.json
     # and on the terminal; the head sinks along the load, further under the stiffer frames' load
     motion = summary["motion"]
-    assert list(motion) == ["body2_ux", "body2_uy", "body2_uz"]
-    peak = frames["peak_pressure"].idxmax()
+    assert list(motion) == ["body2_ux_mm", "body2_uy_mm", "body2_uz_mm"]
+    peak = frames["peak_pressure_MPa"].idxmax()
     for column, m in motion.items():
         assert m["unit"] == "mm"
         assert (m["min"], m["max"], m["at_peak"]) == (
@@ -143,8 +143,8 @@ def test_a_load_path_with_any_frame_outside_validity_exits_3(tmp_path, H, code):
             frames[column].max(),
             frames[column].iloc[peak],
         )
-    assert frames.loc[frames["Fz"].abs().idxmax(), "body2_uz"] == frames["body2_uz"].min() < 0
-    assert f"body2_uz {motion['body2_uz']['min']:.4g} to {motion['body2_uz']['max']:.4g} mm" in result.stdout
+    assert frames.loc[frames["Fz_N"].abs().idxmax(), "body2_uz_mm"] == frames["body2_uz_mm"].min() < 0
+    assert f"body2_uz {motion['body2_uz_mm']['min']:.4g} to {motion['body2_uz_mm']['max']:.4g} mm" in result.stdout
 
 
 def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):
@@ -242,20 +242,20 @@ def test_the_physiological_knee_exits_0(tmp_path):
     result = invoke("run", knee_scenario(tmp_path), "-o", tmp_path / "out")
     assert result.exit_code == 0, result.stderr
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
-    assert summary["validity"]["valid"] and 1.0 < summary["peak_pressure"] < 20.0
+    assert summary["validity"]["valid"] and 1.0 < summary["peak_pressure_MPa"] < 20.0
     regions = summary["regions"]
-    force = np.array(summary["contact_force"])
+    force = np.array(summary["contact_force_N"])
     size = float(np.linalg.norm(force))
-    vectors = {n: np.array(regions[n]["force_vector"]) for n in ("medial", "lateral")}
+    vectors = {n: np.array(regions[n]["force_vector_N"]) for n in ("medial", "lateral")}
     np.testing.assert_allclose(vectors["medial"] + vectors["lateral"], force, rtol=0, atol=1e-9 * size)
     assert regions["medial"]["share"] + regions["lateral"]["share"] == pytest.approx(1.0, rel=1e-9)
     assert all(regions[n]["share"] > 0.0 for n in ("medial", "lateral"))
     for n in ("medial", "lateral"):  # the share is the region's resultant along the contact force
         assert regions[n]["share"] == pytest.approx(vectors[n] @ force / size**2, rel=1e-9)
-        assert regions[n]["resultant"] == pytest.approx(np.linalg.norm(vectors[n]), rel=1e-12)
+        assert regions[n]["resultant_N"] == pytest.approx(np.linalg.norm(vectors[n]), rel=1e-12)
     # the springs' force magnitudes add up to more than the contact force: kept, named for what they are
-    magnitudes = regions["medial"]["force_magnitude_sum"] + regions["lateral"]["force_magnitude_sum"]
-    assert magnitudes == pytest.approx(summary["force_magnitude_sum"], rel=1e-9) and magnitudes > size
+    magnitudes = regions["medial"]["force_magnitude_sum_N"] + regions["lateral"]["force_magnitude_sum_N"]
+    assert magnitudes == pytest.approx(summary["force_magnitude_sum_N"], rel=1e-9) and magnitudes > size
     # the terminal: each region's part of the contact force, in N, and the parts add up to it
     parts = {}
     for line in result.stdout.splitlines():
@@ -360,7 +360,7 @@ def test_a_toy_law_through_a_scenario_the_schema_and_the_cli(toy, tmp_path):
     result = invoke("run", tmp_path / "toy.toml", "-o", tmp_path / "out", "--set", "law.c=0.0")
     assert result.exit_code in (0, 3), result.stderr
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
-    assert summary["law"] == "toylaw(k=10, c=0)" and summary["peak_pressure"] == pytest.approx(5.0, rel=1e-9)
+    assert summary["law"] == "toylaw(k=10, c=0)" and summary["peak_pressure_MPa"] == pytest.approx(5.0, rel=1e-9)
     assert summary["validity"]["checks"]["strain"]["value"] == pytest.approx(0.5, rel=1e-9)  # 5 MPa / 10 MPa
     bad = invoke("run", tmp_path / "toy.toml", "-o", tmp_path / "bad", "--set", "law.k=-1")
     assert bad.exit_code == 2 and "law.k" in bad.stderr and "must be > 0" in bad.stderr
@@ -401,7 +401,7 @@ def test_law_kinds_in_a_sweep_drop_what_a_kind_does_not_take(tmp_path):
     assert len(table) == 4 and (table.loc[table["law.kind"] == "ateshian", "status"] == "ok").all()
     assert (linear["status"] == "outside_validity").all() and (linear["validity_failed"] == "strain").all()
     assert linear["warnings"].str.contains("law kind 'linear' takes no beta: dropped law.beta").all()
-    assert np.allclose(linear["peak_pressure"], 5.0, rtol=1e-9)  # 2000 N over 400 mm^2
+    assert np.allclose(linear["peak_pressure_MPa"], 5.0, rtol=1e-9)  # 2000 N over 400 mm^2
     assert table[table["law.kind"] == "ateshian"]["warnings"].isna().all()
     # a key no law takes is a misspelling, not a parameter to drop
     with pytest.raises(d.ScenarioError, match="law.betta"):

@@ -76,7 +76,7 @@ def test_example_hip_gait_is_the_demo_scenario():
 
 def test_defaults_and_problem():
     scenario = parse(BASE)
-    assert scenario.solve.method == "auto" and scenario.output.formats == ["csv", "json", "vtk", "png"]
+    assert scenario.solve.method == "auto" and scenario.output.formats == ["csv", "json", "vtk", "png", "html"]
     problem = build_problem(scenario)
     assert len(problem.layer) == 8 * 24
     assert problem.free_names == ("body2.ux", "body2.uy", "body2.uz")

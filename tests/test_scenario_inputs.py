@@ -113,7 +113,7 @@ def test_a_run_reports_the_compartments_and_the_springs_table_keeps_them(split_p
     regions = summary["regions"]
     assert set(regions) == {"left", "right"}
     # a centred load on a symmetric plate: each half carries half of it
-    forces = [regions[name]["resultant"] for name in ("left", "right")]
+    forces = [regions[name]["resultant_N"] for name in ("left", "right")]
     assert np.allclose(forces, 200.0, rtol=1e-9) and np.isclose(sum(forces), 400.0, rtol=1e-12)
     assert [regions[name]["share"] for name in ("left", "right")] == pytest.approx([0.5, 0.5], rel=1e-9)
     layer = outcome.result.problem.layer
@@ -272,10 +272,10 @@ def test_a_run_on_a_sto_load_path_carries_each_frame(tmp_path):
     outcome = run_scenario(scenario, tmp_path / "out")
     frames = outcome.result.table
     assert outcome.exit_code == 0 and len(frames) == len(TIME)
-    assert np.array_equal(frames["Fz"], FZ) and np.array_equal(frames["Fx"], TIME)
+    assert np.array_equal(frames["Fz_N"], FZ) and np.array_equal(frames["Fx_N"], TIME)
     # the plate under a centred force: uniform pressure F / A over the 40 x 10 mm plate
-    assert np.allclose(frames["mean_pressure"], -FZ / 400.0, rtol=1e-9)
-    assert np.allclose(frames["peak_pressure"], -FZ / 400.0, rtol=1e-9)
+    assert np.allclose(frames["mean_pressure_MPa"], -FZ / 400.0, rtol=1e-9)
+    assert np.allclose(frames["peak_pressure_MPa"], -FZ / 400.0, rtol=1e-9)
 
 
 @pytest.mark.parametrize(
@@ -332,7 +332,7 @@ def test_the_example_opensim_scenario_runs(tmp_path):
     outcome = run_scenario(scenario, tmp_path / "out")
     assert outcome.exit_code == 0 and outcome.result.success
     # frictionless contact: the springs' resultant on the head balances each frame's force
-    assert np.allclose(outcome.result.table["resultant"], np.linalg.norm(raw[:, 1:4], axis=1), rtol=1e-6)
+    assert np.allclose(outcome.result.table["resultant_N"], np.linalg.norm(raw[:, 1:4], axis=1), rtol=1e-6)
 
 
 @pytest.mark.parametrize(

@@ -33,7 +33,7 @@ MAX_LINES = 520
 #: front, imports from any. A new subpackage takes its place here.
 LAYERS = (
     ("_version", "errors"),  # the version; the one exception tree
-    ("status", "_checks", "files"),  # status vocabularies; input, memory and thread checks; atomic files, locks
+    ("status", "_checks", "files", "units"),  # status vocabularies; checks; atomic files, locks; units in names
     ("laws", "kinematics", "anatomy", "progress", "gait"),  # spring laws; rigid motion; anatomical frames
     ("formulations",),  # arrays and a law: the registry and every formulation
     ("layer",),  # the spring layer
@@ -46,7 +46,8 @@ LAYERS = (
     ("solver",),  # solve and compare, by kinematics and method
     ("loadpath", "study"),  # load paths; comparison studies
     ("opensim",),  # OpenSim models and motions, read without OpenSim
-    ("scenario",),  # scenario files: schema, parse, build
+    ("scenario",),  # scenario files: schema, parse, build, content keys
+    ("report",),  # report.html of a run and of a sweep
     ("run",),  # running a scenario: outputs published together, pictures, init
     ("sensitivity", "sweep"),  # derivatives and calibration; sweeps over scenarios
     ("cli",),  # the command line

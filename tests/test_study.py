@@ -83,11 +83,11 @@ def test_an_inaccurate_answer_is_not_a_success(hip, monkeypatch, solver):
 
 def test_summary_in_the_manner_of_qpbenchmark(study):
     summary = study.summary
-    assert {"success_rate", "shifted_gm_time", "relative_time"} <= set(summary.columns)
+    assert {"success_rate_percent", "shifted_gm_time_s", "relative_time"} <= set(summary.columns)
     for _, group in summary.groupby("accuracy"):
         assert group["relative_time"].min() == pytest.approx(1.0)
-    failing = summary[summary["success_rate"] == 0]
-    assert np.allclose(failing["shifted_gm_time"], 10.0)
+    failing = summary[summary["success_rate_percent"] == 0]
+    assert np.allclose(failing["shifted_gm_time_s"], 10.0)
 
 
 def test_shifted_geometric_mean():
@@ -103,12 +103,12 @@ def test_summary_counts_failures_at_the_time_limit():
             "method": ["qp"] * 2,
             "solver": ["X"] * 2,
             "success": [True, False],
-            "total_time": [0.01, 0.02],
+            "total_time_s": [0.01, 0.02],
         }
     )
     row = summarize(table, time_limit=1.0).iloc[0]
-    assert row["success_rate"] == 50.0
-    assert row["shifted_gm_time"] == pytest.approx(np.sqrt(0.02 * 1.01) - 0.01)
+    assert row["success_rate_percent"] == 50.0
+    assert row["shifted_gm_time_s"] == pytest.approx(np.sqrt(0.02 * 1.01) - 0.01)
 
 
 def test_repeats_and_nonlinear_law(hip):

@@ -306,13 +306,15 @@ def test_a_sweep_casts_each_geometry_once_and_writes_the_outputs_asked(scenario,
     # Each row is what a solve of that case gives without any cache.
     from dea_opt.scenario import build_problem, load_scenario
 
-    for row in table.itertuples():
-        problem = build_problem(load_scenario(scenario, {"law.H": row[2], "geometry.max_gap": row[3]}))
+    for row in table.to_dict("records"):  # the swept values' columns carry their units
+        overrides = {"law.H": row["law.H_MPa"], "geometry.max_gap": row["geometry.max_gap_mm"]}
+        assert row["case"] == f"law.H={row['law.H_MPa']:g}, geometry.max_gap={row['geometry.max_gap_mm']:g}"
+        problem = build_problem(load_scenario(scenario, overrides))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             solution = d.solve(problem)
-        assert row.peak_pressure == pytest.approx(solution.peak_pressure, rel=1e-12)
-        assert row.n_springs == len(problem.layer)
+        assert row["peak_pressure_MPa"] == pytest.approx(solution.peak_pressure, rel=1e-12)
+        assert row["n_springs"] == len(problem.layer)
     # Other outputs are another content: the cases run again, saying why.
     again = run_sweep(scenario, sets, out, scheduler="synchronous", outputs="json")
     assert len(again.ran) == 6

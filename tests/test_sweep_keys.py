@@ -15,11 +15,10 @@ from typer.testing import CliRunner
 from dea_opt.cli import app
 from dea_opt.errors import InputError
 from dea_opt.geometry import plate_layer
-from dea_opt.scenario import load_scenario, write_springs
+from dea_opt.scenario import keys, load_scenario, write_springs
 from dea_opt.sweep import (
     JOURNAL_NAME,
     RESULTS_NAME,
-    keys,
     make_cases,
     read_results,
     run_sweep,
@@ -102,9 +101,9 @@ def springs(tmp_path):
 def test_an_edited_scenario_is_recomputed_and_says_why(plate, tmp_path):
     out = tmp_path / "sweep"
     first = sweep(plate, ["law.H=5,10"], out)
-    linear = first.table.set_index("law.H")
+    linear = first.table.set_index("law.H_MPa")
     exact = rigid_plate_peak(500.0, 5.0, 40, 4, 40.0, 10.0)
-    np.testing.assert_allclose(linear["peak_pressure"], exact, rtol=1e-6)  # linear, full contact: H drops out
+    np.testing.assert_allclose(linear["peak_pressure_MPa"], exact, rtol=1e-6)  # linear, full contact: H drops out
 
     plate.write_text(PLATE.replace('kind = "linear"', 'kind = "ateshian"\nbeta = 0.3'))
     lines = []
@@ -113,11 +112,11 @@ def test_an_edited_scenario_is_recomputed_and_says_why(plate, tmp_path):
     assert set(second.recomputed.values()) == {"the scenario changed since its row was computed"}
     for case in first.ran:
         assert f"case {case}: the scenario changed since its row was computed; recomputing" in lines
-    ateshian = second.table.set_index("law.H")
+    ateshian = second.table.set_index("law.H_MPa")
     assert len(second.table) == 2 and second.table["case_id"].is_unique
     assert (ateshian["key"] != linear["key"]).all()
     # Under a nonlinear law pressure is no longer linear in x: the rows hold its numbers, not the old ones.
-    assert (np.abs(ateshian["peak_pressure"] - exact) > 1e-3 * exact).all()
+    assert (np.abs(ateshian["peak_pressure_MPa"] - exact) > 1e-3 * exact).all()
     # Unchanged since: a third run reuses every row.
     third = sweep(plate, ["law.H=5,10"], out)
     assert third.ran == [] and sorted(third.skipped) == sorted(first.ran)
@@ -131,7 +130,7 @@ def test_the_cli_prints_the_stale_summary(plate, tmp_path):
     result = CliRunner().invoke(app, args)
     assert result.exit_code == 0, result.stderr
     assert result.stdout.splitlines() == [
-        f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}",
+        f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}, report: {out / 'report.html'}",
         "  recomputed 2 case(s): the scenario changed since its row was computed",
     ]
 
@@ -209,7 +208,7 @@ def test_a_results_table_from_before_content_keys_is_kept_and_its_cases_recomput
     assert result.recomputed == {old[0].id: "its row has no content key (it was computed by an older dea-opt)"}
     table = read_results(out).set_index("case_id")
     assert list(table.index) == [old[0].id, old[1].id]  # the other case's row is kept
-    assert table.loc[old[1].id, "peak_pressure"] == 2.0 and table.loc[old[0].id, "peak_pressure"] != 1.0
+    assert table.loc[old[1].id, "peak_pressure"] == 2.0 and table.loc[old[0].id, "peak_pressure_MPa"] != 1.0
 
 
 @pytest.mark.parametrize(

@@ -102,21 +102,23 @@ def test_quiet_on_a_terminal_prints_only_the_summary(plate, tmp_path):
     out = tmp_path / "sweep"
     text, stderr, code = in_terminal(_command(plate, out, "--quiet"))
     lines = [line for line in re.split(r"[\r\n]+", text) if line.strip()]
-    assert lines == [f"4 case(s) run, 0 already finished; results: {out / RESULTS_NAME}"]
+    assert lines == [f"4 case(s) run, 0 already finished; results: {out / RESULTS_NAME}, report: {out / 'report.html'}"]
     assert code == 1 and stderr.startswith("dea-opt: 2 case(s) did not finish cleanly")
 
 
 def test_piped_prints_only_the_summary(plate, tmp_path):
     out = tmp_path / "sweep"
     done = subprocess.run(_command(plate, out), capture_output=True, text=True, timeout=120, check=False)
-    assert done.stdout.splitlines() == [f"4 case(s) run, 0 already finished; results: {out / RESULTS_NAME}"]
+    assert done.stdout.splitlines() == [
+        f"4 case(s) run, 0 already finished; results: {out / RESULTS_NAME}, report: {out / 'report.html'}"
+    ]
     assert done.returncode == 1 and len(done.stderr.splitlines()) == 1
 
 
 def test_format_row():
-    row = {"case_id": "abc", "law.H": 5, "status": "ok", "peak_pressure": 2.1875, "wall_time": 0.42}
+    row = {"case_id": "abc", "law.H_MPa": 5, "status": "ok", "peak_pressure_MPa": 2.1875, "wall_time_s": 0.42}
     assert format_row(row, {"law.H": 5}) == "case abc  law.H=5  ok  peak 2.188 MPa  0.4 s"
-    failed = {"case_id": "def", "law.H": 5, "status": "error", "message": "x " * 80, "wall_time": 1.0}
+    failed = {"case_id": "def", "law.H_MPa": 5, "status": "error", "message": "x " * 80, "wall_time_s": 1.0}
     line = format_row(failed, {"law.H": 5}, "(finished by another sweep)")
     assert line.startswith("case def  law.H=5  error  1.0 s  (x x") and "...)" in line
     assert line.endswith("(finished by another sweep)") and "\n" not in line
@@ -170,5 +172,8 @@ def test_dask_noise_stays_off_the_terminal(plate, tmp_path):
     done = subprocess.run(command, capture_output=True, text=True, timeout=300, check=False)
     assert done.returncode == 0, done.stderr
     assert done.stderr == ""
-    assert done.stdout == f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}\n"
+    assert (
+        done.stdout
+        == f"2 case(s) run, 0 already finished; results: {out / RESULTS_NAME}, report: {out / 'report.html'}\n"
+    )
     assert (out / "sweep.log").is_file()

@@ -124,7 +124,7 @@ def test_a_sweep_runs_on_a_scheduler_and_two_workers_started_apart(tmp_path):
         assert set(table["pid"]) == set(worker_pids)
         # Each case's numbers: the plate's uniform pressure F / A under its own load scale.
         pressure = 100.0 * table["load.scale"] / (40.0 * 10.0)
-        assert ((table["mean_pressure"] - pressure).abs() <= 1e-9 * pressure).all()
+        assert ((table["mean_pressure_MPa"] - pressure).abs() <= 1e-9 * pressure).all()
         assert sorted(
             p.name for p in (out / "cases" / table["case_id"].iloc[0]).iterdir() if not p.name.startswith(".")
         ) == ["contact.csv", "contact.json", "manifest.json"]

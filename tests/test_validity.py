@@ -295,8 +295,9 @@ def test_the_report_is_immutable_json_ready_and_flat():
     row = validity.columns()
     assert row["valid"] is False and row["validity_failed"].split(";") == [c.name for c in validity.failed]
     assert all(isinstance(v, (bool, float, str)) for v in row.values())
-    assert row["validity_rotation"] == pytest.approx(10.0) and "validity_gap_error_mm" in row
-    assert {f"validity_{n}" for n in NAMES} <= set(row)
+    assert row["validity_rotation_deg"] == pytest.approx(10.0) and "validity_gap_error_mm" in row
+    assert {d.validity.check_column(n) for n in NAMES} <= set(row)
+    assert {"validity_extent_mm", "validity_layer_area_mm2", "validity_peak_pressure_MPa"} <= set(row)
 
     line = validity.summary()
     assert "\n" not in line and line.startswith("NOT VALID") and "rotation 10 > 3 deg" in line

@@ -66,7 +66,7 @@ def test_a_path_is_streamed_and_a_frame_that_cannot_be_carried_is_recorded(tmp_p
     assert "failed their certificate" not in message  # not a certificate failure
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     assert frames["success"].tolist() == [True, True, False, True, True]
-    assert frames.loc[2, "status"] == "load_not_supported" and np.isnan(frames.loc[2, "peak_pressure"])
+    assert frames.loc[2, "status"] == "load_not_supported" and np.isnan(frames.loc[2, "peak_pressure_MPa"])
     # every frame has its .vtu, written while solving, and the manifest lists each
     manifest = read_manifest(tmp_path / "out")
     series = sorted(name for name in manifest["files"] if name.startswith("series_frames/"))
@@ -102,27 +102,27 @@ def test_regions_report_their_resultants_everywhere(tmp_path):
     assert all(total == pytest.approx(size, rel=1e-3) for _, _, total, _ in parts.values())
     # the springs, read back from the CSV and summed here
     springs = pd.read_csv(tmp_path / "out" / "contact.csv")
-    force = (springs["pressure"] * springs["area"]).to_numpy()[:, None] * springs[["nx", "ny", "nz"]].to_numpy()
+    force = (springs["pressure_MPa"] * springs["area_mm2"]).to_numpy()[:, None] * springs[["nx", "ny", "nz"]].to_numpy()
     np.testing.assert_allclose(force.sum(axis=0), -load, rtol=0, atol=1e-6 * size)  # equilibrium
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     for name, (share, part, _, resultant) in parts.items():
         mine = (springs["label"] == name).to_numpy()
         vector = force[mine].sum(axis=0)
         region = summary["regions"][name]
-        np.testing.assert_allclose(region["force_vector"], vector, rtol=1e-9, atol=1e-9 * size)
-        assert region["resultant"] == pytest.approx(np.linalg.norm(vector), rel=1e-9)
+        np.testing.assert_allclose(region["force_vector_N"], vector, rtol=1e-9, atol=1e-9 * size)
+        assert region["resultant_N"] == pytest.approx(np.linalg.norm(vector), rel=1e-9)
         assert region["share"] == pytest.approx(vector @ -load / size**2, rel=1e-6)
         assert share == pytest.approx(100 * region["share"], abs=0.06) and resultant == pytest.approx(
-            region["resultant"], rel=1e-3
+            region["resultant_N"], rel=1e-3
         )
         assert part == pytest.approx(region["share"] * size, rel=1e-3)
-        magnitudes = float((springs["pressure"] * springs["area"])[mine].sum())
-        assert region["force_magnitude_sum"] == pytest.approx(magnitudes, rel=1e-9) and "force" not in region
-    magnitudes = sum(r["force_magnitude_sum"] for r in summary["regions"].values())
-    assert magnitudes == pytest.approx(summary["force_magnitude_sum"], rel=1e-9) and magnitudes > 1.1 * size
+        magnitudes = float((springs["pressure_MPa"] * springs["area_mm2"])[mine].sum())
+        assert region["force_magnitude_sum_N"] == pytest.approx(magnitudes, rel=1e-9) and "force" not in region
+    magnitudes = sum(r["force_magnitude_sum_N"] for r in summary["regions"].values())
+    assert magnitudes == pytest.approx(summary["force_magnitude_sum_N"], rel=1e-9) and magnitudes > 1.1 * size
 
 
-def test_a_path_s_regions_report_their_resultants_in_the_table_the_summary_and_the_plot(tmp_path, monkeypatch):
+def test_a_path_s_regions_report_their_resultants_in_the_table_the_summary_and_the_plot(tmp_path):
     from dea_opt.io import cycle
 
     rows = [(0.0, 300.0, 0.0, -1200.0), (0.5, -200.0, 100.0, -900.0)]
@@ -131,13 +131,13 @@ def test_a_path_s_regions_report_their_resultants_in_the_table_the_summary_and_t
     assert result.exit_code == 0, result.stderr
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     for _, row in frames.iterrows():
-        vectors = {n: np.array([row[f"{n}_force_{c}"] for c in "xyz"]) for n in ("medial", "lateral")}
+        vectors = {n: np.array([row[f"{n}_force_{c}_N"] for c in "xyz"]) for n in ("medial", "lateral")}
         total = vectors["medial"] + vectors["lateral"]
-        np.testing.assert_allclose(total, -np.array([row["Fx"], row["Fy"], row["Fz"]]), rtol=0, atol=1e-6 * 1500)
+        np.testing.assert_allclose(total, -np.array([row["Fx_N"], row["Fy_N"], row["Fz_N"]]), rtol=0, atol=1e-6 * 1500)
         for n, v in vectors.items():
             assert row[f"{n}_force_share"] == pytest.approx(v @ total / (total @ total), rel=1e-9)
-            assert row[f"{n}_resultant"] == pytest.approx(np.linalg.norm(v), rel=1e-9)
-            assert row[f"{n}_force_magnitude_sum"] > row[f"{n}_resultant"]
+            assert row[f"{n}_resultant_N"] == pytest.approx(np.linalg.norm(v), rel=1e-9)
+            assert row[f"{n}_force_magnitude_sum_N"] > row[f"{n}_resultant_N"]
         assert row["medial_force_share"] + row["lateral_force_share"] == pytest.approx(1.0, rel=1e-9)
         assert "medial_force" not in frames.columns
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
@@ -146,11 +146,8 @@ def test_a_path_s_regions_report_their_resultants_in_the_table_the_summary_and_t
     assert (tmp_path / "out" / "cycle.png").is_file()
     # the cycle plot (cycle.png, drawn by another process) draws the same shares, in percent, under
     # a label that says of what: drawn here again from the table
-    figures = []
-    make = cycle._figure
-    monkeypatch.setattr(cycle, "_figure", lambda size: figures.append(make(size)) or figures[-1])
-    cycle.plot_cycle(frames, tmp_path / "again.png")
-    panel = figures[0].axes[4]
+    figure = cycle.cycle_figure(frames)
+    panel = next(ax for ax in figure.axes if ax.get_ylabel().startswith("share"))
     assert panel.get_ylabel() == "share of the\ncontact force (%)"
     drawn = {line.get_label(): line.get_ydata() for line in panel.get_lines()}
     np.testing.assert_allclose(drawn["medial"], 100 * frames["medial_force_share"], rtol=1e-12)
@@ -183,8 +180,8 @@ def test_run_path_outputs_keeps_nothing_per_frame(tmp_path):
     assert outcome.result.frame_files is not None and len(outcome.result.frame_files.files) == 4
     # the table still holds each frame's answer: the resultant equals the applied force (own sum)
     table = outcome.result.table
-    applied = np.linalg.norm(table[["Fx", "Fy", "Fz"]].to_numpy(), axis=1)
-    assert np.allclose(table["resultant"], applied, rtol=1e-6)
+    applied = np.linalg.norm(table[["Fx_N", "Fy_N", "Fz_N"]].to_numpy(), axis=1)
+    assert np.allclose(table["resultant_N"], applied, rtol=1e-6)
 
 
 # --- 2. the anatomical frame from the scenario ------------------------------------------------------
@@ -214,7 +211,11 @@ def test_the_scenario_anatomy_reaches_the_json_and_the_map(tmp_path):
     assert result.exit_code == 0, result.stderr
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     springs = pd.read_csv(tmp_path / "out" / "contact.csv", comment="#")
-    points, area, pressure = springs[["x", "y", "z"]].to_numpy(), springs["area"].to_numpy(), springs["pressure"]
+    points, area, pressure = (
+        springs[["x_mm", "y_mm", "z_mm"]].to_numpy(),
+        springs["area_mm2"].to_numpy(),
+        springs["pressure_MPa"],
+    )
     centroid = area @ points / area.sum()
     cop = (pressure * area).to_numpy() @ points / (pressure * area).sum()
     # a left limb: anterior x proximal is the right, lateral; so anterior = proximal x medial... = -x here
@@ -222,7 +223,7 @@ def test_the_scenario_anatomy_reaches_the_json_and_the_map(tmp_path):
     anterior = np.cross(proximal, medial)
     got = summary["center_of_pressure_anatomical"]
     expected = (cop - centroid) @ np.array([medial, anterior, proximal]).T
-    assert np.allclose([got["medial"], got["anterior"], got["proximal"]], expected, atol=1e-9)
+    assert np.allclose([got["medial_mm"], got["anterior_mm"], got["proximal_mm"]], expected, atol=1e-9)
     assert summary["anatomy"]["side"] == "left" and np.allclose(summary["anatomy"]["anterior"], anterior)
     assert (tmp_path / "out" / "contact.png").read_bytes()[:4] == b"\x89PNG"
 
@@ -309,8 +310,8 @@ def test_a_sweep_case_outside_validity_is_not_ok(tmp_path):
     args = ["sweep", tmp_path / "plate.toml", "--set", "law.H=5,10", "--scheduler", "synchronous"]
     result = invoke(*args, "-o", tmp_path / "s")
     assert result.exit_code == 3 and "1 case(s) solved outside validity" in result.stderr
-    table = pd.read_csv(tmp_path / "s" / "sweep.csv").set_index("law.H")
-    strain = table["peak_pressure"] / table.index  # the linear law: strain = pressure / H, computed here
+    table = pd.read_csv(tmp_path / "s" / "sweep.csv").set_index("law.H_MPa")
+    strain = table["peak_pressure_MPa"] / table.index  # the linear law: strain = pressure / H, computed here
     assert strain[5] > 0.3 > strain[10]
     assert table.loc[5, "status"] == "outside_validity" and table.loc[5, "validity_failed"] == "strain"
     assert table.loc[10, "status"] == "ok" and table.loc[5, "exit_code"] == 3
@@ -320,7 +321,7 @@ def test_a_sweep_case_outside_validity_is_not_ok(tmp_path):
     # allowed by the scenario: exit 0, the row still says so
     allowed = invoke(*args, "-o", tmp_path / "a", "--set", "solve.allow_outside_validity=true")
     assert allowed.exit_code == 0, allowed.stderr
-    table = pd.read_csv(tmp_path / "a" / "sweep.csv").set_index("law.H")
+    table = pd.read_csv(tmp_path / "a" / "sweep.csv").set_index("law.H_MPa")
     assert table.loc[5, "status"] == "outside_validity" and table.loc[5, "exit_code"] == 0
 
 

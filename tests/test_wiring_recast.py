@@ -61,7 +61,9 @@ def test_with_validity_returns_a_new_solution_and_checks_its_arguments():
 
 def _own_force(springs: pd.DataFrame) -> np.ndarray:
     """The springs' force on body 2 (N), summed here from the per-spring table."""
-    return ((springs["pressure"] * springs["area"]).to_numpy()[:, None] * springs[["nx", "ny", "nz"]].to_numpy()).sum(0)
+    return (
+        (springs["pressure_MPa"] * springs["area_mm2"]).to_numpy()[:, None] * springs[["nx", "ny", "nz"]].to_numpy()
+    ).sum(0)
 
 
 @needs_knee
@@ -77,10 +79,10 @@ def test_the_knee_run_recasts_at_its_solved_pose(tmp_path):
     assert check["value"] == 0 and check["status"] == "passed"
     # the solution's own force, summed here, is what the re-cast is compared with; and it balances the load
     own = _own_force(pd.read_csv(tmp_path / "out" / "contact.csv", comment="#"))
-    assert np.allclose(recast["solution_force"], own, rtol=1e-9, atol=1e-6) and own[2] == pytest.approx(1000.0)
-    error = np.linalg.norm(np.subtract(recast["force"], own)) / np.linalg.norm(own)
+    assert np.allclose(recast["solution_force_N"], own, rtol=1e-9, atol=1e-6) and own[2] == pytest.approx(1000.0)
+    error = np.linalg.norm(np.subtract(recast["force_N"], own)) / np.linalg.norm(own)
     assert recast["force_error"] == pytest.approx(error, rel=1e-9) and 0.0 < error < 0.05
-    assert summary["center_of_pressure_anatomical"]["medial"] < 0  # the lateral plateau carries more
+    assert summary["center_of_pressure_anatomical"]["medial_mm"] < 0  # the lateral plateau carries more
 
 
 @needs_knee
@@ -113,7 +115,7 @@ def test_the_knee_path_recasts_its_peak_frame(tmp_path, name):
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     assert len(frames) == 51 and frames["success"].all()
-    peak = int(frames["peak_pressure"].idxmax())
+    peak = int(frames["peak_pressure_MPa"].idxmax())
     assert summary["recast"]["frame"] == peak == summary["peak_frame"]
     evaluated = frames.index[frames["validity_dropped_springs"].notna()].tolist()
     assert evaluated == [peak] and frames.loc[peak, "validity_dropped_springs"] == summary["recast"]["dropped"] == 0
@@ -229,7 +231,7 @@ def test_no_raw_warning_from_a_recast(tmp_path):
         warnings.simplefilter("error")
         solution, report = recast_solution(d.solve(problem), cast)
     assert report["dropped"] == solution.validity["dropped_springs"].value == 0
-    assert np.allclose(report["solution_force"], [0.0, 0.0, 1000.0], atol=1e-6)
+    assert np.allclose(report["solution_force_N"], [0.0, 0.0, 1000.0], atol=1e-6)
     failed = d.solve(problem, "newton", strict=False, certificate_tol=1e-30)
     same, report = recast_solution(failed, cast)
     assert same is failed and "not certified" in report["error"]
@@ -286,12 +288,14 @@ def test_a_path_with_poses_recasts_its_peak_frame_at_that_frame_s_pose(tmp_path)
     assert result.exit_code == 0, result.stderr
     frames = pd.read_csv(tmp_path / "out" / "frames.csv")
     recast = json.loads((tmp_path / "out" / "summary.json").read_text())["recast"]
-    peak = int(frames["peak_pressure"].idxmax())
+    peak = int(frames["peak_pressure_MPa"].idxmax())
     assert recast["frame"] == peak and frames["validity_dropped_springs"].notna().tolist() == [
         k == peak for k in range(4)
     ]
     # that frame's answer balances its load (summed from its row here): the re-cast compares with it
-    assert np.allclose(recast["solution_force"], -frames.loc[peak, ["Fx", "Fy", "Fz"]].to_numpy(float), atol=1e-6)
+    assert np.allclose(
+        recast["solution_force_N"], -frames.loc[peak, ["Fx_N", "Fy_N", "Fz_N"]].to_numpy(float), atol=1e-6
+    )
     assert recast["kept"] <= frames.loc[peak, "n_springs"] and 0 < recast["force_error"] < 0.1
 
 

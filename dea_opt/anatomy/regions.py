@@ -85,19 +85,20 @@ class RegionStats:
     center_of_pressure: np.ndarray
 
     def as_dict(self) -> dict:
-        """Plain Python values (lists for vectors; NaN stays NaN, see ``dea_opt.io``)."""
+        """Plain Python values (lists for vectors; NaN stays NaN, see ``dea_opt.io``), each name
+        ending with its unit (:mod:`dea_opt.units`)."""
         return {
             "name": self.name,
             "n_springs": self.n_springs,
-            "area": self.area,
-            "force_vector": self.force_vector.tolist(),
-            "resultant": self.resultant,
+            "area_mm2": self.area,
+            "force_vector_N": self.force_vector.tolist(),
+            "resultant_N": self.resultant,
             "share": self.share,
-            "force_magnitude_sum": self.force_magnitude_sum,
-            "peak_pressure": self.peak_pressure,
-            "mean_pressure": self.mean_pressure,
-            "contact_area": self.contact_area,
-            "center_of_pressure": self.center_of_pressure.tolist(),
+            "force_magnitude_sum_N": self.force_magnitude_sum,
+            "peak_pressure_MPa": self.peak_pressure,
+            "mean_pressure_MPa": self.mean_pressure,
+            "contact_area_mm2": self.contact_area,
+            "center_of_pressure_mm": self.center_of_pressure.tolist(),
         }
 
 

@@ -76,7 +76,8 @@ def run(
 
     A static load writes contact.vtu, contact.csv, contact.json and contact.png; a load
     path writes frames.csv, series.pvd (+ series_frames/), exposure.vtu, cycle.png,
-    exposure.png and summary.json; then manifest.json, last. The folder must be new, empty
+    exposure.png, peak.png and summary.json; either writes report.html (the run on one page,
+    open it in a browser); then manifest.json, last. The folder must be new, empty
     or hold an earlier dea-opt run (--force: any folder). Exit 0 ok, 1 certificate failed,
     3 certified but outside validity ([solve] allow_outside_validity = true: 0).
     """
@@ -141,7 +142,8 @@ def sweep(
 
     Each finished case is appended to the journal sweep.jsonl; sweep.csv (one row per case)
     is rewritten from it as the sweep goes and at the end; each case writes its outputs into
-    cases/<case id>/. A rerun skips the cases whose row was computed from the same scenario,
+    cases/<case id>/; report.html, written at the end, plots any output against any swept
+    value and sorts the cases by any column. A rerun skips the cases whose row was computed from the same scenario,
     input files, overrides and dea-opt version, and recomputes the others, saying why.
     Sweeps may share a folder at once: no case is computed twice and no row is lost. On a
     terminal each finished case is printed with a progress bar; Dask's and Python's
@@ -175,7 +177,7 @@ def sweep(
     adopted = f", {len(result.adopted)} finished by another sweep meanwhile" if result.adopted else ""
     typer.echo(
         f"{len(result.ran)} case(s) run, {len(result.skipped)} already finished{adopted}; results: "
-        f"{result.results_path}"
+        f"{result.results_path}" + (f", report: {result.report_path}" if result.report_path else "")
     )
     for reason, count in Counter(result.recomputed.values()).items():
         typer.echo(f"  recomputed {count} case(s): {reason}")
@@ -217,8 +219,8 @@ def demo(
     linear and Ateshian laws, as a table; then the whole cycle, warm-started frame by
     frame, with the frames' validity and the share of each region of the socket (superior,
     anterior, posterior) on the terminal, written to ./dea-opt-demo/: frames.csv, series.pvd,
-    cycle.png, exposure.png,
-    exposure.vtu, summary.json, comparison.csv and, last, manifest.json. The folder must be
+    cycle.png, exposure.png, peak.png, exposure.vtu, summary.json, comparison.csv,
+    report.html (open it in a browser) and, last, manifest.json. The folder must be
     new, empty or hold an earlier dea-opt run (--force: any folder).
     """
     from ..run.demo import run_demo

@@ -30,6 +30,24 @@ def import_osim(
             show_default=False,
         ),
     ] = None,
+    fixed: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--fixed",
+            help="BODY: a body held in place (repeatable); each body jointed to it takes that joint's coordinates "
+            "as its dofs (e.g. --fixed tibia_r: the femur moves by knee_r's coordinates).",
+            show_default=False,
+        ),
+    ] = None,
+    leave_out: Annotated[
+        list[str] | None,
+        typer.Option(
+            "--leave-out",
+            help="BODY: leave this body out, with every contact pair and bundle touching it (repeatable; e.g. "
+            "--leave-out patella_r when the motion gives no patellar pose).",
+            show_default=False,
+        ),
+    ] = None,
     force: ForceOpt = False,
 ):
     """Read an OpenSim model without OpenSim and write it as a scenario of the multi-body joint.
@@ -41,7 +59,9 @@ def import_osim(
     ground at the default pose in mm, N, MPa; then every part of the model dea-opt does not
     model (wrap objects with each bundle's straight line, via points, muscles and other
     forces, constraints, joint functions) as comments. Meshes are looked for next to the
-    model and in its Geometry/ folder. An existing file is kept unless --force.
+    model and in its Geometry/ folder. dea-opt run takes the scenario as written (every body
+    held); choose the free dofs and add loads or a [load_path]. An existing file is kept
+    unless --force.
     """
     from ..opensim import read_model
     from ..opensim.export import write_scenario
@@ -60,7 +80,7 @@ def import_osim(
     if target.is_dir():
         raise InputError(f"{target} is a directory: -o names the scenario file to write")
     read = read_model(model)
-    written = write_scenario(read, target, meshes)
+    written = write_scenario(read, target, meshes, tuple(fixed or ()), tuple(leave_out or ()))
     summary = read.summary()
     typer.echo(
         f"read {model}: {summary['bodies']} bodies, {summary['joints']} joints, {summary['contact_pairs']} contact "
@@ -68,7 +88,12 @@ def import_osim(
     )
     kinds = ", ".join(f"{count} {kind}" for kind, count in summary["not_modelled"].items())
     typer.echo(f"not modelled ({len(read.not_modelled)}, listed at the end of the scenario): {kinds or 'nothing'}")
-    missing = [m.name for m in read.contact_meshes.values() if m.resolved is None and m.name not in meshes]
+    left = set(leave_out or ())
+    missing = [
+        m.name
+        for m in read.contact_meshes.values()
+        if m.resolved is None and m.name not in meshes and m.body not in left
+    ]
     if missing:
         typer.echo(
             f"dea-opt: warning: contact mesh file(s) not found for {', '.join(missing)} (see the scenario's "

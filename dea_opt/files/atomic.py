@@ -39,6 +39,7 @@ __all__ = [
     "file_path",
     "naming",
     "staged",
+    "staged_file",
     "write_atomic",
     "write_data",
 ]
@@ -293,6 +294,20 @@ def _staging_of(target: Path) -> Staging | None:
             if where.is_relative_to(root):
                 return staging
     return None
+
+
+def staged_file(path) -> Path:
+    """The file that holds ``path``'s content now: its staged temporary file while a run's outputs
+    wait to be published (:func:`staged`), else ``path`` itself (a report embeds the pictures the
+    run drew before they are published)."""
+    target = Path(path)
+    staging = _staging_of(target)
+    if staging is not None:
+        with staging._lock:
+            tmp = staging.pending.get(target.parent.resolve() / target.name)
+        if tmp is not None:
+            return tmp
+    return target
 
 
 @contextlib.contextmanager

@@ -71,7 +71,7 @@ class TensionLaw:
         e = np.maximum(np.asarray(eps, dtype=float), 0.0)
         if self.kind == "linear":
             return e, None, None
-        et = np.broadcast_to(self.transition, e.shape)
+        et = self.transition if self.transition.shape == e.shape else np.broadcast_to(self.transition, e.shape)
         return e, et, e < et
 
     def force(self, eps) -> np.ndarray:
@@ -186,13 +186,22 @@ class ElementGroup:
         return self.AT @ v
 
     def gram(self, w) -> np.ndarray:
-        """``A^T diag(w) A`` (m_g, m_g) over the elements where ``w`` is nonzero."""
+        """``A^T diag(w) A`` (m_g, m_g) over the elements where ``w`` is nonzero (the last one kept:
+        a Newton iteration whose active set and tangents did not change asks for the same again)."""
+        last = self.__dict__.get("_last_gram")
+        if last is not None and last[0].shape == np.shape(w) and np.array_equal(last[0], w):
+            return last[1]
+        out = self._gram(w)
+        self.__dict__["_last_gram"] = (np.array(w, dtype=float), out)
+        return out
+
+    def _gram(self, w) -> np.ndarray:
         rows = np.flatnonzero(w)
         if self.basis is not None:
             C, E = self.basis
-            E = E[:, rows] if rows.size < E.shape[1] else E
-            M = (E * w[rows]) @ E.T if rows.size < w.size else (E * w) @ E.T
-            return C.T @ M @ C
+            if 3 * rows.size < E.shape[1]:  # few active rows: gathering them is cheaper than the zeros
+                E, w = E[:, rows], w[rows]
+            return C.T @ ((E * w) @ E.T) @ C
         assert self.AT is not None
         AT = self.AT[:, rows]
         return (AT * w[rows]) @ AT.T
@@ -331,12 +340,11 @@ class JointSystem:
 
     def e0_overlap(self) -> float:
         """``sqrt(sum V modulus clip(e0)^2)`` (the square root of N mm): the energy the start
-        stores, the scale of a press fit or of bundles stretched at the start."""
+        stores, the scale of a press fit, of bundles stretched or of springs and bushings
+        deflected at the start (two-sided: unclipped)."""
         total = 0.0
         for g in self.groups:
-            if g.two_sided:
-                continue
-            clipped = np.minimum(g.e0, 0.0) if g.contact else np.maximum(g.e0, 0.0)
+            clipped = g.e0 if g.two_sided else np.minimum(g.e0, 0.0) if g.contact else np.maximum(g.e0, 0.0)
             top = float(np.abs(clipped).max(initial=0.0))
             if top > 0:
                 total += top * top * float((g.volume * g.modulus) @ (clipped / top) ** 2)
@@ -347,30 +355,40 @@ class JointSystem:
 
         Every spring keeps its row with its volume times its modulus; every bundle becomes a
         spring in reverse (row ``-A``, strain ``-e0``): a tension-only linear bundle is a
-        compressive linear spring of ``V = L0 k``. Only the linear laws make this a QP.
+        compressive linear spring of ``V = L0 k``; every two-sided row (a linear spring or
+        bushing between bodies) is both, a spring each way, whose energies add to ``V e^2 / 2``.
+        Only the linear laws make this a QP.
 
         Returns
         -------
         system : SpringSystem
-            Over the joint's free dofs (dense ``AT``, shape (m, sum N_g)).
-        convert : list of (slice, sign, scale)
+            Over the joint's free dofs (dense ``AT``, shape (m, n) with n the elements plus the
+            two-sided rows once more).
+        convert : list of (slice, sign, scale, slice or None)
             Per group, its rows in the flat system and how a flat stress ``s`` turns into the
             group's law output: ``sign * scale * s`` (a spring's stress ``H s``, a bundle's
-            ``phi = -s``).
+            ``phi = -s``), minus ``scale * s`` of the second slice for a two-sided row (its
+            reverse spring).
         """
-        if any(g.two_sided for g in self.groups):
-            raise InputError("two-sided rows (finite kinematics' geometric stiffness) make no compression-only system")
-        m, n = self.n_dofs, self.n_elements
+        m = self.n_dofs
+        n = self.n_elements + sum(g.size for g in self.groups if g.two_sided)
         AT, e0, volume = np.zeros((m, n)), np.empty(n), np.empty(n)
         convert, at = [], 0
         for g in self.groups:
-            sign = 1.0 if g.contact else -1.0
+            sign = 1.0 if g.contact or g.two_sided else -1.0
             part = slice(at, at + g.size)
             AT[g.dofs, part] = sign * g.matrix
             e0[part] = sign * g.e0
             volume[part] = g.volume * g.modulus
-            convert.append((part, sign, g.modulus))
             at += g.size
+            minus = None
+            if g.two_sided:
+                minus = slice(at, at + g.size)
+                AT[g.dofs, minus] = -g.matrix
+                e0[minus] = -g.e0
+                volume[minus] = g.volume * g.modulus
+                at += g.size
+            convert.append((part, sign, g.modulus, minus))
         factor = self.resistance  # shared below, never recomputed from the dense rows
         system = SpringSystem(np.ascontiguousarray(AT), e0, volume, self.load, self.lengths, None, self.stiffness)
         system.__dict__["resistance"] = factor

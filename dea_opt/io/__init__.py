@@ -26,7 +26,9 @@ map is drawn in: anatomical or best-fit), :mod:`~dea_opt.io.draw` (vector or ras
 :mod:`~dea_opt.io.vtkxml` (the streamed VTK XML writer), :mod:`~dea_opt.io.results`
 (everything at once).
 
-Units: mm, mm^2, N, N mm, MPa; strain is dimensionless.
+Units: mm, mm^2, N, N mm, MPa; strain is dimensionless. Every column and JSON key of the files
+names its unit (``pressure_MPa``; :mod:`dea_opt.units`), and every picture of a result outside
+validity is stamped so (:mod:`~dea_opt.io.marks`).
 """
 
 from .cycle import plot_cycle, plot_exposure

@@ -15,18 +15,20 @@ import numpy as np
 from ..files.atomic import write_atomic
 from .draw import draw_regions, draw_values, map_geometry
 from .mapframe import map_frame
+from .marks import path_verdict, stamp, verdict_lines
 from .plots import decorate_map, note_frame, save_options
 
-__all__ = ["plot_cycle", "plot_exposure"]
+__all__ = ["cycle_figure", "exposure_figure", "plot_cycle", "plot_exposure"]
 
 
 def _figure(figsize):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    # A fixed layout: constrained layout doubles the drawing time, and these pictures
-    # are drawn once per run.
-    fig = Figure(figsize=figsize)
+    # Constrained layout: the labels of five-digit ticks and the legends outside the axes are
+    # given the room they take (a fixed layout clipped them); drawn once per run, in the
+    # background when a PictureWorker draws it.
+    fig = Figure(figsize=figsize, layout="constrained")
     FigureCanvasAgg(fig)
     return fig
 
@@ -41,7 +43,7 @@ def _components(table, names, anatomy):
     """The three components of the load's force or moment, in the anatomical frame when given."""
     vectors = table[list(names)].to_numpy(dtype=float)
     if anatomy is None:
-        return [(name, vectors[:, i]) for i, name in enumerate(names)]
+        return [(name.split("_")[0], vectors[:, i]) for i, name in enumerate(names)]
     from ..anatomy import AnatomicalFrame
 
     frame = AnatomicalFrame.from_dict(anatomy)
@@ -58,6 +60,12 @@ def _region_prefixes(table, regions) -> dict:
 def plot_cycle(table, path, title: str | None = None, *, regions: dict | None = None, anatomy=None) -> Path:
     """The load path over time: applied force and moment, pressure, contact area, regions' shares.
 
+    A panel is drawn only when it has something to show: the moment panel when a moment is
+    applied, the pressure and area panels when a frame has a certified answer, the regions'
+    panel when the layer has regions. Frames without a certified answer are marked with a black
+    cross on the time axis, certified frames outside validity with an orange triangle, and a
+    path with such frames is stamped (:func:`~dea_opt.io.marks.stamp`).
+
     Parameters
     ----------
     table : pandas.DataFrame
@@ -65,89 +73,113 @@ def plot_cycle(table, path, title: str | None = None, *, regions: dict | None = 
     path : str or Path
         ``.png`` (or ``.pdf``, ``.svg``).
     title : str, optional
+        The figure's heading, e.g. the scenario's title; a line with the frames, the peak
+        pressure and the largest area follows it.
     regions : dict {name: column prefix}, optional
         The regions whose force share to plot; default every ``<prefix>_force_share`` column.
     anatomy : AnatomicalFrame or dict, optional
         Draw the force and moment components along medial, anterior and proximal.
     """
-    t = table["time"].to_numpy(dtype=float)
+    return _save(cycle_figure(table, title, regions=regions, anatomy=anatomy), path)
+
+
+def _finite(values) -> bool:
+    values = np.asarray(values, dtype=float)
+    return bool(np.isfinite(values).any())
+
+
+def cycle_figure(table, title: str | None = None, *, regions: dict | None = None, anatomy=None):
+    """The :class:`matplotlib.figure.Figure` :func:`plot_cycle` saves (same parameters)."""
+    t = table["time_s"].to_numpy(dtype=float)
     failed = ~table["success"].to_numpy(dtype=bool)
     outside = ~failed & ~table["valid"].to_numpy(dtype=bool) if "valid" in table else np.zeros(len(t), bool)
     prefixes = _region_prefixes(table, regions)
-    rows = 5 if prefixes else 4
-    fig = _figure((6.8, 2.0 * rows + 0.6))
-    axes = fig.subplots(rows, 1, sharex=True)
-    fig.subplots_adjust(left=0.14, right=0.78, top=0.95, bottom=0.06, hspace=0.15)
+    moments = table[["Mx_Nmm", "My_Nmm", "Mz_Nmm"]].to_numpy(dtype=float)
+    panels = ["force"]
+    if np.nan_to_num(moments).any():
+        panels.append("moment")
+    if _finite(table["peak_pressure_MPa"]):
+        panels += ["pressure", "area"]
+        if prefixes and any(_finite(table[f"{p}_force_share"]) for p in prefixes.values()):
+            panels.append("regions")
+    fig = _figure((7.4, 2.0 * len(panels) + 1.0))
+    axes = np.atleast_1d(fig.subplots(len(panels), 1, sharex=True))
+    ax = dict(zip(panels, axes))
     marker = "." if len(t) <= 30 else None
     colours = ("C0", "C1", "C2")
-    for k, (name, values) in enumerate(_components(table, ("Fx", "Fy", "Fz"), anatomy)):
-        axes[0].plot(t, values, "-", color=colours[k], label=name, marker=marker)
-    axes[0].plot(
-        t, table["resultant"].to_numpy(dtype=float), "-", color="k", lw=1.5, label="|contact force|", marker=marker
+    for k, (name, values) in enumerate(_components(table, ("Fx_N", "Fy_N", "Fz_N"), anatomy)):
+        ax["force"].plot(t, values, "-", color=colours[k], label=name, marker=marker)
+    ax["force"].plot(
+        t, table["resultant_N"].to_numpy(dtype=float), "-", color="k", lw=1.5, label="|contact force|", marker=marker
     )
-    axes[0].set_ylabel("applied force (N)")
-    for k, (name, values) in enumerate(_components(table, ("Mx", "My", "Mz"), anatomy)):
-        axes[1].plot(t, values, "-", color=colours[k], label=name, marker=marker)
-    axes[1].set_ylabel("applied moment\n(N mm)")
-    axes[2].plot(t, table["peak_pressure"].to_numpy(dtype=float), "-", color="C3", label="peak", marker=marker)
-    axes[2].plot(t, table["mean_pressure"].to_numpy(dtype=float), "-", color="C1", label="mean", marker=marker)
-    axes[2].set_ylabel("pressure (MPa)")
-    axes[3].plot(t, table["contact_area"].to_numpy(dtype=float), "-", color="C2", label="contact area", marker=marker)
-    axes[3].set_ylabel("area (mm$^2$)")
-    if prefixes:
+    ax["force"].set_ylabel("applied force (N)")
+    if "moment" in ax:
+        for k, (name, values) in enumerate(_components(table, ("Mx_Nmm", "My_Nmm", "Mz_Nmm"), anatomy)):
+            ax["moment"].plot(t, values, "-", color=colours[k], label=name, marker=marker)
+        ax["moment"].set_ylabel("applied moment\n(N mm)")
+    if "pressure" in ax:
+        pressure = ax["pressure"]
+        pressure.plot(t, table["peak_pressure_MPa"].to_numpy(dtype=float), "-", color="C3", label="peak", marker=marker)
+        pressure.plot(t, table["mean_pressure_MPa"].to_numpy(dtype=float), "-", color="C1", label="mean", marker=marker)
+        pressure.set_ylabel("pressure (MPa)")
+        area = ax["area"]
+        area.plot(
+            t, table["contact_area_mm2"].to_numpy(dtype=float), "-", color="C2", label="contact area", marker=marker
+        )
+        area.set_ylabel("contact area (mm$^2$)")
+        for one in (pressure, area):
+            one.set_ylim(bottom=0)
+    if "regions" in ax:
+        shares = []
         for k, (name, prefix) in enumerate(prefixes.items()):
-            axes[4].plot(
-                t,
-                100.0 * table[f"{prefix}_force_share"].to_numpy(dtype=float),
-                "-",
-                color=f"C{k}",
-                label=str(name),
-                marker=marker,
-            )
-        axes[4].set_ylabel("share of the\ncontact force (%)")
-        shares = [100.0 * table[f"{prefix}_force_share"].to_numpy(dtype=float) for prefix in prefixes.values()]
+            share = 100.0 * table[f"{prefix}_force_share"].to_numpy(dtype=float)
+            shares.append(share)
+            ax["regions"].plot(t, share, "-", color=f"C{k}", label=str(name), marker=marker)
+        ax["regions"].set_ylabel("share of the\ncontact force (%)")
         low, high = (float(f(np.nan_to_num(np.concatenate(shares)))) for f in (np.min, np.max))
-        axes[4].set_ylim(min(0.0, low), max(100.0, high))  # a region may push against the total
-    for ax in axes:
-        ax.grid(alpha=0.3)
+        ax["regions"].set_ylim(min(0.0, low), max(100.0, high))  # a region may push against the total
+    for one in axes:
+        one.grid(alpha=0.3)
         if failed.any():
-            ax.plot(
+            one.plot(
                 t[failed],
                 np.zeros(failed.sum()),
                 "x",
                 color="k",
                 ms=7,
                 clip_on=False,
-                transform=ax.get_xaxis_transform(),
+                transform=one.get_xaxis_transform(),
                 label="no certified answer",
             )
         if outside.any():
-            ax.plot(
+            one.plot(
                 t[outside],
                 np.zeros(outside.sum()),
                 "^",
                 color="C1",
                 ms=6,
                 clip_on=False,
-                transform=ax.get_xaxis_transform(),
+                transform=one.get_xaxis_transform(),
                 label="outside validity",
             )
-        ax.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
-    for ax in axes[2:4]:
-        ax.set_ylim(bottom=0)
+        one.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     axes[-1].set_xlabel("time (s)")
-    peak = table["peak_pressure"].max()
-    area = table["contact_area"].max()
-    axes[0].set_title(
-        title
-        or f"{len(t)} frames: peak {peak:.4g} MPa, largest area {area:.4g} mm$^2$"
-        + (f", {int(failed.sum())} failed" if failed.any() else ""),
-        fontsize="medium",
+    peak = np.nanmax(table["peak_pressure_MPa"].to_numpy(dtype=float), initial=-np.inf)
+    area = np.nanmax(table["contact_area_mm2"].to_numpy(dtype=float), initial=-np.inf)
+    numbers = f"{len(t)} frames" + (
+        f": peak {peak:.4g} MPa, largest contact area {area:.4g} mm$^2$" if np.isfinite(peak) else ""
     )
-    return _save(fig, path)
+    numbers += f", {int(failed.sum())} without a certified answer" if failed.any() else ""
+    numbers += "; no moment applied" if "moment" not in ax else ""
+    verdict = path_verdict(table)
+    fig.suptitle((f"{title}\n{numbers}" if title else numbers) + verdict_lines(verdict), fontsize="medium")
+    stamp(fig, verdict)
+    return fig
 
 
-def plot_exposure(layer, exposure, path, *, moving: bool = False, title: str | None = None, anatomy=None) -> Path:
+def plot_exposure(
+    layer, exposure, path, *, moving: bool = False, title: str | None = None, anatomy=None, verdict=None
+) -> Path:
     """Two maps side by side: pressure-time integral (MPa s) and time above the threshold (s).
 
     Parameters
@@ -158,15 +190,23 @@ def plot_exposure(layer, exposure, path, *, moving: bool = False, title: str | N
     path : str or Path
     moving : bool
         Sites are the faces of ``layer.surface`` rather than the springs.
+    title : str, optional
+        The figure's heading, e.g. the scenario's title; a line naming the measures follows it.
     anatomy : AnatomicalFrame or dict, optional
         Draw the maps in the anatomical frame (:func:`~dea_opt.io.mapframe.map_frame`).
+    verdict : (str, str), optional
+        The path's verdict (:func:`~dea_opt.io.marks.path_verdict`), stamped on the maps.
     """
+    return _save(exposure_figure(layer, exposure, moving=moving, title=title, anatomy=anatomy, verdict=verdict), path)
+
+
+def exposure_figure(layer, exposure, *, moving: bool = False, title: str | None = None, anatomy=None, verdict=None):
+    """The :class:`matplotlib.figure.Figure` :func:`plot_exposure` saves (same parameters)."""
     from matplotlib.cm import ScalarMappable
     from matplotlib.colors import Normalize
 
-    fig = _figure((11.0, 5.2))
+    fig = _figure((11.0, 5.6))
     axes = fig.subplots(1, 2)
-    fig.subplots_adjust(left=0.07, right=0.97, top=0.88, bottom=0.14, wspace=0.3)
     frame = map_frame(layer.points, layer.areas, layer.normals, anatomy)
     geometry = map_geometry(layer, frame, sites="faces" if moving else "springs")
     maps = (
@@ -182,8 +222,7 @@ def plot_exposure(layer, exposure, path, *, moving: bool = False, title: str | N
         decorate_map(ax, frame, geometry)
         fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=label, shrink=0.85)
     note_frame(fig, frame)
-    fig.suptitle(
-        title or f"Contact-stress exposure over {exposure.duration:.3g} s (threshold {exposure.threshold:g} MPa)",
-        fontsize="medium",
-    )
-    return _save(fig, path)
+    numbers = f"Contact-stress exposure over {exposure.duration:.3g} s (threshold {exposure.threshold:g} MPa)"
+    fig.suptitle((f"{title}\n{numbers}" if title else numbers) + verdict_lines(verdict, 120), fontsize="medium")
+    stamp(fig, verdict)
+    return fig

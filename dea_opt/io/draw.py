@@ -16,7 +16,7 @@ from typing import Any
 
 import numpy as np
 
-__all__ = ["RASTER_LIMIT", "MapGeometry", "draw_regions", "draw_values", "map_geometry"]
+__all__ = ["RASTER_LIMIT", "MapGeometry", "draw_contact_edge", "draw_regions", "draw_values", "map_geometry"]
 
 #: Above this many springs (or faces), maps are rasterized.
 RASTER_LIMIT = 100_000
@@ -101,14 +101,16 @@ def _spacing(areas) -> float:
     return float(np.sqrt(np.median(areas[:: max(1, len(areas) // 100_000)])))
 
 
-def draw_values(ax, geometry: MapGeometry, values, cmap, norm, *, contact=None, grey=None, edge=None) -> bool:
+def draw_values(
+    ax, geometry: MapGeometry, values, cmap, norm, *, contact=None, grey=None, edge=None, outline: bool = True
+) -> bool:
     """Draw ``values`` (one per sample); where ``contact`` is False, grey. Returns whether the
-    contact edge was outlined: for springs on points, the zero line of ``edge`` (the strain,
-    interpolated across the triangles) when given, else the line between the springs in
-    contact and the others."""
+    contact edge was (or, ``outline=False``, would have been) outlined: for springs on points,
+    the zero line of ``edge`` (the strain, interpolated across the triangles) when given, else
+    the line between the springs in contact and the others."""
     values = np.asarray(values, dtype=float)
     if geometry.raster:
-        return _raster(ax, geometry, values, cmap, norm, contact, grey)
+        return _raster(ax, geometry, values, cmap, norm, contact, grey, outline)
     if geometry.triangles is None or not len(geometry.triangles):
         shown = np.ones(len(values), bool) if contact is None else contact
         if contact is not None and (~contact).any():
@@ -116,11 +118,11 @@ def draw_values(ax, geometry: MapGeometry, values, cmap, norm, *, contact=None, 
         ax.scatter(*geometry.samples[shown].T, s=4, c=values[shown], cmap=cmap, norm=norm)
         return False
     if geometry.on == "faces":
-        return _faces(ax, geometry, values, cmap, norm, contact, grey)
-    return _points(ax, geometry, values, cmap, norm, contact, grey, edge)
+        return _faces(ax, geometry, values, cmap, norm, contact, grey, outline)
+    return _points(ax, geometry, values, cmap, norm, contact, grey, edge, outline)
 
 
-def _faces(ax, geometry, values, cmap, norm, contact, grey) -> bool:
+def _faces(ax, geometry, values, cmap, norm, contact, grey, outline=True) -> bool:
     from matplotlib.collections import LineCollection
     from matplotlib.tri import Triangulation
 
@@ -148,11 +150,12 @@ def _faces(ax, geometry, values, cmap, norm, contact, grey) -> bool:
             edgecolors="none",
         )
     edges = boundary_edges(tris[contact])
-    ax.add_collection(LineCollection(xy[edges], colors="k", linewidths=0.8))
+    if outline:
+        ax.add_collection(LineCollection(xy[edges], colors="k", linewidths=0.8))
     return len(edges) > 0
 
 
-def _points(ax, geometry, values, cmap, norm, contact, grey, edge) -> bool:
+def _points(ax, geometry, values, cmap, norm, contact, grey, edge, outline=True) -> bool:
     from matplotlib.collections import LineCollection
     from matplotlib.tri import Triangulation
 
@@ -167,14 +170,14 @@ def _points(ax, geometry, values, cmap, norm, contact, grey, edge) -> bool:
         loaded = Triangulation(xy[:, 0], xy[:, 1], tris[touching])
         ax.tripcolor(loaded, np.where(contact, values, 0.0), cmap=cmap, norm=norm, shading="gouraud")
     if 0 < contact.sum() < len(contact):
-        if edge is not None:
+        if outline and edge is not None:
             ax.tricontour(tri, np.asarray(edge, dtype=float), levels=[0.0], colors="k", linewidths=0.8)
-        else:
+        elif outline:
             ax.tricontour(tri, contact.astype(float), levels=[0.5], colors="k", linewidths=0.8)
         return True
     if contact.all():
-        edges = boundary_edges(tris)
-        ax.add_collection(LineCollection(xy[edges], colors="k", linewidths=0.8))
+        if outline:
+            ax.add_collection(LineCollection(xy[boundary_edges(tris)], colors="k", linewidths=0.8))
         return True
     return False
 
@@ -202,7 +205,7 @@ def _fill(image: np.ndarray, present: np.ndarray):
     return image, present | holes
 
 
-def _raster(ax, geometry, values, cmap, norm, contact, grey) -> bool:
+def _raster(ax, geometry, values, cmap, norm, contact, grey, outline=True) -> bool:
     flat, shape, low, pixel = _pixels(geometry)
     size = shape[0] * shape[1]
     count = np.bincount(flat, minlength=size).reshape(shape)
@@ -224,11 +227,86 @@ def _raster(ax, geometry, values, cmap, norm, contact, grey) -> bool:
         fraction = np.where(count > 0, touching / count, 0.0)
     fraction, _ = _fill(fraction, count > 0)
     if 0 < fraction.max() and fraction.min() < 1:
-        x = low[0] + (np.arange(shape[1]) + 0.5) * pixel
-        y = low[1] + (np.arange(shape[0]) + 0.5) * pixel
-        ax.contour(x, y, fraction, levels=[0.5], colors="k", linewidths=0.8)
+        if outline:
+            x = low[0] + (np.arange(shape[1]) + 0.5) * pixel
+            y = low[1] + (np.arange(shape[0]) + 0.5) * pixel
+            ax.contour(x, y, fraction, levels=[0.5], colors="k", linewidths=0.8)
         return True
     return False
+
+
+def draw_contact_edge(ax, geometry: MapGeometry, contact, mask, colour, edge=None) -> bool:
+    """Draw the part of the contact edge that lies in one region (``mask``) in ``colour``: where
+    the springs in ``contact`` end inside the region, not the region's own border. On faces,
+    the outline of the faces in contact whose face is in the region; on points, the zero line of
+    ``edge`` (the strain) over the region's triangles; on a raster, where half of a pixel's
+    springs of the region are in contact. Returns whether anything was drawn."""
+    from matplotlib.collections import LineCollection
+    from matplotlib.tri import Triangulation
+
+    contact, mask = np.asarray(contact, bool), np.asarray(mask, bool)
+    if not (contact & mask).any() or (contact | ~mask).all():
+        return False  # the region is all in contact, or out of it: no edge of contact in it
+    style = {"colors": colour, "linewidths": 1.4}
+    if geometry.raster:
+        flat, shape, low, pixel = _pixels(geometry)
+        size = shape[0] * shape[1]
+        count = np.bincount(flat[mask], minlength=size).reshape(shape)
+        hit = np.bincount(flat[mask & contact], minlength=size).reshape(shape)
+        fraction = np.ma.masked_where(count == 0, hit / np.maximum(count, 1))
+        x = low[0] + (np.arange(shape[1]) + 0.5) * pixel
+        y = low[1] + (np.arange(shape[0]) + 0.5) * pixel
+        ax.contour(x, y, fraction, levels=[0.5], **style)
+        return True
+    tris = geometry.triangles
+    if tris is None or not len(tris):
+        return False
+    if geometry.on == "faces":
+        edges, owner = _boundary_with_owner(tris[contact])
+        edges = edges[mask[np.flatnonzero(contact)[owner]]]
+        ax.add_collection(LineCollection(geometry.xy[edges], **style))
+        return len(edges) > 0
+    inside = mask[tris].all(axis=1)
+    if edge is None or not inside.any():
+        return False
+    xy = geometry.xy
+    ax.tricontour(Triangulation(xy[:, 0], xy[:, 1], tris, mask=~inside), np.asarray(edge, float), levels=[0.0], **style)
+    return True
+
+
+def _label_place(geometry: MapGeometry, mask, avoid) -> np.ndarray:
+    """Where a region's name goes: the sample of the region farthest from the other regions, the
+    layer's outline and the points of ``avoid`` (of a thinned sample: a few thousand at most)."""
+    from scipy.spatial import cKDTree
+
+    samples = geometry.samples
+    every = max(1, len(samples) // 4000)
+    ours = samples[mask][::every]
+    blockers = [samples[~mask][::every]]
+    triangles = geometry.triangles if not geometry.raster else None
+    if triangles is not None and len(triangles):
+        blockers.append(geometry.xy[np.unique(boundary_edges(triangles))])
+    if len(avoid):
+        blockers.append(np.repeat(np.asarray(avoid, dtype=float).reshape(-1, 2), 4, axis=0))
+    blocked = np.concatenate([b for b in blockers if len(b)]) if any(len(b) for b in blockers) else None
+    if blocked is None or not len(ours):
+        return samples[mask].mean(axis=0)
+    depth, _ = cKDTree(blocked).query(ours)
+    return ours[int(np.argmax(depth))]
+
+
+def _boundary_with_owner(triangles: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`boundary_edges` of ``triangles`` and, for each, the triangle it belongs to."""
+    triangles = np.asarray(triangles, dtype=np.int64)
+    if not len(triangles):
+        return np.zeros((0, 2), dtype=np.int64), np.zeros(0, dtype=np.int64)
+    edges = np.sort(np.concatenate([triangles[:, [0, 1]], triangles[:, [1, 2]], triangles[:, [2, 0]]]), axis=1)
+    owner = np.tile(np.arange(len(triangles)), 3)
+    width = int(edges[:, 1].max()) + 1
+    keys = edges[:, 0] * width + edges[:, 1]
+    _, first, counts = np.unique(keys, return_index=True, return_counts=True)
+    once = first[counts == 1]
+    return edges[once], owner[once]
 
 
 def boundary_edges(triangles: np.ndarray) -> np.ndarray:
@@ -245,9 +323,10 @@ def boundary_edges(triangles: np.ndarray) -> np.ndarray:
     return np.stack([once // width, once % width], axis=1)
 
 
-def draw_regions(ax, geometry: MapGeometry, labels) -> None:
+def draw_regions(ax, geometry: MapGeometry, labels, avoid=()) -> None:
     """Outline the borders between the regions of ``labels`` (one per sample) and write each
-    region's name at its centre."""
+    region's name deep inside it, away from the points of ``avoid`` (map coordinates: the
+    centres of pressure marked on the map)."""
     from matplotlib.collections import LineCollection
     from matplotlib.tri import Triangulation
 
@@ -286,10 +365,10 @@ def draw_regions(ax, geometry: MapGeometry, labels) -> None:
         else:
             # half way between a region's springs and its neighbours': one line per border
             ax.tricontour(tri, mask.astype(float), levels=[0.5], **style)
-        centre = geometry.samples[mask].mean(axis=0)
+        where = _label_place(geometry, mask, avoid)
         ax.text(
-            centre[0],
-            centre[1],
+            where[0],
+            where[1],
             str(name),
             ha="center",
             va="center",

@@ -2,7 +2,8 @@
 
 :func:`jsonable` makes plain JSON values of what dea_opt reports (numpy scalars and arrays,
 objects with ``as_dict``, paths), NaN and infinities becoming ``null``, so the files are
-strict JSON. Units: mm, mm^2, N, N mm, MPa.
+strict JSON. Every number's unit is the suffix of its key (``peak_pressure_MPa``; or, in an
+object with a ``unit`` key, that key): :mod:`dea_opt.units`.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from ..errors import InputError
 from ..files.atomic import file_path, write_data
 from .surface import label_codes
 
-__all__ = ["jsonable", "read_json", "summary_dict", "to_json", "write_json"]
+__all__ = ["anatomy_json", "jsonable", "read_json", "summary_dict", "to_json", "write_json"]
 
 
 def jsonable(value):
@@ -56,28 +57,18 @@ def write_json(data, path, indent: int = 2) -> Path:
     return write_data(path, json.dumps(jsonable(data), indent=indent, allow_nan=False) + "\n")
 
 
-_UNITS = {
-    "length": "mm",
-    "area": "mm^2",
-    "force": "N",
-    "moment": "N mm",
-    "pressure": "MPa",
-    "strain": "1",
-    "rotation": "rad",
-    "time": "s",
-}
-
-
 def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=None) -> dict:
     """Everything :func:`to_json` writes, as JSON-safe Python values (NaN -> ``None``).
 
     Builds on :meth:`Solution.summary` (method, status, law, ``n_springs``, peak and mean
     pressure, contact area, centre of pressure, contact force and moment, ``u``,
     iterations, build and solve times, certificate, reactions) and adds ``message``,
-    ``force_magnitude_sum`` (the sum of the springs' force magnitudes, N: no force on anything;
-    the contact force is ``contact_force``), ``moment_about`` (the point the moment is taken about: body 2's
-    reference, where the motion took it for finite kinematics), ``units``, ``regions``, ``label_codes`` (text labels only), ``info`` and the
-    dea_opt version.
+    ``force_magnitude_sum_N`` (the sum of the springs' force magnitudes: no force on anything;
+    the contact force is ``contact_force_N``), ``moment_about_mm`` (the point the moment is taken
+    about: body 2's reference, where the motion took it for finite kinematics), ``regions``,
+    ``label_codes`` (text labels only), ``info`` (the solver's own report: counts and relative
+    residuals) and the dea_opt version. Every key of a number ends with its unit
+    (:mod:`dea_opt.units`).
 
     Parameters
     ----------
@@ -89,7 +80,7 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
         Further regions, e.g. from :func:`dea_opt.anatomy.regions.split_by_axis`.
     anatomy : AnatomicalFrame or dict, optional
         Adds ``anatomy`` (the frame) and, for the contact and every region,
-        ``center_of_pressure_anatomical``: ``{medial, anterior, proximal}`` in mm from the
+        ``center_of_pressure_anatomical``: ``{medial_mm, anterior_mm, proximal_mm}`` from the
         frame's origin (the layer's centroid unless it names one).
 
     Returns
@@ -116,9 +107,8 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     out = {"dea_opt_version": __version__, **solution.summary()}
     out.update(
         message=solution.message,
-        force_magnitude_sum=solution.total_normal_force,
-        moment_about=[float(v) for v in solution.moment_point],
-        units=_UNITS,
+        force_magnitude_sum_N=solution.total_normal_force,
+        moment_about_mm=[float(v) for v in solution.moment_point],
         regions={name: stats.as_dict() for name, stats in found.items()},
         info=solution.info,
     )
@@ -127,6 +117,15 @@ def summary_dict(solution, *, labels=None, planes=None, regions=None, anatomy=No
     if anatomy is not None:
         _add_anatomy(out, solution, found, anatomy)
     return jsonable(out)
+
+
+def anatomy_json(frame, origin) -> dict:
+    """An anatomical frame as JSON: its unit vectors (``medial``, ``anterior``, ``proximal``), its
+    ``side``, the ``origin_mm`` it names (None: the layer's centroid) and ``origin_used_mm``."""
+    out = frame.as_dict()
+    out["origin_mm"] = out.pop("origin")
+    out["origin_used_mm"] = np.asarray(origin, dtype=float).tolist()
+    return out
 
 
 def _add_anatomy(out: dict, solution, regions: dict, anatomy) -> None:
@@ -138,9 +137,9 @@ def _add_anatomy(out: dict, solution, regions: dict, anatomy) -> None:
 
     def where(point):
         values = frame.coordinates(point, origin)
-        return dict(zip(("medial", "anterior", "proximal"), values.tolist()))
+        return dict(zip(("medial_mm", "anterior_mm", "proximal_mm"), values.tolist()))
 
-    out["anatomy"] = {**frame.as_dict(), "origin_used": origin.tolist()}
+    out["anatomy"] = anatomy_json(frame, origin)
     out["center_of_pressure_anatomical"] = where(solution.center_of_pressure)
     for name, stats in regions.items():
         out["regions"][name]["center_of_pressure_anatomical"] = where(stats.center_of_pressure)

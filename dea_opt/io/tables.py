@@ -35,20 +35,20 @@ __all__ = [
     "write_springs",
 ]
 
-#: Columns of :func:`to_csv`, in order.
+#: Columns of :func:`to_csv`, in order; a column's unit is the suffix of its name (:mod:`dea_opt.units`).
 CSV_COLUMNS = (
-    "x",
-    "y",
-    "z",
+    "x_mm",
+    "y_mm",
+    "z_mm",
     "nx",
     "ny",
     "nz",
-    "area",
-    "thickness",
-    "gap",
+    "area_mm2",
+    "thickness_mm",
+    "gap_mm",
     "strain",
-    "pressure",
-    "spring_force",
+    "pressure_MPa",
+    "spring_force_N",
     "in_contact",
     "source_face",
     "label",
@@ -101,23 +101,23 @@ def _quoted(text: str) -> str:
 def to_csv(solution, path) -> Path:
     """Write one row per spring, in spring order, with a header row.
 
-    Columns (:data:`CSV_COLUMNS`):
+    Columns (:data:`CSV_COLUMNS`; each name ends with its unit, :mod:`dea_opt.units`):
 
-    ============  =====  ===============================================================
-    column        unit   meaning
-    ============  =====  ===============================================================
-    x, y, z       mm     spring position (face centroid)
-    nx, ny, nz    1      unit normal, body 1 to body 2
-    area          mm^2   area the spring stands for
-    thickness     mm     unloaded spring length (total cartilage thickness)
-    gap           mm     initial gap along the normal (< 0 where the surfaces overlap)
-    strain        1      spring strain (< 0 in compression)
-    pressure      MPa    contact pressure (>= 0)
-    spring_force  N      ``-pressure * area``, tension positive (<= 0)
-    in_contact    -      1 where ``strain < 0``, else 0
-    source_face   -      index of the spring's face in ``layer.surface``; -1 if unknown
-    label         -      the spring's region label; empty if the layer has none
-    ============  =====  ===============================================================
+    ====================  ===============================================================
+    column                meaning
+    ====================  ===============================================================
+    x_mm, y_mm, z_mm      spring position (face centroid), mm
+    nx, ny, nz            unit normal, body 1 to body 2
+    area_mm2              area the spring stands for, mm^2
+    thickness_mm          unloaded spring length (total cartilage thickness), mm
+    gap_mm                initial gap along the normal (< 0 where the surfaces overlap), mm
+    strain                spring strain (< 0 in compression)
+    pressure_MPa          contact pressure (>= 0), MPa
+    spring_force_N        ``-pressure * area``, tension positive (<= 0), N
+    in_contact            1 where ``strain < 0``, else 0
+    source_face           index of the spring's face in ``layer.surface``; -1 if unknown
+    label                 the spring's region label; empty if the layer has none
+    ====================  ===============================================================
 
     Floats are written with Python's shortest round-trip representation, so
     :func:`read_csv` gives back the same numbers bit for bit. The file is written in chunks

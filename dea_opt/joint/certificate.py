@@ -117,10 +117,11 @@ def certify_joint(joint, x, stresses, tolerance: float = 1e-6) -> JointCertifica
     scale = _body_scales(joint, groups, forces)
     bodies, worst = {}, 0.0
     lengths = dict(zip(joint.free_index, system.lengths))
+    loads = joint.body_loads()
     for name, body in joint.bodies.items():
         if not body.free:
             continue
-        load = body.load_vector
+        load = loads[name]
         residual = 0.0
         for j, dof in enumerate(DOFS):
             if dof in body.free:
@@ -138,10 +139,10 @@ def certify_joint(joint, x, stresses, tolerance: float = 1e-6) -> JointCertifica
             worst = max(worst, _ratio(moved, max(scale.values(), default=0.0)))
     elements, sums = {}, dict.fromkeys(("tension", "compression", "complementarity", "consistency"), 0.0)
     for (b1, b2), g, eps, rep in zip(joint.element_pairs(), groups, strains, reported):
-        if g.two_sided:
-            continue
         F = max(scale[b1], scale[b2])
-        checks = _element_checks(g, eps, rep, tolerance, F)
+        checks = (
+            _two_sided_checks(g, eps, rep, tolerance, F) if g.two_sided else _element_checks(g, eps, rep, tolerance, F)
+        )
         elements[g.name] = checks
         for key, value in checks.items():
             sums[key] = max(sums[key], value)
@@ -164,13 +165,22 @@ def _body_scales(joint, groups, forces) -> dict:
     element forces on it, and the force of its elements' initial overlap or stretch (N)."""
     lengths = dict(zip(joint.free_index, joint.system().lengths))
     scale = {}
-    for name, body in joint.bodies.items():
-        load = body.load_vector
+    loads = joint.body_loads()
+    radii = {}
+    for name in joint.bodies:
+        load = loads[name]
         radius = max((lengths[(name, d)] for d in DOFS[3:] if (name, d) in lengths), default=1.0)
+        radii[name] = radius
         scale[name] = max(float(np.abs(load[:3]).max()), float(np.abs(load[3:]).max()) / radius)
-    for (b1, b2), g, f in zip(joint.element_pairs(), groups, forces):
-        total = float(np.abs(f).sum())
-        start = np.maximum(-g.e0, 0.0) if g.contact else np.maximum(g.e0, 0.0)
+    rows = joint.element_bodies() if any(g.two_sided for g in groups) else None
+    for i, ((b1, b2), g, f) in enumerate(zip(joint.element_pairs(), groups, forces)):
+        f = np.abs(f)
+        if g.two_sided and rows is not None:  # a bushing's moments count over the radius, as the loads' do
+            G = rows[i][2]
+            moments = (np.abs(G[:, 0:3]).max(axis=1) == 0) & (np.abs(G[:, 6:9]).max(axis=1) == 0)
+            f = np.where(moments, f / max(radii[b1], radii[b2]), f)
+        total = float(f.sum())
+        start = np.abs(g.e0) if g.two_sided else np.maximum(-g.e0, 0.0) if g.contact else np.maximum(g.e0, 0.0)
         preload = float((g.force_scale * g.modulus) @ start) if start.any() else 0.0
         for name in (b1, b2):
             scale[name] = max(scale[name], total, preload)
@@ -196,6 +206,14 @@ def _element_checks(g, eps, reported, tolerance, F) -> dict:
         "complementarity": _ratio(inactive, F),
         "consistency": _ratio(consistency, F),
     }
+
+
+def _two_sided_checks(g, eps, reported, tolerance, F) -> dict:
+    """Consistency of a linear two-sided group (springs, bushings): its reported forces (N, N mm)
+    against ``k e`` within the certified precision of its deflections."""
+    delta = tolerance * max(float(np.abs(eps).max(initial=0.0)), float(np.abs(g.e0).max(initial=0.0)))
+    excess = np.maximum(np.abs(reported - g.forces(eps)) - g.force_scale * delta, 0.0)
+    return {"consistency": _ratio(float(np.nan_to_num(excess, nan=np.inf).sum()), F)}
 
 
 def _energy_residual(system: JointSystem, x, strains, law) -> float:

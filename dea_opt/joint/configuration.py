@@ -13,58 +13,26 @@ its coordinates.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 from types import MappingProxyType
 
 import numpy as np
 
-from ..formulations._parts.finite_geometry import evaluate, left_jacobian, pose_matrix
+from ..formulations._parts.finite_geometry import evaluate
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
 from ..formulations.resistance import modulus_scale
 from ..kinematics import DOFS, normal_operator
 from ..layer import SpringLayer
 from ..problem import Body
-from .model import Joint, line_operator
+from .model import Joint, _unloaded
+from .rows import line_operator
+from .states import ContactState, WorldView
 
-__all__ = ["Configuration", "ContactState"]
+__all__ = ["Configuration"]
 
 #: The gap (mm) given to a spring whose ray misses its target: it is open, and stays so.
 OPEN = 1e6
-
-
-@dataclass(frozen=True, eq=False)
-class ContactState:
-    """A contact layer's springs and what they look at, in its first body's own (start) frame.
-
-    ``layer`` the springs (points and normals on body 1, gaps at the pose they were cast or given
-    at), ``targets`` their targets in body 2's own frame and ``frame`` (4x4: body 2's own frame at
-    the start pose, in the world), ``cast`` the :class:`~dea_opt.mesh.SpringCast` that made them
-    (None for springs given as a layer).
-    """
-
-    layer: SpringLayer
-    targets: object
-    cast: object = None
-    dropped: int | None = None
-
-
-def initial_states(joint) -> list[ContactState]:
-    """Each contact's springs and targets at the start pose."""
-    from ..formulations.finite import Targets
-    from ..mesh.springs import SpringCast
-
-    out = []
-    for c in joint.contacts:
-        if isinstance(c.targets, SpringCast):
-            out.append(ContactState(c.targets.layer, Targets.from_layer(c.targets.layer, c.targets.pose), c.targets))
-        elif c.targets is not None:
-            out.append(ContactState(c.layer, c.targets))
-        elif getattr(c.layer, "has_targets", False):
-            out.append(ContactState(c.layer, Targets.from_layer(c.layer)))
-        else:
-            out.append(ContactState(c.layer, Targets.facing(c.layer)))
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,28 +53,37 @@ class Configuration:
     # --- the pose --------------------------------------------------------------------------
     @cached_property
     def poses(self) -> dict:
-        return {n: pose_matrix(self.y[n], b.reference) for n, b in self.joint.bodies.items()}
+        """Each body's rigid motion from its start pose (4x4, mm)."""
+        return {n: self.joint.motion(n, self.y[n]) for n in self.joint.bodies}
 
     @cached_property
-    def jacobians(self) -> dict:
-        return {n: left_jacobian(self.y[n][3:]) for n in self.joint.bodies}
+    def rates(self) -> _Rates:
+        """Each body's ``B`` (6, 6): its reference's velocity and angular velocity per unit rate of
+        its coordinates (``diag(I, J(theta))`` for a rotation vector); made when first asked for."""
+        return _Rates(self)
 
     @cached_property
     def references(self) -> dict:
         """Each body's reference where the motion took it (mm)."""
-        return {n: np.asarray(b.reference) + self.y[n][:3] for n, b in self.joint.bodies.items()}
+        out = {}
+        for n, b in self.joint.bodies.items():
+            T = self.poses[n]
+            out[n] = T[:3, :3] @ np.asarray(b.reference) + T[:3, 3]
+        return out
+
+    @cached_property
+    def world_loads(self) -> dict:
+        """Each body's whole load at the pose in world axes about its moved reference (N, N mm):
+        points moved with the body, body-frame components turned with it."""
+        return self.joint.load_vectors(self.poses)
 
     @cached_property
     def bodies(self) -> MappingProxyType:
-        """The bodies at the pose: references moved, loads on the coordinates (``J^T M``)."""
+        """The bodies at the pose: references moved, loads on the coordinates (``B^T (F, M)``)."""
         out = {}
         for n, b in self.joint.bodies.items():
-            out[n] = Body(
-                reference=self.references[n],
-                free=b.free,
-                force=b.force,
-                moment=self.jacobians[n].T @ np.asarray(b.moment),
-            )
+            q = self.rates[n].T @ self.world_loads[n]
+            out[n] = Body(reference=self.references[n], free=b.free, force=q[:3], moment=q[3:])
         return MappingProxyType(out)
 
     @property
@@ -129,6 +106,25 @@ class Configuration:
     def kinematics(self) -> str:
         return "finite"
 
+    @property
+    def coordinates(self):
+        return self.joint.coordinates
+
+    @property
+    def springs(self) -> tuple:
+        return self.joint.springs
+
+    @property
+    def bushings(self) -> tuple:
+        return self.joint.bushings
+
+    def motion(self, name: str, u) -> np.ndarray:
+        return self.joint.motion(name, u)
+
+    def body_loads(self) -> dict:
+        """``{body: 6-vector}``: each body's whole load on its coordinates at the pose."""
+        return {n: b.load_vector for n, b in self.bodies.items()}
+
     @cached_property
     def world(self) -> WorldView:
         """The pose in world axes: each layer's two-body problem there, the bodies' loads as
@@ -136,22 +132,40 @@ class Configuration:
         from ..problem import ContactProblem
 
         bodies = {}
-        for n, b in self.joint.bodies.items():
-            # Rotations are free about world axes only where all three are (then the rotation
-            # vector's rates span the same motions); otherwise the layer's problem holds them.
-            rotations = all(d in b.free for d in DOFS[3:])
-            free = tuple(d for d in b.free if d[0] == "u" or rotations)
-            bodies[n] = Body(reference=self.references[n], free=free, force=b.force, moment=b.moment)
+        for n in self.joint.bodies:
+            load = self.world_loads[n]
+            bodies[n] = Body(reference=self.references[n], free=self._world_free(n), force=load[:3], moment=load[3:])
         pairs = tuple(
             ContactProblem(layer, c.law, body1=_unloaded(bodies[c.body1]), body2=_unloaded(bodies[c.body2]))
             for c, layer in zip(self.joint.contacts, self.layers)
         )
         return WorldView(self.joint.contacts, pairs, MappingProxyType(bodies))
 
-    def _chain(self, name) -> np.ndarray:
-        """``diag(I, J)`` of a body: its motion's rates per unit rate of its coordinates."""
-        B = np.eye(6)
-        B[3:, 3:] = self.jacobians[name]
+    def _world_free(self, name: str) -> tuple:
+        """The world-axis dofs a body's free coordinates span (a translation or rotation about its
+        reference along a world axis within the span of their rates): the layer's two-body
+        problem holds the others."""
+        b = self.joint.bodies[name]
+        cols = [DOFS.index(d) for d in b.free]
+        if not cols:
+            return ()
+        if len(cols) == 6:
+            return DOFS
+        B = self.rates[name][:, cols]
+        scale = np.ones(6)
+        scale[3:] = self.joint.lengths.max(initial=1.0)
+        out = []
+        for j, dof in enumerate(DOFS):
+            e = np.zeros(6)
+            e[j] = 1.0
+            z = np.linalg.lstsq(B, e, rcond=None)[0]
+            if np.linalg.norm((B @ z - e) * scale) <= 1e-9 * scale[j]:
+                out.append(dof)
+        return tuple(out)
+
+    def _pair_rates(self, body1: str, body2: str) -> np.ndarray:
+        B = np.zeros((12, 12))
+        B[:6, :6], B[6:, 6:] = self.rates[body1], self.rates[body2]
         return B
 
     def relative(self, i: int) -> np.ndarray:
@@ -201,26 +215,34 @@ class Configuration:
         """``(P1, P2)`` (n, 3): every bundle's insertions at the pose (mm, world)."""
         n = len(self.joint.ligaments)
         p1, p2 = np.zeros((n, 3)), np.zeros((n, 3))
-        for i, lig in enumerate(self.joint.ligaments):
-            T1, T2 = self.poses[lig.body1], self.poses[lig.body2]
-            p1[i] = T1[:3, :3] @ np.asarray(lig.point1) + T1[:3, 3]
-            p2[i] = T2[:3, :3] @ np.asarray(lig.point2) + T2[:3, 3]
+        for g, (points1, points2, _, _) in zip(self.joint.ligament_groups, self.joint.ligament_arrays):
+            idx = list(g.members)
+            T1, T2 = self.poses[g.body1], self.poses[g.body2]
+            p1[idx] = points1 @ T1[:3, :3].T + T1[:3, 3]
+            p2[idx] = points2 @ T2[:3, :3].T + T2[:3, 3]
         return p1, p2
 
     @cached_property
     def ligament_groups(self) -> tuple:
         """The joint's groups of bundles at the pose (rows over the coordinates' rates, exact lengths)."""
-        from .model import LigamentGroup
+        from .rows import LigamentGroup
 
         p1, p2 = self.insertions
         out = []
         for g in self.joint.ligament_groups:
             idx = list(g.members)
             G = line_operator(p1[idx], p2[idx], self.references[g.body1], self.references[g.body2])
-            G = G @ np.block([[self._chain(g.body1), np.zeros((6, 6))], [np.zeros((6, 6)), self._chain(g.body2)]])
+            G = G @ self._pair_rates(g.body1, g.body2)
             start = np.linalg.norm(p2[idx] - p1[idx], axis=1)
             out.append(LigamentGroup(g.body1, g.body2, g.law, g.members, G, g.slack, start))
         return tuple(out)
+
+    @cached_property
+    def elastic_groups(self) -> tuple:
+        """The springs and bushings at the pose (exact lengths and relative poses), their rows over
+        the coordinates' rates."""
+
+        return tuple(replace(g, G=g.G @ self._pair_rates(g.body1, g.body2)) for g in self._world_elastic)
 
     # --- the arrays of the solve -------------------------------------------------------------
     def _free(self, body1: str, body2: str) -> tuple[list, np.ndarray]:
@@ -236,35 +258,113 @@ class Configuration:
         for c, layer in zip(self.joint.contacts, self.layers):
             G = normal_operator(layer.points, layer.normals, self.references[c.body1], self.references[c.body2])
             G = np.ascontiguousarray(G)
-            G[:, 3:6] = G[:, 3:6] @ self.jacobians[c.body1]
-            G[:, 9:12] = G[:, 9:12] @ self.jacobians[c.body2]
+            G[:, :6] = G[:, :6] @ self.rates[c.body1]
+            G[:, 6:] = G[:, 6:] @ self.rates[c.body2]
             out.append(G)
         return out
 
     def net_force(self) -> np.ndarray:
-        """The net generalized force on the free coordinates at the pose (N, N mm): every element's
-        exact force there taken from the bodies, minus the loads (``J^T`` of the moments). Zero at
-        equilibrium; computed without the arrays of a solve (the tangent's differences call it)."""
-        x = np.zeros(len(self.joint.free_index))
+        """``q - load`` of :meth:`forces`: zero at equilibrium."""
+        q, load = self.forces()
+        return q - load
+
+    def forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`_forces`, computed once per configuration."""
+        if "_forces_cache" not in self.__dict__:
+            self.__dict__["_forces_cache"] = self._forces()
+        return self.__dict__["_forces_cache"]
+
+    def _forces(self) -> tuple[np.ndarray, np.ndarray]:
+        """``(q, load)``: the generalized force on the free coordinates at the pose (N, N mm): every element's
+        exact force there takes from the bodies and their loads, both projected by each body's rates
+        (``B^T``) on the free coordinates (N, N mm). Computed from the elements that carry load alone
+        (compressed springs, taut bundles), without the arrays of a solve: the tangent's differences
+        call it."""
+        from ..kinematics import normal_operator
+
+        taken = {name: np.zeros(6) for name, b in self.joint.bodies.items() if b.free}
+        if not taken:
+            return np.zeros(0), np.zeros(0)
+
+        def add(body1, body2, q) -> None:
+            if body1 in taken:
+                taken[body1] += q[:6]
+            if body2 in taken:
+                taken[body2] += q[6:]
+
         with np.errstate(invalid="ignore", over="ignore"):
-            for c, G, layer in zip(self.joint.contacts, self.contact_rows, self.layers):
-                f = layer.areas * c.law.stress(np.minimum(layer.gap / layer.thickness, 0.0))
-                cols, dofs = self._free(c.body1, c.body2)
-                x[dofs] += f @ G[:, cols]
-            for g in self.ligament_groups:
-                ligs = [self.joint.ligaments[i] for i in g.members]
-                law = TensionLaw(g.law, np.array([lig.transition_strain for lig in ligs]))
-                f = np.array([lig.stiffness for lig in ligs]) * law.force(g.start / g.slack - 1.0)
-                cols, dofs = self._free(g.body1, g.body2)
-                x[dofs] += f @ g.G[:, cols]
-        load = [
-            np.asarray(self.bodies[n].load_vector)[[DOFS.index(d) for d in b.free]]
-            for n, b in self.joint.bodies.items()
-        ]
-        return x - (np.concatenate(load) if load else np.zeros(0))
+            for c, state, gaps in zip(self.joint.contacts, self.states, self.gaps):
+                active = np.flatnonzero(gaps.s < 0)  # an open spring (or a missed target) carries nothing
+                if not active.size or (c.body1 not in taken and c.body2 not in taken):
+                    continue
+                layer = state.layer
+                h = np.broadcast_to(layer.thickness, (len(layer),))[active]
+                f = layer.areas[active] * c.law.stress(gaps.s[active] / h)
+                T = self.poses[c.body1]
+                points = layer.points[active] @ T[:3, :3].T + T[:3, 3]
+                normals = layer.normals[active] @ T[:3, :3].T
+                add(
+                    c.body1,
+                    c.body2,
+                    f @ normal_operator(points, normals, self.references[c.body1], self.references[c.body2]),
+                )
+            p1, p2 = self.insertions
+            for g, (_, _, k, law) in zip(self.joint.ligament_groups, self.joint.ligament_arrays):
+                if g.body1 not in taken and g.body2 not in taken:
+                    continue
+                idx = np.asarray(g.members)
+                d = p2[idx] - p1[idx]
+                length = np.linalg.norm(d, axis=1)
+                f = k * law.force(length / g.slack - 1.0)
+                taut = f > 0
+                if taut.any():
+                    add(
+                        g.body1,
+                        g.body2,
+                        f[taut]
+                        @ line_operator(
+                            p1[idx][taut], p2[idx][taut], self.references[g.body1], self.references[g.body2]
+                        ),
+                    )
+            for e in self._world_elastic:
+                add(e.body1, e.body2, (e.k * e.e0) @ e.G)
+        out, load = np.zeros(len(self.joint.free_index)), np.zeros(len(self.joint.free_index))
+        for name, q in taken.items():
+            body = self.joint.bodies[name]
+            cols = [DOFS.index(d) for d in body.free]
+            B = self.rates[name]
+            with np.errstate(invalid="ignore", over="ignore"):  # a law past its domain: inf, which the solve sees
+                out[self.joint.free_of(name)] = (B.T @ q)[cols]
+            load[self.joint.free_of(name)] = (B.T @ self.world_loads[name])[cols]
+        return out, load
+
+    @cached_property
+    def _world_elastic(self) -> tuple:
+        from .elastic import elastic_groups
+
+        return elastic_groups(self.joint, self.poses, self.references)
+
+    def near(self, within: float) -> tuple:
+        """The contacts' states cut to the springs whose gap at the pose is below ``within`` (mm):
+        the only ones that carry load within that much motion (the tangent's differences)."""
+        out = []
+        for state, gaps in zip(self.states, self.gaps):
+            keep = np.flatnonzero(gaps.s < within)
+            t = state.targets
+            targets = type(t)(
+                t.points[keep],
+                t.normals[keep],
+                t.radius[keep],
+                t.concave[keep],
+                t.frame,
+                None if t.faces is None else t.faces[keep],
+            )
+            out.append(ContactState(state.layer.subset(keep), targets))
+        return tuple(out)
 
     def element_pairs(self) -> list[tuple[str, str]]:
-        return [(c.body1, c.body2) for c in self.joint.contacts] + [(g.body1, g.body2) for g in self.ligament_groups]
+        groups = (*self.ligament_groups, *self.elastic_groups)
+        return [(c.body1, c.body2) for c in self.joint.contacts] + [(g.body1, g.body2) for g in groups]
 
     def wrenches(self, forces) -> list[np.ndarray]:
         """Per group, ``G^T f`` (12,) over the two bodies' coordinates at the pose."""
@@ -276,6 +376,7 @@ class Configuration:
             for c, G, layer in zip(self.joint.contacts, self.contact_rows, self.layers)
         ]
         out += [(g.body1, g.body2, g.G, g.slack) for g in self.ligament_groups]
+        out += [(g.body1, g.body2, g.G, np.ones(g.e0.size)) for g in self.elastic_groups]
         return out
 
     def system(self) -> JointSystem:
@@ -338,6 +439,13 @@ class Configuration:
             tension = k * law.force(e0)
             if (tension > 0).any():
                 geometric.append(self._geometric(g, cols, dofs, tension))
+        from .elastic import elastic_element_group
+
+        for e in self.elastic_groups:
+            cols, dofs = self._free(e.body1, e.body2)
+            groups.append(elastic_element_group(e, cols, dofs))
+            if e.kind == "spring" and (e.k * e.e0 > 0).any():
+                geometric.append(self._spring_geometric(e, cols, dofs))
         load = (
             np.concatenate(
                 [
@@ -355,56 +463,51 @@ class Configuration:
         """Two bilateral rows per bundle in tension, sideways to its line, of stiffness ``f / L``."""
         p1, p2 = self.insertions
         idx = list(g.members)
-        e = (p2[idx] - p1[idx]) / g.start[:, None]
+        return self._sideways(f"geometric {g.body1}-{g.body2}", g.body1, g.body2, p1[idx], p2[idx], cols, dofs, tension)
+
+    def _spring_geometric(self, e, cols, dofs) -> ElementGroup:
+        """The same for springs in tension (those in compression would make the step's energy
+        concave sideways: left to the tangent of the exact forces)."""
+        springs = [self.joint.springs[i] for i in e.members]
+        T1, T2 = self.poses[e.body1], self.poses[e.body2]
+        p1 = np.array([s.point1 for s in springs]) @ T1[:3, :3].T + T1[:3, 3]
+        p2 = np.array([s.point2 for s in springs]) @ T2[:3, :3].T + T2[:3, 3]
+        name = f"geometric springs {e.body1}-{e.body2}"
+        return self._sideways(name, e.body1, e.body2, p1, p2, cols, dofs, e.k * e.e0)
+
+    def _sideways(self, name, body1, body2, p1, p2, cols, dofs, tension) -> ElementGroup:
+        length = np.linalg.norm(p2 - p1, axis=1)
+        e = (p2 - p1) / length[:, None]
         side1 = np.cross(e, np.where(np.abs(e[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
         side1 /= np.linalg.norm(side1, axis=1)[:, None]
         side2 = np.cross(e, side1)
-        B = np.block([[self._chain(g.body1), np.zeros((6, 6))], [np.zeros((6, 6)), self._chain(g.body2)]])
+        B = self._pair_rates(body1, body2)
         keep = tension > 0
         rows, weights = [], []
         for side in (side1, side2):
-            G = line_operator(p1[idx], p1[idx] + side, self.references[g.body1], self.references[g.body2])
+            G = line_operator(p1, p1 + side, self.references[body1], self.references[body2])
             # the row of the sideways motion of both ends: body 2's end at P2, not at P1 + side
-            G[:, 9:12] = np.cross(p2[idx] - self.references[g.body2], side)
+            G[:, 9:12] = np.cross(p2 - self.references[body2], side)
             rows.append((G @ B)[keep][:, cols])
-            weights.append((tension / g.start)[keep])
+            weights.append((tension / length)[keep])
         AT = np.ascontiguousarray(np.vstack(rows).T)
         volume = np.concatenate(weights)
-        return ElementGroup(
-            f"geometric {g.body1}-{g.body2}",
-            "bilateral",
-            None,
-            dofs,
-            AT,
-            np.zeros(volume.size),
-            volume,
-            np.zeros(volume.size),
-            1.0,
-            _gram_factor(AT, volume),
-            0.0,
-        )
+        zero = np.zeros(volume.size)
+        return ElementGroup(name, "bilateral", None, dofs, AT, zero, volume, zero, 1.0, _gram_factor(AT, volume), 0.0)
 
 
-@dataclass(frozen=True, eq=False)
-class WorldView:
-    """The layers at a pose with world-axis bodies: what :func:`~dea_opt.joint.results.layer_solutions` reads."""
+class _Rates(dict):
+    """``{body: B}`` of a :class:`Configuration`, each made when first asked for."""
 
-    contacts: tuple
-    pairs: tuple
-    bodies: MappingProxyType
+    def __init__(self, config: Configuration):
+        super().__init__()
+        self.config = config
 
-    def on_body(self, forces) -> dict:
-        """``{name: 6-vector}`` the layers' ``forces`` (N) take from each body, about its reference."""
-        out = {name: np.zeros(6) for name in self.bodies}
-        for c, pair, f in zip(self.contacts, self.pairs, forces):
-            q = np.asarray(f, dtype=float) @ pair.normal_operator
-            out[c.body1] += q[:6]
-            out[c.body2] += q[6:]
-        return out
-
-
-def _unloaded(body: Body) -> Body:
-    return Body(reference=body.reference, free=body.free)
+    def __missing__(self, name: str) -> np.ndarray:
+        c = self.config
+        value = c.joint.rates(name, c.y[name], c.poses[name])
+        self[name] = value
+        return value
 
 
 def _gram_factor(AT, weight) -> np.ndarray:

@@ -10,7 +10,7 @@ bundles between two bodies by the linearised length of a straight line.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from types import MappingProxyType
 
@@ -20,101 +20,14 @@ from ..errors import InputError
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
 from ..kinematics import DOFS
 from ..problem import Body, ContactProblem, Load
+from .coordinates import BodyLoad, Coordinates, rotation_vector_motion
+from .elastic import Bushing, Spring, elastic_element_group, elastic_groups
 from .elements import Contact, Ligament
+from .rows import LigamentGroup, layer_basis, line_operator
 
 __all__ = ["KINEMATICS", "Joint"]
 
 KINEMATICS = ("small", "finite")
-
-
-def line_operator(point1, point2, reference1, reference2) -> np.ndarray:
-    """Rows ``dL / du`` of straight lines from ``point1`` (on body 1) to ``point2`` (on body 2), shape
-    (N, 12), for small motions ``u`` (body 1 then body 2) about the references: with ``e`` the unit
-    direction, ``[-e, -(p1 - c1) x e, e, (p2 - c2) x e]`` (``formulations/joint.md``, "Ligaments")."""
-    p1, p2 = np.atleast_2d(point1), np.atleast_2d(point2)
-    e = p2 - p1
-    e = e / np.linalg.norm(e, axis=1)[:, None]
-    rows = np.empty((p1.shape[0], 12))
-    rows[:, 0:3] = -e
-    rows[:, 3:6] = -np.cross(p1 - np.asarray(reference1, dtype=float), e)
-    rows[:, 6:9] = e
-    rows[:, 9:12] = np.cross(p2 - np.asarray(reference2, dtype=float), e)
-    return rows
-
-
-@dataclass(frozen=True, eq=False)
-class LayerBasis:
-    """A layer's rows in its own basis: each spring's translation and rotation about the layer's
-    centroid ``o`` (weights ``S / h``), ``E = [n, (p - o) x n]``, over ``h`` (``rows``, 6 x N); a
-    motion of its two bodies' 12 dofs moves it by ``motion(dofs)`` (6 x m, exact: a rotation about a
-    reference ``c`` is the rotation about ``o`` and the translation ``e x (o - c)``, minus for body
-    1), so that the layer's ``AT = motion^T rows``, as :meth:`dea_opt.ContactProblem._factor` builds
-    its factor (``formulations/joint.md``, "Gradient and tangent")."""
-
-    rows: np.ndarray
-    centroid: np.ndarray
-    references: tuple
-    gram: np.ndarray  # E diag(S / h) E^T (6 x 6)
-    radius: float
-    weight_sum: float
-
-    def motion(self, dofs) -> np.ndarray:
-        """``C`` (6, m): the layer's motion per unit of each of ``dofs`` (indices into the 12-vector)."""
-        return self.full[:, list(dofs)]
-
-    @cached_property
-    def full(self) -> np.ndarray:
-        """:meth:`motion` of all 12 dofs (6, 12)."""
-        C = np.zeros((6, 12))
-        for col, j in enumerate(range(12)):
-            body, k = divmod(int(j), 6)
-            sign = 1.0 if body == 1 else -1.0
-            if k < 3:
-                C[k, col] = sign
-            else:
-                e = np.zeros(3)
-                e[k - 3] = 1.0
-                C[:3, col] = sign * np.cross(e, self.centroid - np.asarray(self.references[body]))
-                C[k, col] = sign
-        return C
-
-    def factor(self, dofs) -> np.ndarray:
-        """``F`` (r, m) with ``F^T F = A^T diag(V) A`` over ``dofs``, from the 6 x 6 Gram matrix in arc
-        lengths, eigenvalues below the one test of "unresisted" dropped (as the two-body factor)."""
-        from ..formulations.resistance import unresisted
-
-        Dg = np.array([1.0, 1.0, 1.0, self.radius, self.radius, self.radius])
-        vals, vecs = np.linalg.eigh(self.gram / np.outer(Dg, Dg))
-        keep = ~unresisted(vals, max(self.weight_sum, float(vals[-1])))
-        L = Dg[:, None] * vecs[:, keep] * np.sqrt(vals[keep])
-        return L.T @ self.motion(dofs)
-
-
-def layer_basis(layer, reference1, reference2) -> LayerBasis:
-    """The :class:`LayerBasis` of ``layer`` between bodies of references ``reference1``, ``reference2``."""
-    weight = layer.areas / layer.thickness
-    total = float(weight.sum())
-    o = weight @ layer.points / total if len(layer) else np.zeros(3)
-    E = np.empty((6, len(layer)))
-    E[:3] = layer.normals.T
-    E[3:] = np.cross(layer.points - o, layer.normals).T
-    gram = (E * weight) @ E.T
-    radius = float(np.sqrt(weight @ np.sum((layer.points - o) ** 2, axis=1) / total)) if len(layer) else 1.0
-    rows = np.ascontiguousarray(E / layer.thickness)
-    return LayerBasis(rows, o, (tuple(reference1), tuple(reference2)), gram, radius if radius > 1e-100 else 1.0, total)
-
-
-@dataclass(frozen=True, eq=False)
-class LigamentGroup:
-    """The bundles of one law between two bodies: which they are and their full rows."""
-
-    body1: str
-    body2: str
-    law: str
-    members: tuple  # indices into Joint.ligaments
-    G: np.ndarray  # (N, 12) rows dL/du of body1's and body2's 6-vectors
-    slack: np.ndarray  # (N,) L0, mm
-    start: np.ndarray  # (N,) L at the start pose, mm
 
 
 @dataclass(frozen=True, eq=False)
@@ -137,6 +50,16 @@ class Joint:
         length linearised consistently (first order in the motions; tension only on that
         strain). ``"finite"``: exact rigid motions, gaps at the current pose per layer, exact
         bundle lengths (``formulations/joint.md``).
+    springs : sequence of Spring, optional
+        Linear two-sided springs between a point on each of two bodies (:mod:`dea_opt.joint.elastic`).
+    bushings : sequence of Bushing, optional
+        Linear bushings between two body frames.
+    loads : sequence of BodyLoad, optional
+        Forces and moments at points of the bodies, in the ground or the body's frame (added to
+        each ``Body``'s own force and moment, which act at its reference in the ground frame).
+    coordinates : mapping {name: Coordinates}, optional
+        Finite kinematics: the bodies whose six coordinates are an OpenSim ``CustomJoint``'s
+        instead of the translation of the reference and the rotation vector.
 
     Every free body must be touched by some element (else nothing holds it: an
     :class:`~dea_opt.errors.InputError` naming it), and every element's bodies must be named in
@@ -147,6 +70,10 @@ class Joint:
     contacts: tuple = ()
     ligaments: tuple = ()
     kinematics: str = "small"
+    springs: tuple = ()
+    bushings: tuple = ()
+    loads: tuple = ()
+    coordinates: Mapping = field(default_factory=dict)
 
     def __post_init__(self):
         set_ = object.__setattr__
@@ -158,7 +85,8 @@ class Joint:
             if not isinstance(body, Body):
                 raise InputError(f"Joint.bodies[{name!r}] must be a dea_opt.Body, got {type(body).__name__}")
         set_(self, "bodies", MappingProxyType(dict(self.bodies)))
-        for attr, kind in (("contacts", Contact), ("ligaments", Ligament)):
+        kinds = (("contacts", Contact), ("ligaments", Ligament), ("springs", Spring), ("bushings", Bushing))
+        for attr, kind in (*kinds, ("loads", BodyLoad)):
             value = getattr(self, attr)
             if isinstance(value, (str, bytes)) or not hasattr(value, "__iter__"):
                 raise InputError(f"Joint.{attr} must be a sequence of dea_opt.{kind.__name__}, got {value!r}")
@@ -166,7 +94,7 @@ class Joint:
             for i, item in enumerate(items):
                 if not isinstance(item, kind):
                     raise InputError(f"Joint.{attr}[{i}] must be a dea_opt.{kind.__name__}, got {type(item).__name__}")
-                for end in ("body1", "body2"):
+                for end in ("body1", "body2") if kind is not BodyLoad else ("body",):
                     if getattr(item, end) not in self.bodies:
                         raise InputError(
                             f"Joint.{attr}[{i}].{end} is {getattr(item, end)!r}, which is not a body of the joint "
@@ -175,9 +103,8 @@ class Joint:
             set_(self, attr, items)
         if not isinstance(self.kinematics, str) or self.kinematics not in KINEMATICS:
             raise InputError(f"Joint.kinematics must be one of {KINEMATICS}, got {self.kinematics!r}")
-        touched = {e.body1 for e in (*self.contacts, *self.ligaments)} | {
-            e.body2 for e in (*self.contacts, *self.ligaments)
-        }
+        elements = (*self.contacts, *self.ligaments, *self.springs, *self.bushings)
+        touched = {e.body1 for e in elements} | {e.body2 for e in elements}
         for name, body in self.bodies.items():
             if body.free and name not in touched:
                 raise InputError(
@@ -191,6 +118,19 @@ class Joint:
                         f"Joint.contacts[{i}].targets are for kinematics='finite' (the small kinematics use the "
                         f"layer's gaps only): pass kinematics='finite' or leave targets out"
                     )
+        if not isinstance(self.coordinates, Mapping):
+            raise InputError(f"Joint.coordinates must be a mapping {{body: Coordinates}}, got {self.coordinates!r}")
+        for name, coordinates in self.coordinates.items():
+            if name not in self.bodies:
+                raise InputError(f"Joint.coordinates names {name!r}, which is not a body (bodies: {list(self.bodies)})")
+            if not isinstance(coordinates, Coordinates):
+                raise InputError(f"Joint.coordinates[{name!r}] must be a dea_opt.joint.Coordinates")
+        if self.coordinates and self.kinematics != "finite":
+            raise InputError(
+                f"Joint.coordinates (an OpenSim joint's coordinates for {list(self.coordinates)}) are finite: pass "
+                f"kinematics='finite'"
+            )
+        set_(self, "coordinates", MappingProxyType(dict(self.coordinates)))
 
     # --- names and dofs -------------------------------------------------------------------
     @property
@@ -218,8 +158,10 @@ class Joint:
         return np.array([self.free_index[(name, d)] for d in DOFS if (name, d) in self.free_index], dtype=int)
 
     def prescribed(self, name: str) -> np.ndarray:
-        """Body ``name``'s 6-vector with its prescribed values and zeros elsewhere."""
-        u = np.zeros(6)
+        """Body ``name``'s 6-vector with its prescribed values and zeros elsewhere (the start values
+        of its :class:`Coordinates` where it has them)."""
+        coordinates = self.coordinates.get(name)
+        u = np.zeros(6) if coordinates is None else coordinates.start.copy()
         for dof, value in self.bodies[name].prescribed.items():
             u[DOFS.index(dof)] = value
         return u
@@ -235,6 +177,31 @@ class Joint:
                     u[j] = x[self.free_index[(name, dof)]]
             out[name] = u
         return out
+
+    def start(self) -> np.ndarray:
+        """The free vector at the start pose: zeros, or the start values of :class:`Coordinates`."""
+        x = np.zeros(len(self.free_index))
+        for (name, dof), j in self.free_index.items():
+            if name in self.coordinates:
+                x[j] = self.coordinates[name].start[DOFS.index(dof)]
+        return x
+
+    def motion(self, name: str, u) -> np.ndarray:
+        """Body ``name``'s rigid motion (4x4, mm) from its start pose at its 6-vector ``u`` (exact)."""
+        coordinates = self.coordinates.get(name)
+        if coordinates is not None:
+            return coordinates.motion(u)
+        return rotation_vector_motion(u, self.bodies[name].reference)[0]
+
+    def rates(self, name: str, u, motion=None) -> np.ndarray:
+        """``B`` (6, 6): the velocity of body ``name``'s reference (where ``motion`` put it) and its
+        angular velocity per unit rate of each of its coordinates at ``u`` (finite kinematics)."""
+        coordinates = self.coordinates.get(name)
+        if coordinates is None:
+            return rotation_vector_motion(u, self.bodies[name].reference)[1]
+        motion = self.motion(name, u) if motion is None else motion
+        c = np.asarray(self.bodies[name].reference)
+        return coordinates.rates(u, motion[:3, :3] @ c + motion[:3, 3])
 
     def _pair_dofs(self, body1: str, body2: str) -> np.ndarray:
         """Positions in ``x`` of the free dofs of a body pair, body 1's then body 2's."""
@@ -269,18 +236,55 @@ class Joint:
             groups.append(LigamentGroup(b1, b2, law, tuple(members), G, slack, start))
         return tuple(groups)
 
+    @cached_property
+    def ligament_arrays(self) -> tuple:
+        """Per group of :attr:`ligament_groups`: ``(point1 (n, 3), point2 (n, 3), stiffness (n,),
+        TensionLaw)`` at the start pose."""
+        out = []
+        for g in self.ligament_groups:
+            ligs = [self.ligaments[i] for i in g.members]
+            out.append(
+                (
+                    np.array([lig.point1 for lig in ligs], dtype=float),
+                    np.array([lig.point2 for lig in ligs], dtype=float),
+                    np.array([lig.stiffness for lig in ligs], dtype=float),
+                    TensionLaw(g.law, np.array([lig.transition_strain for lig in ligs])),
+                )
+            )
+        return tuple(out)
+
     # --- the arrays of the formulations ---------------------------------------------------
     @cached_property
-    def lengths(self) -> np.ndarray:
-        """Per free dof: 1 mm for a translation; for a rotation the RMS distance from the body's
-        reference of every point its elements act at (springs, insertions) (mm)."""
+    def element_points(self) -> dict:
+        """``{body: [arrays (n, 3)]}``: the points each body's elements act at (springs, insertions,
+        spring ends, bushing origins), mm at the start pose."""
         points: dict = {name: [] for name in self.bodies}
         for c in self.contacts:
             points[c.body1].append(c.layer.points)
             points[c.body2].append(c.layer.points)
-        for lig in self.ligaments:
+        for lig in (*self.ligaments, *self.springs):
             points[lig.body1].append(np.asarray(lig.point1)[None])
             points[lig.body2].append(np.asarray(lig.point2)[None])
+        for bushing in self.bushings:
+            points[bushing.body1].append(bushing.frame[None, :3, 3])
+            points[bushing.body2].append(bushing.frame[None, :3, 3])
+        return points
+
+    @cached_property
+    def centres(self) -> dict:
+        """``{body: (3,)}``: the centroid of the points each body's elements act at (its reference
+        where none do), mm: where a body's motion is measured against the joint's extent."""
+        out = {}
+        for name, blocks in self.element_points.items():
+            n = sum(len(p) for p in blocks)
+            out[name] = sum(p.sum(axis=0) for p in blocks) / n if n else np.asarray(self.bodies[name].reference)
+        return out
+
+    @cached_property
+    def lengths(self) -> np.ndarray:
+        """Per free dof: 1 mm for a translation; for a rotation the RMS distance from the body's
+        reference of every point its elements act at (springs, insertions) (mm)."""
+        points = self.element_points
         out = np.ones(len(self.free_index))
         radii: dict = {}
         for (name, dof), j in self.free_index.items():
@@ -298,22 +302,39 @@ class Joint:
     @cached_property
     def extent(self) -> float:
         """The RMS distance of every point the elements act at (springs, insertions) from their
-        centroid (mm): the joint's size, against which a motion counts as running away."""
+        centroid, at least 1 mm: the joint's size, against which a motion counts as running away."""
         points = [c.layer.points for c in self.contacts]
-        points += [np.array([lig.point1, lig.point2]) for lig in self.ligaments]
+        points += [np.array([lig.point1, lig.point2]) for lig in (*self.ligaments, *self.springs)]
+        points += [b.frame[None, :3, 3] for b in self.bushings]
         if not points:
             return 1.0
         p = np.vstack(points)
         p = p - p.mean(axis=0)
-        return max(float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p)))), 1e-12)
+        # elements at one point (a bushing alone) have no spread: 1 mm, not a size that any motion exceeds
+        return max(float(np.sqrt(np.mean(np.einsum("ij,ij->i", p, p)))), 1.0)
 
     @cached_property
     def load(self) -> np.ndarray:
         """The generalized load on the free dofs (N, N mm about each body's reference)."""
         r = np.zeros(len(self.free_index))
+        loads = self.load_vectors()
         for (name, dof), j in self.free_index.items():
-            r[j] = self.bodies[name].load_vector[DOFS.index(dof)]
+            r[j] = loads[name][DOFS.index(dof)]
         return r
+
+    def body_loads(self) -> dict:
+        """``{body: (F, M)}`` on each body's 6 dofs at the start pose (:meth:`load_vectors`)."""
+        return self.load_vectors()
+
+    def load_vectors(self, motions=None) -> dict:
+        """``{body: (F, M)}`` (6,): each body's whole load in the world about its reference (N, N mm),
+        its own and its :class:`BodyLoad` s, at the start pose or where ``motions`` ``{body: 4x4}``
+        put it (finite kinematics: points moved, body-frame components turned)."""
+        out = {name: body.load_vector.astype(float) for name, body in self.bodies.items()}
+        for load in self.loads:
+            motion = None if motions is None else motions[load.body]
+            out[load.body] = out[load.body] + load.wrench(self.bodies[load.body].reference, motion)
+        return out
 
     def system(self) -> JointSystem:
         """The small-kinematics :class:`~dea_opt.formulations.joint.JointSystem` of this joint."""
@@ -369,18 +390,30 @@ class Joint:
                     stiffness=float(np.sum(k / group.slack)),
                 )
             )
+        for group in self.elastic_groups:
+            cols = [DOFS.index(d) for d in DOFS if d in self.bodies[group.body1].free]
+            cols += [6 + DOFS.index(d) for d in DOFS if d in self.bodies[group.body2].free]
+            u_p = np.concatenate([self.prescribed(group.body1), self.prescribed(group.body2)])
+            moved = replace(group, e0=group.e0 + group.G @ u_p)
+            groups.append(elastic_element_group(moved, cols, self._pair_dofs(group.body1, group.body2)))
         return JointSystem(tuple(groups), self.load, self.lengths)
 
     @cached_property
+    def elastic_groups(self) -> tuple:
+        """The springs' and bushings' :class:`~dea_opt.joint.elastic.ElasticGroup` s at the start pose."""
+        return elastic_groups(self)
+
+    @cached_property
     def bases(self) -> tuple:
-        """Each contact layer's :class:`~dea_opt.joint.model.LayerBasis` between its two bodies."""
+        """Each contact layer's :class:`~dea_opt.joint.rows.LayerBasis` between its two bodies."""
         return tuple(
             layer_basis(c.layer, self.bodies[c.body1].reference, self.bodies[c.body2].reference) for c in self.contacts
         )
 
     def element_pairs(self) -> list[tuple[str, str]]:
         """The two bodies of each group of :meth:`system` (contacts first, then ligament groups)."""
-        return [(c.body1, c.body2) for c in self.contacts] + [(g.body1, g.body2) for g in self.ligament_groups]
+        groups = (*self.ligament_groups, *self.elastic_groups)
+        return [(c.body1, c.body2) for c in self.contacts] + [(g.body1, g.body2) for g in groups]
 
     def wrenches(self, forces) -> list[np.ndarray]:
         """Per group of :meth:`system`, ``G^T f`` (12,): what its element ``forces`` (N, tension
@@ -388,7 +421,7 @@ class Joint:
         out = []
         for basis, c, f in zip(self.bases, self.contacts, forces):
             out.append(basis.motion(range(12)).T @ (basis.rows @ (np.asarray(f, dtype=float) * c.layer.thickness)))
-        for group, f in zip(self.ligament_groups, forces[len(self.contacts) :]):
+        for group, f in zip((*self.ligament_groups, *self.elastic_groups), forces[len(self.contacts) :]):
             out.append(np.asarray(f, dtype=float) @ group.G)
         return out
 
@@ -398,6 +431,7 @@ class Joint:
         ``(. + G u) / divisor``: what the certificate sums forces with."""
         out = [(c.body1, c.body2, p.normal_operator, c.layer.thickness) for c, p in zip(self.contacts, self.pairs)]
         out += [(g.body1, g.body2, g.G, g.slack) for g in self.ligament_groups]
+        out += [(g.body1, g.body2, g.G, np.ones(g.e0.size)) for g in self.elastic_groups]
         return out
 
     def with_loads(self, loads: Mapping) -> Joint:
@@ -410,12 +444,16 @@ class Joint:
                 force, moment = load
                 load = Load(force, moment)
             bodies[name] = bodies[name].with_load(load)
-        return Joint(bodies, self.contacts, self.ligaments, self.kinematics)
+        return replace(self, bodies=bodies)
 
     def __repr__(self) -> str:
+        extra = "".join(
+            f", {name}={len(getattr(self, name))}" for name in ("springs", "bushings", "loads") if getattr(self, name)
+        )
+        coordinates = f", coordinates={list(self.coordinates)}" if self.coordinates else ""
         return (
             f"Joint(bodies={list(self.bodies)}, contacts={[c.name for c in self.contacts]}, "
-            f"ligaments={len(self.ligaments)}, kinematics={self.kinematics!r})"
+            f"ligaments={len(self.ligaments)}{extra}, kinematics={self.kinematics!r}{coordinates})"
         )
 
 

@@ -130,10 +130,16 @@ class JointSolution:
         checks that layer's springs and the equilibrium it is part of; its ``validity`` is the
         layer's, as for a two-body problem.
     ligaments : LigamentResults
+    elastic : list of dict
+        One row per :class:`~dea_opt.joint.Spring` and :class:`~dea_opt.joint.Bushing` (springs
+        first; :func:`~dea_opt.joint.elastic.elastic_results`), units in the keys.
     certificate : JointCertificate
     validity : JointValidity
     method, success, status, message, iterations, solve_time, info
         As for a two-body :class:`~dea_opt.Solution`.
+    states : tuple
+        Finite kinematics: each contact's springs where the answer left them (cast again at its
+        pose), to start another solve from (``contact_states=``; a path's next frame).
     """
 
     joint: Joint
@@ -150,6 +156,8 @@ class JointSolution:
     iterations: int
     solve_time: float
     info: dict[str, Any] = field(default_factory=dict)
+    elastic: list = field(default_factory=list)
+    states: tuple = field(default=(), repr=False)
 
     @property
     def failure(self) -> str:
@@ -162,7 +170,11 @@ class JointSolution:
         return f"status '{self.status}': {self.status.description}"
 
     def summary(self) -> dict:
-        """The headline numbers as plain Python values (for JSON)."""
+        """The headline numbers as plain Python values (for JSON), each key of a number ending with
+        its unit (:mod:`dea_opt.units`)."""
+        from ..kinematics import DOFS
+        from ..units import dof_name
+
         return {
             "method": self.method,
             "success": self.success,
@@ -171,24 +183,25 @@ class JointSolution:
             "iterations": self.iterations,
             "bodies": {
                 name: {
-                    "u": b.u.tolist(),
-                    "reactions": b.reactions,
-                    "force": b.force.tolist(),
-                    "moment": b.moment.tolist(),
+                    "u": {dof_name(dof): float(v) for dof, v in zip(DOFS, b.u)},
+                    "reactions": {dof_name(dof, "force"): float(v) for dof, v in b.reactions.items()},
+                    "force_N": b.force.tolist(),
+                    "moment_Nmm": b.moment.tolist(),
                 }
                 for name, b in self.bodies.items()
             },
             "contacts": [
                 {
                     "name": contact.name,
-                    "peak_pressure": s.peak_pressure,
-                    "contact_area": s.contact_area,
-                    "contact_force": s.contact_force.tolist(),
-                    "center_of_pressure": s.center_of_pressure.tolist(),
+                    "peak_pressure_MPa": s.peak_pressure,
+                    "contact_area_mm2": s.contact_area,
+                    "contact_force_N": s.contact_force.tolist(),
+                    "center_of_pressure_mm": s.center_of_pressure.tolist(),
                 }
                 for contact, s in zip(self.joint.contacts, self.contacts)
             ],
             "ligaments": self.ligaments.rows(),
+            **({"elastic": list(self.elastic)} if self.elastic else {}),
             "certificate": self.certificate.as_dict(),
             "validity": self.validity.as_dict(),
         }
@@ -201,18 +214,20 @@ class JointSolution:
         )
 
 
-def body_results(joint, body_u: dict, on_body: dict) -> MappingProxyType:
-    """``{name: BodyResult}`` from each body's 6-vector and the elements' generalized force on it."""
-    from ..formulations._parts.finite_geometry import pose_matrix
-
+def body_results(joint, body_u: dict, on_body: dict, loads=None, poses=None) -> MappingProxyType:
+    """``{name: BodyResult}`` from each body's 6-vector and what the elements take from it, ``G^T f``
+    in the world about its reference (``on_body``), against its whole load ``loads`` (default
+    ``joint.load_vectors()``) at its motion ``poses`` (default from ``body_u``)."""
+    loads = joint.load_vectors() if loads is None else loads
     out = {}
     for name, body in joint.bodies.items():
         u = body_u[name]
         q = on_body[name]
-        reaction = q - body.load_vector
+        reaction = q - loads[name]
         held = {dof: float(reaction[j]) for j, dof in enumerate(DOFS) if dof not in body.free}
+        pose = joint.motion(name, u) if poses is None else poses[name]
         # q is what the elements take from the body's dofs: the force they apply is -q.
-        out[name] = BodyResult(name, u, pose_matrix(u, body.reference), held, -q[:3], -q[3:])
+        out[name] = BodyResult(name, u, pose, held, -q[:3], -q[3:])
     return MappingProxyType(out)
 
 
@@ -237,13 +252,15 @@ def layer_solutions(
     dropped = dropped or [None] * len(joint.contacts)
     own = own or [None] * len(joint.contacts)
     whole = common["certificate"]
+    loads = joint.body_loads()
     for c, pair, f, strain, lost, took in zip(joint.contacts, joint.pairs, layer_forces, strains, dropped, own):
         u = np.concatenate([body_u[c.body1], body_u[c.body2]])
         took = np.asarray(f, dtype=float) @ pair.normal_operator if took is None else took
         problem = pair
         for k, name in ((1, c.body1), (2, c.body2)):
-            rest = joint.bodies[name].load_vector - (on_body[name] - took[6 * (k - 1) : 6 * k])
-            rest = np.where(np.abs(rest) < 1e-30, 0.0, rest)
+            rest = loads[name] - (on_body[name] - took[6 * (k - 1) : 6 * k])
+            # a failed answer's forces may not be finite: its layers then carry no load of their own
+            rest = np.where((np.abs(rest) < 1e-30) | ~np.isfinite(rest), 0.0, rest)
             problem = problem.with_load(force=rest[:3], moment=rest[3:], body=k)
         with np.errstate(invalid="ignore", over="ignore"):
             pressure = 0.0 - pair.law.stress(np.minimum(strain, 0.0))

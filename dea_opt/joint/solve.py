@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 import time
+from dataclasses import replace
 
 import numpy as np
 
@@ -23,6 +24,7 @@ from ..formulations.resistance import require_finite
 from ..status import CERTIFIABLE, Status
 from .certificate import body_forces, certify_joint
 from .checks import check_joint_cone, check_joint_unresisted, finish, start_vector
+from .elastic import elastic_results
 from .model import Joint
 from .results import JointSolution, body_results, layer_solutions, ligament_results
 from .validity import assess_joint
@@ -214,6 +216,12 @@ def _certified(joint: Joint, result: JointResult, method: str, tol: float) -> Jo
     if held:
         info["held"] = held
     info["certify_time"] = time.perf_counter() - start
+    first = n + len(joint.ligament_groups)
+    answered = [
+        replace(group, e0=np.asarray(strain, dtype=float))
+        for group, strain in zip(joint.elastic_groups, (system.strains(xs) if finite else [])[first:])
+    ]
+    elastic = elastic_results(joint, answered, law[first:]) if finite else []
     return JointSolution(
         joint=joint,
         x=x,
@@ -229,4 +237,5 @@ def _certified(joint: Joint, result: JointResult, method: str, tol: float) -> Jo
         iterations=result.iterations,
         solve_time=result.solve_time,
         info=info,
+        elastic=elastic,
     )

@@ -202,8 +202,18 @@ def _length_check(joint, body_u, limits) -> Check:
     return Check("ligament_length_error", worst, limits.length_error, "", passed, advice)
 
 
+def _turn(joint, name: str, u) -> float:
+    """A body's rotation (degrees): its rotation vector's length, or its motion's angle where its
+    coordinates are a :class:`~dea_opt.joint.Coordinates`'."""
+    coordinates = getattr(joint, "coordinates", {})
+    if name not in coordinates:
+        return float(np.degrees(np.linalg.norm(u[3:])))
+    R = joint.motion(name, u)[:3, :3]
+    return float(np.degrees(np.arccos(np.clip((np.trace(R) - 1.0) / 2.0, -1.0, 1.0))))
+
+
 def _rotation_check(joint, body_u, limits, half_turn: bool = False) -> Check:
-    value = max((float(np.degrees(np.linalg.norm(u[3:]))) for u in body_u.values()), default=0.0)
+    value = max((_turn(joint, name, u) for name, u in body_u.items()), default=0.0)
     limit = 180.0 if half_turn else limits.rotation
     passed = value <= limit
     advice = "" if passed else "a body turns past the small kinematics: use Joint(..., kinematics='finite')"

@@ -21,163 +21,20 @@ import numpy as np
 from .. import formulations
 from .._checks.threads import single_threaded_blas
 from ..errors import InputError, SolverError, ValidityWarning
-from ..formulations.finite import (
-    ALIASES,
-    SHARED,
-    FiniteSystem,
-    Targets,
-    evaluate,
-    rms_radius,
-    scale,
-    small_system,
-    status_of,
-)
-from ..formulations.system import SpringSystem, start_vector
-from ..kinematics import DOFS
+from ..formulations.finite import evaluate, rms_radius, status_of
+from ..formulations.system import start_vector
 from ..mesh import SpringCast, check_pose
-from . import fallback
-from .outcome import crushed_at_start, crushed_far, crushed_through, far_from_start, ran_away, unsettled
+from . import fallback, means, verdict
+from .arrays import build_system, check_bodies, plan, planes_note, remembered, resolve_targets, scaled_directions
+from .outcome import crushed_at_start, crushed_far, crushed_through, ran_away, unsettled
 from .solution import FiniteSolution, certificate
 from .stability import leave_unstable, lengths_of, noted, softest
 from .start import at_base, near_base, predicted, warm_start
 from .tracker import MeshTracker
 
-__all__ = ["plan", "solve"]
+__all__ = ["build_system", "plan", "resolve_targets", "solve"]
 
-_GAP_TOL = 1e-6  # mm per mm of the layer's size: targets must reproduce the layer's gaps
 _LOOSE = 1e-6  # the scaled residual a solve that an update of the springs follows stops at
-
-
-def resolve_targets(problem) -> tuple[Targets, object]:
-    """``(targets, cast)``: the springs' targets at zero displacement, and the SpringCast to re-cast
-    from (None without meshes). Checked to reproduce the layer's gaps."""
-    layer, given = problem.layer, problem.targets
-    cast = None
-    if given is None:
-        targets = Targets.from_layer(layer) if layer.has_targets else Targets.facing(layer)
-    elif isinstance(given, SpringCast):
-        cast = given
-        if len(cast.layer) != len(layer) or not np.array_equal(
-            np.asarray(cast.layer.source_face), np.asarray(layer.source_face)
-        ):
-            raise InputError(
-                f"targets is a SpringCast of {len(cast.layer)} springs, but the problem's layer has "
-                f"{len(layer)}: pass the cast the layer came from (ContactProblem(cast.layer, ..., "
-                f"targets=cast))"
-            )
-        if layer is cast.layer:  # the cast's own targets give its gaps (they are where its rays met)
-            own = cast.layer
-            pose = np.asarray(cast.pose, dtype=float)
-            return Targets.cast_planes(own.target_points, own.target_normals, pose, own.target_faces), cast
-        targets = Targets.from_layer(cast.layer, pose=cast.pose)
-    else:
-        targets = given
-        if len(targets) != len(layer):
-            raise InputError(f"targets has {len(targets)} entries, the layer {len(layer)} springs: give one per spring")
-    s0 = evaluate(targets, layer.points, layer.normals, targets.frame).s
-    size = max(float(np.abs(layer.points).max(initial=0.0)), 1.0)
-    error = np.abs(s0 - layer.gap)
-    if len(error) and not (error.max() <= _GAP_TOL * size):
-        i = int(np.nanargmax(np.where(np.isfinite(error), error, np.inf)))
-        raise InputError(
-            f"targets must reproduce the layer's gaps at zero displacement: spring {i} has gap "
-            f"{layer.gap[i]:.6g} mm, its target gives {s0[i]:.6g} mm; build the targets from the same "
-            f"geometry (Targets.from_layer(layer), the SpringCast, or planes/spheres through the gaps)"
-        )
-    return targets, cast
-
-
-def check_bodies(problem) -> None:
-    """Finite kinematics move body 2 against a fixed body 1 (only the relative pose matters)."""
-    body1 = problem.body1
-    moved = [d for d, v in body1.prescribed.items() if v != 0.0]
-    if body1.free or moved:
-        what = f"free dofs {body1.free}" if body1.free else f"prescribed motion {moved}"
-        raise InputError(
-            f"kinematics='finite' moves body 2 against a fixed body 1, but body1 has {what}: fix body 1 "
-            f"and give the motion to body 2 (only the relative pose matters)"
-        )
-
-
-def build_system(problem, targets, tracker=None) -> FiniteSystem:
-    """The :class:`FiniteSystem` of ``problem``'s springs and ``targets``, or of ``tracker``'s springs
-    (a load path's previous frame's, or the cast's) with the problem's body 2 and load."""
-    layer, body2 = problem.layer, problem.body2
-    free = np.array([DOFS.index(d) for d in body2.free], dtype=int)
-    base = np.zeros(6)
-    for dof, value in body2.prescribed.items():
-        base[DOFS.index(dof)] = value
-    if tracker is not None:
-        s = tracker.springs
-        return FiniteSystem.of_rows(
-            s.points,
-            s.normals,
-            s.areas,
-            tracker.thickness,
-            tracker.targets(),
-            s.pT,
-            s.nT,
-            s.arms,
-            s.mT,
-            s.qm,
-            np.asarray(body2.reference, dtype=float),
-            free,
-            base,
-            np.asarray(body2.force, dtype=float),
-            np.asarray(body2.moment, dtype=float),
-        )
-    springs = (layer.points, layer.normals, layer.areas, layer.thickness, targets)
-    return FiniteSystem(
-        *springs,
-        np.asarray(body2.reference, dtype=float),
-        free,
-        base,
-        np.asarray(body2.force, dtype=float),
-        np.asarray(body2.moment, dtype=float),
-    )
-
-
-def scaled_directions(system, law) -> tuple[np.ndarray, float, SpringSystem]:
-    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.scaling.scaling`,
-    from the resistance of the springs' small system at zero displacement (held directions left
-    out; :func:`~dea_opt.formulations.finite.small_system`: the springs of this solve at body 2's
-    base pose, exact gaps), sized by the larger of the load and the overlap of those gaps."""
-    small = small_system(system, law)
-    T, E0 = scale(small.resistance.basis(law.modulus), small.load, system, law, small.e0)
-    return T, E0, small
-
-
-def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
-    """``[(formulation, its options, x0), ...]`` in the order ``method`` tries them, for finite kinematics.
-
-    ``method`` is ``"auto"`` (the registered formulations that solve finite kinematics for
-    ``law``, in order: ``finite``, then ``finite_nlp``), one of them, or ``"newton"``/``"nlp"``
-    (:data:`ALIASES`). Any other is an :class:`~dea_opt.errors.InputError` from the registry
-    (``qp``: a small-kinematics method). Options are checked by the registry; under ``auto``
-    each goes to the first formulation that declares it, the re-casting ones to both.
-    """
-    from ..formulations import check_options, check_takes, names, takes
-    from ..formulations import options as declared
-
-    name = ALIASES.get(method, method) if isinstance(method, str) else method
-    options = dict(options)
-    x0 = options.pop("x0", None)
-    if name != "auto":
-        if not isinstance(name, str) or name not in names():
-            raise InputError(f"method must be one of {('auto', *names())}, got {method!r}")
-        check_takes(name, law, "finite")
-        return [(name, check_options(name, options), x0)]
-    chain = [n for n in names() if takes(n, law, "finite")][:2]
-    parts: dict = {n: {} for n in chain}
-    known = {n: {option.name for option in declared(n)} for n in chain}
-    for key, value in options.items():
-        homes = [n for n in chain if key in known[n]]
-        if not homes:
-            accepted = sorted(set().union(*known.values()) | {"x0"})
-            raise InputError(f"method 'auto' takes the options {accepted}, got unknown option {key!r}")
-        for home in homes if key in SHARED else homes[:1]:
-            parts[home][key] = value
-    return [(n, check_options(n, parts[n]), x0 if i == 0 else None) for i, n in enumerate(chain)]
 
 
 def solve(
@@ -188,7 +45,7 @@ def solve(
     strict: bool = True,
     frame=None,
     tracker=None,
-    load_checks=None,
+    unresisted=None,
     **options,
 ) -> FiniteSolution:
     """Solve a ``kinematics="finite"`` problem and certify it at the solved pose.
@@ -200,13 +57,14 @@ def solve(
     method : str
         ``"finite"`` (or ``"newton"``): Newton with the consistent tangent; ``"finite_nlp"``
         (or ``"nlp"``): IPOPT on a conservative surrogate re-centred at each outer iteration
-        (``formulations/finite_nlp.md``); ``"auto"``: Newton, then IPOPT if Newton's answer
-        fails its certificate (``solution.info["fallback"]`` says why; not where Newton found the
-        layer crushed, no spring left, springs that do not settle, or no stable equilibrium near the
-        start: IPOPT meets the same, in minutes), in a time budget unless the options give
-        ``max_time``: the larger of 60 s and 200 times Newton's time, shared by its solves
-        (:mod:`~dea_opt.largemotion.fallback`); an IPOPT stopped by it fails (``max_iterations``),
-        its message and ``info["fallback"]`` saying so. ``"qp"`` is an
+        (``formulations/finite_nlp.md``); ``"auto"``: Newton, then, where its answer fails its
+        certificate and nothing is proved about the load (:mod:`~dea_opt.largemotion.verdict`), the
+        other means of :mod:`~dea_opt.largemotion.means` (more updates of the springs, other
+        starts, a load continuation, IPOPT), ``solution.info["fallback"]`` saying what each found,
+        in a time budget unless the options give ``max_time``
+        (:mod:`~dea_opt.largemotion.fallback`). A verdict on the load (``crushed``, a
+        :class:`~dea_opt.errors.LoadNotSupportedError`) is given where proved, by every method;
+        a solve that met one unproved did not converge (``max_iterations``). ``"qp"`` is an
         :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
     certificate_tol : float
     strict : bool
@@ -217,10 +75,11 @@ def solve(
         coordinates acting on top of it.
     tracker : MeshTracker, optional
         The re-casting state of a load path's previous frame (``solution.tracker``).
-    load_checks : (callable, callable), optional
-        ``dea_opt.solve``'s tests of a load the springs cannot carry, ``(unresisted, cone)``, each
-        ``f(problem, system)`` raising :class:`~dea_opt.errors.LoadNotSupportedError`: the first
-        before any solve, the second before IPOPT and after a failed Newton (at zero displacement).
+    unresisted : callable, optional
+        ``dea_opt.solve``'s test of a load along directions no spring resists, ``f(problem, system)``
+        raising :class:`~dea_opt.errors.LoadNotSupportedError`, run before any solve on the springs
+        of the start (:func:`dea_opt.loadcheck.check_unresisted`). A load no spring the layer can
+        have carries at any pose raises it too, proved (:mod:`~dea_opt.largemotion.verdict`).
     **options
         ``x0`` (free coordinates, mm and rad) and the options of the formulation
         (:data:`dea_opt.formulations.finite.OPTIONS`, :data:`dea_opt.formulations.finite_nlp.OPTIONS`).
@@ -228,27 +87,26 @@ def solve(
     if not (isinstance(certificate_tol, (int, float)) and 0 < certificate_tol < 1):
         raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
     steps = plan(method, problem.law, options)
+    problem = remembered(problem)  # a layer that is its cast's own: re-cast from it (targets=cast)
+    run = _Run(problem, certificate_tol, frame, unresisted, steps[0][1])
     with single_threaded_blas():
         name, opts, x0 = steps[0]
+        if name == "finite_nlp":  # a load proved not carried: said before IPOPT (minutes to fail)
+            run.raise_unsupported()
         began = time.perf_counter()
-        solution = _solve(problem, name, certificate_tol, opts, x0, frame, tracker, load_checks)
+        solution = run(name, opts, x0, tracker)
+        if not solution.success and not _final(solution) and run.proof() is None and method == "auto":
+            # no answer and nothing proved: the other means, in a time budget (dea_opt/largemotion/means.py)
+            solution = means.rescue(run, steps, solution, options, time.perf_counter() - began)
+        verdict.judge(solution, run.proof() if not solution.success else None, problem)
         if method == "auto":
-            skipped = fallback.not_tried(solution)
-            if skipped is None and not solution.success and len(steps) > 1:
-                reason, newton_time = fallback.why(name, solution), time.perf_counter() - began
-                name, opts, _ = steps[1]
-                limit = fallback.budget(newton_time, options, opts)  # None: the user's max_time
-                began = time.perf_counter()
-                opts = fallback.deadline(opts, limit, began)
-                solution = _solve(problem, name, certificate_tol, opts, None, frame, None, load_checks)
-                skipped = fallback.out_of_time(solution, limit, time.perf_counter() - began, reason)
-            solution.info["fallback"] = skipped
             solution.info["requested"] = "auto"
+            solution.info.setdefault("fallback", None)
     if not solution.success and strict:
         raise SolverError(
             f"{solution.method} (finite kinematics) returned no certified answer (status '{solution.status}': "
             f"{solution.message}); {solution.failure}"
-            + (f"; before it, {solution.info['fallback']}" if solution.method != steps[0][0] else ""),
+            + (f"; before it, {solution.info['fallback']}" if solution.info.get("fallback") else ""),
             status=solution.status,
             solution=solution,
         )
@@ -257,12 +115,57 @@ def solve(
     return solution
 
 
+def _final(solution) -> bool:
+    """Whether a failed solution needs no other means: the springs of the given pose are none
+    (``pose_error`` at body 2's base pose, a fact of the meshes), or its verdict is proved."""
+    return bool(solution.info.get("proved")) or solution.info.get("at_base") is True
+
+
+_UNKNOWN = object()  # a proof not looked for yet
+
+
+class _Run:
+    """The solves of one ``dea_opt.solve`` call: its problem and options, and the proof of a verdict on
+    its load (:func:`~dea_opt.largemotion.verdict.prove`, computed once, when a solve needs it)."""
+
+    def __init__(self, problem, certificate_tol, frame, unresisted, opts):
+        self.problem, self.certificate_tol, self.frame, self.unresisted = problem, certificate_tol, frame, unresisted
+        targets = problem.targets
+        self.cast = targets if isinstance(targets, SpringCast) and opts.get("recast", True) else None
+        self._proof: object = _UNKNOWN
+
+    def proof(self):
+        if self._proof is _UNKNOWN:
+            self._proof = verdict.prove(self.problem, self.cast)
+        return self._proof
+
+    def raise_unsupported(self) -> None:
+        verdict.raise_unsupported(self.proof(), self.problem)
+
+    def __call__(self, method, opts, x0=None, tracker=None, problem=None, start="auto") -> FiniteSolution:
+        """One solve (``problem``: this one, or a continuation's with another load; ``start``: ``"auto"``,
+        ``"predictor"`` or ``"zero"`` for a solve without ``x0``)."""
+        own = problem is None
+        return _solve(
+            self.problem if own else problem,
+            method,
+            self.certificate_tol,
+            opts,
+            x0,
+            self.frame,
+            tracker,
+            self.unresisted,
+            start,
+            self if own else None,
+        )
+
+
 def _check_frame(frame) -> np.ndarray:
     checked = check_pose(frame, "frame")
     return np.eye(4) if checked is None else checked
 
 
-def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_checks) -> FiniteSolution:
+def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, unresisted, how, run) -> FiniteSolution:
     start = time.perf_counter()
     if problem.kinematics != "finite":
         raise InputError("this problem has kinematics='small': solve it with dea_opt.solve")
@@ -278,12 +181,9 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     system = build_system(problem, targets, tracker)
     law = problem.law
     T, E0, small = scaled_directions(system, law)
-    unresisted, cone = load_checks or (None, None)
     loaded = bool(small.load.any() and small.n_dofs)
     if loaded and unresisted is not None:
         unresisted(problem, small)
-        if method == "finite_nlp" and cone is not None:
-            cone(problem, small)
     x0 = start_vector(small, x0)
     if x0 is not None and small.resistance.null.shape[1]:
         x0 = x0 - small.resistance.motion_part(x0)  # held directions take no motion, from any start
@@ -293,21 +193,27 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
     if not cold and tracker is not None and (start_system := warm_start(tracker, system, law, x)) is not system:
         system, (T, E0, small) = start_system, scaled_directions(start_system, law)
     first = tracker is not None  # the first solve, which may start again at the base pose
-    if cold and loaded and tracker is not None:
+    began = "given" if not cold else "zero"
+    # the small kinematics' answer starts springs that follow mesh 2 (or any solve asked to)
+    if cold and loaded and (how == "predictor" or (how == "auto" and tracker is not None)):
         guess, unsolved = predicted(small, law, x, system)
-        if unsolved and not near_base(tracker, system):  # no measure of the springs there: brought up to date
+        if tracker is not None and unsolved and not near_base(tracker, system):  # springs brought up to date
             system, failed = at_base(tracker, system, law)
             if failed is not None:
+                failed.info["at_base"] = True
                 return _solution(problem, system, small, law, failed, method, tracker, certificate_tol, build, 0, [])
             T, E0, small = scaled_directions(system, law)
         deepest = small.strain_at(guess).min()
-        crushing = not unsolved and deepest <= -1.0
-        if crushing and near_base(tracker, system) and not far_from_start(system, guess):
+        # springs that follow mesh 2 would leave the model through the layer: said before any solve
+        # where proved (closed-form targets solve on; an answer past eps = -1 fails its validity)
+        crushing = tracker is not None and not unsolved and deepest <= -1.0
+        if crushing and run is not None and (proof := run.proof()) is not None:
+            run.raise_unsupported()
             tracker.counts["stable"] = True
-            crushed = crushed_at_start(system, law, guess, deepest)
+            crushed = crushed_at_start(system, law, guess, deepest, proof)
             return _solution(problem, system, small, law, crushed, method, tracker, certificate_tol, build, 0.0, [])
-        if method == "finite":
-            x, cold = guess, unsolved
+        x, cold = guess, unsolved
+        began = "zero" if unsolved else "predictor"
     inner, history = None, []
     stable, rounds = True, [0]
     # Solves that the springs' update follows stop at _LOOSE: it moves the springs, and the solve
@@ -336,6 +242,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
             system, failed = at_base(tracker, system, law)
             if failed is not None:
                 inner = failed
+                inner.info["at_base"] = True
                 break
             T, E0, small = scaled_directions(system, law)
             x, cold, start_state = np.zeros(len(system.free)), True, None
@@ -368,8 +275,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, load_chec
         ran_away(system, inner, rms_radius(system))
     if inner.status == "crushed" and np.isfinite(inner.u_free).all():
         crushed_far(system, inner)
-    if method == "finite" and not inner.success and loaded and cone is not None:
-        cone(problem, small)
+    inner.info["start"] = began
     elapsed = time.perf_counter() - start - build
     return _solution(problem, system, small, law, inner, method, tracker, certificate_tol, build, elapsed, history)
 
@@ -487,6 +393,8 @@ def _solution(problem, system, small, law, inner, method, tracker, certificate_t
     if along:
         info["softest_direction"] = along
     message = inner.message
+    if tracker is None and targets.faces is not None:  # tangent planes of a cast, never re-cast
+        message = f"{message}; {planes_note(problem)}"
     held = small.resistance.describe(problem.free_names) if len(system.free) else []
     if held:
         # As for the small kinematics: directions no spring resists at zero displacement take no

@@ -1,23 +1,22 @@
-"""``method="auto"`` with finite kinematics: whether IPOPT follows a failed Newton, and its time.
+"""``method="auto"`` with finite kinematics: the time of the means tried after a failed Newton.
 
-Written math: ``formulations/finite_nlp.md`` ("Limits"; ``formulations/finite.md`` says where
-``auto`` does not run IPOPT). :func:`dea_opt.largemotion.driver.solve` runs Newton, then IPOPT
-(``finite_nlp``) when Newton's answer fails its certificate, except where Newton found what
-IPOPT would meet too, in minutes (:func:`not_tried`). Unless the user gave ``max_time``, IPOPT
-then has :func:`budget` seconds for all its solves (:func:`within`): IPOPT took 28 to 34 s
-wherever it succeeded on the knee (Newton there: 0.03 to 0.09 s, and 0.3 s for the 100
-iterations of a failed solve), up to 6 s on the hip meshes of
-:func:`dea_opt.geometry.hip_meshes` and at most about 1 s on the closed-form layers of
-``tests/test_finite.py``. An IPOPT stopped at its budget fails, saying so (:func:`out_of_time`).
+Written math: ``formulations/finite_nlp.md`` ("Limits"; ``formulations/finite.md``, "What auto
+tries"). :func:`dea_opt.largemotion.driver.solve` runs Newton, then, where its answer fails its
+certificate and no verdict on the load is proved, the other means of
+:mod:`~dea_opt.largemotion.means`: other starts, a load continuation, IPOPT (``finite_nlp``).
+Unless the user gave ``max_time``, they have :func:`budget` seconds together (IPOPT what the
+Newton means left, :func:`within`): IPOPT took 28 to 34 s wherever it succeeded on the knee
+(Newton there: 0.03 to 0.09 s, and 0.3 s for the 100 iterations of a failed solve), up to 6 s on
+the hip meshes of :func:`dea_opt.geometry.hip_meshes` and at most about 1 s on the closed-form
+layers of ``tests/test_finite.py``. An IPOPT stopped at the budget fails, saying so
+(:func:`out_of_time`).
 """
 
 from __future__ import annotations
 
 import time
 
-from ..status import Status
-
-__all__ = ["FLOOR", "MULTIPLE", "budget", "deadline", "not_tried", "out_of_time", "why", "within"]
+__all__ = ["CEILING", "FLOOR", "MULTIPLE", "budget", "deadline", "out_of_time", "why", "within"]
 
 #: Seconds IPOPT has at least after a failed Newton: twice the longest it took to succeed on the
 #: knee (34 s), however quickly Newton failed (a Newton that fails at its first iteration tells
@@ -26,25 +25,13 @@ FLOOR = 60.0
 #: IPOPT's budget in multiples of the time Newton took, for problems larger than the knee: twice
 #: the knee's IPOPT (28 to 34 s) over its Newton's 100 iterations (0.3 s).
 MULTIPLE = 200.0
-
-
-def not_tried(solution) -> str | None:
-    """Why ``auto`` does not run IPOPT after Newton's ``solution``, or None (IPOPT runs if it failed)."""
-    if solution.success:
-        return None
-    if solution.status is Status.CRUSHED:  # the model's limit: IPOPT would meet it too, slowly
-        return "not tried: the layer is crushed through, a limit of the model"
-    if solution.status is Status.UNBOUNDED:  # IPOPT chases the same motion (9 minutes on the knee)
-        return "not tried: no stable equilibrium near the start carries the load"
-    if solution.status is Status.POSE_ERROR:  # the meshes' geometry: the same for IPOPT
-        return "not tried: no spring is left at the pose"
-    if solution.info.get("recast", {}).get("stable") is False:  # IPOPT's springs are updated alike
-        return "not tried: the springs did not settle within max_recasts updates"
-    return None
+#: Seconds the means after a failed Newton have at most, however long Newton took (a Newton that
+#: scanned whole turns on the knee took 3 s, which made the multiple 10 minutes).
+CEILING = 180.0
 
 
 def why(name: str, solution) -> str:
-    """How Newton (``name``) ended: ``info["fallback"]`` of the answer IPOPT gives after it."""
+    """How Newton (``name``) ended: the start of ``info["fallback"]`` of the answer auto gives after it."""
     return (
         f"{name} ended with status '{solution.status}' ({solution.message}) and certificate "
         f"residual {solution.certificate.worst()}"
@@ -52,13 +39,13 @@ def why(name: str, solution) -> str:
 
 
 def budget(newton_time: float, given: dict, declared) -> dict | None:
-    """``{"max_time": s, "newton_time": s}``: the seconds IPOPT has after a Newton that took
-    ``newton_time`` s, the larger of :data:`FLOOR` and :data:`MULTIPLE` times it; None when the
-    user gave ``max_time`` (``given``: the options of the solve) or the fallback does not declare
-    it (``declared``: its options' names)."""
+    """``{"max_time": s, "newton_time": s}``: the seconds the means have after a Newton that took
+    ``newton_time`` s, the larger of :data:`FLOOR` and :data:`MULTIPLE` times it, at most
+    :data:`CEILING`; None when the user gave ``max_time`` (``given``: the options of the solve) or
+    the fallback does not declare it (``declared``: its options' names)."""
     if "max_time" in given or "max_time" not in declared:
         return None
-    return {"max_time": max(FLOOR, MULTIPLE * newton_time), "newton_time": newton_time}
+    return {"max_time": min(CEILING, max(FLOOR, MULTIPLE * newton_time)), "newton_time": newton_time}
 
 
 def deadline(opts: dict, limit: dict | None, start: float) -> dict:
@@ -94,8 +81,8 @@ def out_of_time(solution, limit: dict | None, spent: float, reason: str) -> str:
     said = (
         f"IPOPT, run by method='auto' after Newton failed (info['fallback'] says how), was stopped at the time "
         f"auto gives it, {seconds} (the larger of {FLOOR:g} s and {MULTIPLE:g} times Newton's "
-        f"{limit['newton_time']:.3g} s; it ran {spent:.3g} s), without a certified answer: give it more with "
-        f"max_time= (seconds)"
+        f"{limit['newton_time']:.3g} s, at most {CEILING:g} s; it ran {spent:.3g} s), without a certified answer: "
+        f"give it more with max_time= (seconds)"
     )
     object.__setattr__(solution, "message", f"{solution.message}; {said}")
     return f"{reason}; then IPOPT stopped at its time budget of {seconds} (max_time= gives it more)"

@@ -1,9 +1,12 @@
-"""How a finite-kinematics solve that cannot give an answer of the meshes says so.
+"""How a finite-kinematics solve that found no answer of the meshes says what its iterates did.
 
-``crushed`` (:class:`~dea_opt.status.Status`) when the load drives body 2 through the cartilage
-(``formulations/finite.md``, "Limits"), ``unbounded`` when the iterates ran away (no
-stable equilibrium near the start: along a free dof the contact resists less than the load), and
-``max_iterations`` when the springs did not settle within ``max_recasts`` updates. Used by
+Where the iterates ran away (:func:`ran_away`: no equilibrium found near the start; along a free
+dof the contact may resist less than the load), springs that carried load were lost through the
+layer on the way (:func:`crushed_through`) or the springs did not settle within ``max_recasts``
+updates (:func:`unsettled`), the solve failed: what it says of the load (``crushed``,
+``unbounded``) stands only where :mod:`~dea_opt.largemotion.verdict` proves it from the problem,
+else the answer is a solve that did not converge (``formulations/finite.md``, "What the layer can
+carry"). :func:`crushed_at_start` gives the proved ``crushed`` before any solve. Used by
 :mod:`~dea_opt.largemotion.driver`.
 """
 
@@ -20,49 +23,25 @@ __all__ = [
     "crushed_at_start",
     "crushed_far",
     "crushed_through",
-    "far_from_start",
     "ran_away",
     "unsettled",
 ]
 
 
-def far_from_start(system, x) -> bool:
-    """Whether the small kinematics' answer ``x`` (free coordinates) slid body 2 across the load or
-    turned it beyond :data:`_FAR`, without sinking along the load past the thickest spring: its
-    strains there are no measure of the load (the knee's contact holds a torsion that turns the
-    femur 13 deg, where the small kinematics read eps = -1), so they may not call the layer
-    crushed before a solve (:func:`crushed_at_start`); the solve finds out. Sinking past the
-    whole layer is what a load too large does, however far body 2 turned on the way."""
-    force = np.asarray(system.force, dtype=float)
-    _, far = _motion(system.free, x, force)
-    if not far:
-        return False
-    shift = np.zeros(3)
-    for index, value in zip(system.free, x):
-        if index < 3:
-            shift[index] = value
-    size = float(np.linalg.norm(force))
-    sinking = float(shift @ force) / size if size > 0 else 0.0
-    return not sinking > float(np.max(system.thickness, initial=0.0))
-
-
-def crushed_at_start(system, law, x, eps) -> InnerResult:
+def crushed_at_start(system, law, x, eps, proof) -> InnerResult:
     """A failed answer at the small kinematics' answer ``x``, which crushes the layer through
-    (``eps <= -1``) with body 2 not far from its start, or sunk through the layer
-    (:func:`far_from_start`): with springs
-    that follow mesh 2, body 2 would go through the cartilage (springs lost through the layer,
-    :func:`crushed_through`); said before any solve, since IPOPT takes minutes to find it out."""
-    motion, far = _motion(system.free, x, np.asarray(system.force, dtype=float))
-    cause = _beyond(law)
-    if far:  # it sank through the layer, but the dofs may be what let body 2 go that far
-        cause += _FREE_DOF
+    (``eps <= -1``), where ``proof`` (a :class:`~dea_opt.largemotion.verdict.Proof`) shows that no
+    equilibrium inside the model carries the load: ``crushed``, said before any solve (IPOPT would
+    take minutes to fail)."""
+    motion, _ = _motion(system.free, x, np.asarray(system.force, dtype=float))
     return InnerResult(
         x,
         system.state(system.coordinates(x), law),
         False,
         "crushed",
-        f"the small kinematics on the start pose's springs reach eps = {eps:.3g} ({motion}): body 2 would "
-        f"go through the cartilage before the load is carried, so {cause}",
+        f"the small kinematics on the start pose's springs reach eps = {eps:.3g} ({motion}); {proof.message()}: "
+        f"{_beyond(law)}",
+        info={"proved": proof.kind},
     )
 
 
@@ -77,16 +56,17 @@ def ran_away(system, inner, radius: float) -> bool:
     near the start: no equilibrium there carries the load, which along a free dof exceeds what
     the contact resists (a joint's torsion past the largest its articular surfaces hold; in the
     joint, the ligaments). Springs lost through the layer on the way (whose rays met mesh 2
-    behind mesh 1's far side as it passed) say nothing of a load too large. Whether it did."""
+    behind mesh 1's far side as it passed) say nothing of the load. Whether it did (the status
+    ``unbounded`` stands only where :mod:`~dea_opt.largemotion.verdict` proves it)."""
     x = np.asarray(inner.u_free, dtype=float)
     if not beyond_reach(system, x, radius):
         return False
     motion, _ = _motion(system.free, x, np.asarray(system.force, dtype=float))
     inner.status = "unbounded"
     inner.message += (
-        f"; the iterates ran away ({motion}): no stable equilibrium near the start carries this load, which along "
-        f"the free dofs exceeds what the contact resists (nothing in the model holds body 2 there; in a "
-        f"joint, the ligaments): hold those dofs, or give them the loads that hold them"
+        f"; the iterates ran away ({motion}): no equilibrium was found near the start; along the free dofs the "
+        f"load may exceed what the contact resists (nothing in the model holds body 2 there; in a joint, the "
+        f"ligaments): hold those dofs, or give them the loads that hold them"
     )
     return True
 
@@ -103,22 +83,21 @@ def beyond_reach(system, x, radius: float) -> bool:
 
 
 _FREE_DOF = (
-    "; or, as body 2 slid or turned far, a free dof lets it go where nothing in the model holds "
+    ": as body 2 slid or turned far, a free dof may let it go where nothing in the model holds "
     "it (in a joint, the ligaments): hold those dofs, or give them the loads that hold them"
 )
 
 
 def crushed_far(system, inner) -> None:
-    """Add to a ``crushed`` answer's message, when body 2 slid across the load or turned far
-    (:data:`_FAR`) on its way, that a free dof may be what let it go (as :func:`crushed_at_start`)."""
+    """Add to a ``crushed`` solve's message, when body 2 slid across the load or turned far
+    (:data:`_FAR`) on its way, that a free dof may be what let it go."""
     motion, far = _motion(system.free, inner.u_free, np.asarray(system.force, dtype=float))
     if far:
         inner.message += f"; {motion}{_FREE_DOF}"
 
 
-#: Motion of the small kinematics' answer beyond which its strains are not a measure of the
-#: load: a slide across the load (mm) or a turn (degrees) far outside the small rotations it
-#: linearises (sinking along the load is what a load too large does).
+#: Motion of body 2 beyond which a free dof may be what let it go: a slide across the load (mm)
+#: or a turn (degrees) far outside the small rotations of the small kinematics.
 _FAR = (5.0, 10.0)
 
 
@@ -145,12 +124,12 @@ def _motion(free, x, force) -> tuple[str, bool]:
 def crushed_through(tracker, inner, law, system, radius: float) -> None:
     """Mark a failed solve ``crushed`` when springs that carried load were lost through the layer
     on the way (their rays met mesh 2 behind mesh 1's far side: the overlap passed mesh 1's
-    thickness): the load drove body 2 into the layer until springs left the model. IPOPT would
-    meet the same springs, in minutes: ``auto`` does not fall back to it. Unless the first of them
-    were lost where the iterates had already run away (:func:`beyond_reach`, ``radius`` as there;
-    the tracker's ``crushed_at``): body 2 then crossed the layer as it went where nothing held it,
-    and the solve is ``unbounded`` (:func:`ran_away`). Lost near the start, they were crushed
-    first, whatever the iterates did after."""
+    thickness): the iterates drove body 2 into the layer until springs left the model. Unless
+    the first of them were lost where the iterates had already run away (:func:`beyond_reach`,
+    ``radius`` as there; the tracker's ``crushed_at``): body 2 then crossed the layer as it went
+    where nothing held it, and the solve is ``unbounded`` (:func:`ran_away`). Either stands only
+    where :mod:`~dea_opt.largemotion.verdict` proves it (another start, a load continuation or
+    IPOPT may find an equilibrium); ``law`` is the layer's."""
     at = tracker.crushed_at
     if at is not None and beyond_reach(system, at[list(system.free)], radius):  # lost as body 2 passed
         inner.message += (
@@ -162,7 +141,7 @@ def crushed_through(tracker, inner, law, system, radius: float) -> None:
     inner.status = "crushed"
     inner.message += (
         f"; {tracker.crushed_through} springs that carried load were lost through the layer on the way (their "
-        f"rays met mesh 2 behind mesh 1's far side): {_beyond(law)}"
+        f"rays met mesh 2 behind mesh 1's far side: the overlap passed mesh 1's thickness)"
     )
 
 

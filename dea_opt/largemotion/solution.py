@@ -9,7 +9,7 @@ against the load mapped the same way; the strains are the gaps at that pose over
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 
 import numpy as np
@@ -19,6 +19,9 @@ from ..formulations.finite import Targets, generalized, left_jacobian, pose_matr
 from ..formulations.system import ROUNDING, SpringSystem
 from ..kinematics import DOF_NAMES
 from ..solution import Solution
+
+#: The checks of the answer's own values, whose advice is void where it is no equilibrium.
+_OF_THE_ANSWER = ("strain", "rotation", "gap_error", "peak_pressure", "dropped_springs", "lost_through_layer")
 
 
 def plane_error(cast, layer, eps, pose) -> tuple[float, float]:
@@ -67,7 +70,7 @@ class _Deformed:
 def strain_rounding(state) -> np.ndarray:
     """A bound on the rounding of the springs' strains at ``state``'s pose, shape (N,): ``ROUNDING``
     ulps of the sizes the gaps are computed from (the springs' points, their targets' points and
-    radii, the pose's translation), over ``|n_i . m_i|`` (the ray's incidence on its target) and the
+    radii, the pose's translation), over ``|dot(n_i, m_i)|`` (the ray's incidence on its target) and the
     thickness; 0 where the ray misses its target (open, no force). Far from the origin, or where
     a deep start and the motion cancel to a small gap, the strain keeps only the digits these leave
     (``formulations/energy.md``, "The certificate")."""
@@ -180,6 +183,27 @@ class FiniteSolution(Solution):
         held = np.setdiff1d(np.arange(12), problem.free_indices)
         return {DOF_NAMES[i]: float(reaction[i]) for i in held}
 
+    @property
+    def validity(self):
+        """As :attr:`Solution.validity <dea_opt.solution.Solution.validity>`; for a solve that did not
+        converge where its iterates met a verdict they could not prove (``info["unproved"]``:
+        crushed springs, a runaway), the failed checks of the answer say that it is no equilibrium,
+        not what a failure would mean at one (a crushed layer, a load in the wrong unit)."""
+        validity = super().validity
+        was = self.info.get("unproved")
+        if self.success or not was:
+            return validity
+        met = "ran away" if was == "unbounded" else "crushed springs or lost them through the layer"
+        why = (
+            f"the answer is where the solver's iterates stopped without converging (they {met}, which proves nothing "
+            f"about the load), no equilibrium: its strains, pressures and motion mean nothing (the message says "
+            f"what the iterates did)"
+        )
+        checks = tuple(
+            replace(c, advice=why) if c.passed is False and c.name in _OF_THE_ANSWER else c for c in validity.checks
+        )
+        return replace(validity, checks=checks)
+
     def _counts(self) -> dict:
         """The validity report at the solved pose counts the springs the window dropped there and
         those lost through the layer (when the springs were re-cast from meshes), and says whether
@@ -194,11 +218,14 @@ class FiniteSolution(Solution):
 
     @cached_property
     def _plane_error(self) -> tuple[float, float] | None:
-        """:func:`plane_error` where the springs came from a cast and were not re-cast (``recast=False``):
-        re-cast springs meet mesh 2 on their faces at the solved pose, closed-form targets are the model."""
+        """:func:`plane_error` where the springs came from a cast and were not re-cast (``recast=False``,
+        or a subset of a cast's springs, which knows its meshes: ``SpringLayer.cast``): re-cast
+        springs meet mesh 2 on their faces at the solved pose, closed-form targets are the model."""
         from ..mesh import SpringCast
 
         cast = self.problem.targets
+        if cast is None and self.targets is not None and self.targets.faces is not None:
+            cast = self.problem.layer.cast  # the tangent planes of the layer's own targets
         if self.tracker is not None or not isinstance(cast, SpringCast) or not np.isfinite(self.u).all():
             return None
         return plane_error(cast, self.problem.layer, self.strain, self.pose)

@@ -56,12 +56,13 @@ class Exposure:
         }
 
     def summary(self) -> dict:
+        """The headline numbers, each name ending with its unit (:mod:`dea_opt.units`)."""
         return {
-            "threshold": self.threshold,
-            "duration": self.duration,
-            "max_pressure_time_integral": float(self.pressure_time_integral.max(initial=0.0)),
-            "max_time_above_threshold": float(self.time_above.max(initial=0.0)),
-            "max_exposure_above_threshold": float(self.exposure_above.max(initial=0.0)),
+            "threshold_MPa": self.threshold,
+            "duration_s": self.duration,
+            "max_pressure_time_integral_MPa_s": float(self.pressure_time_integral.max(initial=0.0)),
+            "max_time_above_threshold_s": float(self.time_above.max(initial=0.0)),
+            "max_exposure_above_threshold_MPa_s": float(self.exposure_above.max(initial=0.0)),
             "sites_above_threshold": int((self.time_above > 0).sum()),
         }
 

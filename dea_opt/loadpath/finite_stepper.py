@@ -34,7 +34,7 @@ class FiniteStepper:
 
     def solve(self, problem: ContactProblem, new_geometry: bool, setup: float = 0.0) -> Solution:
         from ..largemotion import solve as solve_finite
-        from ..loadcheck import check_cone, check_unresisted
+        from ..loadcheck import check_unresisted
 
         start = time.perf_counter()
         solution = solve_finite(
@@ -44,12 +44,13 @@ class FiniteStepper:
             strict=False,
             frame=self.pose,
             tracker=self.tracker,
-            load_checks=(check_unresisted, check_cone),
+            unresisted=check_unresisted,
             x0=self.x,
             **self.options,
         )
-        if not solution.success and self.x is not None:
-            # The previous frame's pose may be a poor start (a jump in the load): start cold.
+        if not solution.success and self.x is not None and self.method != "auto":
+            # The previous frame's pose may be a poor start (a jump in the load): start cold (auto
+            # tried the cold starts already, dea_opt/largemotion/means.py).
             warm = solution
             solution = solve_finite(
                 problem,
@@ -57,7 +58,7 @@ class FiniteStepper:
                 certificate_tol=self.certificate_tol,
                 strict=False,
                 frame=self.pose,
-                load_checks=(check_unresisted, check_cone),
+                unresisted=check_unresisted,
                 **self.options,
             )
             if not solution.success:  # what the start nearer the path found says as much

@@ -42,6 +42,11 @@ class PathOutputs:
     threshold : float
         Pressure threshold (MPa, >= 0) of the exposure measures (time above it, the excess over
         it; checked by :class:`~dea_opt.loadpath.exposure.ExposureAccumulator`).
+    keep_frames : iterable of int or "peak"
+        Frames whose certified solution to keep however ``keep_solutions`` is set
+        (:attr:`PathResult.kept`), ``"peak"`` for the certified frame of the largest peak pressure
+        (kept as the frames stream by: one solution in memory): what :meth:`PathResult.write`
+        draws the pressure maps of.
 
     Examples
     --------
@@ -55,6 +60,7 @@ class PathOutputs:
     series: str | Path | None = None
     regions: Any = None
     threshold: float = 1.0
+    keep_frames: Any = ()
 
     def __post_init__(self):
         for name in ("keep_solutions", "keep_pressures"):

@@ -1,6 +1,7 @@
 """The result of a load path and its files: the per-frame table, CSV, JSON, a ParaView series and plots.
 
-Units: mm, N, N mm, MPa, s.
+Every column of the table and every key of the summary ends with its unit (``peak_pressure_MPa``;
+:mod:`dea_opt.units`).
 """
 
 from __future__ import annotations
@@ -16,10 +17,12 @@ import numpy as np
 
 from ..errors import InputError, ValidityWarning
 from ..files.atomic import write_data
-from ..io.summary import write_json
+from ..io.summary import anatomy_json, write_json
 from ..problem import ContactProblem
+from ..validity import CHECK_UNITS, check_column
 from .anatomical import COP_COLUMNS, anatomical_columns, anatomical_frame_table, anatomical_origin
 from .exposure import Exposure
+from .maps import map_jobs
 from .series import FrameSeries, write_pvd
 from .table import MOTION_UNITS, motion_columns
 
@@ -70,6 +73,9 @@ class PathResult:
         The regions with columns in the table (empty without labels).
     frame_files : FrameSeries or None
         The frames' ``.vtu`` files written while solving (``PathOutputs.series``).
+    kept : dict
+        Solutions kept for their maps (``PathOutputs.keep_frames``): ``{frame: Solution}``,
+        and ``"peak": (frame, Solution)`` for the peak frame.
     """
 
     table: pd.DataFrame
@@ -83,6 +89,7 @@ class PathResult:
     files: dict = field(default_factory=dict)
     regions: dict = field(default_factory=dict)
     frame_files: FrameSeries | None = None
+    kept: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
         return len(self.times)
@@ -114,9 +121,9 @@ class PathResult:
         failed = ~self.table["success"].to_numpy(dtype=bool)
         if not failed.any():
             return []
-        rows = self.table.loc[failed, ["frame", "time", "status", "message"]]
+        rows = self.table.loc[failed, ["frame", "time_s", "status", "message"]]
         return [
-            {"frame": int(r["frame"]), "time": float(r["time"]), "status": r["status"], "message": r["message"]}
+            {"frame": int(r["frame"]), "time_s": float(r["time_s"]), "status": r["status"], "message": r["message"]}
             for r in rows.to_dict("records")
         ]
 
@@ -129,13 +136,13 @@ class PathResult:
         parts = []
         for f in failures[:shown]:
             reason = f["message"] if len(f["message"]) <= width else f["message"][: width - 3] + "..."
-            parts.append(f"frame {f['frame']} ({f['time']:g} s) {f['status']}: {reason}")
+            parts.append(f"frame {f['frame']} ({f['time_s']:g} s) {f['status']}: {reason}")
         more = f"; and {len(failures) - shown} more (frames.csv)" if len(failures) > shown else ""
         return f"{len(failures)} of {len(self)} frames have no certified answer: {'; '.join(parts)}{more}"
 
     def validity_summary(self) -> dict:
-        """Which certified frames are outside validity, and why: per failed check its frames
-        and its worst value (and at which frame)."""
+        """Which certified frames are outside validity, and why: per failed check its frames,
+        its worst value (and at which frame) and that value's ``unit``."""
         table = self.table
         outside = self.frames_outside_validity
         checks: dict = {}
@@ -145,9 +152,11 @@ class PathResult:
         columns = [c for c in table.columns if c == "frame" or c.startswith("validity_")]
         for row in table.loc[mask, columns].to_dict("records") if mask.any() else []:
             for name in filter(None, str(row["validity_failed"]).split(";")):
-                entry = checks.setdefault(name, {"frames": [], "worst": -math.inf, "worst_frame": None})
+                entry = checks.setdefault(
+                    name, {"frames": [], "worst": -math.inf, "worst_frame": None, "unit": CHECK_UNITS.get(name, "1")}
+                )
                 entry["frames"].append(int(row["frame"]))
-                value = row.get(f"validity_{name}", math.nan)
+                value = row.get(check_column(name), math.nan)
                 if math.isfinite(value) and value > entry["worst"]:
                     entry["worst"], entry["worst_frame"] = float(value), int(row["frame"])
         return {
@@ -162,7 +171,7 @@ class PathResult:
         """``{column: {unit, min, max, at_peak}}`` of ``columns`` (rows as :attr:`table`'s) over
         the certified frames: the smallest, the largest and the peak frame's value."""
         certified = self.table["success"].to_numpy(dtype=bool)
-        k = _largest(self.table.loc[certified, "peak_pressure"])
+        k = _largest(self.table.loc[certified, "peak_pressure_MPa"])
         out = {}
         for column, unit in units.items():
             values = columns.loc[certified, column]
@@ -175,16 +184,16 @@ class PathResult:
         return out
 
     def motion_summary(self) -> dict:
-        """Per free dof (its table column, ``body2_uz``): its unit and, over the certified frames,
+        """Per free dof (its table column, ``body2_uz_mm``): its unit and, over the certified frames,
         the smallest and largest motion found and that of the peak frame (mm, rad)."""
-        units = {column: MOTION_UNITS[column.rsplit("_", 1)[1]] for column in motion_columns(self.problem)}
+        units = {column: MOTION_UNITS[column.split("_")[1]] for column in motion_columns(self.problem)}
         return self._ranges(self.table, units)
 
     def anatomical_table(self, anatomy) -> pd.DataFrame:
         """:attr:`table` with the centre of pressure and the motion found along the anatomical
-        axes of ``anatomy`` (an AnatomicalFrame or a dict) appended: ``cop_medial``,
-        ``cop_anterior``, ``cop_proximal`` (mm from the frame's origin),
-        ``body<b>_translation_<axis>`` (mm) and ``body<b>_rotation_<axis>`` (rad); see
+        axes of ``anatomy`` (an AnatomicalFrame or a dict) appended: ``cop_medial_mm``,
+        ``cop_anterior_mm``, ``cop_proximal_mm`` (from the frame's origin),
+        ``body<b>_translation_<axis>_mm`` and ``body<b>_rotation_<axis>_rad``; see
         :func:`~dea_opt.loadpath.anatomical.anatomical_frame_table`."""
         import pandas as pd
 
@@ -192,16 +201,16 @@ class PathResult:
 
     def anatomical_summary(self, anatomy) -> dict:
         """What :meth:`summary` adds for an anatomical frame ``anatomy``: ``anatomy`` (the frame
-        and ``origin_used``, mm), and over the certified frames, like :meth:`motion_summary`,
-        ``center_of_pressure_anatomical`` (``cop_medial``, ... in mm) and ``motion_anatomical``
-        (``body2_translation_proximal`` in mm, ``body2_rotation_anterior`` in rad, ...)."""
+        and ``origin_used_mm``), and over the certified frames, like :meth:`motion_summary`,
+        ``center_of_pressure_anatomical`` (``cop_medial_mm``, ...) and ``motion_anatomical``
+        (``body2_translation_proximal_mm``, ``body2_rotation_anterior_rad``, ...)."""
         frame, origin = anatomical_origin(self.problem, anatomy)
         columns = anatomical_frame_table(self.table, self.problem, frame)
         units = anatomical_columns(self.problem)
         cop = {c: u for c, u in units.items() if c in COP_COLUMNS}
         motion = {c: u for c, u in units.items() if c not in COP_COLUMNS}
         return {
-            "anatomy": {**frame.as_dict(), "origin_used": origin.tolist()},
+            "anatomy": anatomy_json(frame, origin),
             "center_of_pressure_anatomical": self._ranges(columns, cop),
             "motion_anatomical": self._ranges(columns, motion),
         }
@@ -213,17 +222,17 @@ class PathResult:
         out = {}
         for name, prefix in self.regions.items():
             share = table[f"{prefix}_force_share"]
-            peak = table[f"{prefix}_peak_pressure"]
+            peak = table[f"{prefix}_peak_pressure_MPa"]
             k = _largest(peak)
             out[name] = {
                 "columns": prefix,
                 "mean_force_share": _nan_or(share.mean()),
                 "min_force_share": _nan_or(share.min()),
                 "max_force_share": _nan_or(share.max()),
-                "peak_pressure": _nan_or(peak.max()),
+                "peak_pressure_MPa": _nan_or(peak.max()),
                 "peak_frame": None if k is None else int(table["frame"].iloc[k]),
-                "peak_time": math.nan if k is None else float(table["time"].iloc[k]),
-                "max_contact_area": _nan_or(table[f"{prefix}_contact_area"].max()),
+                "peak_time_s": math.nan if k is None else float(table["time_s"].iloc[k]),
+                "max_contact_area_mm2": _nan_or(table[f"{prefix}_contact_area_mm2"].max()),
             }
         return out
 
@@ -244,13 +253,14 @@ class PathResult:
         )
 
     def summary(self, anatomy=None) -> dict:
-        """Headline numbers of the path (plain Python values; NaN where no frame has an answer);
+        """Headline numbers of the path (plain Python values; NaN where no frame has an answer;
+        every key of a number ends with its unit, :mod:`dea_opt.units`);
         with an anatomical frame ``anatomy`` (an AnatomicalFrame or a dict) also
         :meth:`anatomical_summary`'s ``anatomy``, ``center_of_pressure_anatomical`` and
         ``motion_anatomical``."""
         table = self.table
         ok = table.loc[table["success"]]
-        k = _largest(ok["peak_pressure"])
+        k = _largest(ok["peak_pressure_MPa"])
         out = {
             "method": self.method,
             "law": self.problem.law.describe(),
@@ -261,16 +271,16 @@ class PathResult:
             "valid": self.valid,
             "validity": self.validity_summary(),
             "n_springs": int(table["n_springs"].max()),
-            "peak_pressure": math.nan if k is None else float(ok["peak_pressure"].iloc[k]),
+            "peak_pressure_MPa": math.nan if k is None else float(ok["peak_pressure_MPa"].iloc[k]),
             "peak_frame": None if k is None else int(ok["frame"].iloc[k]),
-            "peak_time": math.nan if k is None else float(ok["time"].iloc[k]),
-            "max_contact_area": _nan_or(ok["contact_area"].max()),
+            "peak_time_s": math.nan if k is None else float(ok["time_s"].iloc[k]),
+            "max_contact_area_mm2": _nan_or(ok["contact_area_mm2"].max()),
             "max_compressive_strain": _nan_or(ok["max_compressive_strain"].max()),
             "iterations_total": int(table["iterations"].sum()),
             "iterations_mean": float(table["iterations"].mean()),
-            "build_time_total": float(table["build_time"].sum()),
-            "solve_time_total": float(table["solve_time"].sum()),
-            "solve_time_after_first_mean": float(table["solve_time"].iloc[1:].mean()) if len(table) > 1 else None,
+            "build_time_total_s": float(table["build_time_s"].sum()),
+            "solve_time_total_s": float(table["solve_time_s"].sum()),
+            "solve_time_after_first_mean_s": float(table["solve_time_s"].iloc[1:].mean()) if len(table) > 1 else None,
             "worst_certificate_residual": _nan_or(table["certificate_residual"].max()),
             "motion": self.motion_summary(),
             "regions": self.region_summary(),
@@ -279,6 +289,17 @@ class PathResult:
         if anatomy is not None:
             out.update(self.anatomical_summary(anatomy))
         return out
+
+    def frame_solution(self, k: int):
+        """Frame ``k``'s certified solution when it was kept (:attr:`solutions`, :attr:`kept`), else None."""
+        if k in self.kept:
+            return self.kept[k]
+        peak = self.kept.get("peak")
+        if peak is not None and peak[0] == k:
+            return peak[1]
+        if self.solutions is not None and 0 <= k < len(self.solutions) and bool(self.table["success"].iloc[k]):
+            return self.solutions[k]
+        return None
 
     # --- writers ------------------------------------------------------------------------
     def to_csv(self, path, anatomy=None) -> Path:
@@ -360,8 +381,10 @@ class PathResult:
         return "dea_opt.io.cycle", "plot_cycle", (self.table, path), kwargs
 
     def _exposure_job(self, path, title=None, anatomy=None) -> tuple:
+        from ..io.marks import path_verdict
+
         # With moving meshes the sites are the faces of mesh 1, which every frame's layer shares.
-        kwargs = {"moving": self.moving, "title": title, "anatomy": anatomy}
+        kwargs = {"moving": self.moving, "title": title, "anatomy": anatomy, "verdict": path_verdict(self.table)}
         return "dea_opt.io.cycle", "plot_exposure", (self.problem.layer, self.exposure, path), kwargs
 
     def write(
@@ -372,12 +395,17 @@ class PathResult:
         anatomy=None,
         summary: dict | None = None,
         pictures=None,
+        title: str | None = None,
+        maps=(),
     ) -> dict:
         """Write the outputs into ``directory``; returns ``{name: path}``.
 
         ``csv``: ``frames.csv``; ``json``: ``summary.json``; ``vtk``: ``series.pvd`` (the
         frames written while solving, or ``series_frames/`` written now from the kept
-        solutions) and ``exposure.vtu``; ``png``: ``cycle.png`` and ``exposure.png``. With an
+        solutions) and ``exposure.vtu``; ``png``: ``cycle.png``, ``exposure.png``, the peak
+        frame's pressure map ``peak.png`` (when its solution was kept: ``PathOutputs(keep_frames=("peak",))``)
+        and ``map_frame_<k>.png`` for each frame of ``maps`` (:mod:`~dea_opt.loadpath.maps`);
+        ``title`` heads every picture. With an
         anatomical frame ``anatomy`` the PNGs are drawn in it, ``frames.csv`` ends with
         :meth:`anatomical_table`'s columns and ``summary.json`` holds
         :meth:`anatomical_summary`'s keys. ``summary``: :meth:`summary`, when the caller
@@ -386,7 +414,7 @@ class PathResult:
         written (the same pictures, drawn here if it fails).
         """
         directory = Path(directory)
-        unknown = set(formats) - set(FORMATS)
+        unknown = set(formats) - set(FORMATS) - {"html"}  # the report is the run's (dea_opt.report)
         if unknown:
             raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
         if pictures is not None and not callable(getattr(pictures, "files", None)):
@@ -398,10 +426,12 @@ class PathResult:
         # once drawn (its process does not see this run's staging): published with the rest.
         with _DrawnHere() if pictures is None else pictures.files() as drawn:
             if "png" in formats:  # handed over first: a PictureWorker draws them while the rest is written
-                drawn.submit("cycle_plot", directory / "cycle.png", lambda p: self._cycle_job(p, anatomy=anatomy))
+                drawn.submit("cycle_plot", directory / "cycle.png", lambda p: self._cycle_job(p, title, anatomy))
                 drawn.submit(
-                    "exposure_map", directory / "exposure.png", lambda p: self._exposure_job(p, anatomy=anatomy)
+                    "exposure_map", directory / "exposure.png", lambda p: self._exposure_job(p, title, anatomy)
                 )
+                for name, (target, job) in map_jobs(self, directory, title, anatomy, maps).items():
+                    drawn.submit(name, target, job)
             if "csv" in formats:
                 files["table"] = self.to_csv(directory / "frames.csv", anatomy=anatomy)
             if "vtk" in formats and (self.solutions or (self.frame_files is not None and self.frame_files.files)):

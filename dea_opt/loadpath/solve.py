@@ -256,6 +256,8 @@ def _solve_path(
         n_regions=n_regions,
     )
     loads, times = read_frames(loads, times)
+    wanted, keep_peak = _kept_frames(outputs.keep_frames, len(loads))
+    kept: dict = {}
     if finite:
         poses = check_finite_poses(problem, poses, len(loads))
     else:
@@ -312,6 +314,7 @@ def _solve_path(
                     frame_regions = FrameRegions(_labels(regions, layer), base_regions.prefixes)
                 rows.append(solved_row(k, t, vector, solution, frame_regions, motion))
                 accumulator.add(t, solution.pressure, _sites(layer, moving))
+                _keep(kept, k, solution, wanted, keep_peak)
             certified = None if status else solution
             if keep_pressures:
                 pressures.append(
@@ -336,9 +339,36 @@ def _solve_path(
         moving=moving,
         regions=dict(base_regions.prefixes) if base_regions is not None else {},
         frame_files=frames,
+        kept=kept,
     )
     result.warn_validity()
     return result
+
+
+def _kept_frames(keep_frames, n: int) -> tuple[set, bool]:
+    """``(frame indices, keep the peak frame)`` of ``keep_frames``, each index checked."""
+    if isinstance(keep_frames, (str, int)):
+        keep_frames = [keep_frames]
+    wanted, peak = set(), False
+    for item in keep_frames:
+        if item == "peak":
+            peak = True
+            continue
+        if isinstance(item, bool) or not isinstance(item, (int, np.integer)) or not 0 <= item < n:
+            raise InputError(f"keep_frames must hold frame indices in [0, {n - 1}] or 'peak', got {item!r}")
+        wanted.add(int(item))
+    return wanted, peak
+
+
+def _keep(kept: dict, k: int, solution, wanted: set, keep_peak: bool) -> None:
+    """Keep frame ``k``'s certified ``solution`` if it was asked for, or if it is the peak so far
+    (``kept["peak"]``, replacing the last peak)."""
+    if k in wanted:
+        kept[k] = solution
+    if keep_peak:
+        best = kept.get("peak")
+        if best is None or solution.peak_pressure > best[1].peak_pressure:
+            kept["peak"] = (k, solution)
 
 
 def _check_poses(problem, poses, layer_for_pose, n):

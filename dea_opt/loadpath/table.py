@@ -3,7 +3,8 @@
 A frame whose answer is certified gets its numbers; a frame that failed (a load the springs
 cannot carry, a certificate that failed, a solver error) gets its load, its status and its
 message, and NaN wherever a number would come from the answer: a number in the table is
-always a certified one. Units: mm, mm^2, N, N mm, MPa, s.
+always a certified one. Every column's unit is the suffix of its name (``peak_pressure_MPa``,
+``Fz_N``; :mod:`dea_opt.units`).
 """
 
 from __future__ import annotations
@@ -27,31 +28,33 @@ __all__ = [
     "solved_row",
 ]
 
-#: Columns of every table, in order, with units. The validity columns of each check
-#: (``validity_<check>``, from :meth:`dea_opt.validity.Validity.columns`) follow them, then
-#: :data:`REGION_COLUMNS` for each region when the layer has labels.
+#: Columns of every table, in order, with what they hold (each name ends with its unit,
+#: :mod:`dea_opt.units`). The motion of each free dof (:data:`MOTION_UNITS`) follows them, then the
+#: validity columns of each check (``validity_<check>``, from
+#: :meth:`dea_opt.validity.Validity.columns`), then :data:`REGION_COLUMNS` for each region when
+#: the layer has labels.
 TABLE_COLUMNS = {
-    "frame": "frame index",
-    "time": "s",
-    "Fx": "N",
-    "Fy": "N",
-    "Fz": "N",
-    "Mx": "N mm",
-    "My": "N mm",
-    "Mz": "N mm",
-    "peak_pressure": "MPa",
-    "mean_pressure": "MPa, over the contact",
-    "contact_area": "mm^2",
-    "cop_x": "mm",
-    "cop_y": "mm",
-    "cop_z": "mm",
-    "resultant": "N, of the spring forces",
-    "max_compressive_strain": "1",
-    "n_springs": "count",
-    "iterations": "count",
-    "build_time": "s",
-    "solve_time": "s",
-    "certificate_residual": "1, the largest",
+    "frame": "the frame's index, from 0",
+    "time_s": "the frame's time",
+    "Fx_N": "the applied force on the loaded body, x",
+    "Fy_N": "the applied force, y",
+    "Fz_N": "the applied force, z",
+    "Mx_Nmm": "the applied moment about the loaded body's reference point, x",
+    "My_Nmm": "the applied moment, y",
+    "Mz_Nmm": "the applied moment, z",
+    "peak_pressure_MPa": "the largest pressure",
+    "mean_pressure_MPa": "the mean pressure over the contact",
+    "contact_area_mm2": "the area of the springs in contact",
+    "cop_x_mm": "the centre of pressure, x",
+    "cop_y_mm": "the centre of pressure, y",
+    "cop_z_mm": "the centre of pressure, z",
+    "resultant_N": "the size of the spring forces' resultant",
+    "max_compressive_strain": "the largest compressive strain",
+    "n_springs": "the number of springs",
+    "iterations": "the solver's iterations",
+    "build_time_s": "the time to build the problem",
+    "solve_time_s": "the time to solve it",
+    "certificate_residual": "the largest of the certificate's relative residuals",
     "certificate_worst": "its name",
     "success": "certified",
     "status": "the solver's status, or why the frame failed",
@@ -60,33 +63,34 @@ TABLE_COLUMNS = {
     "validity_failed": "the failed validity checks, joined by ;",
 }
 
-#: Units of the motion columns (``body2_uz``, ...): one per free dof, after :data:`TABLE_COLUMNS`.
+#: Units of the motion columns (``body2_uz_mm``, ``body2_rx_rad``), by dof: one column per free
+#: dof, after :data:`TABLE_COLUMNS`.
 MOTION_UNITS = {"ux": "mm", "uy": "mm", "uz": "mm", "rx": "rad", "ry": "rad", "rz": "rad"}
 
-#: Columns of each region, after the region's prefix (``medial_force_share``), with units.
+#: Columns of each region, after the region's prefix (``medial_force_share``), with what they hold.
 REGION_COLUMNS = {
-    "force_x": "N, the resultant of the region's springs on body 2",
-    "force_y": "N",
-    "force_z": "N",
-    "resultant": "N, its size",
-    "force_share": "1, its component along the contact force over the contact force's size",
-    "force_magnitude_sum": "N, the sum of the springs' force magnitudes (no force on anything)",
-    "peak_pressure": "MPa",
-    "mean_pressure": "MPa, over the region's contact",
-    "contact_area": "mm^2",
-    "cop_x": "mm",
-    "cop_y": "mm",
-    "cop_z": "mm",
+    "force_x_N": "the resultant of the region's springs on body 2, x",
+    "force_y_N": "its y",
+    "force_z_N": "its z",
+    "resultant_N": "its size",
+    "force_share": "its component along the contact force over the contact force's size (1)",
+    "force_magnitude_sum_N": "the sum of the springs' force magnitudes (no force on anything)",
+    "peak_pressure_MPa": "the region's largest pressure",
+    "mean_pressure_MPa": "its mean pressure over its contact",
+    "contact_area_mm2": "its contact area",
+    "cop_x_mm": "its centre of pressure, x",
+    "cop_y_mm": "its centre of pressure, y",
+    "cop_z_mm": "its centre of pressure, z",
 }
 
 _RESULT_COLUMNS = (
-    "peak_pressure",
-    "mean_pressure",
-    "contact_area",
-    "cop_x",
-    "cop_y",
-    "cop_z",
-    "resultant",
+    "peak_pressure_MPa",
+    "mean_pressure_MPa",
+    "contact_area_mm2",
+    "cop_x_mm",
+    "cop_y_mm",
+    "cop_z_mm",
+    "resultant_N",
     "max_compressive_strain",
 )
 
@@ -141,28 +145,30 @@ class FrameRegions:
             cop, vector = stats.center_of_pressure, stats.force_vector
             row.update(
                 {
-                    f"{prefix}_force_x": vector[0],
-                    f"{prefix}_force_y": vector[1],
-                    f"{prefix}_force_z": vector[2],
-                    f"{prefix}_resultant": stats.resultant,
+                    f"{prefix}_force_x_N": vector[0],
+                    f"{prefix}_force_y_N": vector[1],
+                    f"{prefix}_force_z_N": vector[2],
+                    f"{prefix}_resultant_N": stats.resultant,
                     f"{prefix}_force_share": stats.share,
-                    f"{prefix}_force_magnitude_sum": stats.force_magnitude_sum,
-                    f"{prefix}_peak_pressure": stats.peak_pressure,
-                    f"{prefix}_mean_pressure": stats.mean_pressure,
-                    f"{prefix}_contact_area": stats.contact_area,
-                    f"{prefix}_cop_x": cop[0],
-                    f"{prefix}_cop_y": cop[1],
-                    f"{prefix}_cop_z": cop[2],
+                    f"{prefix}_force_magnitude_sum_N": stats.force_magnitude_sum,
+                    f"{prefix}_peak_pressure_MPa": stats.peak_pressure,
+                    f"{prefix}_mean_pressure_MPa": stats.mean_pressure,
+                    f"{prefix}_contact_area_mm2": stats.contact_area,
+                    f"{prefix}_cop_x_mm": cop[0],
+                    f"{prefix}_cop_y_mm": cop[1],
+                    f"{prefix}_cop_z_mm": cop[2],
                 }
             )
         return row
 
 
 def motion_columns(problem) -> dict:
-    """``{column: index in u}``: the free dofs the frames solve for, as columns ``body<b>_<dof>``
-    (mm, rad: :data:`MOTION_UNITS`): the motion each certified frame found (``Solution.u``; for
-    finite kinematics on top of the frame's pose, as the free coordinates act)."""
-    return {name.replace(".", "_"): int(i) for name, i in zip(problem.free_names, problem.free_indices)}
+    """``{column: index in u}``: the free dofs the frames solve for, as columns ``body<b>_<dof>_<unit>``
+    (``body2_uz_mm``, ``body2_ry_rad``: :data:`MOTION_UNITS`): the motion each certified frame found
+    (``Solution.u``; for finite kinematics on top of the frame's pose, as the free coordinates act)."""
+    from ..units import dof_name
+
+    return {dof_name(name): int(i) for name, i in zip(problem.free_names, problem.free_indices)}
 
 
 def _motion(solution, motion: dict | None) -> dict:
@@ -175,13 +181,13 @@ def _motion(solution, motion: dict | None) -> dict:
 def _load_columns(k: int, t: float, load) -> dict:
     return {
         "frame": k,
-        "time": float(t),
-        "Fx": load[0],
-        "Fy": load[1],
-        "Fz": load[2],
-        "Mx": load[3],
-        "My": load[4],
-        "Mz": load[5],
+        "time_s": float(t),
+        "Fx_N": load[0],
+        "Fy_N": load[1],
+        "Fz_N": load[2],
+        "Mx_Nmm": load[3],
+        "My_Nmm": load[4],
+        "Mz_Nmm": load[5],
     }
 
 
@@ -196,18 +202,18 @@ def solved_row(
     validity = solution.validity.columns()
     row = {
         **_load_columns(k, t, load),
-        "peak_pressure": solution.peak_pressure,
-        "mean_pressure": solution.mean_pressure,
-        "contact_area": solution.contact_area,
-        "cop_x": cop[0],
-        "cop_y": cop[1],
-        "cop_z": cop[2],
-        "resultant": float(np.linalg.norm(solution.contact_force)),
+        "peak_pressure_MPa": solution.peak_pressure,
+        "mean_pressure_MPa": solution.mean_pressure,
+        "contact_area_mm2": solution.contact_area,
+        "cop_x_mm": cop[0],
+        "cop_y_mm": cop[1],
+        "cop_z_mm": cop[2],
+        "resultant_N": float(np.linalg.norm(solution.contact_force)),
         "max_compressive_strain": solution.max_compressive_strain,
         "n_springs": len(solution.pressure),
         "iterations": solution.iterations,
-        "build_time": solution.build_time,
-        "solve_time": solution.solve_time,
+        "build_time_s": solution.build_time,
+        "solve_time_s": solution.solve_time,
         "certificate_residual": value,
         "certificate_worst": name,
         "success": True,
@@ -244,13 +250,15 @@ def failed_row(
         name, value = solution.certificate.worst()
         row.update(
             iterations=solution.iterations,
-            build_time=solution.build_time,
-            solve_time=solution.solve_time,
+            build_time_s=solution.build_time,
+            solve_time_s=solution.solve_time,
             certificate_residual=value,
             certificate_worst=name,
         )
     else:
-        row.update(iterations=0, build_time=0.0, solve_time=0.0, certificate_residual=math.nan, certificate_worst="")
+        row.update(
+            iterations=0, build_time_s=0.0, solve_time_s=0.0, certificate_residual=math.nan, certificate_worst=""
+        )
     row.update(
         n_springs=int(n_springs),
         success=False,

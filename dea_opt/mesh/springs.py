@@ -284,9 +284,11 @@ def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, ou
     hit_point = hit_point2 @ T[:3, :3].T + T[:3, 3]
     dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
     met, met_point = (None, None) if met is None else (_readonly(np.asarray(met[0])), _readonly(np.asarray(met[1])))
-    return SpringCast(
+    cast = SpringCast(
         layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome), met, met_point
     )
+    object.__setattr__(layer, "_cast", cast)  # the layer knows its meshes (SpringLayer.cast)
+    return cast
 
 
 def _outcomes(n_faces, ray, t, cos, outside, rejected, allowed, options) -> np.ndarray:

@@ -284,6 +284,8 @@ def _read_function(doc: Document, element, where: str):
         wrapped = _read_function(doc, inner, where)
         if isinstance(wrapped, UnsupportedFunction):
             return wrapped
+        if isinstance(wrapped, Constant):  # a constant scaled is a constant: it needs no coordinate
+            return Constant(doc.number(element, "scale", 1.0) * wrapped.value)
         return MultiplierFunction(doc.number(element, "scale", 1.0), wrapped)
     return UnsupportedFunction(element.tag, element.line, where)
 

@@ -15,7 +15,10 @@ pressure, strain, gap, thickness, ...), ``contact.csv`` (one row per spring),
 Outputs of a load path: ``frames.csv`` (one row per frame), ``series.pvd`` with
 ``series_frames/frame_NNNN.vtu`` (ParaView time series, each frame written as it is solved:
 nothing is kept per frame), ``exposure.vtu`` (exposure fields), ``cycle.png`` (force, moment,
-pressure and contact area over time), ``exposure.png`` (exposure maps) and ``summary.json``.
+pressure and contact area over time), ``exposure.png`` (exposure maps), ``peak.png`` (the peak
+frame's map) and ``map_frame_NNNN.png`` (``[output] maps``), and ``summary.json``. Either writes
+``report.html`` (:mod:`dea_opt.report`), the run on one page. Every column and JSON key names
+its unit (:mod:`dea_opt.units`).
 ``[output] anatomy`` draws the maps in the joint's anatomical frame. When the springs were cast
 from meshes they are re-cast at the solved pose (a load path: its peak frame), which evaluates
 the ``dropped_springs`` validity check and adds ``recast`` to ``contact.json``/``summary.json``. Every run also writes ``manifest.json`` (last: the

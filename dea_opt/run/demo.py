@@ -5,8 +5,9 @@ superior dome, and the anterior and posterior walls), and the maps are drawn in 
 anatomical frame (``[output] anatomy`` of :data:`DEMO_SCENARIO`); the terminal lists the
 validity of the frames and each region's share of the load. The outputs are published like a
 run's (:mod:`dea_opt.run.publish`): ``comparison.csv``, ``frames.csv`` (with per-region
-columns), ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``,
-``exposure.vtu``, ``summary.json`` and, last, ``manifest.json``.
+columns), ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``, ``peak.png``,
+``exposure.vtu``, ``summary.json``, ``report.html`` (the run on one page, with the comparison)
+and, last, ``manifest.json``.
 """
 
 from __future__ import annotations
@@ -146,13 +147,13 @@ def demo_comparison(scenario, progress: bool = False) -> list[dict]:
                 "method": method,
                 "law": law.describe(),
                 "success": s.success,
-                "peak_pressure": s.peak_pressure,
-                "contact_area": s.contact_area,
-                "max_strain": s.max_compressive_strain,
+                "peak_pressure_MPa": s.peak_pressure,
+                "contact_area_mm2": s.contact_area,
+                "max_compressive_strain": s.max_compressive_strain,
                 "iterations": s.iterations,
-                "build_time": s.build_time,
-                "solve_time": s.solve_time,
-                "certificate": value,
+                "build_time_s": s.build_time,
+                "solve_time_s": s.solve_time,
+                "certificate_residual": value,
                 "certificate_worst": name,
                 "status": s.status,
             }
@@ -197,6 +198,7 @@ def run_demo(
     from .publish import check_output_folder
 
     scenario = demo_scenario(frames, coarse)
+    report: dict = {}
     out = check_output_folder(Path(output_dir) if output_dir is not None else Path.cwd() / "dea-opt-demo", force)
     method = check_method(method, scenario.solve.method)
     start = time.perf_counter()
@@ -226,10 +228,18 @@ def run_demo(
             )
             if compare:
                 outcome.files["comparison"] = comparison
+                report["comparison"] = rows
             return outcome
 
         outcome = publish_run(
-            scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "demo", method)
+            scenario,
+            out,
+            solve_and_write,
+            messages,
+            force=force,
+            info=run_info(scenario, "demo", method),
+            started=start,
+            report_extra=report,
         )
     out = outcome.folder or out
     echo(f"Gait cycle: {outcome.message}")
@@ -247,22 +257,22 @@ def _format_comparison(table) -> str:
             "method",
             "law",
             "success",
-            "peak_pressure",
-            "contact_area",
-            "max_strain",
+            "peak_pressure_MPa",
+            "contact_area_mm2",
+            "max_compressive_strain",
             "iterations",
-            "build_time",
-            "solve_time",
-            "certificate",
+            "build_time_s",
+            "solve_time_s",
+            "certificate_residual",
         ]
     ].rename(
         columns={
-            "peak_pressure": "peak (MPa)",
-            "contact_area": "area (mm^2)",
-            "max_strain": "strain",
-            "build_time": "build (s)",
-            "solve_time": "solve (s)",
-            "certificate": "residual",
+            "peak_pressure_MPa": "peak (MPa)",
+            "contact_area_mm2": "area (mm^2)",
+            "max_compressive_strain": "strain",
+            "build_time_s": "build (s)",
+            "solve_time_s": "solve (s)",
+            "certificate_residual": "residual",
         }
     )
     return shown.to_string(index=False, float_format=lambda v: f"{v:.4g}")

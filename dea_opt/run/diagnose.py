@@ -198,7 +198,7 @@ def failure_lines(failures, loads, problem, source: LoadSource, body: int, total
     lines = []
     for (status, cause), members in groups.items():
         frames = [int(f["frame"]) for f in members]
-        who = f"{frames_text(frames, total, members[0].get('time'))} {status}"
+        who = f"{frames_text(frames, total, members[0].get('time_s'))} {status}"
         if cause is None or shape is None:
             lines.append(f"{who}: {' '.join(str(members[0]['message']).split())}")
             continue

@@ -62,6 +62,8 @@ def run_path_outputs(
 
     formats, anatomy = scenario.output.formats, scenario.output.anatomy
     loads = data.load_objects()
+    maps = _checked_maps(scenario.output.maps, len(loads)) if "png" in formats else []
+    keep = ["peak", *maps] if "png" in formats or "html" in formats else []
     result = solve_path(
         problem,
         loads,
@@ -76,6 +78,7 @@ def run_path_outputs(
             keep_pressures=False,
             series=out / "series_frames" if "vtk" in formats else None,
             threshold=scenario.output.exposure_threshold,
+            keep_frames=tuple(keep),
         ),
         layer_for_pose=layer_for_pose,
         progress=progress,
@@ -108,7 +111,16 @@ def run_path_outputs(
     if recast is not None:
         extra["recast"] = recast
     summary = result.summary(anatomy)
-    files = result.write(out, formats, extra_summary=extra, anatomy=anatomy, summary=summary, pictures=pictures)
+    files = result.write(
+        out,
+        [f for f in formats if f != "html"],
+        extra_summary=extra,
+        anatomy=anatomy,
+        summary=summary,
+        pictures=pictures,
+        title=scenario.title or None,
+        maps=maps,
+    )
     validity = summary["validity"]
     outside = validity["frames_outside_validity"]
     checks = validity["failed_checks"]
@@ -121,26 +133,27 @@ def run_path_outputs(
         "frames": summary["frames"],
         "n_springs": summary["n_springs"],
         "failed_frames": len(summary["failed_frames"]),
-        "peak_pressure": summary["peak_pressure"],
-        "peak_time": summary["peak_time"],
-        "contact_area": summary["max_contact_area"],
+        "peak_pressure_MPa": summary["peak_pressure_MPa"],
+        "peak_time_s": summary["peak_time_s"],
+        "contact_area_mm2": summary["max_contact_area_mm2"],
         "max_compressive_strain": summary["max_compressive_strain"],
         "iterations": summary["iterations_total"],
-        "solve_time": summary["solve_time_total"],
+        "solve_time_s": summary["solve_time_total_s"],
         "worst_residual": summary["worst_certificate_residual"],
-        "max_pressure_time_integral": summary["exposure"]["max_pressure_time_integral"],
+        "max_pressure_time_integral_MPa_s": summary["exposure"]["max_pressure_time_integral_MPa_s"],
         "valid": valid,
         "frames_outside_validity": len(outside),
         "validity_failed": ";".join(checks),
         **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
+        **_region_headline(result),
     }
     if summary["peak_frame"] is None:
         message = f"{summary['frames']} frames by {method}: no frame has a certified answer"
     else:
         message = (
-            f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure']:.4g} MPa at "
-            f"{summary['peak_time']:.3g} s, largest contact area {summary['max_contact_area']:.4g} mm^2, "
-            f"{summary['solve_time_total']:.2f} s solving"
+            f"{summary['frames']} frames by {method}: peak pressure {summary['peak_pressure_MPa']:.4g} MPa at "
+            f"{summary['peak_time_s']:.3g} s, largest contact area {summary['max_contact_area_mm2']:.4g} mm^2, "
+            f"{summary['solve_time_total_s']:.2f} s solving"
         )
     if not result.success:
         failed = failure_lines(result.failures(), loads, problem, LoadSource.of(scenario), data.body, len(loads))
@@ -193,6 +206,19 @@ def run_path_outputs(
     )
 
 
+def _checked_maps(maps, n: int) -> list[int]:
+    """``[output] maps``, each a frame of the path's ``n``."""
+    from ..errors import ScenarioError
+
+    beyond = [k for k in maps if k >= n]
+    if beyond:
+        raise ScenarioError(
+            f"[output] maps names frame {beyond[0]}, but the load path has {n} frames (0 to {n - 1}): "
+            f"give frame indices as frames.csv counts them"
+        )
+    return sorted(set(maps))
+
+
 def _region_text(name: str, r: dict) -> str:
     """One region of a path over its certified frames (no share where no frame's share exists)."""
     share = r["mean_force_share"]
@@ -206,16 +232,30 @@ def _region_text(name: str, r: dict) -> str:
     if r["peak_frame"] is None:
         return text
     return (
-        f"{text}, peak {r['peak_pressure']:.4g} MPa at {r['peak_time']:.3g} s, largest contact area "
-        f"{r['max_contact_area']:.4g} mm^2"
+        f"{text}, peak {r['peak_pressure_MPa']:.4g} MPa at {r['peak_time_s']:.3g} s, largest contact area "
+        f"{r['max_contact_area_mm2']:.4g} mm^2"
     )
+
+
+def _region_headline(result) -> dict:
+    """A sweep row's columns of each region over the certified frames: ``<region>_peak_pressure_MPa``,
+    ``<region>_contact_area_mm2`` (the largest) and ``<region>_mean_force_share``."""
+    row = {}
+    for name, r in result.region_summary().items():
+        prefix = result.regions[name]
+        row[f"{prefix}_peak_pressure_MPa"] = r["peak_pressure_MPa"]
+        row[f"{prefix}_contact_area_mm2"] = r["max_contact_area_mm2"]
+        row[f"{prefix}_mean_force_share"] = r["mean_force_share"]
+    return row
 
 
 def _motion_text(motion: dict) -> str:
     """``body2_uz -1.31 to -0.62 mm, body2_ry -0.0072 to 0.0091 rad (-0.41 to 0.52 deg)``."""
+    from ..units import split_unit
+
     parts = []
     for column, m in motion.items():
-        text = f"{column} {m['min']:.4g} to {m['max']:.4g} {m['unit']}"
+        text = f"{split_unit(column)[0]} {m['min']:.4g} to {m['max']:.4g} {m['unit']}"
         if m["unit"] == "rad":
             text += f" ({np.degrees(m['min']):.3g} to {np.degrees(m['max']):.3g} deg)"
         parts.append(text)
@@ -228,7 +268,7 @@ def _anatomical_motion_text(motion: dict) -> str:
     parts = []
     named_body = named_kind = None
     for column, m in motion.items():
-        body, kind, axis = column.split("_")
+        body, kind, axis = column.split("_")[:3]  # body2_translation_medial_mm
         # Free dofs along coordinate axes that are anatomical axes too reach no other axis:
         # their exactly-zero ranges would only lengthen the line.
         if m["min"] == 0.0 == m["max"]:
@@ -275,7 +315,7 @@ def peak_recast(
     Returns
     -------
     dict or None
-        ``recast_solution``'s report with ``frame`` and ``time``; None without a certified frame.
+        ``recast_solution``'s report with ``frame`` and ``time_s``; None without a certified frame.
     """
     import warnings
 
@@ -284,11 +324,11 @@ def peak_recast(
 
     table = result.table
     certified = table.loc[table["success"]]
-    if not len(certified) or not certified["peak_pressure"].notna().any():
+    if not len(certified) or not certified["peak_pressure_MPa"].notna().any():
         return None
-    row = certified["peak_pressure"].idxmax()
+    row = certified["peak_pressure_MPa"].idxmax()
     k = int(table.loc[row, "frame"])
-    where = {"frame": k, "time": float(table.loc[row, "time"])}
+    where = {"frame": k, "time_s": float(table.loc[row, "time_s"])}
     finite = getattr(result.problem, "kinematics", "small") == "finite"
     try:
         if finite:  # the springs follow the problem's own cast; the frame's pose is the solve's frame

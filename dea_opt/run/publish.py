@@ -124,8 +124,8 @@ def check_outputs(folder) -> list[str]:
         path = folder / name
         if not path.is_file():
             problems.append(f"{name} is missing")
-        elif path.stat().st_size != entry.get("size"):
-            problems.append(f"{name} has {path.stat().st_size} bytes, the manifest says {entry.get('size')}")
+        elif path.stat().st_size != entry.get("size_bytes"):
+            problems.append(f"{name} has {path.stat().st_size} bytes, the manifest says {entry.get('size_bytes')}")
         elif _sha256(path) != entry.get("sha256"):
             problems.append(f"{name} differs from the manifest's SHA-256")
     return problems
@@ -268,7 +268,10 @@ class OutputRun:
         try:
             files = {}
             for target, tmp in sorted(pending.items()):
-                files[target.relative_to(self.folder).as_posix()] = {"size": tmp.stat().st_size, "sha256": _sha256(tmp)}
+                files[target.relative_to(self.folder).as_posix()] = {
+                    "size_bytes": tmp.stat().st_size,
+                    "sha256": _sha256(tmp),
+                }
         except BaseException:
             _unlink_all(pending.values())
             raise

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 from .log import LOG_NAME, captured
@@ -135,10 +136,11 @@ def run_scenario(
     from ..scenario.joint_schema import JointScenario
     from .publish import RunInterrupted, check_output_folder, interrupted_report
 
+    started = time.perf_counter()
     if isinstance(scenario, JointScenario):
         from .joint import run_joint_scenario
 
-        return _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario)
+        return _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario, started)
     method = check_method(method, scenario.solve.method)
     out = check_output_folder(scenario.output_dir(output_dir), force)
     try:
@@ -174,7 +176,13 @@ def run_scenario(
                 return outcome
 
             outcome = publish_run(
-                scenario, out, solve_and_write, messages, force=force, info=run_info(scenario, "run", method)
+                scenario,
+                out,
+                solve_and_write,
+                messages,
+                force=force,
+                info=run_info(scenario, "run", method),
+                started=started,
             )
     except RunInterrupted:
         raise
@@ -215,7 +223,7 @@ def prepare_run(scenario) -> tuple:
     return problem, cast, data, check_inputs(scenario, problem, data)
 
 
-def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario) -> RunOutcome:
+def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario, started) -> RunOutcome:
     """A joint scenario (``[[bodies]]``): its method checked, solved and published like a two-body run."""
     from ..errors import InputError
     from ..joint import JOINT_METHODS
@@ -236,6 +244,7 @@ def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_sce
                 messages,
                 force=force,
                 info=run_info(scenario, "run", method),
+                started=started,
             )
     except RunInterrupted:
         raise
@@ -256,15 +265,42 @@ def picture_worker(scenario, background: bool = True):
     return PictureWorker()
 
 
-def publish_run(scenario, out: Path, solve_and_write, messages, *, force: bool, info: dict) -> RunOutcome:
-    """Run ``solve_and_write(folder) -> RunOutcome`` in the staged folder ``out`` and publish it."""
+def publish_run(
+    scenario,
+    out: Path,
+    solve_and_write,
+    messages,
+    *,
+    force: bool,
+    info: dict,
+    started: float | None = None,
+    report_extra: dict | None = None,
+) -> RunOutcome:
+    """Run ``solve_and_write(folder) -> RunOutcome`` in the staged folder ``out`` and publish it.
+
+    With ``html`` among ``[output] formats`` the run's ``report.html`` (:mod:`dea_opt.report`) is
+    written last before the publication, once the outcome's warnings are known; ``started``
+    (``time.perf_counter()`` when the run began) times the run in it, ``report_extra`` gives it
+    more sections (the demo's comparison)."""
     from .publish import output_run
 
+    started = time.perf_counter() if started is None else started
     with output_run(out, force=force, info=info) as publication:
         outcome = solve_and_write(publication.folder)
         outcome.allow_outside_validity = scenario.solve.allow_outside_validity
         messages.collect()
         _drop_repeats(outcome, messages, scenario.notes)
+        if "html" in scenario.output.formats:
+            from ..report import write_run_report
+
+            outcome.files["report"] = write_run_report(
+                publication.folder,
+                outcome,
+                scenario,
+                command=info.get("command", "run"),
+                elapsed=time.perf_counter() - started,
+                extra=report_extra,
+            )
         log = messages.log_text(f"dea-opt {info.get('command', 'run')} of {scenario.source or scenario.title}")
         if log:
             from ..files.atomic import write_data

@@ -42,22 +42,23 @@ def run_static(scenario, problem, method, options, out, cast=None, suspicions=()
             summary["suspicious_input"] = list(suspicions)
         files["json"] = write_json(summary, out / "contact.json")
     if "png" in formats:
-        files["png"] = io.plot_pressure(solution, out / "contact.png", anatomy=anatomy)
+        files["png"] = io.plot_pressure(solution, out / "contact.png", anatomy=anatomy, title=scenario.title or None)
     name, value = solution.certificate.worst()
     validity = solution.validity
     headline = {
         "method": solution.method,
         "success": solution.success,
         "n_springs": len(solution.pressure),
-        "peak_pressure": solution.peak_pressure,
-        "mean_pressure": solution.mean_pressure,
-        "contact_area": solution.contact_area,
+        "peak_pressure_MPa": solution.peak_pressure,
+        "mean_pressure_MPa": solution.mean_pressure,
+        "contact_area_mm2": solution.contact_area,
         "max_compressive_strain": solution.max_compressive_strain,
         "iterations": solution.iterations,
-        "solve_time": solution.solve_time,
+        "solve_time_s": solution.solve_time,
         "worst_residual": value,
         **validity.columns(),
         **({"recast_force_error": recast.get("force_error")} if recast is not None else {}),
+        **_region_headline(solution),
     }
     if solution.success:
         message = (
@@ -90,6 +91,26 @@ def run_static(scenario, problem, method, options, out, cast=None, suspicions=()
     )
 
 
+def _region_headline(solution) -> dict:
+    """A sweep row's columns of each labelled region: ``<region>_peak_pressure_MPa``,
+    ``<region>_contact_area_mm2`` and ``<region>_force_share`` (the region prefixes of a load
+    path's table)."""
+    if solution.problem.layer.labels is None or not np.isfinite(solution.pressure).all():
+        return {}
+    from ..anatomy.regions import regional_statistics
+    from ..loadpath.table import region_prefixes
+
+    found = regional_statistics(solution)
+    prefixes = region_prefixes(found)
+    row = {}
+    for name, r in found.items():
+        prefix = prefixes[name]
+        row[f"{prefix}_peak_pressure_MPa"] = r.peak_pressure
+        row[f"{prefix}_contact_area_mm2"] = r.contact_area
+        row[f"{prefix}_force_share"] = r.share
+    return row
+
+
 def _static_regions(solution) -> list[str]:
     """One line per labelled region of a static answer."""
     if solution.problem.layer.labels is None or not np.isfinite(solution.pressure).all():
@@ -117,9 +138,9 @@ def recast_solution(solution, cast) -> tuple:
     dropped there (its ``dropped_springs`` validity check evaluated).
 
     ``recast`` is JSON-ready: the counts (``springs``, ``kept``, ``gained``, ``lost``,
-    ``dropped``, ``rejected``), the force (N) and moment (N mm, about body 2's reference)
-    the re-cast springs carry at that pose beside the solution's own (``solution_force``,
-    ``solution_moment``), their relative difference ``force_error`` and a one-line
+    ``dropped``, ``rejected``), the force ``force_N`` and moment ``moment_Nmm`` (about body 2's
+    reference) the re-cast springs carry at that pose beside the solution's own
+    (``solution_force_N``, ``solution_moment_Nmm``), their relative difference ``force_error`` and a one-line
     ``describe``; or ``{"error": ...}`` when the answer is not certified or the re-cast failed
     (the solution is then returned as it is).
     """
@@ -140,8 +161,8 @@ def recast_solution(solution, cast) -> tuple:
         "dropped": again.dropped,
         "rejected": again.rejected,
         **{
-            name: np.asarray(getattr(again, name), dtype=float).tolist()
-            for name in ("force", "moment", "solution_force", "solution_moment")
+            f"{name}_{unit}": np.asarray(getattr(again, name), dtype=float).tolist()
+            for name, unit in (("force", "N"), ("moment", "Nmm"), ("solution_force", "N"), ("solution_moment", "Nmm"))
         },
         "force_error": again.force_error,
         "describe": again.describe(),

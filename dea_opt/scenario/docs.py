@@ -53,6 +53,28 @@ def schema_sections() -> list[tuple[str, tuple[type[BaseModel], ...]]]:
     ]
 
 
+#: Units as the schema's descriptions write them, by their name in :data:`dea_opt.units.SUFFIXES`.
+_DESCRIBED_UNITS = {"mm": "mm", "N": "N", "N mm": "N mm", "MPa": "MPa", "s": "s", "degrees": "deg", "mm^2": "mm^2"}
+
+
+def key_unit(key: str) -> str:
+    """The unit of a scenario key (``"law.H"`` -> ``"MPa"``, ``"geometry.thickness"`` -> ``"mm"``), as
+    its description in the schema states it; ``""`` for a key without one (a count, a factor, a
+    name) or one the schema does not know."""
+    import re
+
+    table, _, name = key.partition(".")
+    for section, models in schema_sections():
+        if section != table:
+            continue
+        for model in models:
+            field = model.model_fields.get(name)
+            for found in re.findall(r"\(([^()]*)\)", (field.description or "") if field is not None else ""):
+                if found.strip() in _DESCRIBED_UNITS:
+                    return _DESCRIBED_UNITS[found.strip()]
+    return ""
+
+
 def schema_text() -> str:
     """The scenario schema as commented TOML: every table, key, type, default and meaning."""
     lines = [

@@ -1,51 +1,150 @@
-"""Building the joint a :class:`~dea_opt.scenario.joint_schema.JointScenario` describes, and its load path.
+"""Building the joint a :class:`~dea_opt.scenario.joint_schema.JointScenario` describes.
 
 Each contact's springs are built as a two-body scenario's ``[geometry]`` (generators, tables,
-meshes, with its ``regions``) and its law by the registry; errors name the contact
-(``contacts[1].law``). The load path is a CSV of ``time`` and ``<body>.<quantity>`` columns.
+meshes, with its ``regions``), or cast between two meshes each placed in the world by its own
+pose (``pose1``, ``pose2``: an OpenSim model's contact meshes in their bodies' frames, as
+``dea-opt import-osim`` writes them); its law by the registry. Errors name the contact
+(``contacts[1].law``). The load path is :mod:`dea_opt.scenario.joint_path`.
 """
 
 from __future__ import annotations
 
-import csv
 import dataclasses
-from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from ..errors import DeaError, ScenarioError
-from ..kinematics import DOFS
-from .joint_schema import JointScenario
+from .joint_schema import JointMeshGeometry, JointScenario
 
-__all__ = ["JointPath", "build_joint", "read_joint_path"]
+__all__ = ["body_load", "build_joint", "posed_cast"]
 
-LOADS = ("Fx", "Fy", "Fz", "Mx", "My", "Mz")
+
+def _where(scenario) -> str:
+    return scenario.source or scenario.title or "the scenario"
+
+
+def body_load(section, force, moment) -> tuple:
+    """``(body_force, body_moment, BodyLoad or None)`` of a ``[[bodies]]`` entry's load ``force``,
+    ``moment``: in the ground frame at its reference, the body's own; at a point or in the body's
+    frame (its ``pose``'s axes), a :class:`~dea_opt.joint.BodyLoad` that moves with it."""
+    from ..joint import BodyLoad
+
+    force, moment = np.asarray(force, dtype=float), np.asarray(moment, dtype=float)
+    if section.load_frame == "ground" and section.point is None:
+        return tuple(force), tuple(moment), None
+    R = np.eye(3) if section.pose is None or section.load_frame == "ground" else np.array(section.pose)[:3, :3]
+    point = None if section.point is None else tuple(section.point)
+    load = BodyLoad(section.name, tuple(R @ force), tuple(R @ moment), point, section.load_frame)
+    return (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), load
+
+
+def _coordinates(section):
+    from ..joint import Coordinates
+
+    c = section.coordinates
+    return Coordinates(
+        c.frame,
+        c.rotation_axes,
+        c.translation_axes,
+        c.start,
+        c.slopes,
+        c.intercepts,
+        c.inverted,
+        None if c.names is None else tuple(c.names),
+    )
+
+
+def posed_cast(section: JointMeshGeometry, regions=None):
+    """The :class:`~dea_opt.mesh.SpringCast` of two meshes each placed by its pose (``pose1``,
+    ``pose2``; both in the world, so the cast's ``pose`` is the identity); ``regions`` cut across
+    an axis of mesh 1's own frame (the frame of its file)."""
+    from .build import _load_part, cast_from_mesh_section
+
+    meshes: dict = {}
+    for k in (1, 2):
+        scale = getattr(section, f"scale{k}") or section.scale
+        mesh, labels = _load_part(getattr(section, f"mesh{k}"), scale)
+        bone = getattr(section, f"bone{k}")
+        bone = None if bone is None else _load_part(bone, scale)[0]
+        pose = getattr(section, f"pose{k}")
+        if pose is not None:
+            T = np.array(pose, dtype=float)
+            mesh = mesh.copy()
+            mesh.apply_transform(T)
+            if bone is not None:
+                bone = bone.copy()
+                bone.apply_transform(T)
+        meshes[f"mesh{k}"], meshes[f"labels{k}"], meshes[f"bone{k}"] = mesh, labels, bone
+    cast = cast_from_mesh_section(section, meshes)
+    T1 = np.eye(4) if section.pose1 is None else np.array(section.pose1, dtype=float)
+    return cast if regions is None else labelled_cast(cast, regions, T1)
+
+
+def labelled_cast(cast, regions, frame=None):
+    """``cast`` with ``[regions]``' labels on its springs and on its mesh 1's faces (so that a cast
+    again at another pose keeps them), cut across an axis of the frame ``frame`` (4x4, mesh 1's
+    own frame in the world; default the world) at the springs' area centroid or at ``at``."""
+    from .build import apply_regions, axis_vector
+
+    T = np.eye(4) if frame is None else np.asarray(frame, dtype=float)
+    layer = cast.layer
+    own = dataclasses.replace(layer, points=(layer.points - T[:3, 3]) @ T[:3, :3])
+    labelled = apply_regions(own, regions)  # refuses springs that have labels already
+    cut = (
+        float(regions.at)
+        if regions.at != "centroid"
+        else float(own.areas @ (own.points @ axis_vector(regions.split)) / own.areas.sum())
+    )
+    centres = (np.asarray(cast.mesh1.triangles_center) - T[:3, 3]) @ T[:3, :3]
+    faces = np.where(centres @ axis_vector(regions.split) < cut, regions.names[0], regions.names[1])
+    layer = dataclasses.replace(layer, labels=labelled.labels)
+    return dataclasses.replace(cast, layer=layer, options={**cast.options, "labels": faces})
+
+
+def _contact_layer(section, regions):
+    """``(layer, cast)`` of a contact's geometry and regions."""
+    from .build import apply_regions, build_geometry_cast
+
+    if isinstance(section, JointMeshGeometry) and (section.pose1 is not None or section.pose2 is not None):
+        cast = posed_cast(section, regions)
+        return cast.layer, cast
+    layer, _, cast = build_geometry_cast(section)
+    if regions is not None and cast is not None:
+        cast = labelled_cast(cast, regions)
+        layer = cast.layer
+    elif regions is not None:
+        layer = apply_regions(layer, regions)
+    return layer, cast
 
 
 def build_joint(scenario: JointScenario) -> tuple:
     """``(joint, casts)``: the :class:`~dea_opt.joint.Joint` of the scenario and, per contact, the
     :class:`~dea_opt.mesh.SpringCast` its springs came from (None for springs not cast from meshes)."""
-    from ..joint import Contact, Joint, Ligament
+    from ..joint import BodyLoad, Bushing, Contact, Joint, Ligament, Spring
     from ..laws import LAWS
-    from ..problem import Body, Load
-    from .build import apply_regions, build_geometry_cast
+    from ..problem import Body
 
-    where = scenario.source or scenario.title or "the scenario"
-    bodies = {}
-    for b in scenario.bodies:
-        body = Body(reference=tuple(b.reference), free=tuple(b.free), prescribed=dict(b.prescribed))
-        point = None if b.point is None else tuple(b.point)
-        bodies[b.name] = body.with_load(Load(force=tuple(b.force), moment=tuple(b.moment), point=point))
+    where = _where(scenario)
+    bodies, loads, coordinates = {}, [], {}
+    for i, b in enumerate(scenario.bodies):
+        force, moment, load = body_load(b, b.force, b.moment)
+        try:
+            body = Body(reference=tuple(b.reference), free=tuple(b.free), prescribed=dict(b.prescribed))
+            bodies[b.name] = body.with_load(force=force, moment=moment)
+            if b.coordinates is not None:
+                coordinates[b.name] = _coordinates(b)
+        except DeaError as exc:
+            raise ScenarioError(f"{where}: bodies[{i}] ({b.name}): {exc}") from None
+        if load is not None:
+            loads.append(load)
     finite = scenario.solve.kinematics == "finite"
     contacts, casts = [], []
     for i, c in enumerate(scenario.contacts):
         try:
-            layer, _, cast = build_geometry_cast(c.geometry)
+            layer, cast = _contact_layer(c.geometry, c.regions)
         except DeaError as exc:
             raise ScenarioError(f"{where}: contacts[{i}].geometry: {exc}") from None
-        if c.regions is not None:
-            layer = apply_regions(layer, c.regions)
-            cast = None if cast is None else dataclasses.replace(cast, layer=layer)
         try:
             law = LAWS.build(c.law.kind, c.law.parameters, prefix=f"contacts[{i}].law.")
         except DeaError as exc:
@@ -54,101 +153,69 @@ def build_joint(scenario: JointScenario) -> tuple:
             Contact(layer, law, body1=c.body1, body2=c.body2, name=c.name, targets=cast if finite else None)
         )
         casts.append(cast)
-    ligaments = []
-    for i, lig in enumerate(scenario.ligaments):
+    elements: dict = {"ligaments": [], "springs": [], "bushings": []}
+    element_sections: tuple[tuple[str, list[Any]], ...] = (
+        ("ligaments", scenario.ligaments),
+        ("springs", scenario.springs),
+    )
+    for kind, element_list in element_sections:
+        for i, e in enumerate(element_list):
+            try:
+                item: Ligament | Spring
+                if kind == "ligaments":
+                    item = Ligament(
+                        e.body1,
+                        tuple(e.point1),
+                        e.body2,
+                        tuple(e.point2),
+                        stiffness=e.stiffness,
+                        slack_length=e.slack_length,
+                        law=e.law,
+                        transition_strain=e.transition_strain,
+                        reference_strain=e.reference_strain,
+                        name=e.name or f"ligament {i}",
+                    )
+                else:
+                    item = Spring(
+                        e.body1, tuple(e.point1), e.body2, tuple(e.point2), e.stiffness, e.rest_length, e.name
+                    )
+            except DeaError as exc:
+                raise ScenarioError(f"{where}: {kind}[{i}]: {exc}") from None
+            elements[kind].append(item)
+    for i, e in enumerate(scenario.bushings):
         try:
-            ligaments.append(
-                Ligament(
-                    lig.body1,
-                    tuple(lig.point1),
-                    lig.body2,
-                    tuple(lig.point2),
-                    stiffness=lig.stiffness,
-                    slack_length=lig.slack_length,
-                    law=lig.law,
-                    transition_strain=lig.transition_strain,
-                    reference_strain=lig.reference_strain,
-                    name=lig.name or f"ligament {i}",
+            elements["bushings"].append(
+                Bushing(
+                    e.body1,
+                    e.body2,
+                    tuple(map(tuple, np.eye(4) if e.frame is None else np.array(e.frame))),
+                    tuple(e.translational_stiffness),
+                    tuple(e.rotational_stiffness),
+                    e.name,
                 )
             )
         except DeaError as exc:
-            raise ScenarioError(f"{where}: ligaments[{i}]: {exc}") from None
+            raise ScenarioError(f"{where}: bushings[{i}]: {exc}") from None
+    body_sections = {b.name: b for b in scenario.bodies}
+    for i, e in enumerate(scenario.loads):
+        section = body_sections[e.body]
+        R = np.eye(3) if section.pose is None or e.frame == "ground" else np.array(section.pose)[:3, :3]
+        try:
+            point = None if e.point is None else tuple(e.point)
+            loads.append(BodyLoad(e.body, tuple(R @ e.force), tuple(R @ e.moment), point, e.frame))
+        except DeaError as exc:
+            raise ScenarioError(f"{where}: loads[{i}]: {exc}") from None
     try:
-        joint = Joint(bodies, tuple(contacts), tuple(ligaments), kinematics=scenario.solve.kinematics)
+        joint = Joint(
+            bodies,
+            tuple(contacts),
+            tuple(elements["ligaments"]),
+            kinematics=scenario.solve.kinematics,
+            springs=tuple(elements["springs"]),
+            bushings=tuple(elements["bushings"]),
+            loads=tuple(loads),
+            coordinates=coordinates,
+        )
     except DeaError as exc:
         raise ScenarioError(f"{where}: {exc}") from None
     return joint, casts
-
-
-@dataclasses.dataclass(frozen=True)
-class JointPath:
-    """A joint's load path: ``time`` (T,), s; ``loads`` ``{body: (T, 6)}`` (N, N mm) for the bodies a
-    load column names (the others keep their own load); ``prescribed`` ``{body: {dof: (T,)}}``."""
-
-    time: np.ndarray
-    loads: dict
-    prescribed: dict
-
-    def __len__(self) -> int:
-        return len(self.time)
-
-    def frame(self, joint, k: int):
-        """The joint at frame ``k``: its bodies' loads and prescribed dofs of that frame."""
-        from ..joint import Joint
-        from ..problem import Body
-
-        bodies = {}
-        for name, body in joint.bodies.items():
-            load = self.loads.get(name)
-            force, moment = (body.force, body.moment) if load is None else (tuple(load[k, :3]), tuple(load[k, 3:]))
-            prescribed = dict(body.prescribed)
-            for dof, values in self.prescribed.get(name, {}).items():
-                prescribed[dof] = float(values[k])
-            free = tuple(d for d in body.free if d not in prescribed)
-            bodies[name] = Body(reference=body.reference, free=free, force=force, moment=moment, prescribed=prescribed)
-        return Joint(bodies, joint.contacts, joint.ligaments, joint.kinematics)
-
-
-def read_joint_path(scenario: JointScenario, joint) -> JointPath:
-    """The :class:`JointPath` of ``[load_path]``: a ScenarioError names the file, the column or row."""
-    assert scenario.load_path is not None
-    path = Path(scenario.load_path.file)
-    lines = [
-        line
-        for line in path.read_text(encoding="utf-8").splitlines()
-        if line.strip() and not line.lstrip().startswith("#")
-    ]
-    rows = list(csv.reader(lines))
-    if len(rows) < 2:
-        raise ScenarioError(f"{path}: a load path needs a header and at least one row of numbers")
-    header = [h.strip() for h in rows[0]]
-    if "time" not in header:
-        raise ScenarioError(f"{path}: the header needs a time column (s), got {header}")
-    try:
-        table = np.array([[float(v) for v in row] for row in rows[1:]], dtype=float)
-    except ValueError as exc:
-        raise ScenarioError(f"{path}: every value must be a number ({exc})") from None
-    if table.shape[1] != len(header) or not np.isfinite(table).all():
-        raise ScenarioError(f"{path}: every row needs {len(header)} finite numbers, one per column of {header}")
-    loads: dict = {}
-    prescribed: dict = {}
-    for j, column in enumerate(header):
-        if column == "time":
-            continue
-        name, _, quantity = column.rpartition(".")
-        if name not in joint.bodies:
-            raise ScenarioError(
-                f"{path}: column {column!r} names no body (bodies: {list(joint.bodies)}); use <body>.<quantity>"
-            )
-        if quantity in LOADS:
-            if name not in loads:
-                body = joint.bodies[name]
-                loads[name] = np.tile(np.array(body.force + body.moment), (len(table), 1))
-            loads[name][:, LOADS.index(quantity)] = table[:, j]
-        elif quantity in DOFS:
-            prescribed.setdefault(name, {})[quantity] = table[:, j]
-        else:
-            raise ScenarioError(
-                f"{path}: column {column!r}: the quantity must be one of {LOADS + DOFS}, got {quantity!r}"
-            )
-    return JointPath(table[:, header.index("time")], loads, prescribed)

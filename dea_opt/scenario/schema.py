@@ -65,7 +65,7 @@ __all__ = [
     "method_names",
 ]
 
-Format = Literal["csv", "json", "vtk", "png"]
+Format = Literal["csv", "json", "vtk", "png", "html"]
 FORMATS: tuple[Format, ...] = get_args(Format)
 #: The quantities of a load path a column can be: time, force, moment and the pose of mesh 2.
 LoadPathColumn = Literal[
@@ -404,7 +404,14 @@ class OutputSection(_Section):
         "results",
         description="output folder (relative to the scenario file): new, empty, or holding an earlier dea-opt run",
     )
-    formats: list[Format] = Field(list(FORMATS), description="any of csv, json, vtk, png")
+    formats: list[Format] = Field(
+        list(FORMATS), description="any of csv, json, vtk, png, html (report.html: the run on one page)"
+    )
+    maps: list[Annotated[int, Field(ge=0)]] = Field(
+        [],
+        description="frames of a load path (indices, as frames.csv counts them) whose pressure map is drawn "
+        "(map_frame_NNNN.png), besides the peak frame's (peak.png); e.g. [0, 50]",
+    )
     exposure_threshold: NonNegative = Field(1.0, description="pressure threshold of the exposure measures (MPa)")
     anatomy: Annotated[dict[str, Any] | None, AfterValidator(_anatomy)] = Field(
         None,

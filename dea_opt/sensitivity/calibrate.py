@@ -139,12 +139,15 @@ class Calibration:
 
     def summary(self) -> dict:
         """JSON-ready (through :func:`dea_opt.io.summary.jsonable`: an undefined standard error is
-        ``null``): values, standard errors and which they are, correlation, cost, the outcome."""
+        ``null``): values, standard errors and which they are, correlation, cost, the outcome.
+        ``values``, ``start`` and ``standard_errors`` name each parameter with its unit
+        (``H_MPa``, ``beta``; :mod:`dea_opt.units`)."""
+        named = {p: self.unit_name(p) for p in self.parameters}
         return {
             "parameters": list(self.parameters),
-            "values": self.values,
-            "start": self.start,
-            "standard_errors": self.standard_errors,
+            "values": {named[p]: v for p, v in self.values.items()},
+            "start": {named[p]: v for p, v in self.start.items()},
+            "standard_errors": {named[p]: v for p, v in self.standard_errors.items()},
             "errors": self.errors,
             "degrees_of_freedom": self.degrees_of_freedom,
             "notes": list(self.notes),
@@ -154,14 +157,28 @@ class Calibration:
             "success": self.success,
             "message": self.message,
             "nfev": self.nfev,
-            "peak_pressure": self.solution.peak_pressure,
-            "contact_area": self.solution.contact_area,
+            "peak_pressure_MPa": self.solution.peak_pressure,
+            "contact_area_mm2": self.solution.contact_area,
         }
 
+    def unit_of(self, parameter: str) -> str:
+        """The unit of a fitted parameter (``"MPa"`` for ``H``; ``"1"`` for ``beta``)."""
+        from .derivatives import parameter_unit
+
+        return parameter_unit(self.solution.problem.law, parameter)
+
+    def unit_name(self, parameter: str) -> str:
+        """A parameter's name with its unit, as tables and JSON write it: ``H_MPa``, ``beta``."""
+        from ..units import SUFFIXES, with_unit
+
+        unit = self.unit_of(parameter)
+        return with_unit(parameter.replace(".", "_"), unit) if unit in SUFFIXES else parameter
+
     def residual_map(self):
-        """One row per matched point of every pressure map: ``x, y, z`` (mm), ``measured``,
-        ``predicted`` (MPa), ``state`` (``measured``, ``below``, ``saturated``), ``spring`` and
-        ``residual`` (weighted, 0 for a censored point the model agrees with)."""
+        """One row per matched point of every pressure map: ``dataset``, ``x_mm, y_mm, z_mm``,
+        ``measured_MPa``, ``predicted_MPa``, ``state`` (``measured``, ``below``, ``saturated``),
+        ``spring`` and ``residual`` (weighted by the point's standard deviation: no unit; 0 for a
+        censored point the model agrees with)."""
         import pandas as pd
 
         rows = []
@@ -175,11 +192,11 @@ class Calibration:
                 pd.DataFrame(
                     {
                         "dataset": k,
-                        "x": data.points[kept, 0],
-                        "y": data.points[kept, 1],
-                        "z": data.points[kept, 2],
-                        "measured": data.pressure[kept],
-                        "predicted": self.solution.pressure[springs],
+                        "x_mm": data.points[kept, 0],
+                        "y_mm": data.points[kept, 1],
+                        "z_mm": data.points[kept, 2],
+                        "measured_MPa": data.pressure[kept],
+                        "predicted_MPa": self.solution.pressure[springs],
                         "state": state,
                         "spring": springs,
                         "residual": r,
@@ -190,15 +207,21 @@ class Calibration:
 
     def plot(self, path, title: str | None = None):
         """Measured against predicted pressure (censored points at their film limit) and the map
-        of residuals, to a PNG (written atomically)."""
-        import matplotlib.pyplot as plt
+        of residuals, to a PNG (written atomically). ``title`` (the scenario's, say) heads the
+        figure above the fitted values with their standard errors and units; a fitted answer
+        outside validity is stamped so (:func:`dea_opt.io.marks.stamp`)."""
+        from matplotlib.backends.backend_agg import FigureCanvasAgg
+        from matplotlib.figure import Figure
 
         from ..files.atomic import write_atomic
+        from ..io.marks import solution_verdict, stamp, verdict_lines
 
         table = self.residual_map()
         if table.empty:
             raise InputError("plot needs a pressure map among the data")
-        fig, (ax1, ax2) = plt.subplots(1, 2, figsize=(10.5, 4.6), constrained_layout=True)
+        fig = Figure(figsize=(10.5, 4.8), layout="constrained")
+        FigureCanvasAgg(fig)
+        ax1, ax2 = fig.subplots(1, 2)
         films = {data.film for data in self.data if isinstance(data, PressureMap) and data.film is not None}
         film = films.pop() if len(films) == 1 else None
         for state, marker, label in (
@@ -211,34 +234,44 @@ class Calibration:
                 continue
             # a censored reading says only "beyond the limit": drawn at the limit
             shown = (
-                rows.measured
+                rows.measured_MPa
                 if film is None or state == "measured"
                 else np.full(len(rows), film.lower if state == "below" else film.upper)
             )
-            ax1.scatter(rows.predicted, shown, s=5, marker=marker, alpha=0.5, label=label)
-        top = float(max(table.measured.max(), table.predicted.max()))
+            ax1.scatter(rows.predicted_MPa, shown, s=5, marker=marker, alpha=0.5, label=label)
+        top = float(max(table.measured_MPa.max(), table.predicted_MPa.max()))
         ax1.plot([0, top], [0, top], "k-", lw=0.8)
         if film is not None:
             for limit in (film.lower, film.upper):
                 ax1.axhline(limit, color="0.5", ls="--", lw=0.8)
         ax1.set(xlabel="predicted pressure (MPa)", ylabel="measured pressure (MPa)", title="measured vs predicted")
         ax1.legend(loc="upper left", fontsize=8, markerscale=2)
-        xyz = table[["x", "y", "z"]].to_numpy()
+        xyz = table[["x_mm", "y_mm", "z_mm"]].to_numpy()
         centred = xyz - xyz.mean(axis=0)
         axes = np.linalg.svd(centred, full_matrices=False)[2][:2] if len(xyz) > 2 else np.eye(3)[:2]
         plane = centred @ axes.T
         limit = float(np.abs(table.residual).max()) or 1.0
         sc = ax2.scatter(plane[:, 0], plane[:, 1], c=table.residual, cmap="RdBu_r", vmin=-limit, vmax=limit, s=6)
         ax2.set(
-            aspect="equal", xlabel="mm (in the map's plane)", ylabel="mm", title="residual (predicted - measured) / sd"
+            aspect="equal",
+            xlabel="in-plane axis 1 (mm)",
+            ylabel="in-plane axis 2 (mm)",
+            title="residuals on the map's best-fit plane",
         )
-        fig.colorbar(sc, ax=ax2, shrink=0.85)
-        text = ", ".join(f"{p} = {self.values[p]:.4g} ± {_se_text(self.standard_errors[p])}" for p in self.parameters)
-        fig.suptitle(title or f"calibration: {text}", fontsize=10)
-        try:
-            return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
-        finally:
-            plt.close(fig)
+        fig.colorbar(sc, ax=ax2, shrink=0.85, label="residual: (predicted - measured) / sd (1)")
+        text = ", ".join(
+            f"{p} = {self.values[p]:.4g} ± {_se_text(self.standard_errors[p])}{_unit_text(self.unit_of(p))}"
+            for p in self.parameters
+        )
+        verdict = solution_verdict(self.solution)
+        heading = f"calibration: {text}" + verdict_lines(verdict, 110)
+        fig.suptitle(f"{title}\n{heading}" if title else heading, fontsize=10)
+        stamp(fig, verdict)
+        return write_atomic(path, lambda tmp: fig.savefig(tmp, format="png", dpi=110))
+
+
+def _unit_text(unit: str) -> str:
+    return "" if unit in ("", "1") else f" {unit}"
 
 
 def _se_text(value: float) -> str:

@@ -101,7 +101,9 @@ def _calibrate_and_write(
         "plot": folder / "calibration.png",
     }
     film_info = (
-        None if data.film is None else {"name": data.film.name, "lower": data.film.lower, "upper": data.film.upper}
+        None
+        if data.film is None
+        else {"name": data.film.name, "lower_MPa": data.film.lower, "upper_MPa": data.film.upper}
     )
     summary = {
         **fit.summary(),
@@ -109,12 +111,12 @@ def _calibrate_and_write(
         "data": str(data_path),
         "film": film_info,
         "noise": data.noise,
-        "correlation_length": correlation_length,
+        "correlation_length_mm": correlation_length,
         "points": len(data.pressure),
         "points_matched": int(fit.residuals.size),
     }
     write_json(summary, files["summary"])
     table = fit.residual_map()
     write_atomic(files["residuals"], lambda tmp: table.to_csv(tmp, index=False))
-    fit.plot(files["plot"])
+    fit.plot(files["plot"], title=scenario.title or None)
     return fit, files

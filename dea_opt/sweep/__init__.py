@@ -9,7 +9,7 @@ per case, is rewritten atomically from the journal at intervals and at the end (
 
 A row counts as finished only while it was computed from the same content: the same
 scenario text, the same bytes of every input file the case reads, the same overrides and
-``--method``, the same dea-opt version (its ``key`` column, :mod:`dea_opt.sweep.keys`).
+``--method``, the same dea-opt version (its ``key`` column, :mod:`dea_opt.scenario.keys`).
 A rerun skips the finished cases and recomputes the others, saying why; the new row
 replaces the old one. ``retry_failed`` recomputes the rows of a case without a certified answer
 or with an error (:data:`~dea_opt.sweep.cases.RETRIED`). A row's ``status`` is a
@@ -41,6 +41,7 @@ from typing import Any
 from ..errors import InputError, MissingDependencyError
 from ..run.publish import RunInterrupted
 from ..scenario import check_method_name, load_scenario
+from ..scenario.keys import FileHashes, content_key, stale_reason
 from ..status import RunStatus
 from . import journal
 from .cases import (
@@ -56,7 +57,6 @@ from .cases import (
     work,
 )
 from .journal import JOURNAL_NAME, LOG_NAME, RESULTS_NAME, read_results
-from .keys import FileHashes, content_key, stale_reason
 from .logs import routed_to_log
 
 __all__ = [
@@ -96,6 +96,8 @@ class SweepResult:
         Cases another process finished while this sweep ran (not computed here).
     recomputed : dict {case id: reason}
         Cases whose row was stale (or failed, with ``retry_failed``), and why.
+    report_path : Path or None
+        The sweep's ``report.html`` (:mod:`dea_opt.report.sweep`), once written.
     """
 
     table: Any
@@ -105,6 +107,7 @@ class SweepResult:
     skipped: list = field(default_factory=list)
     adopted: list = field(default_factory=list)
     recomputed: dict = field(default_factory=dict)
+    report_path: Path | None = None
 
     def _with_status(self, statuses) -> list:
         if self.table is None or not len(self.table) or "status" not in self.table:
@@ -136,12 +139,12 @@ class SweepResult:
 
 def format_row(row: dict, overrides: dict, note: str = "") -> str:
     """One line for a finished case: id, overrides, status, peak pressure, wall time."""
-    values = " ".join(f"{k}={row.get(k, v)}" for k, v in overrides.items())
+    values = " ".join(f"{k}={v}" for k, v in overrides.items())
     line = f"case {row.get('case_id')}  {values}  {row.get('status')}"
-    peak = row.get("peak_pressure")
+    peak = row.get("peak_pressure_MPa")
     if isinstance(peak, (int, float)) and not math.isnan(peak):
         line += f"  peak {peak:.4g} MPa"
-    wall = row.get("wall_time")
+    wall = row.get("wall_time_s")
     if isinstance(wall, (int, float)):
         line += f"  {wall:.1f} s"
     if row.get("status") == RunStatus.ERROR:
@@ -204,7 +207,7 @@ def _check(workers, method) -> str | None:
 
 def check_outputs(outputs) -> tuple | None:
     """``--outputs`` as a tuple of ``[output].formats`` names (None: the scenario's own)."""
-    from ..loadpath.result import FORMATS
+    from ..scenario import FORMATS
 
     if outputs is None:
         return None
@@ -234,6 +237,7 @@ def run_sweep(
     on_report=None,
     log: bool = True,
     outputs=None,
+    report: bool = True,
 ) -> SweepResult:
     """Run every case of the ``--set`` product whose row is missing or stale.
 
@@ -269,6 +273,9 @@ def run_sweep(
     log : bool
         Route Dask's logs, worker tracebacks and Python warnings to ``<output>/sweep.log``
         while the sweep runs (see :func:`dea_opt.sweep.logs.routed_to_log`).
+    report : bool
+        Write ``report.html`` into the sweep's folder at the end: every case of the folder, a
+        sortable table and a plot of any output against any swept value (:mod:`dea_opt.report.sweep`).
 
     Raises
     ------
@@ -369,6 +376,10 @@ def run_sweep(
             result.table = publisher.now()
     if stopped:
         raise RunInterrupted(_interrupted_report(out, cases)) from None
+    if report and result.table is not None and len(result.table):
+        from ..report import write_sweep_report
+
+        result.report_path = write_sweep_report(out, result.table, swept, scenario_path, sets)
     return result
 
 

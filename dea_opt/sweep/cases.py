@@ -14,9 +14,9 @@ from pathlib import Path
 from ..errors import DeaError, InputError, ScenarioError
 from ..mesh import cache as spring_cache
 from ..scenario import check_kinematics_method, parse_scenario, parse_set
+from ..scenario.keys import ContentKey, FileHashes, content_key
 from ..status import RunStatus
 from . import journal
-from .keys import ContentKey, FileHashes, content_key
 
 __all__ = [
     "RETRIED",
@@ -24,11 +24,13 @@ __all__ = [
     "Case",
     "CaseTask",
     "case_id",
+    "case_name",
     "make_cases",
     "parse_case",
     "read_text",
     "run_case",
     "swept_keys",
+    "value_columns",
     "work",
     "work_claimed",
 ]
@@ -53,10 +55,36 @@ def case_id(overrides: dict) -> str:
     """A stable 12-character id of a case: the hash of its overrides (key order does not matter).
 
     The id names the case's row and folder; whether its row is still valid is decided by its
-    content key (:mod:`dea_opt.sweep.keys`), so an edited scenario replaces the row.
+    content key (:mod:`dea_opt.scenario.keys`), so an edited scenario replaces the row.
     """
     text = json.dumps(overrides, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:12]
+
+
+def case_name(overrides: dict, swept=()) -> str:
+    """A case named by its swept values as ``--set`` writes them: ``law.H=8, load.scale=-1`` (every
+    override when none of them is swept)."""
+    keys = [k for k in overrides if k in swept] or list(overrides)
+    return ", ".join(f"{k}={_value_text(overrides[k])}" for k in keys)
+
+
+def _value_text(value) -> str:
+    if isinstance(value, (list, tuple)):
+        return "[" + ",".join(_value_text(v) for v in value) + "]"
+    return f"{value:g}" if isinstance(value, float) else str(value)
+
+
+def value_columns(overrides: dict) -> dict:
+    """A case's overrides as columns of its row, each key ending with its unit when it has one
+    (``law.H`` -> ``law.H_MPa``, ``load.scale`` stays: :func:`dea_opt.scenario.docs.key_unit`)."""
+    from ..scenario.docs import key_unit
+    from ..units import SUFFIXES, with_unit
+
+    out = {}
+    for key, value in overrides.items():
+        unit = key_unit(key)
+        out[with_unit(key, unit) if unit in SUFFIXES else key] = value
+    return out
 
 
 @dataclass(frozen=True)
@@ -148,13 +176,15 @@ def run_case(
     Returns
     -------
     dict
-        The case's row: ``case_id``, the overrides, ``status`` (one of :data:`STATUSES`:
+        The case's row: ``case`` (its swept values, :func:`case_name`), ``case_id``, the
+        overrides (:func:`value_columns`: each key with its unit, ``law.H_MPa``), ``status`` (one
+        of :data:`STATUSES`:
         ``ok``; ``outside_validity`` when certified but outside its model's validity;
         ``certificate_failed``, ``load_not_supported`` or ``pose_error`` when an answer, or a
         frame, has no certified answer; ``error`` with ``message`` when the case could not
         run), ``exit_code`` (that of ``dea-opt run``), headline
         numbers (for a load path: the largest over the frames), ``warnings`` (the run's
-        validity warnings, joined by `` | ``), ``wall_time`` (s),
+        validity warnings, joined by `` | ``), ``wall_time_s``,
         ``output_dir`` (empty when the case left no folder: refused before it wrote anything),
         ``finished``, ``pid`` and the content key's fields.
     """
@@ -162,7 +192,7 @@ def run_case(
 
     start = time.perf_counter()
     path = Path(scenario_path)
-    row = {"case_id": case_id(overrides), **overrides}
+    row = {"case": case_name(overrides, swept), "case_id": case_id(overrides), **value_columns(overrides)}
     columns = {}
     try:
         if text is None:
@@ -192,7 +222,7 @@ def run_case(
         where = f"{Path(last.filename).name}:{last.lineno}"
         row |= {"status": str(RunStatus.ERROR), "message": f"{type(exc).__name__}: {exc} ({where})"}
     row |= {
-        "wall_time": time.perf_counter() - start,
+        "wall_time_s": time.perf_counter() - start,
         # a case refused before it wrote anything leaves no folder (dea_opt.run.folderlock): none named
         "output_dir": str(case_dir) if Path(case_dir).is_dir() else "",
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S"),

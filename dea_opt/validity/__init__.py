@@ -33,9 +33,18 @@ from .checks import (
     _through_layer_check,
     rotation_gap_error,
 )
-from .report import DEFAULT_LIMITS, Check, Validity, ValidityLimits
+from .report import CHECK_UNITS, DEFAULT_LIMITS, Check, Validity, ValidityLimits, check_column
 
-__all__ = ["DEFAULT_LIMITS", "Check", "Validity", "ValidityLimits", "assess", "rotation_gap_error"]
+__all__ = [
+    "CHECK_UNITS",
+    "DEFAULT_LIMITS",
+    "Check",
+    "Validity",
+    "ValidityLimits",
+    "assess",
+    "check_column",
+    "rotation_gap_error",
+]
 
 
 def assess(

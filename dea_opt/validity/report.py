@@ -14,7 +14,7 @@ import numpy as np
 from .._checks.inputs import number_in_range
 from ..errors import InputError
 
-__all__ = ["DEFAULT_LIMITS", "Check", "Validity", "ValidityLimits"]
+__all__ = ["CHECK_UNITS", "DEFAULT_LIMITS", "Check", "Validity", "ValidityLimits", "check_column"]
 
 
 def _limit(name, value, high=None) -> float:
@@ -160,8 +160,44 @@ class Check:
             "status": self.status,
             "passed": self.passed,
             "advice": self.advice,
-            **{key: _json_number(v) for key, v in self.details},
+            **{_detail_key(None, key): _json_number(v) for key, v in self.details},
         }
+
+    @property
+    def column(self) -> str:
+        """The check's column in a table: ``validity_<name>``, ending with its unit when it has one
+        (``validity_rotation_deg``, ``validity_peak_pressure_MPa``; :mod:`dea_opt.units`)."""
+        return check_column(self.name)
+
+
+#: The unit of each check whose value has one (:data:`dea_opt.units.SUFFIXES`); the others are a
+#: strain, a fraction of the thickness, a count of springs or a relative stiffness.
+CHECK_UNITS = {
+    "rotation": "deg",
+    "body_rotation": "deg",
+    "extent": "mm",
+    "layer_area": "mm^2",
+    "thickness": "mm",
+    "peak_pressure": "MPa",
+}
+
+
+def check_column(name: str) -> str:
+    """A check's column in a table: ``validity_<name>`` with the suffix of its unit
+    (:data:`CHECK_UNITS`): ``validity_rotation_deg``, ``validity_strain``."""
+    from ..units import with_unit
+
+    return with_unit(f"validity_{name}", CHECK_UNITS.get(name, ""))
+
+
+def _detail_key(head: str | None, key: str) -> str:
+    """A detail's name: one named by its unit (``mm``) is ``<head>_mm`` (``value_mm`` in JSON,
+    ``validity_gap_error_mm`` in a table); another (``bundle``) keeps its name after ``head``."""
+    from ..units import SUFFIXES
+
+    if key in SUFFIXES:
+        return f"{head or 'value'}_{SUFFIXES[key]}"
+    return key if head is None else f"{head}_{key}"
 
 
 def _json_number(value):
@@ -206,13 +242,14 @@ class Validity:
         }
 
     def columns(self) -> dict:
-        """``{valid, validity_failed, validity_<check>[_<detail>]: value}`` for one table row;
+        """``{valid, validity_failed, <check column>[_<detail>]: value}`` for one table row (each
+        check's column :attr:`Check.column`, ending with its unit: ``validity_rotation_deg``);
         ``validity_failed`` joins the failed checks' names with ``;``."""
         row = {"valid": self.valid, "validity_failed": ";".join(c.name for c in self.failed)}
         for c in self.checks:
-            row[f"validity_{c.name}"] = float(c.value)
+            row[c.column] = float(c.value)
             for key, value in c.details:
-                row[f"validity_{c.name}_{key}"] = float(value)
+                row[_detail_key(f"validity_{c.name}", key)] = float(value)
         return row
 
     def summary(self) -> str:

@@ -43,6 +43,12 @@ _STEP_BOUND = 4.0
 _ACCEPTABLE = ("Solved_To_Acceptable_Level", "Search_Direction_Becomes_Too_Small")
 #: IPOPT's statuses of a limit reached (its iterations or time): the solve ran out, it did not fail.
 _LIMITS = ("Maximum_Iterations_Exceeded", "Maximum_CpuTime_Exceeded", "Maximum_WallTime_Exceeded")
+#: The largest turn (rad) of body 2 the surrogate's rotation is exact for (its Taylor terms): an
+#: outer iterate beyond it ends the solve, and no accelerated centre may lie beyond it.
+ROTATION_RANGE = 2.0 * math.pi / 3.0
+#: An accelerated centre replaces the plain map's only where its residual is lower by this factor:
+#: a tie decided by the last digit of two sums would make the iterates hinge on a CPU's rounding.
+_BETTER = 1.0 - 1e-9
 
 
 def _series(ca, tau, first):
@@ -179,6 +185,11 @@ class _Surrogate:
         return x_k + T @ z[:k], z[:k], stress, stats
 
 
+def _turn(system, x) -> float:
+    """The turn (rad) of body 2 at the free coordinates ``x``."""
+    return float(np.linalg.norm(system.coordinates(x)[3:6]))
+
+
 def _scaled_residual(state, T, energy_scale) -> float:
     """The physical residual in the scaled variables, relative to the load and the springs' force."""
     free = state.system.free
@@ -262,15 +273,27 @@ def solve(
         if not stats.get("success", False) and native not in _ACCEPTABLE:
             status, message = "solver_error", f"IPOPT ({form}): {native}"
             break
+        if _turn(system, x_new) > ROTATION_RANGE:
+            x, state = x_new, system.state(system.coordinates(x_new), law)
+            status = "max_iterations"
+            message = (
+                f"IPOPT's ({form}) outer iterate {outer} turned body 2 {math.degrees(_turn(system, x_new)):.4g} deg, "
+                f"past the {math.degrees(ROTATION_RANGE):.0f} deg its rotation is exact for: no fixed point within them"
+            )
+            break
         converged = float(np.linalg.norm(step)) <= outer_tol
-        candidates = [x_new] if converged else [x_new, anderson.next(x, x_new)]
-        best: tuple | None = None
-        for candidate in candidates:
-            trial = system.state(system.coordinates(candidate), law)
-            value = _scaled_residual(trial, T, energy_scale)
-            if best is None or value < best[0]:
-                best = (value, candidate, trial)
-        assert best is not None  # candidates is never empty
+        plain = system.state(system.coordinates(x_new), law)
+        best = (_scaled_residual(plain, T, energy_scale), x_new, plain)
+        # Anderson's centre, within the rotation's range (extrapolating steps that all reached the
+        # box, as with no spring in contact, it once leapt 1e15 degrees, where the residual read 1
+        # as at the plain map's point), and only where clearly better: not by the rounding of two sums
+        if not converged:
+            candidate = anderson.next(x, x_new)
+            if np.isfinite(candidate).all() and _turn(system, candidate) <= ROTATION_RANGE:
+                trial = system.state(system.coordinates(candidate), law)
+                value = _scaled_residual(trial, T, energy_scale)
+                if value < _BETTER * best[0]:
+                    best = (value, candidate, trial)
         residual, x, state = best
         history.append(residual)
         if converged and residual <= max(outer_tol, 1e-9):

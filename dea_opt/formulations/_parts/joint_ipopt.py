@@ -98,7 +98,10 @@ def solve_qp(system: JointSystem, **options) -> JointResult:
     flat, convert = system.flat()
     model = qp.QPModel(flat, LinearLaw(1.0), **options)
     result = model.solve()
-    stresses = [sign * modulus * result.stress[part] for part, sign, modulus in convert]
+    stresses = [
+        sign * modulus * result.stress[part] - (0.0 if minus is None else modulus * result.stress[minus])
+        for part, sign, modulus, minus in convert
+    ]
     return JointResult(
         x=result.u_free,
         stresses=stresses,

@@ -248,17 +248,26 @@ class FrameColumnsDirective(_Generated):
         import dea_opt
         from dea_opt.geometry import plate_layer
         from dea_opt.loadpath.table import MOTION_UNITS, REGION_COLUMNS, TABLE_COLUMNS
+        from dea_opt.units import SUFFIXES, unit_name
         from dea_opt.validity import assess
 
-        rows = [[_literal(name), unit] for name, unit in TABLE_COLUMNS.items()]
+        def unit(name: str) -> str:
+            return unit_name(name) or "–"
+
+        rows = [[_literal(name), unit(name), what] for name, what in TABLE_COLUMNS.items()]
+        for dof, dof_unit in MOTION_UNITS.items():
+            column = f"body<b>_{dof}_{SUFFIXES[dof_unit]}"
+            rows.append([_literal(column), dof_unit, "the motion found along a free dof (``Solution.u``)"])
         problem = dea_opt.ContactProblem(plate_layer(nx=4, ny=4), dea_opt.LinearLaw(1.0), force=(0, 0, -1.0))
         for check in assess(problem, np.zeros(12)).checks:
-            rows.append([_literal(f"validity_{check.name}"), f"{check.unit or '1'}: the value of the validity check"])
-        for dof, unit in MOTION_UNITS.items():
-            rows.append([_literal(f"body<b>_{dof}"), f"{unit}: the motion found along a free dof (``Solution.u``)"])
-        for name, unit in REGION_COLUMNS.items():
-            rows.append([_literal(f"<region>_{name}"), f"{unit}: per labelled region"])
-        return _table(["column", "unit and meaning"], rows, "30 70")
+            what = f"the value of the validity check {check.name} ({check.unit or 'a strain'})"
+            rows.append([_literal(check.column), unit(check.column), what])
+            for key, _ in check.details:
+                detail = f"{check.column}_{SUFFIXES.get(key, key)}"
+                rows.append([_literal(detail), unit(detail), f"the same check in {key}"])
+        for name, what in REGION_COLUMNS.items():
+            rows.append([_literal(f"<region>_{name}"), unit(name), f"per labelled region: {what}"])
+        return _table(["column", "unit", "meaning"], rows, "30 10 60")
 
 
 class ModuliDirective(_Generated):

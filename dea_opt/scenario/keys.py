@@ -7,6 +7,9 @@ the ``--method`` given to the sweep and the dea-opt version. The input files are
 *loaded* scenario, after the overrides are applied (an override may name another file), and
 are keyed by where the scenario names them (``geometry.mesh1``), not by their path, so a
 project folder moved elsewhere keeps its results.
+
+It lives with the scenarios (not the sweeps) because a run's report lists the same input files
+with their SHA-256 (:mod:`dea_opt.report.sections`), and reports stand below the sweeps.
 """
 
 from __future__ import annotations
