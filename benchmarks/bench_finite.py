@@ -141,8 +141,8 @@ def solve_case(repeats: int = 20) -> dict:
 
 def _kernels() -> str:
     """Which loops ran: the walk of the rays across mesh 2 (``dea_opt/mesh/_walk.c``) and the finite
-    system's passes (``dea_opt/formulations/_parts/_finite.c``), each ``compiled`` or ``numpy``."""
-    from dea_opt.formulations._parts.finite_geometry import compiled_system
+    system's passes (``dea_opt/formulations/finite/_finite.c``), each ``compiled`` or ``numpy``."""
+    from dea_opt.formulations.finite.geometry import compiled_system
     from dea_opt.mesh.walk import compiled_walk
 
     return "/".join("numpy" if kernel is None else "compiled" for kernel in (compiled_walk(), compiled_system()))

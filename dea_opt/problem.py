@@ -441,7 +441,7 @@ def _check_kinematics(kinematics, targets) -> None:
             "targets are for kinematics='finite' (the small kinematics of Eq. 9-11 use the layer's "
             "gaps only): pass kinematics='finite' or leave targets out"
         )
-    from .formulations._parts.finite_geometry import Targets
+    from .formulations.finite.geometry import Targets
     from .mesh.springs import SpringCast
 
     if not isinstance(targets, (Targets, SpringCast)):

@@ -307,7 +307,7 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem or a Joint, got {type(problem).__name__}")
     if problem.kinematics == "finite":
-        from .largemotion import solve as solve_finite
+        from .finite import solve as solve_finite
 
         return solve_finite(
             problem,

@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 
 import dea_opt as d
 from dea_opt import mesh as M
-from dea_opt.formulations._parts.finite_geometry import (
+from dea_opt.formulations.finite.geometry import (
     Targets,
     evaluate,
     rotation,

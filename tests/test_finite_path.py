@@ -17,7 +17,7 @@ import pytest
 from conftest import KNEE_SCENARIO
 
 import dea_opt as d
-from dea_opt import formulations, largemotion
+from dea_opt import finite, formulations
 from dea_opt.formulations.finite import FiniteSystem, pose_matrix
 from dea_opt.geometry import knee_meshes, plate_layer
 
@@ -132,7 +132,7 @@ def test_each_gait_frame_is_the_answer_of_a_cold_solve_at_its_pose(gait):
     result = gait["result"]
     for k in (3, 6):
         frame = gait["problem"].with_load(force=gait["loads"][k, :3], moment=gait["loads"][k, 3:])
-        alone = quiet(largemotion.solve, frame, "auto", frame=gait["poses"][k])
+        alone = quiet(finite.solve, frame, "auto", frame=gait["poses"][k])
         path = result.solutions[k]
         assert alone.success
         assert abs(alone.u[8] - path.u[8]) <= 1e-4 * abs(path.u[8])
@@ -156,7 +156,7 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
     # the formulations see arrays: a FiniteSystem, never a problem
     with pytest.raises(d.InputError, match="the finite formulation solves a FiniteSystem"):
         formulations.get("finite").Model(d.ContactProblem(layer, law), law)
-    system = largemotion.driver.build_system(loaded, largemotion.driver.resolve_targets(loaded)[0])
+    system = finite.driver.build_system(loaded, finite.driver.resolve_targets(loaded)[0])
     assert isinstance(system, FiniteSystem)
     certified = quiet(d.solve, loaded)
     for name in ("finite", "finite_nlp"):
@@ -248,7 +248,7 @@ def test_an_answer_keeps_its_springs_when_the_next_frame_moves_them(gait):
     """The tracker hands its arrays to an answer read-only and copies them before its next update
     changes them: solving the next frame from the same tracker leaves the answer as it was."""
     problem, loads, poses = gait["problem"], gait["loads"], gait["poses"]
-    first = quiet(largemotion.solve, problem.with_load(force=loads[2, :3], moment=loads[2, 3:]), "auto", frame=poses[2])
+    first = quiet(finite.solve, problem.with_load(force=loads[2, :3], moment=loads[2, 3:]), "auto", frame=poses[2])
     layer, targets = first.problem.layer, first.problem.targets
     held = {
         name: np.array(getattr(layer, name))
@@ -265,7 +265,7 @@ def test_an_answer_keeps_its_springs_when_the_next_frame_moves_them(gait):
     }
     held_targets = (np.array(targets.points), np.array(targets.normals))
     later = quiet(
-        largemotion.solve,
+        finite.solve,
         problem.with_load(force=loads[6, :3], moment=loads[6, 3:]),
         "auto",
         frame=poses[6],

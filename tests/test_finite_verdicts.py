@@ -89,7 +89,7 @@ def test_a_punch_lifted_off_an_ateshian_layer_is_carried_not_crushed(case):
     law stiffens without bound there, so nothing proves the load too large. ``auto`` goes on: a load
     continuation from a fraction of the load finds the punch tilted 60-80 deg, balanced (summed
     here), springs short of -1; IPOPT by name finds the same pose."""
-    from dea_opt.largemotion import verdict
+    from dea_opt.finite import verdict
 
     problem = punch(*case)
     newton = quiet(d.solve, problem, "newton", strict=False)
@@ -122,7 +122,7 @@ def test_what_the_punch_s_springs_carry_at_strain_minus_one_is_the_bound_of_the_
     thickness, body 2 on body 1): 36 mm^2 of 10 MPa carry 360 N along z. Past it the load is proved
     beyond what the layer bears (the bound and the load in words); the equations still have a
     solution past strain -1, which every method certifies and the validity report rejects."""
-    from dea_opt.largemotion import verdict
+    from dea_opt.finite import verdict
 
     def problem(force):
         return d.ContactProblem(PUNCH, d.LinearLaw(10.0), force=(0, 0, -force), free=("uz", "ry"), kinematics="finite")

@@ -41,7 +41,7 @@ LAYERS = (
     ("problem",),  # a contact problem: layer, law, bodies, kinematics
     ("certificate", "validity", "loadcheck", "agreement", "geometry"),  # judging an answer; embedded geometries
     ("solution",),  # an answer with its certificate and validity
-    ("largemotion",),  # finite kinematics above the arrays: meshes re-cast at the pose
+    ("finite",),  # finite kinematics above the arrays: meshes re-cast at the pose
     ("joint",),  # several bodies, layers and ligaments
     ("solver",),  # solve and compare, by kinematics and method
     ("loadpath", "study"),  # load paths; comparison studies
@@ -193,7 +193,7 @@ NEVER_SEEN_BY_FORMULATIONS = (
     "dea_opt.problem",
     "dea_opt.layer",
     "dea_opt.solution",
-    "dea_opt.largemotion",
+    "dea_opt.finite",
     "dea_opt.solver",
 )
 #: What they may import besides each other: errors, statuses, input checks, tolerances, laws and

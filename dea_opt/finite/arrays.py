@@ -1,7 +1,7 @@
 """Finite kinematics, the arrays of a solve: the springs' targets, the FiniteSystem, its scaling, and
 the formulations a method tries.
 
-Written math: ``formulations/finite.md``. Used by :mod:`~dea_opt.largemotion.driver`, which
+Written math: ``formulations/finite.md``. Used by :mod:`~dea_opt.finite.driver`, which
 solves what these build.
 """
 

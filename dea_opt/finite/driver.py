@@ -4,10 +4,10 @@ Written math: ``formulations/finite.md``. :func:`solve` is what ``dea_opt.solve`
 ``ContactProblem(..., kinematics="finite")``: it resolves each spring's target, builds the arrays
 of a :class:`~dea_opt.formulations.finite.FiniteSystem`, has the registry's formulation solve the
 equilibrium of the free coordinates (:mod:`~dea_opt.formulations.finite`, Newton, or
-:mod:`~dea_opt.formulations.finite_nlp`, IPOPT: arrays in, a raw answer out), keeps springs cast
-from meshes up to date as body 2 moves (:mod:`~dea_opt.largemotion.tracker`), solving again
+:mod:`~dea_opt.formulations.finite.nlp`, IPOPT: arrays in, a raw answer out), keeps springs cast
+from meshes up to date as body 2 moves (:mod:`~dea_opt.finite.tracker`), solving again
 while a loaded spring changed, and certifies the answer at the solved pose
-(:mod:`~dea_opt.largemotion.solution`).
+(:mod:`~dea_opt.finite.solution`).
 """
 
 from __future__ import annotations
@@ -58,11 +58,11 @@ def solve(
         ``"finite"`` (or ``"newton"``): Newton with the consistent tangent; ``"finite_nlp"``
         (or ``"nlp"``): IPOPT on a conservative surrogate re-centred at each outer iteration
         (``formulations/finite_nlp.md``); ``"auto"``: Newton, then, where its answer fails its
-        certificate and nothing is proved about the load (:mod:`~dea_opt.largemotion.verdict`), the
-        other means of :mod:`~dea_opt.largemotion.means` (more updates of the springs, other
+        certificate and nothing is proved about the load (:mod:`~dea_opt.finite.verdict`), the
+        other means of :mod:`~dea_opt.finite.means` (more updates of the springs, other
         starts, a load continuation, IPOPT), ``solution.info["fallback"]`` saying what each found,
         in a time budget unless the options give ``max_time``
-        (:mod:`~dea_opt.largemotion.fallback`). A verdict on the load (``crushed``, a
+        (:mod:`~dea_opt.finite.fallback`). A verdict on the load (``crushed``, a
         :class:`~dea_opt.errors.LoadNotSupportedError`) is given where proved, by every method;
         a solve that met one unproved did not converge (``max_iterations``). ``"qp"`` is an
         :class:`~dea_opt.errors.InputError`: the QP is a small-kinematics method.
@@ -79,10 +79,10 @@ def solve(
         ``dea_opt.solve``'s test of a load along directions no spring resists, ``f(problem, system)``
         raising :class:`~dea_opt.errors.LoadNotSupportedError`, run before any solve on the springs
         of the start (:func:`dea_opt.loadcheck.check_unresisted`). A load no spring the layer can
-        have carries at any pose raises it too, proved (:mod:`~dea_opt.largemotion.verdict`).
+        have carries at any pose raises it too, proved (:mod:`~dea_opt.finite.verdict`).
     **options
         ``x0`` (free coordinates, mm and rad) and the options of the formulation
-        (:data:`dea_opt.formulations.finite.OPTIONS`, :data:`dea_opt.formulations.finite_nlp.OPTIONS`).
+        (:data:`dea_opt.formulations.finite.OPTIONS`, :data:`dea_opt.formulations.finite.nlp.OPTIONS`).
     """
     if not (isinstance(certificate_tol, (int, float)) and 0 < certificate_tol < 1):
         raise InputError(f"certificate_tol must be a number in (0, 1), got {certificate_tol!r}")
@@ -96,7 +96,7 @@ def solve(
         began = time.perf_counter()
         solution = run(name, opts, x0, tracker)
         if not solution.success and not _final(solution) and run.proof() is None and method == "auto":
-            # no answer and nothing proved: the other means, in a time budget (dea_opt/largemotion/means.py)
+            # no answer and nothing proved: the other means, in a time budget (dea_opt/finite/means.py)
             solution = means.rescue(run, steps, solution, options, time.perf_counter() - began)
         verdict.judge(solution, run.proof() if not solution.success else None, problem)
         if method == "auto":
@@ -126,7 +126,7 @@ _UNKNOWN = object()  # a proof not looked for yet
 
 class _Run:
     """The solves of one ``dea_opt.solve`` call: its problem and options, and the proof of a verdict on
-    its load (:func:`~dea_opt.largemotion.verdict.prove`, computed once, when a solve needs it)."""
+    its load (:func:`~dea_opt.finite.verdict.prove`, computed once, when a solve needs it)."""
 
     def __init__(self, problem, certificate_tol, frame, unresisted, opts):
         self.problem, self.certificate_tol, self.frame, self.unresisted = problem, certificate_tol, frame, unresisted

@@ -1,9 +1,9 @@
 """``method="auto"`` with finite kinematics: the time of the means tried after a failed Newton.
 
 Written math: ``formulations/finite_nlp.md`` ("Limits"; ``formulations/finite.md``, "What auto
-tries"). :func:`dea_opt.largemotion.driver.solve` runs Newton, then, where its answer fails its
+tries"). :func:`dea_opt.finite.driver.solve` runs Newton, then, where its answer fails its
 certificate and no verdict on the load is proved, the other means of
-:mod:`~dea_opt.largemotion.means`: other starts, a load continuation, IPOPT (``finite_nlp``).
+:mod:`~dea_opt.finite.means`: other starts, a load continuation, IPOPT (``finite_nlp``).
 Unless the user gave ``max_time``, they have :func:`budget` seconds together (IPOPT what the
 Newton means left, :func:`within`): IPOPT took 28 to 34 s wherever it succeeded on the knee
 (Newton there: 0.03 to 0.09 s, and 0.3 s for the 100 iterations of a failed solve), up to 6 s on

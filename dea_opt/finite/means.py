@@ -2,14 +2,14 @@
 
 Written math: ``formulations/finite.md`` ("What auto tries"; its budget: ``formulations/finite_nlp.md``,
 "Limits"). Where Newton from the given start
-finds no certified answer and :mod:`~dea_opt.largemotion.verdict` proves nothing about the
+finds no certified answer and :mod:`~dea_opt.finite.verdict` proves nothing about the
 load, an answer may still be reached from elsewhere: :func:`rescue` tries, in a time budget
-(:func:`~dea_opt.largemotion.fallback.budget`), Newton again with :data:`RECASTS` times the updates
+(:func:`~dea_opt.finite.fallback.budget`), Newton again with :data:`RECASTS` times the updates
 where the springs did not settle, Newton from the other starts (the small kinematics' answer, and
 zero), Newton along a load continuation from a load the contact carries
 (:func:`continuation`), and IPOPT from the nearest pose that continuation certified. The first
 certified answer whose equilibrium is stable is the answer; a certified unstable one is kept
-while the others run. Used by :mod:`~dea_opt.largemotion.driver`.
+while the others run. Used by :mod:`~dea_opt.finite.driver`.
 """
 
 from __future__ import annotations
@@ -128,7 +128,7 @@ def continuation(run, name, opts, problem, clock, story) -> tuple:
 
 def rescue(run, steps, first, options: dict, newton_time: float):
     """The answer of ``method="auto"`` after Newton's ``first`` failed: the first stable certified
-    answer of the other means (:mod:`this module <dea_opt.largemotion.means>`), else a certified
+    answer of the other means (:mod:`this module <dea_opt.finite.means>`), else a certified
     unstable one, else the last failure, its message and ``info["fallback"]`` saying what was
     tried and how each ended.
 
@@ -136,15 +136,15 @@ def rescue(run, steps, first, options: dict, newton_time: float):
     ----------
     run : callable
         ``run(method, opts, x0=None, tracker=None, problem=None, start="auto")``: one solve
-        (:class:`dea_opt.largemotion.driver._Run`).
+        (:class:`dea_opt.finite.driver._Run`).
     steps : list
-        :func:`~dea_opt.largemotion.arrays.plan`'s ``[(name, opts, x0), ...]``: Newton, then IPOPT.
+        :func:`~dea_opt.finite.arrays.plan`'s ``[(name, opts, x0), ...]``: Newton, then IPOPT.
     first : FiniteSolution
         Newton's failed answer from the given start.
     options : dict
         The options of the solve as given (whether the user set ``max_time``).
     newton_time : float
-        Seconds Newton took (:func:`~dea_opt.largemotion.fallback.budget`).
+        Seconds Newton took (:func:`~dea_opt.finite.fallback.budget`).
     """
     (newton, n_opts, x0), (ipopt, i_opts, _) = steps[0], steps[1]
     problem = run.problem

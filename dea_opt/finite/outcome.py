@@ -4,10 +4,10 @@ Where the iterates ran away (:func:`ran_away`: no equilibrium found near the sta
 dof the contact may resist less than the load), springs that carried load were lost through the
 layer on the way (:func:`crushed_through`) or the springs did not settle within ``max_recasts``
 updates (:func:`unsettled`), the solve failed: what it says of the load (``crushed``,
-``unbounded``) stands only where :mod:`~dea_opt.largemotion.verdict` proves it from the problem,
+``unbounded``) stands only where :mod:`~dea_opt.finite.verdict` proves it from the problem,
 else the answer is a solve that did not converge (``formulations/finite.md``, "What the layer can
 carry"). :func:`crushed_at_start` gives the proved ``crushed`` before any solve. Used by
-:mod:`~dea_opt.largemotion.driver`.
+:mod:`~dea_opt.finite.driver`.
 """
 
 from __future__ import annotations
@@ -30,7 +30,7 @@ __all__ = [
 
 def crushed_at_start(system, law, x, eps, proof) -> InnerResult:
     """A failed answer at the small kinematics' answer ``x``, which crushes the layer through
-    (``eps <= -1``), where ``proof`` (a :class:`~dea_opt.largemotion.verdict.Proof`) shows that no
+    (``eps <= -1``), where ``proof`` (a :class:`~dea_opt.finite.verdict.Proof`) shows that no
     equilibrium inside the model carries the load: ``crushed``, said before any solve (IPOPT would
     take minutes to fail)."""
     motion, _ = _motion(system.free, x, np.asarray(system.force, dtype=float))
@@ -57,7 +57,7 @@ def ran_away(system, inner, radius: float) -> bool:
     the contact resists (a joint's torsion past the largest its articular surfaces hold; in the
     joint, the ligaments). Springs lost through the layer on the way (whose rays met mesh 2
     behind mesh 1's far side as it passed) say nothing of the load. Whether it did (the status
-    ``unbounded`` stands only where :mod:`~dea_opt.largemotion.verdict` proves it)."""
+    ``unbounded`` stands only where :mod:`~dea_opt.finite.verdict` proves it)."""
     x = np.asarray(inner.u_free, dtype=float)
     if not beyond_reach(system, x, radius):
         return False
@@ -128,7 +128,7 @@ def crushed_through(tracker, inner, law, system, radius: float) -> None:
     the first of them were lost where the iterates had already run away (:func:`beyond_reach`,
     ``radius`` as there; the tracker's ``crushed_at``): body 2 then crossed the layer as it went
     where nothing held it, and the solve is ``unbounded`` (:func:`ran_away`). Either stands only
-    where :mod:`~dea_opt.largemotion.verdict` proves it (another start, a load continuation or
+    where :mod:`~dea_opt.finite.verdict` proves it (another start, a load continuation or
     IPOPT may find an equilibrium); ``law`` is the layer's."""
     at = tracker.crushed_at
     if at is not None and beyond_reach(system, at[list(system.free)], radius):  # lost as body 2 passed

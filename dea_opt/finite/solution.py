@@ -137,7 +137,7 @@ class FiniteSolution(Solution):
     the springs they gained, lost and dropped (``info["recast"]``); ``lost_through_layer`` the
     loaded springs lost through the layer that still lie behind mesh 1's far side at the solved
     pose (a validity check); ``stability`` how far the answer is from a stable equilibrium
-    (:func:`~dea_opt.largemotion.stability.softest`: above 0 when a disturbance along
+    (:func:`~dea_opt.finite.stability.softest`: above 0 when a disturbance along
     ``info["softest_direction"]`` grows; the ``stability`` validity check); ``tracker`` is the
     re-casting state a load path's next frame continues from.
     """

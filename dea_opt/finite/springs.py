@@ -1,4 +1,4 @@
-"""Finite kinematics, re-casting: the per-spring arrays a :class:`~dea_opt.largemotion.MeshTracker`
+"""Finite kinematics, re-casting: the per-spring arrays a :class:`~dea_opt.finite.MeshTracker`
 keeps up to date, in one order, and the casts it joins.
 
 Written math: ``formulations/finite.md`` ("Re-casting")."""
@@ -9,7 +9,7 @@ import math
 
 import numpy as np
 
-from ..formulations._parts.finite_system import arms_of
+from ..formulations.finite.system import arms_of
 from ..mesh import FaceCast
 
 __all__ = ["Springs", "face_labels", "joined", "put_rows", "ring"]

@@ -8,7 +8,7 @@ finds any point where the forces balance, can return one; Newton, which descends
 leaves it. The consistent tangent ``K = dr/dy`` on the free coordinates tells them apart: a
 disturbance ``dy`` is met by the net force ``-K dy``, and the quasi-static motion
 ``dy' = -K dy`` grows along an eigenvector of ``K`` whose eigenvalue has a negative real part.
-Used by :mod:`~dea_opt.largemotion.driver`; the check is :func:`dea_opt.validity.assess`'s
+Used by :mod:`~dea_opt.finite.driver`; the check is :func:`dea_opt.validity.assess`'s
 ``stability``.
 """
 

@@ -4,7 +4,7 @@ at body 2's base pose when a solve from far away gave no answer, and at a warm s
 where they were.
 
 Written math: ``formulations/finite.md`` ("Newton", "Re-casting"). Used by
-:mod:`~dea_opt.largemotion.driver`.
+:mod:`~dea_opt.finite.driver`.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ _BASE_SHIFT = 1.0
 def near_base(tracker, system) -> bool:
     """Whether body 2's base pose (the free coordinates at zero) lies within :data:`_BASE_SHIFT` of
     where the springs were last brought up to date: the small kinematics' answer on them may then
-    call the layer crushed before any solve (:func:`~dea_opt.largemotion.outcome.crushed_at_start`).
+    call the layer crushed before any solve (:func:`~dea_opt.finite.outcome.crushed_at_start`).
     Farther, the solve and its updates find it out (springs lost through the layer, or none left)."""
     y = system.coordinates(np.zeros(len(system.free)))
     return not tracker.moved_from_update(system.transform(y)) > _BASE_SHIFT
@@ -69,12 +69,12 @@ def at_base(tracker, system, law, x=None) -> tuple:
 def predicted(small, law, x, system):
     """``(x, cold)``: the start of a cold Newton solve of springs that follow mesh 2, the answer of the
     small kinematics (their equilibrium to first order in the rotation) when it has one that
-    does not move body 2 beyond reach (:func:`~dea_opt.largemotion.outcome.beyond_reach`: ran
+    does not move body 2 beyond reach (:func:`~dea_opt.finite.outcome.beyond_reach`: ran
     away along a free dof, where it is no start and no measure of the load), else ``x``.
 
     The first finite solve on the springs of the start pose only says where body 2 goes; the
     small kinematics says it in a third of the time, and the first update of the springs
-    (:mod:`~dea_opt.largemotion.tracker`) starts from there (``formulations/finite.md``, "Newton")."""
+    (:mod:`~dea_opt.finite.tracker`) starts from there (``formulations/finite.md``, "Newton")."""
     from ..formulations import newton as small_newton
 
     guess = small_newton.solve(small, law, gtol=_PREDICTOR_TOL, xtol=_PREDICTOR_TOL)  # a start: no finer

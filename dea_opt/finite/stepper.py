@@ -1,6 +1,6 @@
 """The frames of a load path with finite kinematics: each warm-started from the previous pose.
 
-Written math: ``formulations/finite.md``. Every frame is a :func:`dea_opt.largemotion.solve`
+Written math: ``formulations/finite.md``. Every frame is a :func:`dea_opt.finite.solve`
 started from the previous frame's free coordinates and its re-cast springs; with prescribed poses
 (the gait set-up: flexion from the kinematics, the rest found) each frame's pose of body 2's mesh
 is the zero of its free coordinates.
@@ -26,14 +26,14 @@ class FiniteStepper:
 
     def __init__(self, method: str, options: dict, certificate_tol: float):
         self.method = method  # checked by the finite solve
-        self.options = dict(options)  # checked by the finite solve (dea_opt.largemotion.plan)
+        self.options = dict(options)  # checked by the finite solve (dea_opt.finite.plan)
         self.certificate_tol = certificate_tol
         self.x: np.ndarray | None = None
         self.tracker: object = None
         self.pose: np.ndarray | None = None
 
     def solve(self, problem: ContactProblem, new_geometry: bool, setup: float = 0.0) -> Solution:
-        from ..largemotion import solve as solve_finite
+        from ..finite import solve as solve_finite
         from ..loadcheck import check_unresisted
 
         start = time.perf_counter()
@@ -50,7 +50,7 @@ class FiniteStepper:
         )
         if not solution.success and self.x is not None and self.method != "auto":
             # The previous frame's pose may be a poor start (a jump in the load): start cold (auto
-            # tried the cold starts already, dea_opt/largemotion/means.py).
+            # tried the cold starts already, dea_opt/finite/means.py).
             warm = solution
             solution = solve_finite(
                 problem,

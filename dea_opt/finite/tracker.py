@@ -165,7 +165,7 @@ class MeshTracker:
         return layer
 
     def _labels(self, faces):
-        """The labels of faces ``faces`` of mesh 1 (:func:`~dea_opt.largemotion.springs.face_labels`)."""
+        """The labels of faces ``faces`` of mesh 1 (:func:`~dea_opt.finite.springs.face_labels`)."""
         return face_labels(self._first_cast, self.mesh1.centroids, faces)
 
     #: mm beyond the window within which a face's tangent-plane gap makes it a candidate: the
@@ -497,7 +497,7 @@ class MeshTracker:
         return moved[0], moved[1] if last is not None else np.inf
 
     def _ring(self, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
-        """:func:`~dea_opt.largemotion.springs.ring` on mesh 1's faces, with what each met at its last cast."""
+        """:func:`~dea_opt.finite.springs.ring` on mesh 1's faces, with what each met at its last cast."""
         return ring(self.mesh1.neighbours, self._slot, self.met, faces1, met, tried, rings)
 
     def _allowed(self, faces, pose) -> np.ndarray:

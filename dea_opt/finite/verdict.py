@@ -9,8 +9,8 @@ compression of the springs the layer can ever have (:func:`candidates`), each at
 at strain -1 (:func:`stress_limit`), carries the load. :func:`prove` looks for a direction ``y``
 of those balances along which the load asks more than every spring can give (Farkas' lemma;
 cutting planes, each a small LP for scipy's HiGHS) and checks it itself. Otherwise the answer is a solve
-that did not converge (:func:`judge`). Used by :mod:`~dea_opt.largemotion.driver` and
-:mod:`~dea_opt.largemotion.means`.
+that did not converge (:func:`judge`). Used by :mod:`~dea_opt.finite.driver` and
+:mod:`~dea_opt.finite.means`.
 """
 
 from __future__ import annotations
@@ -281,7 +281,7 @@ def raise_unsupported(proof: Proof | None, problem) -> None:
 
 
 def judge(solution, proof: Proof | None, problem) -> None:
-    """The last word on a failed ``solution`` (a :class:`~dea_opt.largemotion.solution.FiniteSolution`,
+    """The last word on a failed ``solution`` (a :class:`~dea_opt.finite.solution.FiniteSolution`,
     changed in place): ``crushed`` where ``proof`` (:func:`prove`) proves it, a
     :class:`~dea_opt.errors.LoadNotSupportedError` where it proves that no spring the layer can have
     pushes along the load; else a ``crushed`` or ``unbounded`` the solve gave (what its iterates

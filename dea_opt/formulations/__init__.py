@@ -46,7 +46,7 @@ FORMULATIONS: dict = {
     "nlp": "dea_opt.formulations.nlp",
     # Finite kinematics (exact rotation, gaps at the current pose): kinematics="finite" problems only.
     "finite": "dea_opt.formulations.finite",
-    "finite_nlp": "dea_opt.formulations.finite_nlp",
+    "finite_nlp": "dea_opt.formulations.finite.nlp",
 }
 
 #: The formulation ``method="auto"`` runs first, the reference of comparison studies, and the

@@ -19,7 +19,7 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..formulations._parts.finite_geometry import evaluate
+from ..formulations.finite.geometry import evaluate
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
 from ..formulations.resistance import modulus_scale
 from ..kinematics import DOFS, normal_operator
@@ -177,7 +177,7 @@ class Configuration:
     # --- the springs at the pose -------------------------------------------------------------
     @cached_property
     def gaps(self) -> list:
-        """Each contact's :class:`~dea_opt.formulations._parts.finite_geometry.Gaps` at the pose."""
+        """Each contact's :class:`~dea_opt.formulations.finite.geometry.Gaps` at the pose."""
         return [
             evaluate(s.targets, s.layer.points, s.layer.normals, self.relative(i)) for i, s in enumerate(self.states)
         ]

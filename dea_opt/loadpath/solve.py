@@ -45,10 +45,10 @@ from ..errors import (
     SolverError,
     ValidityWarning,
 )
+from ..finite.stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from ..problem import ContactProblem
 from ..status import Status
 from .exposure import ExposureAccumulator
-from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from .frames import check_frames, frame_count, read_frames
 from .outputs import PathOutputs
 from .result import PathResult

@@ -5,31 +5,31 @@ a :class:`FiniteSystem` holds the springs (points, normals, areas, thickness), e
 target on body 2 as a plane or a sphere (:class:`Targets`), body 2's reference point, its free
 and prescribed coordinates (translation of the reference and rotation vector, ``u[6:12]``, taken
 as an exact rotation) and the load; :func:`solve` finds the equilibrium of the free coordinates
-by Newton with the consistent tangent (:mod:`~dea_opt.formulations._parts.finite_newton`) for those
+by Newton with the consistent tangent (:mod:`~dea_opt.formulations.finite.newton`) for those
 targets and returns an :class:`InnerResult` (``u_free``, the springs' state at the answer, the
 solver's status), which ``dea_opt`` certifies. The gap of each spring is the one to its target
-at the current pose (:mod:`~dea_opt.formulations._parts.finite_geometry`); forces, residual and
-tangent are :mod:`~dea_opt.formulations._parts.finite_system`'s.
+at the current pose (:mod:`~dea_opt.formulations.finite.geometry`); forces, residual and
+tangent are :mod:`~dea_opt.formulations.finite.system`'s.
 
-What knows meshes, problems and poses lives outside this package: :mod:`dea_opt.largemotion`
+What knows meshes, problems and poses lives outside this package: :mod:`dea_opt.finite`
 builds the arrays from a ``ContactProblem(..., kinematics="finite")``, alternates solve and
 re-cast of springs cast from meshes, and certifies the answer at the solved pose
 (``dea_opt.solve`` sends a finite problem there). The independent cross-check by IPOPT is
-:mod:`~dea_opt.formulations.finite_nlp`; the QP is a small-kinematics method only.
+:mod:`~dea_opt.formulations.finite.nlp`; the QP is a small-kinematics method only.
 """
 
 from __future__ import annotations
 
 import numpy as np
 
-from ..status import CERTIFIABLE, Status
-from ._parts.finite_geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
-from ._parts.finite_motion import motion
-from ._parts.finite_newton import InnerResult, escape_step
-from ._parts.finite_system import FiniteSystem, State, generalized
-from ._parts.options import Capabilities, Option
-from .resistance import modulus_scale, resistance
-from .system import SpringSystem, start_vector
+from ...status import CERTIFIABLE, Status
+from .._parts.options import Capabilities, Option
+from ..resistance import modulus_scale, resistance
+from ..system import SpringSystem, start_vector
+from .geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
+from .motion import motion
+from .newton import InnerResult, escape_step
+from .system import FiniteSystem, State, generalized
 
 __all__ = [
     "ALIASES",
@@ -61,7 +61,7 @@ PAGE = "formulations/finite.md"
 #: For a finite problem the small kinematics' method names stand for the finite formulations.
 ALIASES = {"newton": "finite", "nlp": "finite_nlp"}
 #: The re-casting options of both finite formulations (formulations/finite.md, "Re-casting"):
-#: declared here so that the registry checks them, used by :mod:`dea_opt.largemotion`.
+#: declared here so that the registry checks them, used by :mod:`dea_opt.finite`.
 RECAST_OPTIONS = (
     Option("recast", bool, True, "keep springs cast from meshes (targets= a SpringCast) up to date as body 2 moves"),
     Option(
@@ -144,7 +144,7 @@ def small_system(system: FiniteSystem, law) -> SpringSystem:
     ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
     strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
     a rotation), with its resisted directions decided, and, for targets not cast from meshes, as
-    ``small.motion`` the :class:`~dea_opt.formulations._parts.finite_motion.Motion` of the exact
+    ``small.motion`` the :class:`~dea_opt.formulations.finite.motion.Motion` of the exact
     gaps there (which free motions change a gap at all: ``dea_opt.solve``'s load check)."""
     state = system.state(system.base, law)
     free = system.free
@@ -213,9 +213,9 @@ def solve(
     start_state : State, optional
         ``system.state(system.coordinates(x0), law)``, when the caller has it (not computed again).
     **options
-        :data:`OPTIONS` (the re-casting ones are :mod:`dea_opt.largemotion`'s and ignored here).
+        :data:`OPTIONS` (the re-casting ones are :mod:`dea_opt.finite`'s and ignored here).
     """
-    from ._parts import finite_newton as _finite_newton
+    from . import newton as _finite_newton
 
     x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
     cold = x0 is None if cold is None else cold
@@ -233,7 +233,7 @@ class FiniteModel:
 
     ``Model(system, law, **options)`` as for every formulation (the system is a
     :class:`FiniteSystem`, built from a ``ContactProblem(..., kinematics="finite")`` by
-    :mod:`dea_opt.largemotion`); ``solve(load=None, *, x0=None)`` returns the raw
+    :mod:`dea_opt.finite`); ``solve(load=None, *, x0=None)`` returns the raw
     :class:`InnerResult` for the load ``(F, M)`` on body 2 (N, N mm; the system's own by
     default), scaled by :func:`small_system` at its base.
     """
@@ -242,7 +242,7 @@ class FiniteModel:
     run = staticmethod(solve)  # the formulation's solve on the arrays (before the method of that name)
 
     def __init__(self, system, law, **options):
-        from ..errors import InputError
+        from ...errors import InputError
 
         if not isinstance(system, FiniteSystem):
             raise InputError(

@@ -1,7 +1,7 @@
 """Finite kinematics by IPOPT: an independent cross-check of the finite Newton, built in CasADi.
 
 Written math: ``formulations/finite_nlp.md`` (the registry's entry is
-:mod:`~dea_opt.formulations.finite_nlp`). The springs push along their own directions, and
+:mod:`~dea_opt.formulations.finite.nlp`). The springs push along their own directions, and
 the moment on body 2 is constant in space: neither is the gradient of an energy of the pose,
 so IPOPT minimises, at each outer iteration ``k``, a conservative surrogate re-centred at the
 current iterate ``x_k``:
@@ -16,7 +16,7 @@ gradient of ``Phi_k`` at ``x_k`` is the physical residual, so ``x_k`` is the min
 when it is an equilibrium; ``x_{k+1} = argmin Phi_k`` contracts to it. Springs are constrained to
 compression as in :mod:`~dea_opt.formulations.nlp` (``form="constrained"``: their forces are the
 multipliers) or enter through ``min(eps, 0)`` (``form="reduced"``). Nothing is shared with the
-Newton of :mod:`~dea_opt.formulations._parts.finite_newton` but the targets and the law.
+Newton of :mod:`~dea_opt.formulations.finite.newton` but the targets and the law.
 """
 
 from __future__ import annotations
@@ -28,9 +28,9 @@ import numpy as np
 
 from ...errors import InputError
 from ..nlp import _casadi, ipopt_solver
-from .finite_geometry import FACING
-from .finite_newton import InnerResult
-from .finite_system import generalized
+from .geometry import FACING
+from .newton import InnerResult
+from .system import generalized
 
 _TERMS = 16  # Taylor terms of the rotation's coefficients: exact to rounding below 120 degrees
 _CRUSH_MARGIN = 1e-9

@@ -3,7 +3,7 @@
 The small kinematics takes a spring's force direction and the change of its gap as one row
 ``a_i = [n_i; (p_i - c) x n_i]``, so the directions the springs resist are those of the forces.
 With exact gaps they differ: the gap changes as ``b_i = [m_i; (h_i - c) x m_i] / (n_i . m_i)``
-(:meth:`~dea_opt.formulations._parts.finite_geometry.Gaps.rows`), ``m_i`` the target's normal at
+(:meth:`~dea_opt.formulations.finite.geometry.Gaps.rows`), ``m_i`` the target's normal at
 the hit ``h_i``. A motion with ``b_i . w = 0`` for every spring compresses none: when the targets'
 normals pass through body 2's reference point (spheres centred there) turning about it moves
 each target along itself, and a spring whose ray misses its target (a target facing away from
@@ -22,7 +22,7 @@ import numpy as np
 
 from ..resistance import Resistance, resistance
 from ..system import SpringSystem
-from .finite_geometry import FACING
+from .geometry import FACING
 
 __all__ = ["Motion", "motion"]
 
@@ -101,7 +101,7 @@ class Motion:
 
 
 def motion(system, state, small: SpringSystem) -> Motion:
-    """The :class:`Motion` of the :class:`~dea_opt.formulations._parts.finite_system.FiniteSystem`
+    """The :class:`Motion` of the :class:`~dea_opt.formulations.finite.system.FiniteSystem`
     ``system`` at ``state`` (its base pose), whose small system ``small`` (same springs, free
     coordinates, volumes, lengths and layer stiffness) the forces' resistance was decided on."""
     free = system.free

@@ -147,7 +147,7 @@ def escape_step(system, law, x, motion, energy_scale, radius) -> np.ndarray | No
     crest of the energy. On each side the steps double from ``_ESCAPE_FIRST`` while ``phi'`` (the
     power of the net forces, :class:`_Line`) stays negative and body 2 turns less than
     :data:`_MAX_TURN` and slides less than 4 ``radius`` (where a solve has run away,
-    :func:`~dea_opt.largemotion.outcome.ran_away`); where ``phi'`` turns
+    :func:`~dea_opt.finite.outcome.ran_away`); where ``phi'`` turns
     positive the energy has a minimum along the line, found by bisection. Of the two sides, the
     lower one (``phi`` by the trapezoidal rule on the slopes looked at). None where the energy
     falls all the way on both sides, or rises at once (the answer is kept, and the ``stability``
@@ -160,7 +160,7 @@ def escape_step(system, law, x, motion, energy_scale, radius) -> np.ndarray | No
     x : ndarray (m,)
         The free coordinates of the equilibrium (mm, rad).
     motion : ndarray (m,)
-        The direction that gives way (:func:`~dea_opt.largemotion.stability.softest_mode`).
+        The direction that gives way (:func:`~dea_opt.finite.stability.softest_mode`).
     energy_scale : float
         ``E0`` (N mm): the slopes are divided by it.
     radius : float
@@ -371,7 +371,7 @@ def solve(
                 status, message, success = "converged", "step below xtol (Eq. 20)", True
                 break
     if not success and law.bounded_strain and state.eps[state.gaps.valid].min(initial=0.0) < -1 + _CRUSH_WINDOW:
-        # what the iterates met, not a verdict on the load: dea_opt.largemotion.verdict proves one or says so
+        # what the iterates met, not a verdict on the load: dea_opt.finite.verdict proves one or says so
         status = "crushed"
         message = f"{message}; springs reach eps = {state.eps.min():.6f}, crushed through their thickness on the way"
     return InnerResult(

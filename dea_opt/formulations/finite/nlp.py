@@ -4,7 +4,7 @@ Written math: ``formulations/finite_nlp.md``. The same arrays as
 :mod:`~dea_opt.formulations.finite` (a :class:`~dea_opt.formulations.finite.FiniteSystem`: springs,
 targets, body 2's coordinates, the load; exact rotation, gaps at the current pose, forces along
 the springs), solved by IPOPT on a conservative surrogate re-centred at each outer iteration,
-built in CasADi with its own derivatives (:mod:`~dea_opt.formulations._parts.finite_ipopt`); the
+built in CasADi with its own derivatives (:mod:`~dea_opt.formulations.finite.ipopt`); the
 springs are constrained to compression and their forces are the multipliers. Newton and IPOPT
 agree to 1e-6 on every test problem (``tests/test_finite.py``).
 """
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ._parts.options import Capabilities, Option, Variant
-from .finite import RECAST_OPTIONS, FiniteModel, InnerResult
+from .._parts.options import Capabilities, Option, Variant
+from . import RECAST_OPTIONS, FiniteModel, InnerResult
 
 __all__ = ["CAPABILITIES", "OPTIONS", "Model", "solve"]
 
@@ -64,7 +64,7 @@ def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, start_stat
     has no extended start, and evaluates the springs in CasADi); ``options`` are :data:`OPTIONS` (the re-casting ones are ignored here). The springs'
     stresses IPOPT reports (its multipliers) are ``info["stress"]``.
     """
-    from ._parts import finite_ipopt as _finite_ipopt
+    from . import ipopt as _finite_ipopt
 
     x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
     if not len(system.free):

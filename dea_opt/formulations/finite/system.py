@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .finite_geometry import (
+from .geometry import (
     Gaps,
     PlaneRows,
     Targets,
