@@ -46,7 +46,7 @@ def check_method(method: str, law=None) -> None:
     if not isinstance(method, str) or (method != "auto" and method not in formulations.names()):
         raise InputError(f"method must be one of {('auto', *formulations.names())}, got {method!r}")
     if law is not None and method != "auto":
-        formulations.check_takes(method, law)
+        formulations.resolve(method, law).check()
 
 
 def formulation_plan(method: str, law, options: dict) -> list[tuple[str, dict, object]]:
@@ -413,7 +413,8 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
         return compare_joint(problem, methods, certificate_tol=certificate_tol, **options)
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
-    aliases = formulations.aliases(problem.kinematics)  # {"newton": "finite", ...} for finite kinematics
+    resolved = {n: formulations.resolve(n, None, problem.kinematics).name for n in formulations.names()}
+    aliases = {n: to for n, to in resolved.items() if to != n}  # {"newton": "finite", ...} for finite kinematics
     if methods is None:  # every formulation, not twice under the names that stand for another
         methods = [name for name in formulations.names() if name not in aliases]
     chosen = formulations.select(methods, problem.law, problem.kinematics)

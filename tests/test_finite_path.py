@@ -18,7 +18,7 @@ from conftest import KNEE_SCENARIO
 
 import dea_opt as d
 from dea_opt import finite, formulations
-from dea_opt.formulations.finite import FiniteSystem, pose_matrix
+from dea_opt.formulations.finite import FiniteSystem, InnerResult, pose_matrix
 from dea_opt.geometry import knee_meshes, plate_layer
 
 H, THICK, SIDE = 10.0, 10.0, 6.0
@@ -144,7 +144,15 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
     law = d.LinearLaw(H)
     assert [n for n in formulations.names() if formulations.takes(n, law, "finite")] == ["finite", "finite_nlp"]
     assert [n for n in formulations.names() if formulations.takes(n, law)] == ["newton", "qp", "nlp"]
-    assert formulations.why_not("qp", law, "finite") == "qp does not solve finite kinematics"
+    # one function reads a method's name: what it runs in these kinematics, and why it cannot
+    qp = formulations.resolve("qp", law, "finite")
+    assert qp.name == "qp" and qp.reason.startswith("qp is a small-kinematics method")
+    assert formulations.resolve("qp", law).reason is None and formulations.resolve("newton", law).note is None
+    assert formulations.resolve("newton", law, "finite").name == "finite"
+    assert formulations.resolve("nlp", law, "finite").note == "nlp stands for finite_nlp with finite kinematics"
+    # the second contract: finite kinematics' formulations take a FiniteSystem and give an InnerResult
+    assert formulations.contract("finite") == (FiniteSystem, InnerResult)
+    assert formulations.contract("small") == (formulations.SpringSystem, formulations.FormulationResult)
     layer, problem = _punch()
     loaded = problem.with_load(force=(0, 0, -50.0), moment=(0, 30.0, 0))
     out = quiet(d.compare, loaded)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..formulations.finite import ALIASES, SHARED, FiniteSystem, Targets, evaluate, scale, small_system
+from ..formulations.finite import SHARED, FiniteSystem, Targets, evaluate, scale, small_system
 from ..formulations.system import SpringSystem
 from ..kinematics import DOFS
 from ..mesh import SpringCast
@@ -124,20 +124,17 @@ def plan(method, law, options: dict) -> list[tuple[str, dict, object]]:
 
     ``method`` is ``"auto"`` (the registered formulations that solve finite kinematics for
     ``law``, in order: ``finite``, then ``finite_nlp``), one of them, or ``"newton"``/``"nlp"``
-    (:data:`ALIASES`). Any other is an :class:`~dea_opt.errors.InputError` from the registry
+    (which stand for them: :func:`dea_opt.formulations.resolve`). Any other is an :class:`~dea_opt.errors.InputError` from the registry
     (``qp``: a small-kinematics method). Options are checked by the registry; under ``auto``
     each goes to the first formulation that declares it, the re-casting ones to both.
     """
-    from ..formulations import check_options, check_takes, names, takes
+    from ..formulations import check_options, names, resolve, takes
     from ..formulations import options as declared
 
-    name = ALIASES.get(method, method) if isinstance(method, str) else method
     options = dict(options)
     x0 = options.pop("x0", None)
-    if name != "auto":
-        if not isinstance(name, str) or name not in names():
-            raise InputError(f"method must be one of {('auto', *names())}, got {method!r}")
-        check_takes(name, law, "finite")
+    if method != "auto":
+        name = resolve(method, law, "finite").check()
         return [(name, check_options(name, options), x0)]
     chain = [n for n in names() if takes(n, law, "finite")][:2]
     parts: dict = {n: {} for n in chain}

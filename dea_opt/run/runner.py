@@ -34,9 +34,10 @@ def solve_options(section, method: str, law) -> dict:
 
     if getattr(section, "kinematics", "small") == "finite":
         # finite kinematics: newton and nlp stand for the finite formulations, auto tries both
-        from ..formulations.finite import ALIASES
-
-        chain = ["finite", "finite_nlp"] if method == "auto" else [ALIASES.get(method, method)]
+        if method == "auto":
+            chain = ["finite", "finite_nlp"]
+        else:
+            chain = [formulations.resolve(method, None, "finite").name] if method in formulations.names() else []
         out: dict = {}
         for name in chain:
             if name in formulations.names() and formulations.takes(name, law, "finite"):

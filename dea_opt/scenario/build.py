@@ -437,7 +437,7 @@ def check_kinematics_method(scenario: Scenario, method: str | None = None, what:
     kinematics = scenario.solve.kinematics
     if not isinstance(method, str) or method == "auto" or method not in formulations.names():
         return  # auto solves both; an unknown name is check_method_name's to refuse
-    solved = formulations.capabilities(formulations.stands_for(method, kinematics)).kinematics
+    solved = formulations.capabilities(formulations.resolve(method, None, kinematics).name).kinematics
     if kinematics in solved:
         return
 
@@ -447,7 +447,7 @@ def check_kinematics_method(scenario: Scenario, method: str | None = None, what:
 
     given = f"{what} {method!r}" if what else f"solve.method = {method!r}{origin('method')}"
     other = next(k for k in ("small", "finite") if k != kinematics)
-    able = formulations.alternatives(build_law(scenario.law), kinematics, prefix="")
+    able = formulations.resolve(method, build_law(scenario.law), kinematics).use(prefix="")
     raise ScenarioError(
         f"{scenario.source or scenario.title or 'the scenario'}: {given} is a {' and '.join(solved)}-kinematics "
         f'method and solve.kinematics = "{kinematics}"{origin("kinematics")}: use '

@@ -32,7 +32,6 @@ from .newton import InnerResult, escape_step
 from .system import FiniteSystem, State, generalized
 
 __all__ = [
-    "ALIASES",
     "CAPABILITIES",
     "OPTIONS",
     "RECAST_OPTIONS",
@@ -58,8 +57,6 @@ __all__ = [
 
 PAGE = "formulations/finite.md"
 
-#: For a finite problem the small kinematics' method names stand for the finite formulations.
-ALIASES = {"newton": "finite", "nlp": "finite_nlp"}
 #: The re-casting options of both finite formulations (formulations/finite.md, "Re-casting"):
 #: declared here so that the registry checks them, used by :mod:`dea_opt.finite`.
 RECAST_OPTIONS = (
