@@ -19,7 +19,7 @@ and the answers that need no solver (:func:`trivial_result`, and :func:`failed_r
 that raised). Beside it: which directions the springs resist and the guard before compiled code
 (:mod:`~dea_opt.formulations.resistance`), the variables the
 formulations solve in (:mod:`~dea_opt.formulations.scaling`), the one test of a crushed layer
-(:mod:`~dea_opt.formulations.crush`) and BLAS on one thread (:mod:`~dea_opt.formulations.blas`).
+(:mod:`~dea_opt.formulations.crush`) and BLAS on one thread (``dea_opt._checks.threads``).
 """
 
 from __future__ import annotations
