@@ -1,4 +1,4 @@
-"""Finite kinematics on the real knee (issue 13): one solve against the small kinematics, and a gait.
+"""Finite kinematics on the real knee: one solve against the small kinematics, and a gait.
 
 Run::
 

@@ -6,7 +6,7 @@ Run from the repository's top (each case in a fresh subprocess, its peak RSS its
     python benchmarks/bench_outputs.py --springs 1e6      # smaller sizes, a quick look
     python benchmarks/bench_outputs.py --only run         # or: path
 
-Targets (issue 10, item 8):
+Targets:
 
 * ``run``: ``dea-opt run`` of a scenario with 1e7 springs (a plate, ``[geometry] kind =
   "plate"``, 3 free dofs) and the default outputs (``contact.vtu``, ``.csv``, ``.json``,

@@ -64,7 +64,7 @@ FACTORS = (1.25, 0.8, 1.1)
 
 
 def minimal_qp(system, law, tol):
-    """The issue's QP in Clarabel's form, built here with scipy's blocks: ``(P, q, G, b, cones,
+    """The reported QP in Clarabel's form, built here with scipy's blocks: ``(P, q, G, b, cones,
     settings, scaling)``."""
     import clarabel
     import numpy as np

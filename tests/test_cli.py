@@ -219,7 +219,7 @@ def test_console_script_reports_errors_without_traceback(tmp_path):
     assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1
 
 
-# --- issue 10: every raw traceback of the scenario and the CLI is a named error ---------------
+# --- every raw traceback of the scenario and the CLI is a named error ---------------
 
 
 def _springs_npz(tmp_path, kind):

@@ -1,4 +1,4 @@
-"""Finite kinematics (issue 13) against closed forms, finite differences and IPOPT.
+"""Finite kinematics against closed forms, finite differences and IPOPT.
 
 Every equilibrium is checked with sums written here (forces along the springs' normals, moments
 about body 2's reference where it is at the solved pose), never with the certificate. Geometry:

@@ -1,4 +1,4 @@
-"""Finite kinematics on meshes (issue 13): the gap function against fresh casts, and the real knee.
+"""Finite kinematics on meshes: the gap function against fresh casts, and the real knee.
 
 Prescribed large poses (rotations of 5-30 degrees about a point 25 mm from the contact, with the
 translation of several mm that brings the contact back) on the embedded hip and on the real

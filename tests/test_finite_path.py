@@ -1,4 +1,4 @@
-"""Finite kinematics through load paths, the registry and scenarios (issue 13).
+"""Finite kinematics through load paths, the registry and scenarios.
 
 A load path with ``kinematics="finite"`` gives, frame by frame, the answer of an independent
 finite solve (warm starts change the path, not the answer); with prescribed poses (the gait

@@ -1,4 +1,4 @@
-"""The sweep's spring cache (issue 15): springs cast once per distinct geometry and pose, shared
+"""The sweep's spring cache: springs cast once per distinct geometry and pose, shared
 on disk by the workers; and the cases' outputs chosen per sweep.
 
 A cast taken from the cache must be the cast, bit for bit; its key must follow the content

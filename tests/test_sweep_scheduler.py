@@ -1,4 +1,4 @@
-"""Scale-out shown, not assumed (issue 15): a Dask scheduler and two workers started as separate
+"""Scale-out shown, not assumed: a Dask scheduler and two workers started as separate
 processes on the loopback interface, and ``dea-opt sweep --scheduler tcp://127.0.0.1:PORT``
 running its cases on them, as it would on a cluster's nodes sharing a file system."""
 

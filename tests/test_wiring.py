@@ -1,4 +1,4 @@
-"""The pieces wired end to end through ``dea-opt run``/``sweep``/``demo`` and the API (issues 10, 11):
+"""The pieces wired end to end through ``dea-opt run``/``sweep``/``demo`` and the API:
 load paths streamed frame by frame with every frame's status, the anatomical frame from the scenario,
 size checks before resampling, sweep statuses, the demo's regions, and a folder a killed run left
 behind (the re-cast at the solved pose and the unsupported-load diagnostic: test_wiring_recast.py)."""
