@@ -11,6 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import scenario_text
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -141,18 +142,7 @@ def test_uncertified_answer_exits_1_with_outputs_written(tmp_path):
 
 # --- acceptance 5: bad input ------------------------------------------------------------
 
-PLATE = """\
-[geometry]
-kind = "plate"
-nx = 20
-ny = 2
-[law]
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-"""
+PLATE = scenario_text(nx=20, ny=2, law=None)
 PATH = PLATE.replace("[load]\nforce = [0.0, 0.0, -500.0]\n", '[load_path]\nfile = "loads.csv"\n')
 
 

@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import scenario_text
 from scipy.optimize import minimize
 
 import dea_opt as d
@@ -158,23 +159,7 @@ def test_a_registered_formulation_in_compare_and_a_study(toy):
     assert rows.loc["low", "solver_tol"] == 1e-3 and rows.loc["low", "iterations"] < rows.loc["default", "iterations"]
 
 
-PLATE_SCENARIO = """\
-[geometry]
-kind = "plate"
-nx = 80
-ny = 4
-[law]
-kind = "linear"
-H = 20.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [10.0, 0.0, 0.0]
-[output]
-formats = ["json"]
-[solve]
-"""
+PLATE_SCENARIO = scenario_text(nx=80, H=20.0, point=(10.0, 0.0, 0.0), formats=("json",)) + "[solve]\n"
 
 
 def test_a_registered_formulation_is_a_scenario_s_method(toy, tmp_path):

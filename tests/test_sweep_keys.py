@@ -10,6 +10,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import scenario_text
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -24,25 +25,7 @@ from dea_opt.sweep import (
     run_sweep,
 )
 
-PLATE = """\
-title = "plate"
-[geometry]
-kind = "plate"
-length = 40.0
-width = 10.0
-nx = 40
-ny = 4
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [5.0, 0.0, 0.0]
-[output]
-formats = ["json"]
-"""
+PLATE = scenario_text(title="plate", size=(40.0, 10.0), point=(5.0, 0.0, 0.0), formats=("json",))
 
 SPRINGS = """\
 title = "springs table under a load path"

@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import COARSE_SOCKET, KNEE
+from conftest import COARSE_SOCKET, KNEE, scenario_text
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
@@ -186,22 +186,7 @@ def test_run_path_outputs_keeps_nothing_per_frame(tmp_path):
 
 # --- 2. the anatomical frame from the scenario ------------------------------------------------------
 
-PLATE = """\
-[geometry]
-kind = "plate"
-length = 40.0
-width = 10.0
-nx = 40
-ny = 10
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [5.0, 0.0, 0.0]
-"""
+PLATE = scenario_text(size=(40.0, 10.0), ny=10, point=(5.0, 0.0, 0.0))
 ANATOMY = '[output]\nanatomy = {medial = [0.0, 1.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "left"}\n'
 
 
