@@ -307,6 +307,7 @@ def attack(n: int, seed: int = 2025, out=print, first: int = 0) -> dict:
         "disagreements": [],
         "missed": [],
         "fresh_worst": 0.0,
+        "fresh_flagged": [],
         "by_kind": {},
         "seconds": 0.0,
     }
