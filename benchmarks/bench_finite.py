@@ -1,4 +1,4 @@
-"""Finite kinematics on the real knee (issue 13): one solve against the small kinematics, and a gait.
+"""Finite kinematics on the real knee: one solve against the small kinematics, and a gait.
 
 Run::
 
@@ -141,8 +141,8 @@ def solve_case(repeats: int = 20) -> dict:
 
 def _kernels() -> str:
     """Which loops ran: the walk of the rays across mesh 2 (``dea_opt/mesh/_walk.c``) and the finite
-    system's passes (``dea_opt/formulations/_parts/_finite.c``), each ``compiled`` or ``numpy``."""
-    from dea_opt.formulations._parts.finite_geometry import compiled_system
+    system's passes (``dea_opt/formulations/finite/_finite.c``), each ``compiled`` or ``numpy``."""
+    from dea_opt.formulations.finite.geometry import compiled_system
     from dea_opt.mesh.walk import compiled_walk
 
     return "/".join("numpy" if kernel is None else "compiled" for kernel in (compiled_walk(), compiled_system()))
@@ -180,13 +180,13 @@ def gait_case(frames: int = 101) -> dict:
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        result = dea.solve_path(problem, loads, poses, keep_solutions=False)
+        result = dea.solve_path(problem, loads, poses, outputs=dea.PathOutputs(keep_solutions=False))
     wall = time.perf_counter() - start
     small = dea.ContactProblem(cast.layer, law, reference=reference, free=("uz", "ry"))
     start = time.perf_counter()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        dea.solve_path(small, loads, keep_solutions=False)
+        dea.solve_path(small, loads, outputs=dea.PathOutputs(keep_solutions=False))
     table = result.table
     return {
         "case": f"knee gait {frames} frames",

@@ -6,7 +6,7 @@ Run from the repository's top (each case in a fresh subprocess, its peak RSS its
     python benchmarks/bench_outputs.py --springs 1e6      # smaller sizes, a quick look
     python benchmarks/bench_outputs.py --only run         # or: path
 
-Targets (issue 10, item 8):
+Targets:
 
 * ``run``: ``dea-opt run`` of a scenario with 1e7 springs (a plate, ``[geometry] kind =
   "plate"``, 3 free dofs) and the default outputs (``contact.vtu``, ``.csv``, ``.json``,
@@ -15,7 +15,7 @@ Targets (issue 10, item 8):
   ``to_vtk``.
 * ``path``: a load path of 1e4 frames on the demo's hip (5400 springs) with the exposure
   peaks under 1 GB RSS, run as ``dea-opt run`` should run it: the frames' ``.vtu`` written as
-  they are solved (``series=``), nothing per frame kept (``keep_solutions=False,
+  they are solved (``PathOutputs(series=...)``), nothing per frame kept (``keep_solutions=False,
   keep_pressures=False``), then ``PathResult.write`` (frames.csv, series.pvd, exposure.vtu,
   plots, summary.json). The same path keeping every solution is measured too, for scale.
 
@@ -95,8 +95,8 @@ with warnings.catch_warnings():
     if keep:
         result = dea.solve_path(problem, loads, method="auto")
     else:
-        result = dea.solve_path(problem, loads, method="auto", keep_solutions=False, keep_pressures=False,
-                                series=out + "/series_frames")
+        result = dea.solve_path(problem, loads, method="auto", outputs=dea.PathOutputs(keep_solutions=False, keep_pressures=False,
+                                series=out + "/series_frames"))
 solve = time.perf_counter() - start
 start = time.perf_counter()
 files = result.write(out, formats=("csv", "json", "vtk", "png") if not keep else ("csv", "json", "png"))

@@ -64,14 +64,14 @@ FACTORS = (1.25, 0.8, 1.1)
 
 
 def minimal_qp(system, law, tol):
-    """The issue's QP in Clarabel's form, built here with scipy's blocks: ``(P, q, G, b, cones,
+    """The reported QP in Clarabel's form, built here with scipy's blocks: ``(P, q, G, b, cones,
     settings, scaling)``."""
     import clarabel
     import numpy as np
     import scipy.sparse as sp
 
-    from dea_opt.formulations.energy import scaling
     from dea_opt.formulations.qp import TOLERANCE_OPTIONS
+    from dea_opt.formulations.scaling import scaling
 
     sc = scaling(system, law.H)
     k, n, s0 = sc.n_dofs, system.n_springs, sc.strain_scale

@@ -139,7 +139,11 @@ def inprocess(scenario: str) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         result = dea.solve_path(
-            problem, data.load_objects(), data.poses, times=data.times, keep_solutions=False, keep_pressures=False
+            problem,
+            data.load_objects(),
+            data.poses,
+            times=data.times,
+            outputs=dea.PathOutputs(keep_solutions=False, keep_pressures=False),
         )
     done = time.perf_counter()
     row = {

@@ -145,17 +145,19 @@ def gait(args):
     import dea_opt as dea
 
     loads = load_hip_gait()
-    dea.solve_path(hip(500), loads.iloc[:3], method="newton", keep_solutions=False)
+    dea.solve_path(hip(500), loads.iloc[:3], method="newton", outputs=dea.PathOutputs(keep_solutions=False))
     problem = hip(int(args.springs))
     start = time.perf_counter()
-    result = dea.solve_path(problem, loads, method="newton", keep_solutions=False)
+    result = dea.solve_path(problem, loads, method="newton", outputs=dea.PathOutputs(keep_solutions=False))
     wall = time.perf_counter() - start
     table = result.table
     print(
         f"gait: {len(problem.layer)} springs, {len(table)} frames: {wall:.3f} s in all; Newton's own solve time "
         f"{table['solve_time_s'].sum():.3f} s, {int(table['iterations'].sum())} iterations"
     )
-    _profile(lambda: dea.solve_path(problem, loads, method="newton", keep_solutions=False), top=30)
+    _profile(
+        lambda: dea.solve_path(problem, loads, method="newton", outputs=dea.PathOutputs(keep_solutions=False)), top=30
+    )
 
 
 def main(argv=None):

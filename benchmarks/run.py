@@ -1,4 +1,4 @@
-"""dea-opt speed benchmark: every row of the speed issue's target table, in one run.
+"""dea-opt speed benchmark: every row of the speed targets' table, in one run.
 
 Run from the repository's top::
 
@@ -257,7 +257,7 @@ def targets(results) -> list[dict]:
             )
         elif core is not None:
             out.append(target(f"Newton vs qp, 1e5 springs ({problem})", ">= 50x", None, None))
-    # 3. qp against a direct Clarabel call (and the other rows of issue 15): speed_sections.py.
+    # 3. qp against a direct Clarabel call (and the other speed rows): speed_sections.py.
     # 4-5. NLP at 1e5 with the cubic law.
     for method, label, limit in (("nlp-c", "nlp constrained", 10.0), ("nlp-r", "nlp reduced", 1.0)):
         for problem in ("sphere", "box"):
@@ -284,8 +284,8 @@ def targets(results) -> list[dict]:
     for r in mesh or []:
         if r.get("target_faces") == 100000:
             ok = "cold_s" in r
-            # The issue's target is with Embree; the grid caster (the fallback without
-            # embreex) is reported for information, as the issue asks.
+            # The target is with Embree; the grid caster (the fallback without
+            # embreex) is reported for information.
             embree = r["engine"] == "embree"
             out.append(
                 target(

@@ -1,4 +1,4 @@
-"""The sections of ``run.py`` for speed where users wait (issue 15), and their TARGETS rows.
+"""The sections of ``run.py`` for speed where users wait, and their TARGETS rows.
 
 * ``qp``: ``method="qp"`` against a direct Clarabel call on the minimal QP (``bench_qp.py``);
 * ``run``: ``dea-opt run`` of the real knee, 51 frames, every default output, against the same

@@ -1,5 +1,5 @@
 """How far apart answers of one problem are: the measure ``dea_opt.compare`` and comparison
-studies (:mod:`dea_opt.study`) share.
+studies (:mod:`dea_opt.study`) share, and :class:`Comparison`, what ``dea_opt.compare`` returns.
 
 Finite kinematics re-cast the springs at each answer's pose, so two answers of one problem may
 stand on different springs: their pressures are matched by the mesh face each spring stands on.
@@ -7,9 +7,52 @@ stand on different springs: their pressures are matched by the mesh face each sp
 
 from __future__ import annotations
 
+from dataclasses import dataclass, field
+
 import numpy as np
 
-__all__ = ["disagreement", "pressure_difference"]
+__all__ = ["Comparison", "disagreement", "pressure_difference"]
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """One problem solved by several methods (:func:`dea_opt.compare`), and how far apart they lie.
+
+    Attributes
+    ----------
+    solutions : dict
+        ``{method: Solution}`` (``{method: JointSolution}`` for a joint), in the order run.
+    displacement : float
+        The largest pairwise difference of the displacement ``u`` (of a joint: its free dofs)
+        relative to the pair's largest magnitude (:func:`disagreement`; dimensionless).
+    pressure : float
+        The largest pairwise difference of the springs' pressures relative to the pair's larger
+        peak pressure (dimensionless; finite answers matched by mesh face).
+    skipped : dict
+        ``{method: why}`` for the methods named that do not solve the problem.
+    notes : tuple of str
+        The method names that stood for another formulation (finite kinematics).
+    ligament_force : float or None
+        For a joint with ligaments, the largest pairwise difference of the bundles' forces
+        relative to the largest (dimensionless); None for two bodies.
+    """
+
+    solutions: dict
+    displacement: float
+    pressure: float
+    skipped: dict = field(default_factory=dict)
+    notes: tuple = ()
+    ligament_force: float | None = None
+
+    @property
+    def methods(self) -> tuple:
+        """The methods that ran, in order."""
+        return tuple(self.solutions)
+
+    @property
+    def success(self) -> bool:
+        """Whether every method gave a certified answer."""
+        return all(s.success for s in self.solutions.values())
 
 
 def pressure_difference(solution, reference) -> float:

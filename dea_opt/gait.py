@@ -129,7 +129,7 @@ def write_hip_gait_csv(
     path=HIP_GAIT_CSV, n_frames: int = 101, body_weight: float = BODY_WEIGHT, cycle_time: float = CYCLE_TIME
 ) -> Path:
     """Write :func:`hip_gait_load` as CSV with its provenance header (atomically)."""
-    from .io import write_data
+    from .files import write_data
 
     table = hip_gait_load(n_frames, body_weight, cycle_time)
     header = _HEADER.format(n=n_frames, bw=body_weight, ct=cycle_time)

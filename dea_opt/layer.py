@@ -189,8 +189,9 @@ class SpringLayer:
 
     @property
     def cast(self):
-        """The :class:`~dea_opt.mesh.SpringCast` whose rays made these springs (``SpringLayer.from_meshes``,
-        ``cast_springs(...).layer``, and a subset of either), else None. With
+        """The :class:`~dea_opt.mesh.SpringCast` whose rays made these springs
+        (:func:`~dea_opt.mesh.springs_from_meshes`, ``cast_springs(...).layer``, and a subset of
+        either), else None. With
         ``kinematics="finite"`` and no ``targets``, a layer that is its cast's own is re-cast from
         it as body 2 moves, and a subset's tangent planes are measured against its meshes (the
         ``gap_error`` validity check)."""
@@ -298,28 +299,6 @@ class SpringLayer:
     def n_springs(self) -> int:
         """Number of springs N."""
         return self.points.shape[0]
-
-    @classmethod
-    def from_meshes(cls, mesh1, mesh2, **options) -> SpringLayer:
-        """Springs between two triangle surfaces, by ray casting from mesh 1 onto mesh 2.
-
-        A thin front to :func:`dea_opt.mesh.springs_from_meshes`; ``options`` are its keywords:
-        ``thickness1=None, thickness2=None, pose=None, max_gap=2.0, max_overlap=1.0,
-        max_angle=60.0, flip=False, labels=None, engine="auto"``.
-
-        Parameters
-        ----------
-        mesh1, mesh2 : path, trimesh.Trimesh or (vertices (V, 3), faces (F, 3))
-            Body 1's cartilage surface (carries the springs) and body 2's, in mm.
-
-        Returns
-        -------
-        SpringLayer
-            With ``source_face`` and ``surface`` set so that results map back to mesh 1.
-        """
-        from .mesh import springs_from_meshes
-
-        return springs_from_meshes(mesh1, mesh2, **options)
 
     def with_gap(self, gap) -> SpringLayer:
         """A copy with new initial gaps (shape (N,) or scalar, mm)."""

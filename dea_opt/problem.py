@@ -10,7 +10,8 @@ import numpy as np
 
 from ._checks.inputs import SMALLEST, finite_number, vector3
 from .errors import InputError
-from .formulations.energy import ROUNDING, SpringSystem, require_finite, resistance, unresisted
+from .formulations.resistance import require_finite, resistance, unresisted
+from .formulations.system import ROUNDING, SpringSystem
 from .kinematics import DOF_NAMES, DOFS, normal_operator
 from .laws import Law, check_law
 from .layer import SpringLayer
@@ -309,7 +310,7 @@ class ContactProblem:
     @cached_property
     def _stiffness(self) -> float:
         """``sum_i S_i / h_i`` (mm): the layer's stiffness scale per unit modulus, against
-        which directions are judged unresisted (:func:`~dea_opt.formulations.energy.unresisted`)."""
+        which directions are judged unresisted (:func:`~dea_opt.formulations.resistance.unresisted`)."""
         return float(np.sum(self.layer.areas / self.layer.thickness))
 
     @cached_property
@@ -440,7 +441,7 @@ def _check_kinematics(kinematics, targets) -> None:
             "targets are for kinematics='finite' (the small kinematics of Eq. 9-11 use the layer's "
             "gaps only): pass kinematics='finite' or leave targets out"
         )
-    from .formulations._parts.finite_geometry import Targets
+    from .formulations.finite.geometry import Targets
     from .mesh.springs import SpringCast
 
     if not isinstance(targets, (Targets, SpringCast)):

@@ -56,8 +56,9 @@ class Solution:
     # scipy.optimize names
     @property
     def x(self) -> np.ndarray:
-        """Alias of ``u`` (the 12-vector of Eq. 7), as in ``scipy.optimize.OptimizeResult``."""
-        return self.u
+        """The optimized variables, as ``scipy.optimize.OptimizeResult.x``: ``u`` at the free dofs,
+        shape (m,), mm and rad, in the order of ``problem.free_names`` (what ``x0`` takes)."""
+        return self.u[self.problem.free_indices]
 
     @property
     def nit(self) -> int:
@@ -73,7 +74,7 @@ class Solution:
         if not self.certificate.passed:
             name, value = self.certificate.worst()
             return f"certificate residual {name} = {value:.3g} > {self.certificate.tolerance:g}"
-        return self.info.get("failure") or f"status {self.status!r}: {self.status.description}"
+        return self.info.get("failure") or f"status '{self.status}': {self.status.description}"
 
     @property
     def body1_displacement(self) -> np.ndarray:
@@ -90,7 +91,7 @@ class Solution:
         an exact rotation about its reference, ``T1^-1 T2`` (for ``kinematics="small"`` the rigid
         motion with the linearised motion's rotation vector and translation; for ``"finite"`` the
         solved pose itself, composed with the pose the targets were cast at)."""
-        from .formulations._parts.finite_geometry import pose_matrix
+        from .formulations.finite.geometry import pose_matrix
 
         c1, c2 = self.problem.body1.reference, self.problem.body2.reference
         return np.linalg.inv(pose_matrix(self.u[:6], c1)) @ pose_matrix(self.u[6:], c2)

@@ -9,24 +9,19 @@ import warnings
 import numpy as np
 
 from . import formulations, loadcheck
-from .agreement import disagreement
+from ._checks.threads import single_threaded_blas
+from .agreement import Comparison, disagreement
 from .certificate import certify
 from .errors import InputError, SolverError, ValidityWarning
-from .formulations.energy import (
-    CRUSHED_MESSAGE,
-    crushed,
-    failed_result,
-    single_threaded_blas,
-    start_vector,
-    trivial_result,
-)
+from .formulations.crush import CRUSHED_MESSAGE, crushed
+from .formulations.system import failed_result, start_vector, trivial_result
 from .loadcheck import check_load_supported
 from .problem import ContactProblem
 from .solution import Solution
 from .status import CERTIFIABLE, Status
 
 __all__ = [
-    "METHODS",
+    "Comparison",
     "certified_solution",
     "check_load_supported",
     "check_method",
@@ -35,10 +30,6 @@ __all__ = [
     "formulation_result",
     "solve",
 ]
-
-#: The methods built in: ``"auto"`` and the formulations registered when dea_opt was imported
-#: (:func:`dea_opt.formulations.names` is the live list, with any registered since).
-METHODS = ("auto", *formulations.names())
 
 
 def _warn_validity(solution: Solution) -> None:
@@ -55,7 +46,7 @@ def check_method(method: str, law=None) -> None:
     if not isinstance(method, str) or (method != "auto" and method not in formulations.names()):
         raise InputError(f"method must be one of {('auto', *formulations.names())}, got {method!r}")
     if law is not None and method != "auto":
-        formulations.check_takes(method, law)
+        formulations.resolve(method, law).check()
 
 
 def formulation_plan(method: str, law, options: dict) -> list[tuple[str, dict, object]]:
@@ -316,7 +307,7 @@ def solve(problem, method: str = "auto", *, certificate_tol: float = 1e-6, stric
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem or a Joint, got {type(problem).__name__}")
     if problem.kinematics == "finite":
-        from .largemotion import solve as solve_finite
+        from .finite import solve as solve_finite
 
         return solve_finite(
             problem,
@@ -343,7 +334,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
             _raise_if_unsupported(problem)
             fallback, fallback_options, _ = plan[1]
             reason = (
-                f"{name} ended with status {solution.status!r} and certificate residual {solution.certificate.worst()}"
+                f"{name} ended with status '{solution.status}' and certificate residual {solution.certificate.worst()}"
             )
             solution = _run(problem, fallback, certificate_tol, fallback_options)
             solution.info["fallback"] = reason
@@ -353,7 +344,7 @@ def _solve(problem, method, certificate_tol, strict, options) -> Solution:
         _raise_if_unsupported(problem)
     if not solution.success and strict:
         raise SolverError(
-            f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}); "
+            f"{solution.method} returned no certified answer (status '{solution.status}': {solution.message}); "
             f"{solution.failure}. Try method='auto', a tighter "
             f"solver tolerance, or check the problem for loads no spring resists.",
             status=solution.status,
@@ -387,7 +378,7 @@ def _raise_if_unsupported(problem: ContactProblem) -> None:
         check_load_supported(problem)
 
 
-def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1e-6, **options) -> dict:
+def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1e-6, **options) -> Comparison:
     """Solve with several methods and measure their largest disagreement.
 
     ``methods`` defaults to every registered formulation. The methods are chosen as by
@@ -399,14 +390,14 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
 
     Returns
     -------
-    dict
-        ``{"solutions": {formulation: Solution}, "displacement": float, "pressure": float,
-        "skipped": {formulation: reason}, "notes": [str]}``: the largest pairwise difference of
-        ``u`` relative to ``max |u|`` and of pressure relative to the peak pressure
-        (:func:`dea_opt.agreement.disagreement`; finite answers matched by mesh face).
+    Comparison
+        The solutions by formulation, the largest pairwise difference of ``u`` relative to
+        ``max |u|`` (``.displacement``) and of pressure relative to the peak pressure
+        (``.pressure``; :func:`dea_opt.agreement.disagreement`, finite answers matched by mesh
+        face), the methods ``.skipped`` and why, and ``.notes``.
 
     A :class:`~dea_opt.joint.Joint` is compared by :func:`dea_opt.joint.compare.compare_joint`
-    (methods ``newton``, ``qp``, ``nlp``; its result also holds ``ligament_force``).
+    (methods ``newton``, ``qp``, ``nlp``; its comparison also holds ``ligament_force``).
 
     Raises
     ------
@@ -422,7 +413,8 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
         return compare_joint(problem, methods, certificate_tol=certificate_tol, **options)
     if not isinstance(problem, ContactProblem):
         raise InputError(f"problem must be a ContactProblem, got {type(problem).__name__}")
-    aliases = formulations.aliases(problem.kinematics)  # {"newton": "finite", ...} for finite kinematics
+    resolved = {n: formulations.resolve(n, None, problem.kinematics).name for n in formulations.names()}
+    aliases = {n: to for n, to in resolved.items() if to != n}  # {"newton": "finite", ...} for finite kinematics
     if methods is None:  # every formulation, not twice under the names that stand for another
         methods = [name for name in formulations.names() if name not in aliases]
     chosen = formulations.select(methods, problem.law, problem.kinematics)
@@ -431,5 +423,4 @@ def compare(problem: ContactProblem, methods=None, *, certificate_tol: float = 1
         given = {k: v for alias, to in aliases.items() if to == name for k, v in options.get(alias, {}).items()}
         solutions[name] = solve(problem, name, certificate_tol=certificate_tol, **(given | options.get(name, {})))
     du, dp = disagreement(solutions.values())
-    out = {"solutions": solutions, "displacement": du, "pressure": dp}
-    return out | {"skipped": chosen.skipped, "notes": chosen.notes}
+    return Comparison(solutions, du, dp, skipped=chosen.skipped, notes=tuple(chosen.notes))

@@ -4,7 +4,7 @@ one for every run.
 Each formulation maps its solver's own status (Newton's, cvxpy's, IPOPT's) to a
 :class:`Status` and keeps the original in ``info["native_status"]``; the same situation gets
 the same status from every method. :class:`Status` is a ``str`` enum: ``Status.CONVERGED ==
-"converged"``, and JSON, CSV and old string comparisons see the plain value.
+"converged"``, and JSON, CSV and string comparisons see the plain value.
 
 A status says how the solve ended; ``Solution.success`` says whether dea-opt's own
 certificate passed. A certified answer (``success``) has one of the statuses of
@@ -46,11 +46,6 @@ class Status(StrEnum):
     NOT_SUPPORTED = "load_not_supported"
     POSE_ERROR = "pose_error"
     INVALID_INPUT = "invalid_input"
-
-    def __repr__(self) -> str:
-        # As the plain string it stands for: messages written as f"status {status!r}" read
-        # the same as before statuses were an enum.
-        return repr(self.value)
 
     @property
     def description(self) -> str:
@@ -123,9 +118,6 @@ class RunStatus(StrEnum):
     POSE_ERROR = "pose_error"
     NOT_CONVERGED = "not_converged"
     ERROR = "error"
-
-    def __repr__(self) -> str:
-        return repr(self.value)
 
     @property
     def description(self) -> str:

@@ -226,7 +226,7 @@ def _verdict(solution, agrees, accuracy, dp, du) -> str:
         name, value = solution.certificate.worst()
         return f"inaccurate: {name} {value:.1e} > {accuracy.check_tol:g}"
     if agrees is False:
-        reference = formulations.stands_for(formulations.DEFAULT, solution.problem.kinematics)
+        reference = formulations.resolve(formulations.DEFAULT, None, solution.problem.kinematics).name
         return f"disagrees with the reference ({reference}): {max(dp, du):.1e} > {accuracy.check_tol:g}"
     return "ok"
 
@@ -269,7 +269,7 @@ class StudyResult:
         """``compare.csv`` and ``compare_summary.csv`` in ``directory``."""
         from pathlib import Path
 
-        from .io import write_data
+        from .files import write_data
 
         directory = Path(directory)
         return {
@@ -408,9 +408,7 @@ def run_study(
     if isinstance(repeat, bool) or int(repeat) != repeat or repeat < 1:
         raise InputError(f"repeat must be a positive integer, got {repeat!r}")
     if methods is None:
-        methods = [
-            name for name in formulations.names() if formulations.why_not(name, problem.law, problem.kinematics) is None
-        ]
+        methods = [name for name in formulations.names() if formulations.takes(name, problem.law, problem.kinematics)]
     methods, solvers, accuracy = _check_names(methods, solvers, accuracy, what)
     chosen = formulations.select(methods, problem.law, problem.kinematics, what=what)
     forms = _check_forms(chosen.run, nlp_forms)

@@ -9,7 +9,7 @@ ratio (a strain, a share, a relative residual), a flag or a text (:data:`UNITLES
 In JSON, an object that holds a ``unit`` key (a validity check's ``value`` and ``limit``, a range's
 ``min``, ``max`` and ``at_peak``) states the unit of its numbers there, and an object whose own
 key ends with a unit gives it to its numbers (``peak_pressure_MPa: {lower: 2.1, upper: 1.9}``).
-:func:`unnamed_units` finds any number of a JSON document left out by these rules.
+:func:`dea_opt.run.units.unnamed_units` finds any number of a JSON document left out by these rules.
 
 Why names and not a sidecar schema (a Frictionless Table Schema beside each CSV): the unit then
 travels with the column wherever it goes (a spreadsheet, ``pandas.read_csv``, R's ``read.csv``,
@@ -29,8 +29,6 @@ __all__ = [
     "UNITLESS",
     "UNITLESS_OBJECTS",
     "dof_name",
-    "is_unitless",
-    "unnamed_units",
     "label",
     "split_unit",
     "unit_name",
@@ -165,59 +163,6 @@ def split_unit(name: str) -> tuple[str, str | None]:
 def unit_name(name: str) -> str:
     """The unit of a name, as text for a label: ``"MPa"``, ``"mm^2"``, or ``""`` for a unitless one."""
     return split_unit(name)[1] or ""
-
-
-def is_unitless(name: str) -> bool:
-    """Whether ``name`` is one of :data:`UNITLESS`, or ends with ``_<one of them>`` (a region's
-    ``medial_force_share``, a check's ``validity_strain``), or is a scenario key the schema gives
-    no unit (a sweep's ``load.scale``, ``law.kind``)."""
-    if name in UNITLESS or any(name.endswith(f"_{u}") for u in UNITLESS):
-        return True
-    return "." in name and _scenario_key_without_unit(name)
-
-
-def _scenario_key_without_unit(name: str) -> bool:
-    from .scenario.docs import key_unit, schema_sections
-
-    table, _, key = name.partition(".")
-    known = any(t == table and any(key in m.model_fields for m in models) for t, models in schema_sections())
-    return known and key_unit(name) == ""
-
-
-def unnamed_units(data, where: str = "", stated: bool = False) -> list[str]:
-    """Where a JSON document (or a dict) holds a number whose unit its name does not give: the
-    paths (``regions.medial.peak``) of numbers (and lists of numbers) whose key has no unit
-    suffix and is not one of :data:`UNITLESS`, in no object around it that states its unit (a ``unit`` key,
-    or its own key ending with one: ``peak_pressure_MPa: {medial: 2.1, lateral: 1.9}``) nor under
-    one of :data:`UNITLESS_OBJECTS`. Empty when every number is named by the convention."""
-    found: list[str] = []
-    if isinstance(data, dict):
-        stated = stated or "unit" in data
-        for key, value in data.items():
-            path = f"{where}.{key}" if where else str(key)
-            if key in UNITLESS_OBJECTS and isinstance(value, dict):
-                continue
-            named = split_unit(str(key))[1] is not None
-            if _numbers(value):
-                if not (stated or named or is_unitless(str(key))):
-                    found.append(path)
-            else:
-                found += unnamed_units(value, path, stated or named)
-    elif isinstance(data, list):
-        for k, value in enumerate(data):
-            found += unnamed_units(value, f"{where}[{k}]", stated)
-    return found
-
-
-def _numbers(value) -> bool:
-    """A number, or a (nested) list holding numbers and nothing else but None."""
-    if isinstance(value, bool):
-        return False
-    if isinstance(value, (int, float)):
-        return True
-    if isinstance(value, list) and value:
-        return all(v is None or _numbers(v) for v in value) and any(v is not None for v in value)
-    return False
 
 
 def label(name: str) -> str:

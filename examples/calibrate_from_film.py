@@ -41,8 +41,8 @@ import numpy as np
 import pandas as pd
 
 import dea_opt
+from dea_opt.files import write_atomic
 from dea_opt.geometry import socket_layer
-from dea_opt.io import write_atomic
 from dea_opt.sensitivity import PressureMap, calibrate, monte_carlo, propagate
 
 NAME = "calibrate_from_film"

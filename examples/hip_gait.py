@@ -40,9 +40,10 @@ import pandas as pd
 from scipy.optimize import brentq
 
 import dea_opt
+from dea_opt import formulations
+from dea_opt.files import write_atomic
 from dea_opt.gait import hip_gait_load, load_hip_gait
 from dea_opt.geometry import socket_layer
-from dea_opt.io import write_atomic
 
 NAME = "hip_gait"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME
@@ -213,7 +214,7 @@ def run(
     mesh = MESH[1 if coarse else 0]
     problem = hip_problem(H, **mesh)
     loads = gait_loads(N_FRAMES[1 if coarse else 0])
-    path = dea_opt.solve_path(problem, loads, method=method, threshold=threshold)
+    path = dea_opt.solve_path(problem, loads, method=method, outputs=dea_opt.PathOutputs(threshold=threshold))
     closed = closed_form_table(path, H, HIP["coverage"])
     # solve_path's own writers: the table, the ParaView series, the exposure and both plots.
     formats = ("csv", "json", "vtk", "png") if series else ("csv", "json", "png")
@@ -277,7 +278,7 @@ def parse_args(argv=None) -> argparse.Namespace:
     parser.add_argument(
         "--method",
         default="auto",
-        choices=dea_opt.METHODS,
+        choices=("auto", *formulations.names()),
         help="solver for every frame (default auto: warm-started Newton)",
     )
     parser.add_argument("--no-series", action="store_true", help="skip the ParaView series (.pvd and .vtu files)")

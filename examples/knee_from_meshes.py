@@ -52,6 +52,7 @@ import pandas as pd
 import dea_opt
 from dea_opt import io as dio
 from dea_opt.anatomy import regional_statistics, split_by_axis
+from dea_opt.files import write_atomic
 from dea_opt.mesh import concatenate_meshes, load_mesh, springs_from_meshes
 
 NAME = "knee_from_meshes"
@@ -254,7 +255,7 @@ def _side_on_map(solution, parts: dict) -> str:
 
 
 def _write_text(path: Path, text: str) -> Path:
-    return dio.write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
+    return write_atomic(path, lambda tmp: tmp.write_text(text, encoding="utf-8"))
 
 
 def run(

@@ -15,9 +15,8 @@ twice, in numbers:
    compressive strain reached; the strain at which the linear law's peak pressure departs from
    Eq. (2)'s by 5 % and 10 % is interpolated on the sweep.
 
-The real knee of ``../shared/data/knee`` is added when that directory exists and the installed
-dea-opt can turn meshes into springs (``dea_opt.mesh.springs_from_meshes`` or
-``SpringLayer.from_meshes``); otherwise the script says it is skipped. Any other problem can be
+The real knee of ``../shared/data/knee`` is added when that directory exists (its springs cast by
+``dea_opt.mesh.springs_from_meshes``); otherwise the script says it is skipped. Any other problem can be
 swept by passing a :class:`dea_opt.ContactProblem` to :func:`run` (``extra_problems``).
 
 Run it with::
@@ -52,8 +51,8 @@ import pandas as pd  # noqa: E402
 from scipy.optimize import brentq  # noqa: E402
 
 import dea_opt  # noqa: E402
+from dea_opt.files import write_data  # noqa: E402
 from dea_opt.geometry import socket_layer, sphere_on_bed_layer  # noqa: E402
-from dea_opt.io import write_data  # noqa: E402
 
 NAME = "linear_validity"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME
@@ -219,13 +218,13 @@ def hip_problem(
 
 # --- the knee, when the mesh tools exist ------------------------------------------------
 def find_mesh_builder():
-    """``dea_opt.mesh.springs_from_meshes`` or ``dea_opt.SpringLayer.from_meshes``; None if absent."""
+    """``dea_opt.mesh.springs_from_meshes``, what turns the knee's meshes into springs; None when
+    the mesh tools do not import (the knee is then skipped, the rest of the study runs)."""
     try:
-        from dea_opt.mesh import springs_from_meshes  # noqa: PLC0415 - optional, newer dea-opt
-
-        return springs_from_meshes
+        from dea_opt.mesh import springs_from_meshes  # noqa: PLC0415 - the mesh tools load only for the knee
     except ImportError:
-        return getattr(dea_opt.SpringLayer, "from_meshes", None)
+        return None
+    return springs_from_meshes
 
 
 def concatenate_layers(layers: dict) -> dea_opt.SpringLayer:
@@ -751,10 +750,7 @@ def _knee_case(law, knee_dir):
         return None, f"Knee skipped: no knee data at {knee_dir}."
     builder = find_mesh_builder()
     if builder is None:
-        return None, (
-            f"Knee skipped: {knee_dir} exists but this dea-opt has neither "
-            "dea_opt.mesh.springs_from_meshes nor SpringLayer.from_meshes."
-        )
+        return None, f"Knee skipped: {knee_dir} exists but dea_opt.mesh.springs_from_meshes does not import."
     try:
         return knee_problem(law, knee_dir, builder), None
     except Exception as exc:  # noqa: BLE001 - an optional part must not stop the study

@@ -35,7 +35,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 import dea_opt  # noqa: E402
-from dea_opt.io import write_data  # noqa: E402
+from dea_opt.files import write_data  # noqa: E402
 
 NAME = "paper_figure1"
 DEFAULT_OUT = Path(__file__).resolve().parent / "output" / NAME

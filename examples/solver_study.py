@@ -59,8 +59,8 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 
 import dea_opt  # noqa: E402
+from dea_opt.files import write_atomic  # noqa: E402
 from dea_opt.geometry import socket_layer  # noqa: E402
-from dea_opt.io import write_atomic  # noqa: E402
 from dea_opt.study import DEFAULT_SOLVERS, installed_qp_solvers, summarize  # noqa: E402
 
 NAME = "solver_study"
@@ -413,7 +413,7 @@ def figure_bytes(fig, dpi: int = 100) -> bytes:
 
 
 def _write(path: Path, data) -> Path:
-    """Write str or bytes atomically (:func:`dea_opt.io.write_atomic`)."""
+    """Write str or bytes atomically (:func:`dea_opt.files.write_atomic`)."""
     if isinstance(data, bytes):
         return write_atomic(path, lambda tmp: tmp.write_bytes(data))
     return write_atomic(path, lambda tmp: tmp.write_text(data, encoding="utf-8"))

@@ -22,6 +22,40 @@ KNEE = SHARED / "data" / "knee"
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 
 
+def scenario_text(
+    *,
+    title=None,
+    size=None,
+    nx: int = 40,
+    ny: int = 4,
+    law: str | None = "linear",
+    H: float = 10.0,
+    free=("uz", "rx", "ry"),
+    force: float = -500.0,
+    point=None,
+    formats=None,
+) -> str:
+    """The TOML of the plate scenario the tests that run scenarios share (``kind = "plate"``):
+    ``title`` first when given, the plate's ``size`` (length, width, mm) when given, ``nx`` x
+    ``ny`` springs, a law of kind ``law`` (None: the default kind, unwritten) and modulus ``H``
+    (MPa), body 2's ``free`` dofs, the force ``force`` (N) along z at ``point`` (mm) when given,
+    and ``[output] formats`` when given. One key a line, in that order (tests count the lines)."""
+    lines = [f'title = "{title}"'] if title is not None else []
+    lines += ["[geometry]", 'kind = "plate"']
+    if size is not None:
+        lines += [f"length = {size[0]}", f"width = {size[1]}"]
+    lines += [f"nx = {nx}", f"ny = {ny}", "[law]"]
+    if law is not None:
+        lines.append(f'kind = "{law}"')
+    listed = ", ".join(f'"{dof}"' for dof in free)
+    lines += [f"H = {H}", "[body2]", f"free = [{listed}]", "[load]", f"force = [0.0, 0.0, {force}]"]
+    if point is not None:
+        lines.append(f"point = [{point[0]}, {point[1]}, {point[2]}]")
+    if formats is not None:
+        lines += ["[output]", "formats = [" + ", ".join(f'"{f}"' for f in formats) + "]"]
+    return "\n".join(lines) + "\n"
+
+
 def ball_on_bed(layer, reference, moment, free, force=(0.0, 0.0, 0.0), *, H=10.0, radius=25.0):
     """A rigid ball of ``radius`` (mm) touching the bed ``layer`` at the origin (centre
     ``(0, 0, radius)``, its target a sphere), with finite kinematics: body 2's ``free`` dofs about

@@ -15,7 +15,7 @@ under 1500 N sum to some 1600 N).
 
 A layer made from one mesh has no labels; :func:`label_by_axis` cuts it in two once, at a
 fixed place, and gives the labels a layer (``dataclasses.replace(layer, labels=...)``) or a
-load path (``solve_path(..., regions=...)``) carries to every output: the frames table, the
+load path (``solve_path(..., outputs=PathOutputs(regions=...))``) carries to every output: the frames table, the
 plots, the VTK files and the JSON summaries. With an
 :class:`~dea_opt.anatomy.AnatomicalFrame` the axis is named (``"medial"``) and the halves
 are named by it.

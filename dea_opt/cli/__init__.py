@@ -270,7 +270,7 @@ def version():
 
 def main(argv=None) -> int:
     """Console-script entry point (``dea-opt``)."""
-    from ..io.publish import forget_published
+    from ..run.publish import forget_published
 
     forget_published()  # a new command: no run of it published yet (main may run again in one process)
     try:

@@ -87,8 +87,8 @@ def compare(
 
 def _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, output, set_, force, quiet) -> None:
     """The body of :func:`compare`, inside its progress."""
-    from ..io.publish import check_output_folder, output_run
     from ..run import run_info
+    from ..run.publish import check_output_folder, output_run
     from ..scenario import load_scenario
     from ..study import run_study
 
@@ -119,7 +119,7 @@ def _compare(scenario, methods, solvers, accuracy, repeat, frame, nlp_forms, out
         messages.collect()
         log = messages.log_text(f"dea-opt compare of {loaded.source or loaded.title}")
         if log:
-            from ..io.atomic import write_data
+            from ..files.atomic import write_data
             from ..run.log import LOG_NAME
 
             files["log"] = write_data(publication.folder / LOG_NAME, log)
@@ -227,8 +227,8 @@ def calibrate(
     fit did not converge.
     """
     from ..errors import InputError
-    from ..io.publish import check_output_folder, output_run
     from ..run import run_info
+    from ..run.publish import check_output_folder, output_run
     from ..scenario import load_scenario
     from ..sensitivity.scenario_fit import calibrate_scenario, check_scenario
 

@@ -63,8 +63,8 @@ def _crash_log(exc: BaseException) -> Path | None:
 
 def interrupted_message(exc: KeyboardInterrupt | None) -> str:
     """The one line a Ctrl-C prints: what the output folder holds (``exc.report`` of a run's
-    :class:`~dea_opt.io.publish.RunInterrupted`; else what the runs of this command published)."""
-    from ..io.publish import published_report
+    :class:`~dea_opt.run.publish.RunInterrupted`; else what the runs of this command published)."""
+    from ..run.publish import published_report
 
     # A KeyboardInterrupt that escaped a string ``exec`` (scipy's array_api_compat runs
     # ``exec("from numpy import *")`` while it imports) leaves CPython's "unhandled
@@ -82,7 +82,7 @@ def _reported(command):
 
     @functools.wraps(command)
     def wrapper(*args, **kwargs):
-        from ..io.publish import forget_published
+        from ..run.publish import forget_published
 
         forget_published()
         try:

@@ -1,4 +1,4 @@
-"""``dea-opt init``: a commented scenario written from cartilage meshes (:mod:`dea_opt.scenario.init`)."""
+"""``dea-opt init``: a commented scenario written from cartilage meshes (:mod:`dea_opt.run.init`)."""
 
 from __future__ import annotations
 
@@ -120,7 +120,7 @@ def init(
     the file. Exit 0 written, 2 bad input.
     """
     from ..progress import showing
-    from ..scenario.init import init_scenario, parse_part
+    from ..run.init import init_scenario, parse_part
 
     with showing(not quiet):
         result = init_scenario(

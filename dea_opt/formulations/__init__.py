@@ -3,14 +3,19 @@
 A formulation is a module (or any object with these attributes):
 
 ``Model``
-    ``Model(system, law, **options)`` builds once for a
-    :class:`~dea_opt.formulations.energy.SpringSystem` and a law;
+    ``Model(system, law, **options)`` builds once for a system and a law;
     ``model.solve(load=None, *, x0=None)`` re-solves for a new load (default the system's
-    own) and returns a :class:`~dea_opt.formulations.energy.FormulationResult` whose
-    ``status`` is a :class:`~dea_opt.status.Status` (the solver's own in
-    ``info["native_status"]``) and whose ``build_time`` is the build's on the first solve
-    and 0 after. ``x0`` (one value per free dof) is a start; without it a formulation that
-    warm-starts begins from its own last answer.
+    own) and returns a result whose ``status`` is a :class:`~dea_opt.status.Status` (the
+    solver's own in ``info["native_status"]``). ``x0`` (one value per free dof) is a start;
+    without it a formulation that warm-starts begins from its own last answer. The system and
+    the result are the :class:`Contract` of the kinematics the formulation solves
+    (:data:`CONTRACTS`): for small kinematics a
+    :class:`~dea_opt.formulations.system.SpringSystem` in and a
+    :class:`~dea_opt.formulations.system.FormulationResult` out (whose ``build_time`` is the
+    build's on the first solve and 0 after); for finite kinematics a
+    :class:`~dea_opt.formulations.finite.system.FiniteSystem` in and an
+    :class:`~dea_opt.formulations.finite.newton.InnerResult` out, which
+    :mod:`dea_opt.finite` re-casts and certifies at the solved pose.
 ``OPTIONS``
     A tuple of :class:`Option` (names, types, ranges, defaults), checked by
     :func:`check_options`, the one place options are validated.
@@ -25,8 +30,9 @@ A formulation is a module (or any object with these attributes):
     Its written math, ``formulations/<name>.md`` at the repository's top.
 
 Nothing outside this package names a formulation: ``dea_opt.solve`` (``auto``'s fallback is
-:func:`fallback_for`), load paths, studies and scenarios ask the functions below. The option
-and capability declarations live in :mod:`dea_opt.formulations._parts.options`.
+:func:`fallback_for`), load paths, studies and scenarios ask the functions below; what a method
+name runs in given kinematics, and why it cannot, is :func:`resolve`'s alone. The option and
+capability declarations live in :mod:`dea_opt.formulations._parts.options`.
 """
 
 from __future__ import annotations
@@ -36,7 +42,7 @@ from typing import NamedTuple
 
 from ..errors import InputError
 from ._parts.options import Capabilities, Option, Variant, validate
-from .energy import FormulationResult, SpringSystem, start_vector
+from .system import FormulationResult, SpringSystem, start_vector
 
 #: name -> module, or its import path (imported on first use: cvxpy and CasADi are heavy).
 #: The order is the order of preference where several fit (:func:`fallback_for`).
@@ -46,7 +52,7 @@ FORMULATIONS: dict = {
     "nlp": "dea_opt.formulations.nlp",
     # Finite kinematics (exact rotation, gaps at the current pose): kinematics="finite" problems only.
     "finite": "dea_opt.formulations.finite",
-    "finite_nlp": "dea_opt.formulations.finite_nlp",
+    "finite_nlp": "dea_opt.formulations.finite.nlp",
 }
 
 #: The formulation ``method="auto"`` runs first, the reference of comparison studies, and the
@@ -55,6 +61,27 @@ FORMULATIONS: dict = {
 DEFAULT = "newton"
 
 _REQUIRED = ("Model", "OPTIONS", "CAPABILITIES")
+
+
+class Contract(NamedTuple):
+    """What the formulations of one kinematics are built on and give back: ``Model(system, law,
+    **options)`` takes a ``system`` and ``model.solve(...)`` returns a ``result``."""
+
+    system: type
+    result: type
+
+
+#: kinematics -> ``(system, result)`` of its :class:`Contract`, as ``"module:name"`` (finite
+#: kinematics' types are imported when first asked for).
+CONTRACTS: dict = {
+    "small": ("dea_opt.formulations.system:SpringSystem", "dea_opt.formulations.system:FormulationResult"),
+    "finite": ("dea_opt.formulations.finite.system:FiniteSystem", "dea_opt.formulations.finite.newton:InnerResult"),
+}
+
+#: Per kinematics, the method names that stand there for another formulation: under finite
+#: kinematics the small kinematics' ``newton`` and ``nlp`` run ``finite`` and ``finite_nlp``.
+#: Read by :func:`resolve` alone.
+STANDS_FOR: dict = {"finite": {"newton": "finite", "nlp": "finite_nlp"}}
 
 
 def register(name: str, module, *, replace: bool = False) -> None:
@@ -130,79 +157,103 @@ def variant(name: str) -> Variant | None:
 
 
 def takes(name: str, law, kinematics: str = "small") -> bool:
-    """Whether ``name`` solves problems with ``law`` in ``kinematics``."""
+    """Whether ``name`` solves problems with ``law`` (None: any law) in ``kinematics``."""
     caps = capabilities(name)
-    return caps.takes(law) and kinematics in caps.kinematics
+    return kinematics in caps.kinematics and (law is None or caps.takes(law))
 
 
-def stands_for(name: str, kinematics: str = "small") -> str:
-    """The formulation method ``name`` runs in ``kinematics``: for finite kinematics ``newton`` and
-    ``nlp`` stand for ``finite`` and ``finite_nlp`` (:data:`dea_opt.formulations.finite.ALIASES`,
-    while those are registered); any other name is itself."""
-    if kinematics != "finite" or name not in ("newton", "nlp"):
-        return name
-    from .finite import ALIASES
-
-    target = ALIASES.get(name, name)
-    return target if target in FORMULATIONS else name
-
-
-def aliases(kinematics: str = "small") -> dict:
-    """``{name: formulation}`` for the names that stand for another formulation in ``kinematics``."""
-    return {n: t for n in ("newton", "nlp") if n in FORMULATIONS and (t := stands_for(n, kinematics)) != n}
+def contract(kinematics: str) -> Contract:
+    """The :class:`Contract` (system and result types) of the formulations of ``kinematics``."""
+    if kinematics not in CONTRACTS:
+        raise InputError(f"kinematics must be one of {tuple(CONTRACTS)}, got {kinematics!r}")
+    loaded = []
+    for path in CONTRACTS[kinematics]:
+        module, _, attr = path.partition(":")
+        loaded.append(getattr(import_module(module), attr))
+    return Contract(*loaded)
 
 
-def alternatives(law, kinematics: str = "small", *, prefix: str = "method=", auto: bool = True) -> str:
-    """The methods that solve ``law`` in ``kinematics``, for messages: ``method='finite' or
-    method='finite_nlp' (or 'newton' and 'nlp', which stand for 'finite' and 'finite_nlp' here),
-    or 'auto'``."""
-    able = [n for n in FORMULATIONS if takes(n, law, kinematics)]
-    if not able:
-        return "another method"
-    text = " or ".join(f"{prefix}{n!r}" for n in able)
-    alias = {n: t for n, t in aliases(kinematics).items() if t in able}
-    if alias:
-        names_ = " and ".join(repr(n) for n in alias)
-        text += f" (or {names_}, which stand for {' and '.join(repr(t) for t in alias.values())} here)"
-    return text + (", or 'auto'" if auto else "")
+class Resolution(NamedTuple):
+    """What :func:`resolve` makes of a method name for a law in given kinematics.
+
+    ``method`` the name given; ``name`` the formulation it runs there (``finite`` for ``newton``
+    under finite kinematics, else itself); ``reason`` why ``name`` does not solve the problem,
+    short, for the ``skipped`` lists (None: it does); ``able`` the formulations that do.
+    """
+
+    method: str
+    name: str
+    kinematics: str
+    reason: str | None
+    able: tuple
+    law: object = None
+
+    @property
+    def note(self) -> str | None:
+        """``"newton stands for finite with finite kinematics"``, or None for a name that is itself."""
+        if self.name == self.method:
+            return None
+        return f"{self.method} stands for {self.name} with {self.kinematics} kinematics"
+
+    def use(self, prefix: str = "method=", auto: bool = True) -> str:
+        """The methods that solve the problem, for messages: ``method='finite' or
+        method='finite_nlp' (or 'newton' and 'nlp', which stand for 'finite' and 'finite_nlp'
+        here), or 'auto'``."""
+        if not self.able:
+            return "another method"
+        text = " or ".join(f"{prefix}{n!r}" for n in self.able)
+        alias = {n: t for n, t in STANDS_FOR.get(self.kinematics, {}).items() if n in FORMULATIONS and t in self.able}
+        if alias:
+            said = " and ".join(repr(n) for n in alias)
+            text += f" (or {said}, which stand for {' and '.join(repr(t) for t in alias.values())} here)"
+        return text + (", or 'auto'" if auto else "")
+
+    def check(self) -> str:
+        """``name``, or an :class:`InputError` saying why it does not solve the problem and what does."""
+        if self.reason is None:
+            return self.name
+        solved = capabilities(self.name).kinematics
+        if self.kinematics not in solved:
+            raise InputError(
+                f"method {self.name!r} cannot solve {self.kinematics!r} kinematics: it is a "
+                f"{' and '.join(solved)}-kinematics method; use {self.use()}"
+            )
+        able = " or ".join(f"method={n!r}" for n in self.able) or "another method"
+        described = self.law.describe() if hasattr(self.law, "describe") else repr(self.law)
+        raise InputError(f"method {self.name!r} needs a LinearLaw, got {described}: use {able} for this law")
 
 
-def check_takes(name: str, law, kinematics: str = "small") -> None:
-    """An :class:`InputError` when ``name`` cannot solve ``law`` (naming the methods that can)."""
-    if takes(name, law, kinematics):
-        return
-    able = alternatives(law, kinematics)
-    solved = capabilities(name).kinematics
-    if kinematics not in solved:
-        only = " and ".join(solved)
-        raise InputError(
-            f"method {name!r} cannot solve {kinematics!r} kinematics: it is a {only}-kinematics method; use {able}"
-        )
-    able = " or ".join(f"method={n!r}" for n in FORMULATIONS if takes(n, law, kinematics))
-    raise InputError(
-        f"method {name!r} needs a LinearLaw, got {law.describe()}: use {able or 'another method'} for this law"
-    )
+def resolve(method: str, law=None, kinematics: str = "small") -> Resolution:
+    """The formulation method name ``method`` runs for ``law`` (None: any law) in ``kinematics``,
+    and whether it solves that problem: the one place a name is read.
 
+    Under finite kinematics ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``
+    (:data:`STANDS_FOR`, while those are registered); any other name is itself. The
+    :class:`Resolution` says why the formulation does not solve the problem (``reason``, for
+    skip lists) and raises that as an :class:`InputError` naming what does (``check()``).
 
-def why_not(name: str, law, kinematics: str = "small") -> str | None:
-    """Why ``name`` does not apply to ``law`` (for the ``skipped`` lists), or None."""
-    if takes(name, law, kinematics):
-        return None
-    if kinematics not in capabilities(name).kinematics:
-        return f"{name} does not solve {kinematics} kinematics"
-    return f"{name} needs a linear law"
-
-
-def _why_skipped(name: str, law, kinematics: str) -> str | None:
-    """:func:`why_not`, saying for a method of other kinematics which methods solve these."""
-    reason = why_not(name, law, kinematics)
-    solved = capabilities(name).kinematics
-    if reason is None or kinematics in solved:
-        return reason
-    return (
-        f"{name} is a {' and '.join(solved)}-kinematics method and this problem has kinematics={kinematics!r}: "
-        f"use {alternatives(law, kinematics, prefix='', auto=False)}"
-    )
+    Raises
+    ------
+    InputError
+        ``method`` is not a registered formulation.
+    """
+    if not isinstance(method, str) or method not in FORMULATIONS:
+        raise InputError(f"method must be one of {('auto', *FORMULATIONS)}, got {method!r}")
+    target = STANDS_FOR.get(kinematics, {}).get(method, method)
+    name = target if target in FORMULATIONS else method
+    able = tuple(n for n in FORMULATIONS if takes(n, law, kinematics))
+    reason = None
+    if not takes(name, law, kinematics):
+        solved = capabilities(name).kinematics
+        if kinematics in solved:
+            reason = f"{name} needs a linear law"
+        else:
+            others = Resolution(method, name, kinematics, "", able).use(prefix="", auto=False)
+            reason = (
+                f"{name} is a {' and '.join(solved)}-kinematics method and this problem has "
+                f"kinematics={kinematics!r}: use {others}"
+            )
+    return Resolution(method, name, kinematics, reason, able, law)
 
 
 class Selection(NamedTuple):
@@ -222,7 +273,7 @@ def select(methods, law, kinematics: str = "small", *, what: str = "methods") ->
     """What ``dea_opt.compare`` and comparison studies run of ``methods`` for ``law`` in ``kinematics``.
 
     For finite kinematics ``newton`` and ``nlp`` stand for ``finite`` and ``finite_nlp``
-    (:func:`stands_for`); a method that does not solve the problem (``qp`` for a nonlinear law or
+    (:func:`resolve`); a method that does not solve the problem (``qp`` for a nonlinear law or
     finite kinematics) is skipped, with why. ``what`` names ``methods`` in errors.
 
     Raises
@@ -239,15 +290,13 @@ def select(methods, law, kinematics: str = "small", *, what: str = "methods") ->
     skipped: dict = {}
     notes: list = []
     for method in methods:
-        name = stands_for(method, kinematics)
-        note = f"{method} stands for {name} with {kinematics} kinematics"
-        if name != method and note not in notes:
-            notes.append(note)
-        reason = _why_skipped(name, law, kinematics)
-        if reason is not None:
-            skipped.setdefault(name, reason)
-        elif name not in run:
-            run.append(name)
+        resolved = resolve(method, law, kinematics)
+        if resolved.note is not None and resolved.note not in notes:
+            notes.append(resolved.note)
+        if resolved.reason is not None:
+            skipped.setdefault(resolved.name, resolved.reason)
+        elif resolved.name not in run:
+            run.append(resolved.name)
     if not run:
         raise InputError(f"no method in {what} solves this problem: {'; '.join(skipped.values())}")
     return Selection(run, skipped, notes)
@@ -276,9 +325,19 @@ def tolerance_options(name: str, tol: float | None) -> dict:
     return {option.name: tol for option in options(name) if option.tolerance}
 
 
-def build(name: str, system: SpringSystem, law, **given):
-    """``Model(system, law, **options)`` of ``name``, options checked first."""
-    check_takes(name, law)
+def build(name: str, system, law, **given):
+    """``Model(system, law, **options)`` of ``name``, options checked first: ``name`` must solve
+    ``law`` in the kinematics whose :class:`Contract` ``system`` is (a
+    :class:`~dea_opt.formulations.system.SpringSystem`: small kinematics)."""
+    kinematics = "small" if isinstance(system, SpringSystem) else None
+    if kinematics is None:
+        kinematics = next((k for k in CONTRACTS if isinstance(system, contract(k).system)), None)
+    if kinematics is None:
+        systems = ", ".join(path.rpartition(":")[2] for path, _ in CONTRACTS.values())
+        raise InputError(f"system must be one of {systems}, got {type(system).__name__}")
+    resolved = resolve(name, law, kinematics).check()
+    if resolved != name:
+        raise InputError(f"method {name!r} stands for {resolved!r} with {kinematics} kinematics: build {resolved!r}")
     return get(name).Model(system, law, **check_options(name, given))
 
 
@@ -292,30 +351,31 @@ def solve(name: str, system: SpringSystem, law, *, x0=None, **given) -> Formulat
 __all__ = [
     "DEFAULT",
     "FORMULATIONS",
+    "CONTRACTS",
+    "STANDS_FOR",
     "Capabilities",
+    "Contract",
     "FormulationResult",
     "Option",
+    "Resolution",
     "Selection",
     "SpringSystem",
     "Variant",
-    "aliases",
-    "alternatives",
     "build",
     "capabilities",
     "check_options",
-    "check_takes",
+    "contract",
     "extra_options",
     "fallback_for",
     "get",
     "names",
     "options",
     "register",
+    "resolve",
     "select",
     "solve",
-    "stands_for",
     "takes",
     "tolerance_options",
     "unregister",
     "variant",
-    "why_not",
 ]

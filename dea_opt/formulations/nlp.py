@@ -23,14 +23,9 @@ from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
 from ._parts.options import Capabilities, Option, Variant, validate
 from ._parts.recentre import recentred_solve
-from .energy import (
-    FormulationResult,
-    SpringSystem,
-    require_finite,
-    scaling,
-    start_vector,
-    trivial_result,
-)
+from .resistance import require_finite
+from .scaling import scaling
+from .system import FormulationResult, SpringSystem, start_vector, trivial_result
 
 PAGE = "formulations/nlp.md"
 

@@ -1,9 +1,9 @@
-"""Results a user can look at: ParaView files, CSV tables, JSON summaries and pictures.
+"""The file formats: ParaView files, CSV tables, JSON summaries and pictures a user can look at.
 
-Every file goes through :func:`write_atomic` (a temporary file in the target's directory,
-``fsync``, then :func:`os.replace`), so an interrupted run leaves either the old file or
-the new one, never half of one. The temporary files are hidden (``.name.<random>.tmp.ext``)
-and removed when the writer fails.
+Every file goes through :func:`dea_opt.files.write_atomic` (a temporary file in the target's
+directory, ``fsync``, then :func:`os.replace`), so an interrupted run leaves either the old file
+or the new one, never half of one. How a run's files are staged and published together, and the
+picture worker, are :mod:`dea_opt.run`'s; this package only knows formats.
 
 =====================  ===========================================================
 ``to_vtk``             the contact surface with cell data, ``.vtu`` or ``.vtp``
@@ -16,12 +16,11 @@ and removed when the writer fails.
 ``read_json``
 =====================  ===========================================================
 
-The modules: :mod:`~dea_opt.io.atomic` (the atomic writer), :mod:`~dea_opt.io.surface`
+The modules: :mod:`~dea_opt.io.surface`
 (the contact surface as a mesh with cell data), :mod:`~dea_opt.io.vtk` (VTK files),
 :mod:`~dea_opt.io.tables` (CSV: results, springs and numeric tables),
 :mod:`~dea_opt.io.summary` (JSON), :mod:`~dea_opt.io.plots` (pressure maps),
-:mod:`~dea_opt.io.cycle` (cycle and exposure plots), :mod:`~dea_opt.io.pictures` (pictures drawn
-in a second process while a run writes its other files), :mod:`~dea_opt.io.mapframe` (the frame a
+:mod:`~dea_opt.io.cycle` (cycle and exposure plots), :mod:`~dea_opt.io.mapframe` (the frame a
 map is drawn in: anatomical or best-fit), :mod:`~dea_opt.io.draw` (vector or raster drawing),
 :mod:`~dea_opt.io.triangulate` (a surface through the springs of a layer without a mesh),
 :mod:`~dea_opt.io.vtkxml` (the streamed VTK XML writer), :mod:`~dea_opt.io.results`
@@ -32,7 +31,6 @@ names its unit (``pressure_MPa``; :mod:`dea_opt.units`), and every picture of a 
 validity is stamped so (:mod:`~dea_opt.io.marks`).
 """
 
-from .atomic import atomic_open, atomic_path, write_atomic, write_data
 from .cycle import plot_cycle, plot_exposure
 from .mapframe import MapFrame, best_fit_frame, map_frame
 from .plots import plot_pressure
@@ -47,8 +45,6 @@ __all__ = [
     "CSV_COLUMNS",
     "MapFrame",
     "SurfaceData",
-    "atomic_open",
-    "atomic_path",
     "best_fit_frame",
     "contact_surface",
     "label_codes",
@@ -66,8 +62,6 @@ __all__ = [
     "to_json",
     "to_vtk",
     "vtk_differences",
-    "write_atomic",
-    "write_data",
     "write_results",
     "write_surface",
 ]

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .atomic import write_atomic
+from ..files.atomic import write_atomic
 from .draw import draw_regions, draw_values, map_geometry
 from .mapframe import map_frame
 from .marks import path_verdict, stamp, verdict_lines

@@ -16,7 +16,7 @@ import numpy as np
 
 from .._checks.dependencies import require
 from ..errors import InputError
-from .atomic import file_path, write_atomic
+from ..files.atomic import file_path, write_atomic
 from .draw import (
     RASTER_LIMIT,
     _boundary_with_owner,

@@ -18,7 +18,7 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import InputError
-from .atomic import file_path, write_data
+from ..files.atomic import file_path, write_data
 from .surface import label_codes
 
 __all__ = ["anatomy_json", "jsonable", "read_json", "summary_dict", "to_json", "write_json"]

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from .atomic import atomic_open, file_path, write_atomic
+from ..files.atomic import atomic_open, file_path, write_atomic
 
 __all__ = [
     "CHUNK_ROWS",

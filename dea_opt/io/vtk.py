@@ -16,7 +16,7 @@ import numpy as np
 
 from .._checks.dependencies import require
 from ..errors import InputError
-from .atomic import file_path, write_atomic
+from ..files.atomic import file_path, write_atomic
 from .surface import SurfaceData, contact_surface
 from .vtkxml import NUMPY_TYPES, read_appended, write_vtk_xml
 

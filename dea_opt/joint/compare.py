@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..agreement import Comparison
 from ..errors import InputError
 from ..formulations._parts.joint_ipopt import linear
 from .solve import solve_joint
@@ -45,14 +46,14 @@ def _spread(values) -> float:
     return worst / scale if scale > 0 else worst
 
 
-def compare_joint(joint, methods=None, *, certificate_tol: float = 1e-6, **options) -> dict:
+def compare_joint(joint, methods=None, *, certificate_tol: float = 1e-6, **options) -> Comparison:
     """Solve ``joint`` by each method (options per method: ``compare(joint, nlp={"tol": 1e-12})``).
 
     Returns
     -------
-    dict
-        ``{"solutions": {method: JointSolution}, "displacement": float, "pressure": float,
-        "ligament_force": float, "skipped": {method: reason}}``.
+    Comparison
+        ``solutions`` ``{method: JointSolution}``, the ``displacement``, ``pressure`` and
+        ``ligament_force`` differences (relative) and the methods ``skipped``.
     """
     run, skipped = joint_methods(joint, methods)
     solutions = {m: solve_joint(joint, m, certificate_tol=certificate_tol, **options.get(m, {})) for m in run}
@@ -60,10 +61,10 @@ def compare_joint(joint, methods=None, *, certificate_tol: float = 1e-6, **optio
     pressure = 0.0
     for i in range(len(joint.contacts)):
         pressure = max(pressure, _spread([s.contacts[i].pressure for s in answers]))
-    return {
-        "solutions": solutions,
-        "displacement": _spread([s.x for s in answers]),
-        "pressure": pressure,
-        "ligament_force": _spread([s.ligaments.force for s in answers]) if len(joint.ligaments) else 0.0,
-        "skipped": skipped,
-    }
+    return Comparison(
+        solutions,
+        displacement=_spread([s.x for s in answers]),
+        pressure=pressure,
+        skipped=skipped,
+        ligament_force=_spread([s.ligaments.force for s in answers]) if len(joint.ligaments) else 0.0,
+    )

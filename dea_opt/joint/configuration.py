@@ -19,17 +19,20 @@ from types import MappingProxyType
 
 import numpy as np
 
-from ..formulations._parts.finite_geometry import evaluate
-from ..formulations.energy import modulus_scale
+from ..formulations.finite.geometry import evaluate
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
+from ..formulations.resistance import modulus_scale
 from ..kinematics import DOFS, normal_operator
 from ..layer import SpringLayer
 from ..problem import Body
-from .model import Joint
+from .model import Joint, _unloaded
 from .rows import line_operator
-from .states import OPEN, ContactState, WorldView
+from .states import ContactState, WorldView
 
 __all__ = ["Configuration"]
+
+#: The gap (mm) given to a spring whose ray misses its target: it is open, and stays so.
+OPEN = 1e6
 
 
 @dataclass(frozen=True, eq=False)
@@ -174,7 +177,7 @@ class Configuration:
     # --- the springs at the pose -------------------------------------------------------------
     @cached_property
     def gaps(self) -> list:
-        """Each contact's :class:`~dea_opt.formulations._parts.finite_geometry.Gaps` at the pose."""
+        """Each contact's :class:`~dea_opt.formulations.finite.geometry.Gaps` at the pose."""
         return [
             evaluate(s.targets, s.layer.points, s.layer.normals, self.relative(i)) for i, s in enumerate(self.states)
         ]
@@ -505,10 +508,6 @@ class _Rates(dict):
         value = c.joint.rates(name, c.y[name], c.poses[name])
         self[name] = value
         return value
-
-
-def _unloaded(body: Body) -> Body:
-    return Body(reference=body.reference, free=body.free)
 
 
 def _gram_factor(AT, weight) -> np.ndarray:

@@ -22,10 +22,10 @@ from dataclasses import replace
 
 import numpy as np
 
+from .._checks.threads import single_threaded_blas
 from ..errors import InputError, LoadNotSupportedError
 from ..formulations._parts import joint_ipopt, joint_newton
 from ..formulations._parts.options import Option, validate
-from ..formulations.energy import single_threaded_blas
 from ..formulations.joint import internal_force, joint_scaling, law_stresses
 from ..kinematics import DOFS
 from ..mesh.springs import NoSpringsError

@@ -167,7 +167,7 @@ class JointSolution:
         if not self.certificate.passed:
             name, value = self.certificate.worst()
             return f"certificate residual {name} = {value:.3g} > {self.certificate.tolerance:g}"
-        return f"status {self.status!r}: {self.status.description}"
+        return f"status '{self.status}': {self.status.description}"
 
     def summary(self) -> dict:
         """The headline numbers as plain Python values (for JSON), each key of a number ending with
@@ -208,7 +208,7 @@ class JointSolution:
 
     def __repr__(self) -> str:
         return (
-            f"JointSolution(method={self.method!r}, success={self.success}, status={str(self.status)!r}, "
+            f"JointSolution(method={self.method!r}, success={self.success}, status='{self.status}', "
             f"bodies={list(self.bodies)}, contacts={len(self.contacts)}, ligaments={len(self.ligaments)}, "
             f"valid={self.validity.valid})"
         )

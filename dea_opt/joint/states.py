@@ -1,9 +1,10 @@
-"""What a joint's contacts carry from pose to pose: each contact's springs and targets
-(:class:`ContactState`), as they start (:func:`initial_states`), and the layers at a pose seen
-with world-axis bodies (:class:`WorldView`). Split from :mod:`dea_opt.joint.configuration`,
-which builds the arrays of a pose from them.
+"""A joint's contacts between solves: each layer's springs and targets (:class:`ContactState`, what a
+finite solve carries from one answer to the next), and the layers at a pose seen with world-axis
+bodies (:class:`WorldView`). Used by :mod:`~dea_opt.joint.configuration` and
+:mod:`~dea_opt.joint.finite`.
 
-Written math: ``formulations/joint.md`` ("Finite kinematics")."""
+Written math: ``formulations/joint.md`` ("Finite kinematics").
+"""
 
 from __future__ import annotations
 
@@ -14,10 +15,7 @@ import numpy as np
 
 from ..layer import SpringLayer
 
-__all__ = ["OPEN", "ContactState", "WorldView", "initial_states"]
-
-#: The gap (mm) given to a spring whose ray misses its target: it is open, and stays so.
-OPEN = 1e6
+__all__ = ["ContactState", "WorldView", "initial_states"]
 
 
 @dataclass(frozen=True, eq=False)

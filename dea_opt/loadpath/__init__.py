@@ -5,13 +5,15 @@
 recorded and the path goes on. It returns a :class:`PathResult`
 (:mod:`~dea_opt.loadpath.result`: the per-frame table of :mod:`~dea_opt.loadpath.table`, the
 writers) with the contact-stress :class:`Exposure` of every site, accumulated frame by frame
-(:mod:`~dea_opt.loadpath.exposure`); :mod:`~dea_opt.loadpath.series` writes the frames'
+(:mod:`~dea_opt.loadpath.exposure`); what it keeps and streams is a :class:`PathOutputs`
+(:mod:`~dea_opt.loadpath.outputs`); :mod:`~dea_opt.loadpath.series` writes the frames'
 ParaView files as they are solved; :mod:`~dea_opt.loadpath.frames` counts and checks the frames
 and the memory the path will keep. Units: mm, N, N mm, MPa, s.
 """
 
 from .exposure import Exposure, ExposureAccumulator, exposure
 from .frames import check_frames, path_memory
+from .outputs import PathOutputs
 from .result import PathResult
 from .series import FrameSeries, write_pvd
 from .solve import solve_path
@@ -23,6 +25,7 @@ __all__ = [
     "Exposure",
     "ExposureAccumulator",
     "FrameSeries",
+    "PathOutputs",
     "PathResult",
     "check_frames",
     "exposure",

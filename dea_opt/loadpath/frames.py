@@ -146,7 +146,8 @@ def check_frames(n_frames: int, n_springs: int = 0, *, what: str | None = None, 
         How the user asked for it, for the message (e.g. ``"load_path.frames = 1000000000"``);
         default ``"a load path of <n> frames"``.
     **options
-        ``keep_solutions``, ``keep_pressures``, ``moving``, ``n_regions`` of :func:`path_memory`.
+        ``keep_solutions``, ``keep_pressures`` (of :class:`~dea_opt.loadpath.outputs.PathOutputs`), ``moving``,
+        ``n_regions`` of :func:`path_memory`.
     """
     need = path_memory(n_frames, n_springs, **options)
     what = what or f"a load path of {int(n_frames)} frames x {int(n_springs)} springs"
@@ -154,7 +155,7 @@ def check_frames(n_frames: int, n_springs: int = 0, *, what: str | None = None, 
     advice = "use fewer frames"
     if keeps:
         advice += (
-            f", or {' and '.join(f'{k}=False' for k in keeps)} (the outputs are written frame by frame "
-            f"with series=<folder>)"
+            f", or outputs=PathOutputs({', '.join(f'{k}=False' for k in keeps)}, series=<folder>) (the outputs "
+            f"are then written frame by frame)"
         )
     check_memory(need, what, advice)

@@ -1,7 +1,7 @@
 """The pressure maps of a load path's frames: the peak frame's, and those the scenario asks for.
 
 The frames are streamed, so a map is drawn from a solution :func:`~dea_opt.loadpath.solve_path`
-kept for it (``keep_frames``: the peak frame's as the frames go by, and the chosen frames'),
+kept for it (``PathOutputs.keep_frames``: the peak frame's as the frames go by, and the chosen frames'),
 with the verdict of the frame's row of the table: a frame outside validity is stamped so
 (:mod:`dea_opt.io.marks`), the dropped springs the peak frame's re-cast found included.
 """
@@ -42,7 +42,7 @@ def frame_verdict(table, k: int):
 
 
 def map_jobs(result, directory, title=None, anatomy=None, frames=()) -> dict:
-    """``{name: (target, job)}``: the picture jobs (:mod:`dea_opt.io.pictures`) of the peak frame's
+    """``{name: (target, job)}``: the picture jobs (:mod:`dea_opt.run.pictures`) of the peak frame's
     map (``peak_map``, :data:`PEAK_MAP`) and of each frame of ``frames`` (``map_frame_<k>``,
     :func:`frame_map_name`), from the solutions ``result`` kept; ``job(path)`` draws into
     ``path``."""

@@ -9,14 +9,14 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass, field
+from importlib import import_module
 from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
 
 from ..errors import InputError, ValidityWarning
-from ..io.atomic import write_data
-from ..io.pictures import DrawHere, PictureFiles
+from ..files.atomic import write_data
 from ..io.summary import anatomy_json, write_json
 from ..problem import ContactProblem
 from ..validity import CHECK_UNITS, check_column
@@ -72,9 +72,9 @@ class PathResult:
     regions : dict {name: column prefix}
         The regions with columns in the table (empty without labels).
     frame_files : FrameSeries or None
-        The frames' ``.vtu`` files written while solving (``series=``).
+        The frames' ``.vtu`` files written while solving (``PathOutputs.series``).
     kept : dict
-        Solutions kept for their maps (``solve_path(keep_frames=...)``): ``{frame: Solution}``,
+        Solutions kept for their maps (``PathOutputs.keep_frames``): ``{frame: Solution}``,
         and ``"peak": (frame, Solution)`` for the peak frame.
     """
 
@@ -320,7 +320,7 @@ class PathResult:
     def to_pvd(self, path) -> Path:
         """A ParaView time series: ``path`` (``.pvd``) and one ``.vtu`` per frame.
 
-        The frames written while solving (``series=``) when there are any, else written now
+        The frames written while solving (``PathOutputs.series``) when there are any, else written now
         from the kept solutions into the folder ``<stem>_frames`` next to ``path``.
         """
         path = Path(path)
@@ -330,8 +330,8 @@ class PathResult:
             return self.frame_files.write_pvd(path)
         if self.solutions is None:
             raise InputError(
-                "the .pvd series needs the frames' solutions (keep_solutions=True) or frames written "
-                "while solving (series=<folder>)"
+                "the .pvd series needs the frames' solutions (PathOutputs(keep_solutions=True)) or frames "
+                "written while solving (PathOutputs(series=<folder>))"
             )
         series = FrameSeries(path.with_name(f"{path.stem}_frames"), len(self))
         for k, (t, solution) in enumerate(zip(self.times, self.solutions)):
@@ -344,7 +344,7 @@ class PathResult:
             return solution.problem.layer
         if self.moving:
             raise InputError(
-                f"frame {k} failed before its springs were cast; write the series while solving (series=<folder>)"
+                f"frame {k} failed before its springs were cast; write the series while solving (PathOutputs(series=<folder>))"
             )
         return self.problem.layer
 
@@ -369,14 +369,14 @@ class PathResult:
     def plot_cycle(self, path, title: str | None = None, anatomy=None) -> Path:
         """Applied force and moment, pressure, contact area and the regions' force shares over
         the path (PNG); failed frames and frames outside validity marked."""
-        return DrawHere().draw(self._cycle_job(path, title, anatomy))
+        return _draw(self._cycle_job(path, title, anatomy))
 
     def plot_exposure(self, path, title: str | None = None, anatomy=None) -> Path:
         """The exposure map: pressure-time integral and time above the threshold (PNG)."""
-        return DrawHere().draw(self._exposure_job(path, title, anatomy))
+        return _draw(self._exposure_job(path, title, anatomy))
 
     def _cycle_job(self, path, title=None, anatomy=None) -> tuple:
-        """The cycle plot as a job of :mod:`dea_opt.io.pictures`: ``(module, function, args, kwargs)``."""
+        """The cycle plot as a picture job ``(module, function, args, kwargs)`` (:mod:`dea_opt.run.pictures`)."""
         kwargs = {"title": title, "regions": self.regions or None, "anatomy": anatomy}
         return "dea_opt.io.cycle", "plot_cycle", (self.table, path), kwargs
 
@@ -403,30 +403,28 @@ class PathResult:
         ``csv``: ``frames.csv``; ``json``: ``summary.json``; ``vtk``: ``series.pvd`` (the
         frames written while solving, or ``series_frames/`` written now from the kept
         solutions) and ``exposure.vtu``; ``png``: ``cycle.png``, ``exposure.png``, the peak
-        frame's pressure map ``peak.png`` (when its solution was kept: ``keep_frames="peak"``)
+        frame's pressure map ``peak.png`` (when its solution was kept: ``PathOutputs(keep_frames=("peak",))``)
         and ``map_frame_<k>.png`` for each frame of ``maps`` (:mod:`~dea_opt.loadpath.maps`);
         ``title`` heads every picture. With an
         anatomical frame ``anatomy`` the PNGs are drawn in it, ``frames.csv`` ends with
         :meth:`anatomical_table`'s columns and ``summary.json`` holds
         :meth:`anatomical_summary`'s keys. ``summary``: :meth:`summary`, when the caller
         already has it (it is computed once). ``pictures``: a
-        :class:`~dea_opt.io.pictures.PictureWorker` to draw the PNGs in while the other files are
+        :class:`~dea_opt.run.pictures.PictureWorker` to draw the PNGs in while the other files are
         written (the same pictures, drawn here if it fails).
         """
         directory = Path(directory)
         unknown = set(formats) - set(FORMATS) - {"html"}  # the report is the run's (dea_opt.report)
         if unknown:
             raise InputError(f"formats must be among {', '.join(FORMATS)}, got {sorted(unknown)}")
-        if pictures is not None and not (
-            callable(getattr(pictures, "submit", None)) and callable(getattr(pictures, "result", None))
-        ):
+        if pictures is not None and not callable(getattr(pictures, "files", None)):
             raise InputError(
-                f"pictures must be a dea_opt.io.pictures.PictureWorker (or None: drawn here), got {type(pictures).__name__}"
+                f"pictures must be a dea_opt.run.pictures.PictureWorker (or None: drawn here), got {type(pictures).__name__}"
             )
         files = {}
-        # The PNGs are drawn into temporary files reserved beside them and staged here once drawn
-        # (a PictureWorker's process does not see this run's staging): published with the rest.
-        with PictureFiles(DrawHere() if pictures is None else pictures) as drawn:
+        # A PictureWorker draws the PNGs into temporary files reserved beside them and stages them here
+        # once drawn (its process does not see this run's staging): published with the rest.
+        with _DrawnHere() if pictures is None else pictures.files() as drawn:
             if "png" in formats:  # handed over first: a PictureWorker draws them while the rest is written
                 drawn.submit("cycle_plot", directory / "cycle.png", lambda p: self._cycle_job(p, title, anatomy))
                 drawn.submit(
@@ -447,3 +445,33 @@ class PathResult:
             self.to_json(files["summary"], extra, summary=summary, anatomy=anatomy)
         self.files.update(files)
         return files
+
+
+def _draw(job: tuple):
+    """Run a picture job ``(module, function, args, kwargs)`` in this process; its value."""
+    module, function, args, kwargs = job
+    return getattr(import_module(module), function)(*args, **kwargs)
+
+
+class _DrawnHere:
+    """The pictures of :meth:`PathResult.write` without a worker: each drawn in this process into
+    its output (written atomically, so staged with the run's other files) when :meth:`results`
+    is asked for, as :class:`dea_opt.run.pictures.PictureFiles` does for a worker."""
+
+    def __init__(self):
+        self._jobs: dict = {}
+
+    def submit(self, name: str, target, job) -> None:
+        self._jobs[name] = (Path(target), job)
+
+    def results(self) -> dict:
+        jobs, self._jobs = self._jobs, {}
+        for target, job in jobs.values():
+            _draw(job(target))
+        return {name: target for name, (target, _) in jobs.items()}
+
+    def __enter__(self) -> _DrawnHere:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._jobs = {}

@@ -12,7 +12,7 @@ import os
 from dataclasses import replace
 from pathlib import Path
 
-from ..io.atomic import write_data
+from ..files.atomic import write_data
 from ..io.surface import SurfaceData, layer_surface, spring_fields
 from ..io.vtk import write_surface
 from ..io.vtkxml import quoteattr

@@ -18,8 +18,8 @@ solver error) does not stop the path: it is recorded with its status and message
 and no exposure, the next frame starts cold, and the path goes on (``stop_on_error=True``
 raises at the first failed frame instead). Memory does not grow with the frames beyond the
 per-frame table: the exposure is accumulated frame by frame, the frames' ``.vtu`` files can be
-written as they are solved (``series``), and the solutions and pressures are kept only when
-asked; the estimate is checked before the first frame (:class:`~dea_opt.errors.SizeLimitError`).
+written as they are solved (:class:`PathOutputs` ``series``), and the solutions and pressures are
+kept only when asked; the estimate is checked before the first frame (:class:`~dea_opt.errors.SizeLimitError`).
 
 The :class:`PathResult` holds the per-frame table (:mod:`~dea_opt.loadpath.table`: numbers,
 validity and regions of every frame), the contact-stress exposure of every site over the
@@ -37,6 +37,7 @@ from dataclasses import replace
 import numpy as np
 
 from .._checks.inputs import as_numeric
+from .._checks.threads import single_threaded_blas
 from ..errors import (
     DeaError,
     InputError,
@@ -44,18 +45,18 @@ from ..errors import (
     SolverError,
     ValidityWarning,
 )
-from ..formulations.energy import single_threaded_blas
+from ..finite.stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from ..problem import ContactProblem
 from ..status import Status
 from .exposure import ExposureAccumulator
-from .finite_stepper import FiniteStepper, check_finite_poses, frame_layer, moves
 from .frames import check_frames, frame_count, read_frames
+from .outputs import PathOutputs
 from .result import PathResult
 from .series import FrameSeries
 from .stepper import Stepper
 from .table import TABLE_COLUMNS, FrameRegions, failed_row, make_table, motion_columns, solved_row
 
-__all__ = ["TABLE_COLUMNS", "solve_path"]
+__all__ = ["TABLE_COLUMNS", "PathOutputs", "solve_path"]
 
 
 # --- one frame --------------------------------------------------------------------------
@@ -79,7 +80,7 @@ def _solve_frame(stepper, frame, new_geometry, setup):
     except SolverError as exc:
         return exc.solution, Status.of_error(exc), str(exc), exc
     message = (
-        f"{solution.method} returned no certified answer (status {solution.status!r}): {solution.failure}; "
+        f"{solution.method} returned no certified answer (status '{solution.status}'): {solution.failure}; "
         f"{solution.message}"
     )
     return solution, solution.status, message, None
@@ -105,18 +106,12 @@ def solve_path(
     method: str = "auto",
     times=None,
     body: int = 2,
+    kinematics: str | None = None,
+    layer_for_pose=None,
     certificate_tol: float = 1e-6,
     stop_on_error: bool = False,
-    strict: bool = False,
-    keep_solutions: bool = True,
-    keep_pressures: bool = True,
-    series=None,
-    regions=None,
-    layer_for_pose=None,
-    threshold: float = 1.0,
+    outputs: PathOutputs | None = None,
     progress: bool = False,
-    kinematics: str | None = None,
-    keep_frames=(),
     **options,
 ) -> PathResult:
     """Solve ``problem`` under each load of a path, warm-starting every frame from the last.
@@ -145,33 +140,13 @@ def solve_path(
         for a load the springs cannot carry, :class:`SolverError` otherwise, naming the
         frame. Default: record the frame (``success`` False, its ``status`` and
         ``message`` in the table, NaN results), start the next frame cold and go on.
-    strict : bool
-        The former name of ``stop_on_error``.
-    keep_solutions : bool
-        Keep every frame's :class:`Solution` (the uncertified one, or None, for a failed
-        frame): what :meth:`PathResult.to_pvd` writes the series from without ``series``.
-    keep_pressures : bool
-        Keep every frame's pressure per spring (:attr:`PathResult.pressures`; NaN for a
-        failed frame). With both False, memory does not grow with the springs x frames.
-    keep_frames : iterable of int or "peak"
-        Frames whose certified solution to keep however ``keep_solutions`` is set
-        (:attr:`PathResult.kept`), ``"peak"`` for the certified frame of the largest peak
-        pressure (kept as the frames stream by: one solution in memory): what
-        :meth:`PathResult.write` draws the pressure maps of.
-    series : str or Path, optional
-        A folder to write each frame's ``.vtu`` into as it is solved
-        (``frame_NNNN.vtu``; :class:`~dea_opt.loadpath.series.FrameSeries`), so that the
-        ParaView series needs no kept solutions; :meth:`PathResult.write` then writes the
-        ``.pvd`` naming them. Use ``<output>/series_frames``.
-    regions : array_like (N,) or callable, optional
-        A region label per spring, or ``regions(layer) -> labels`` (e.g. a closure over
-        :func:`dea_opt.anatomy.regions.label_by_axis`); default the layer's ``labels``. Each region
-        gets per-frame columns (:data:`~dea_opt.loadpath.table.REGION_COLUMNS`).
     layer_for_pose : callable, optional
         ``layer_for_pose(pose) -> SpringLayer``: the springs of body 2's mesh moved by
         ``pose`` (e.g. a closure over :func:`dea_opt.mesh.springs_from_meshes`).
-    threshold : float
-        Pressure threshold (MPa) of the exposure measures.
+    outputs : PathOutputs, optional
+        What the path keeps and writes besides its per-frame table (:class:`PathOutputs`: the
+        frames' solutions and pressures, kept by default; a folder their ``.vtu`` files are
+        streamed into; the regions of the table's columns; the exposure's pressure threshold).
     progress : bool
         Show a progress bar on a terminal (tqdm; nothing when stderr is not a terminal).
     kinematics : {"small", "finite"}, optional
@@ -209,16 +184,11 @@ def solve_path(
             times=times,
             body=body,
             certificate_tol=certificate_tol,
-            stop=bool(stop_on_error or strict),
-            keep_solutions=keep_solutions,
-            keep_pressures=keep_pressures,
-            series=series,
-            regions=regions,
+            stop=bool(stop_on_error),
+            outputs=PathOutputs.of(outputs),
             layer_for_pose=layer_for_pose,
-            threshold=threshold,
             progress=progress,
             kinematics=kinematics,
-            keep_frames=keep_frames,
             options=options,
         )
 
@@ -253,18 +223,14 @@ def _solve_path(
     body,
     certificate_tol,
     stop,
-    keep_solutions,
-    keep_pressures,
-    series,
-    regions,
+    outputs,
     layer_for_pose,
-    threshold,
     progress,
     kinematics,
-    keep_frames,
     options,
 ) -> PathResult:
     """The body of :func:`solve_path`."""
+    keep_solutions, keep_pressures, regions = outputs.keep_solutions, outputs.keep_pressures, outputs.regions
     if kinematics is not None and isinstance(problem, ContactProblem):
         problem = replace(problem, kinematics=kinematics)
     finite = isinstance(problem, ContactProblem) and problem.kinematics == "finite"
@@ -290,7 +256,7 @@ def _solve_path(
         n_regions=n_regions,
     )
     loads, times = read_frames(loads, times)
-    wanted, keep_peak = _kept_frames(keep_frames, len(loads))
+    wanted, keep_peak = _kept_frames(outputs.keep_frames, len(loads))
     kept: dict = {}
     if finite:
         poses = check_finite_poses(problem, poses, len(loads))
@@ -298,8 +264,8 @@ def _solve_path(
         poses, layer_for_pose = _check_poses(problem, poses, layer_for_pose, len(loads))
     n_sites = _site_count(problem.layer, moving)
     stepper = FiniteStepper(method, options, certificate_tol) if finite else Stepper(method, options, certificate_tol)
-    accumulator = ExposureAccumulator(n_sites, threshold)
-    frames = FrameSeries(series, len(loads)) if series is not None else None
+    accumulator = ExposureAccumulator(n_sites, outputs.threshold)
+    frames = FrameSeries(outputs.series, len(loads)) if outputs.series is not None else None
     start = time.perf_counter()
     problem.system()  # computes the geometry once, to be shared by every frame
     setup = time.perf_counter() - start

@@ -6,8 +6,8 @@ A researcher's data are cartilage surfaces segmented from MRI or CT. This packag
 face of mesh 1, at its centroid, along its normal, with the gap to mesh 2 and the cartilage
 thickness measured by ray casting. Lengths are in mm throughout.
 
-Ray casting uses trimesh with Intel Embree (the ``embreex`` package) when it is importable and
-a numpy uniform-grid caster with exact float64 ray/triangle tests otherwise (trimesh's own
+Ray casting uses trimesh with Intel Embree (the ``embreex`` package, the optional ``fast``
+extra) when it is installed and a numpy uniform-grid caster with exact float64 ray/triangle tests otherwise (trimesh's own
 ``ray_triangle`` fallback queries its r-tree once per ray and takes minutes on a knee); both
 give the same springs. Every step is vectorized over faces.
 

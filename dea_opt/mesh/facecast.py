@@ -4,7 +4,7 @@ Written math: ``formulations/finite.md`` ("Re-casting"). The same decisions as
 :func:`dea_opt.mesh.cast_springs` (the nearest face of mesh 2 facing the ray inside the window
 ``-allowed <= gap <= max_gap``, within ``max_angle`` of facing, rejected behind mesh 1's own far
 side, thickness measured through each cartilage) for the faces of mesh 1 a caller asks about
-(the springs of a finite-kinematics solve that follow body 2, :mod:`dea_opt.largemotion`), so
+(the springs of a finite-kinematics solve that follow body 2, :mod:`dea_opt.finite`), so
 that keeping springs up to date costs rays in proportion to what moved.
 
 What does not depend on the pose is measured once per mesh and kept with it

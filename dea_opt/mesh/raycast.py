@@ -1,9 +1,13 @@
 """Ray casting against triangle meshes: Intel Embree through trimesh, or an exact numpy grid.
 
-Embree (the ``embreex`` package) is used when importable; otherwise a numpy uniform-grid
-caster with exact float64 ray/triangle tests (trimesh's own ``ray_triangle`` fallback queries
-its r-tree once per ray and takes minutes on a knee). Both give the same springs. Every step
-is vectorized over rays. Lengths in mm.
+Embree (the ``embreex`` package, the optional ``fast`` extra: ``pip install dea-opt[fast]``) is
+used when it is installed; otherwise a numpy uniform-grid caster with exact float64
+ray/triangle tests, written here because trimesh's own fallback without Embree
+(``ray_triangle``) queries its r-tree once per ray and takes minutes on a knee, where this
+caster takes about a second (Embree a tenth of that). Both give the same springs
+(``tests/mesh/test_mesh.py`` compares them where Embree is installed, and checks the grid caster
+against closed forms and in a process where ``embreex`` cannot be imported, on every install).
+Every step is vectorized over rays. Lengths in mm.
 """
 
 from __future__ import annotations
@@ -83,16 +87,35 @@ class _GridCaster:
     def _key(self, cells):
         return (cells[:, 0] * self.shape[1] + cells[:, 1]) * self.shape[2] + cells[:, 2]
 
+    def _span(self, origins, directions):
+        """``(enter, leave)`` per ray: where it is inside the grid's box, padded by a cell (every
+        triangle lies inside it); ``enter > leave``, or both infinite, for a ray that misses it."""
+        lo = self.origin - self.cell
+        hi = self.origin + (self.shape + 1) * self.cell
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            inv = 1.0 / directions
+            a, b = (lo - origins) * inv, (hi - origins) * inv
+        # fmin/fmax: a NaN (a ray along a face of the box) counts as outside that slab
+        enter, leave = np.fmin(a, b).max(axis=1), np.fmax(a, b).min(axis=1)
+        return enter, np.where(enter == np.inf, -np.inf, leave)  # parallel to a slab, outside it
+
     def hits(self, origins, directions, t0, t1):
-        """All crossings with ``t0 <= t <= t1`` (scalars or (R,)): ``(ray, face, t)``."""
+        """All crossings with ``t0 <= t <= t1`` (scalars or (R,)): ``(ray, face, t)``.
+
+        Each ray is searched only where it crosses the grid's box, so that an unbounded ``t1``
+        (``nearest`` up to infinity) costs what the box's width costs."""
         n = len(origins)
         t0 = np.broadcast_to(np.asarray(t0, dtype=float), (n,))
         t1 = np.broadcast_to(np.asarray(t1, dtype=float), (n,))
-        count = np.maximum(np.ceil((t1 - t0) / self.cell), 1).astype(np.int64)
+        enter, leave = self._span(origins, directions)
+        first_t, last_t = np.maximum(t0, enter), np.minimum(t1, leave)
+        inside = last_t >= first_t
+        with np.errstate(invalid="ignore"):
+            count = np.where(inside, np.maximum(np.ceil((last_t - first_t) / self.cell), 1), 0).astype(np.int64)
         ray = np.repeat(np.arange(n), count)
         step = _expand(np.zeros(n, dtype=np.int64), count)
-        start = t0[ray] + step * self.cell
-        end = np.minimum(start + self.cell, t1[ray])
+        start = first_t[ray] + step * self.cell
+        end = np.minimum(start + self.cell, last_t[ray])
         a = origins[ray] + start[:, None] * directions[ray]
         b = origins[ray] + end[:, None] * directions[ray]
         lo, hi = self._cells(np.minimum(a, b), np.maximum(a, b))
@@ -128,7 +151,8 @@ class _GridCaster:
         """
         n = len(origins)
         face, dist = np.full(n, -1, dtype=np.int64), np.full(n, np.nan)
-        todo = np.arange(n)
+        leave = self._span(origins, directions)[1]
+        todo = np.flatnonzero(leave >= t_min)  # a ray that never reaches the box meets nothing
         low, high = t_min, min(t_min + 4 * self.cell, t_max)
         while len(todo):
             ray, f, t = self.hits(origins[todo], directions[todo], low, high)
@@ -138,6 +162,7 @@ class _GridCaster:
             found = pick >= 0
             face[todo[found]], dist[todo[found]] = f[pick[found]], t[pick[found]]
             todo = todo[~found]
+            todo = todo[leave[todo] > high]  # a ray whose window has left the box meets nothing more
             if high >= t_max:
                 break
             low, high = high, min(t_min + 2 * (high - t_min), t_max)
@@ -228,11 +253,12 @@ class _EmbreeCaster:
 
 
 def _has_embree() -> bool:
-    try:
-        from trimesh.ray import ray_pyembree  # noqa: F401
-    except ImportError:
-        return False
-    return True
+    """Whether trimesh could load its Embree interface. Its own flag: where ``embreex`` is missing,
+    trimesh binds ``trimesh.ray.ray_pyembree`` to a placeholder that raises only when used, so
+    that importing the name succeeds all the same."""
+    from trimesh import ray
+
+    return bool(getattr(ray, "has_embree", False))
 
 
 def _engine(engine: str) -> str:

@@ -353,7 +353,7 @@ class NoSpringsError(InputError):
     """A cast that made no spring (an :class:`~dea_opt.errors.InputError`); ``through_layer``
     counts the rays whose only hits in the window lay behind mesh 1's own far side (mesh 2 went
     through mesh 1's layer). A finite-kinematics solve whose pose comes there reports it as a
-    failed answer (:mod:`dea_opt.largemotion.tracker`), not as bad input."""
+    failed answer (:mod:`dea_opt.finite.tracker`), not as bad input."""
 
     def __init__(self, message: str, through_layer: int = 0):
         super().__init__(message)

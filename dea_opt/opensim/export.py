@@ -40,7 +40,7 @@ import numpy as np
 
 from .._version import __version__
 from ..errors import OpenSimModelError
-from ..io.atomic import write_atomic
+from ..files.atomic import write_atomic
 
 __all__ = ["scenario_text", "write_scenario"]
 

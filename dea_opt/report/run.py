@@ -14,7 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.atomic import staged_file, write_data
+from ..files.atomic import staged_file, write_data
 from .page import Page, escape, table
 from .sections import (
     certificate_section,

@@ -97,7 +97,7 @@ def certificate_section(page: Page, certificate, note: str = "") -> None:
 def inputs_section(page: Page, scenario, command: str) -> None:
     """The scenario (its file and SHA-256, the --set overrides), every input file it reads with its
     SHA-256, and the scenario's text."""
-    from ..sweep.keys import FileHashes, input_files
+    from ..scenario.keys import FileHashes, input_files
 
     page.heading("Inputs", "inputs")
     source = scenario.source or "(a scenario made from text)"

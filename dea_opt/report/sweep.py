@@ -12,7 +12,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io.atomic import write_data
+from ..files.atomic import write_data
 from .page import Page, Raw, escape
 from .page import table as html_table
 from .sections import software_section
@@ -59,7 +59,7 @@ def _numeric(cases, columns) -> list:
 def sweep_report(cases, swept, scenario_path, sets, folder: Path) -> str:
     """The HTML of a sweep's report (see the module's docstring)."""
     from ..scenario import load_scenario
-    from ..sweep.keys import sha256_file
+    from ..scenario.keys import sha256_file
 
     try:
         title = load_scenario(scenario_path).title

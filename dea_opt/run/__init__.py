@@ -23,7 +23,7 @@ its unit (:mod:`dea_opt.units`).
 from meshes they are re-cast at the solved pose (a load path: its peak frame), which evaluates
 the ``dropped_springs`` validity check and adds ``recast`` to ``contact.json``/``summary.json``. Every run also writes ``manifest.json`` (last: the
 run id, dea-opt version, scenario hash and every file with its size and SHA-256) and, when
-a library had something to say, ``dea-opt.log`` (:mod:`dea_opt.io.publish`,
+a library had something to say, ``dea-opt.log`` (:mod:`dea_opt.run.publish`,
 :mod:`dea_opt.run.log`).
 
 Exit status of a run (:attr:`RunOutcome.exit_code`): 0 every answer certified and inside

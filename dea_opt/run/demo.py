@@ -4,7 +4,7 @@ The socket's springs are labelled by region of the acetabulum (:func:`hip_region
 superior dome, and the anterior and posterior walls), and the maps are drawn in the hip's
 anatomical frame (``[output] anatomy`` of :data:`DEMO_SCENARIO`); the terminal lists the
 validity of the frames and each region's share of the load. The outputs are published like a
-run's (:mod:`dea_opt.io.publish`): ``comparison.csv``, ``frames.csv`` (with per-region
+run's (:mod:`dea_opt.run.publish`): ``comparison.csv``, ``frames.csv`` (with per-region
 columns), ``series.pvd`` (+ ``series_frames/``), ``cycle.png``, ``exposure.png``, ``peak.png``,
 ``exposure.vtu``, ``summary.json``, ``report.html`` (the run on one page, with the comparison)
 and, last, ``manifest.json``.
@@ -193,9 +193,9 @@ def run_demo(
     """
     import pandas as pd
 
-    from ..io import write_data
-    from ..io.publish import check_output_folder
+    from ..files import write_data
     from ..scenario import build_problem
+    from .publish import check_output_folder
 
     scenario = demo_scenario(frames, coarse)
     report: dict = {}

@@ -45,7 +45,7 @@ def run_joint_scenario(scenario, out, method: str, *, progress: bool = False, st
 
 def _static(scenario, joint, method, out) -> RunOutcome:
     from .. import io
-    from ..io.atomic import write_data
+    from ..files.atomic import write_data
     from ..io.summary import write_json
     from ..joint import solve_joint
 

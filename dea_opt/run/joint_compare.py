@@ -25,12 +25,12 @@ def compare_joint_scenario(scenario, folder, methods=None, force: bool = False) 
     one that solves it), print the table and publish ``compare.csv`` into ``folder``."""
     import typer
 
-    from ..io.atomic import write_data
-    from ..io.publish import output_run
+    from ..files.atomic import write_data
     from ..joint.compare import compare_joint
     from ..scenario.joint_build import build_joint
     from ..status import RunStatus
     from .log import captured
+    from .publish import output_run
     from .runner import run_info
 
     joint, _ = build_joint(scenario)
@@ -39,7 +39,7 @@ def compare_joint_scenario(scenario, folder, methods=None, force: bool = False) 
             joint, methods or scenario.solve.methods, certificate_tol=scenario.solve.certificate_tol, strict=False
         )
         rows = []
-        for method, s in result["solutions"].items():
+        for method, s in result.solutions.items():
             rows.append(
                 {
                     "method": method,
@@ -48,9 +48,9 @@ def compare_joint_scenario(scenario, folder, methods=None, force: bool = False) 
                     "iterations": s.iterations,
                     "solve_time_s": s.solve_time,
                     "worst_residual": s.certificate.worst()[1],
-                    "displacement_difference": result["displacement"],
-                    "pressure_difference": result["pressure"],
-                    "ligament_force_difference": result["ligament_force"],
+                    "displacement_difference": result.displacement,
+                    "pressure_difference": result.pressure,
+                    "ligament_force_difference": result.ligament_force,
                 }
             )
         text = _io.StringIO()
@@ -65,9 +65,9 @@ def compare_joint_scenario(scenario, folder, methods=None, force: bool = False) 
             f"time={row['solve_time_s']:.3g} s worst residual={row['worst_residual']:.2g}"
         )
     typer.echo(
-        f"largest difference: displacement {result['displacement']:.2g}, pressure {result['pressure']:.2g}, "
-        f"ligament force {result['ligament_force']:.2g} (relative)"
+        f"largest difference: displacement {result.displacement:.2g}, pressure {result.pressure:.2g}, "
+        f"ligament force {result.ligament_force:.2g} (relative)"
     )
-    for method, why in result["skipped"].items():
+    for method, why in result.skipped.items():
         typer.echo(f"(skipped: {method}: {why})")
     typer.echo(f"  compare  {path}")

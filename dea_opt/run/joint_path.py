@@ -217,7 +217,7 @@ class JointPathWriter:
 
     def write(self, out) -> dict:
         """Write the tables, the series' ``.pvd`` and nothing else; returns ``{name: Path}``."""
-        from ..io.atomic import write_data
+        from ..files.atomic import write_data
 
         files = {"frames": write_data(out / "frames.csv", _csv(self.frames, list(self.frames[0])))}
         if self.bundles:

@@ -38,13 +38,13 @@ def run_path_outputs(
     meshes of a path with poses), the peak frame is solved once more and its springs re-cast
     at its solved pose (:func:`peak_recast`): its ``dropped_springs`` check is evaluated and
     the re-cast force goes into ``summary.json`` (``recast``). ``pictures``: a
-    :class:`~dea_opt.io.pictures.PictureWorker` that draws the PNGs while the rest is written.
+    :class:`~dea_opt.run.pictures.PictureWorker` that draws the PNGs while the rest is written.
     ``data``: the path's frames read already (:func:`dea_opt.scenario.read_load_path`);
     ``suspicions``: what the check before solving found (they head the verdict and
     ``summary.json``'s ``suspicious_input``). Frames without a certified answer are told grouped
     by cause, one complete line each (:func:`dea_opt.run.diagnose.failure_lines`).
     """
-    from ..loadpath import solve_path
+    from ..loadpath import PathOutputs, solve_path
     from ..progress import stage
     from ..scenario import pose_caster, read_load_path
     from .diagnose import LoadSource, failure_lines
@@ -73,13 +73,15 @@ def run_path_outputs(
         body=data.body,
         certificate_tol=scenario.solve.certificate_tol,
         stop_on_error=stop,
-        keep_solutions=False,
-        keep_pressures=False,
-        series=out / "series_frames" if "vtk" in formats else None,
+        outputs=PathOutputs(
+            keep_solutions=False,
+            keep_pressures=False,
+            series=out / "series_frames" if "vtk" in formats else None,
+            threshold=scenario.output.exposure_threshold,
+            keep_frames=tuple(keep),
+        ),
         layer_for_pose=layer_for_pose,
-        threshold=scenario.output.exposure_threshold,
         progress=progress,
-        keep_frames=keep,
         **options,
     )
     notes = []

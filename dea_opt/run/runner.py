@@ -34,9 +34,10 @@ def solve_options(section, method: str, law) -> dict:
 
     if getattr(section, "kinematics", "small") == "finite":
         # finite kinematics: newton and nlp stand for the finite formulations, auto tries both
-        from ..formulations.finite import ALIASES
-
-        chain = ["finite", "finite_nlp"] if method == "auto" else [ALIASES.get(method, method)]
+        if method == "auto":
+            chain = ["finite", "finite_nlp"]
+        else:
+            chain = [formulations.resolve(method, None, "finite").name] if method in formulations.names() else []
         out: dict = {}
         for name in chain:
             if name in formulations.names() and formulations.takes(name, law, "finite"):
@@ -99,7 +100,7 @@ def run_scenario(
     scenario : Scenario
     output_dir : str or Path, optional
         Default ``[output].directory`` (relative to the scenario file). It must be new,
-        empty or hold an earlier dea-opt run (:func:`dea_opt.io.publish.check_output_folder`).
+        empty or hold an earlier dea-opt run (:func:`dea_opt.run.publish.check_output_folder`).
     method : str, optional
         Overrides ``[solve].method``.
     progress : bool
@@ -113,7 +114,7 @@ def run_scenario(
         nothing published) instead of recording it and going on.
     background_pictures : bool
         Draw a load path's PNGs in a second process while the run solves and writes
-        (:class:`~dea_opt.io.pictures.PictureWorker`): for a single run, which leaves a core idle.
+        (:class:`~dea_opt.run.pictures.PictureWorker`): for a single run, which leaves a core idle.
         A sweep's cases run one per core and draw in their own process (Matplotlib imported
         once per worker, not once per case).
 
@@ -129,12 +130,12 @@ def run_scenario(
         else's; :class:`~dea_opt.errors.ImplausibleInputError` from the check before solving,
         :func:`prepare_run`), a load no spring can carry, a solver that fails outright. Nothing is
         published then, and the folder keeps what it held.
-    dea_opt.io.publish.RunInterrupted
+    dea_opt.run.publish.RunInterrupted
         Ctrl-C; its ``report`` says what the folder holds.
     """
-    from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
     from ..progress import showing
     from ..scenario.joint_schema import JointScenario
+    from .publish import RunInterrupted, check_output_folder, interrupted_report
 
     started = time.perf_counter()
     if isinstance(scenario, JointScenario):
@@ -226,8 +227,8 @@ def prepare_run(scenario) -> tuple:
 def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_scenario, started) -> RunOutcome:
     """A joint scenario (``[[bodies]]``): its method checked, solved and published like a two-body run."""
     from ..errors import InputError
-    from ..io.publish import RunInterrupted, check_output_folder, interrupted_report
     from ..joint import JOINT_METHODS
+    from .publish import RunInterrupted, check_output_folder, interrupted_report
 
     method = scenario.solve.method if method is None else method.strip().lower()
     if method not in JOINT_METHODS:
@@ -253,14 +254,14 @@ def _run_joint(scenario, output_dir, method, force, stop_on_error, run_joint_sce
 
 
 def picture_worker(scenario, background: bool = True):
-    """A :class:`~dea_opt.io.pictures.PictureWorker` when the run draws a load path's pictures
+    """A :class:`~dea_opt.run.pictures.PictureWorker` when the run draws a load path's pictures
     (it imports matplotlib while the run casts and solves) and ``background``, else a context
     that gives None (the pictures are drawn in the run's process)."""
     from contextlib import nullcontext
 
     if not background or scenario.load_path is None or "png" not in scenario.output.formats:
         return nullcontext(None)
-    from ..io.pictures import PictureWorker
+    from .pictures import PictureWorker
 
     return PictureWorker()
 
@@ -282,7 +283,7 @@ def publish_run(
     written last before the publication, once the outcome's warnings are known; ``started``
     (``time.perf_counter()`` when the run began) times the run in it, ``report_extra`` gives it
     more sections (the demo's comparison)."""
-    from ..io.publish import output_run
+    from .publish import output_run
 
     started = time.perf_counter() if started is None else started
     with output_run(out, force=force, info=info) as publication:
@@ -303,7 +304,7 @@ def publish_run(
             )
         log = messages.log_text(f"dea-opt {info.get('command', 'run')} of {scenario.source or scenario.title}")
         if log:
-            from ..io.atomic import write_data
+            from ..files.atomic import write_data
 
             outcome.files["log"] = write_data(publication.folder / LOG_NAME, log)
         failures = {"failures": {str(k): int(n) for k, n in outcome.failures.items()}} if outcome.failures else {}

@@ -67,7 +67,7 @@ def run_static(scenario, problem, method, options, out, cast=None, suspicions=()
         )
     else:
         message = (
-            f"{solution.method} returned no certified answer (status {solution.status!r}: {solution.message}; "
+            f"{solution.method} returned no certified answer (status '{solution.status}': {solution.message}; "
             f"{solution.failure}); "
             f"the outputs hold the uncertified answer"
         )

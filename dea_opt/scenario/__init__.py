@@ -119,10 +119,3 @@ __all__ = [
     "springs_from_mesh_section",
     "write_springs",
 ]
-
-
-def __getattr__(name: str):
-    # METHOD_NAMES, the former constant: the method names registered now (:func:`method_names`)
-    if name == "METHOD_NAMES":
-        return method_names()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -82,14 +82,8 @@ def _from_generator(section: GeneratorGeometry):
 
     function = getattr(geometry, section.function, None)
     if section.function.startswith("_") or not callable(function):
-        public = sorted(
-            n
-            for n in dir(geometry)
-            if not n.startswith("_")
-            and callable(getattr(geometry, n))
-            and getattr(getattr(geometry, n), "__module__", "") == geometry.__name__
-            and not isinstance(getattr(geometry, n), type)
-        )
+        # the mesh builders (dea_opt.geometry.meshes), not the exact layers nor MeshPair itself
+        public = sorted(n for n in geometry.meshes.__all__ if not isinstance(getattr(geometry, n), type))
         raise ScenarioError(
             f"geometry.function must name a builder in dea_opt.geometry ({', '.join(public)}), got {section.function!r}"
         )
@@ -244,8 +238,8 @@ def pose_caster(scenario):
 
 def _load_part(files, scale: float):
     """``(mesh, labels)``: one mesh (labels None), or a table of labelled meshes joined into one;
-    read once per process inside a sweep's cache (:mod:`dea_opt.sweep.spring_cache`)."""
-    from ..sweep import spring_cache
+    read once per process inside a sweep's cache (:mod:`dea_opt.mesh.cache`)."""
+    from ..mesh import cache as spring_cache
 
     return spring_cache.mesh_part(files, scale, _read_part)
 
@@ -288,7 +282,7 @@ def cast_from_mesh_section(section: MeshGeometry, meshes: dict, pose=None):
     """The :class:`~dea_opt.mesh.SpringCast` of :func:`springs_from_mesh_section` (its layer labelled)."""
     import dataclasses
 
-    from ..sweep import spring_cache
+    from ..mesh import cache as spring_cache
 
     options = {}
     for k in (1, 2):
@@ -443,7 +437,7 @@ def check_kinematics_method(scenario: Scenario, method: str | None = None, what:
     kinematics = scenario.solve.kinematics
     if not isinstance(method, str) or method == "auto" or method not in formulations.names():
         return  # auto solves both; an unknown name is check_method_name's to refuse
-    solved = formulations.capabilities(formulations.stands_for(method, kinematics)).kinematics
+    solved = formulations.capabilities(formulations.resolve(method, None, kinematics).name).kinematics
     if kinematics in solved:
         return
 
@@ -453,7 +447,7 @@ def check_kinematics_method(scenario: Scenario, method: str | None = None, what:
 
     given = f"{what} {method!r}" if what else f"solve.method = {method!r}{origin('method')}"
     other = next(k for k in ("small", "finite") if k != kinematics)
-    able = formulations.alternatives(build_law(scenario.law), kinematics, prefix="")
+    able = formulations.resolve(method, build_law(scenario.law), kinematics).use(prefix="")
     raise ScenarioError(
         f"{scenario.source or scenario.title or 'the scenario'}: {given} is a {' and '.join(solved)}-kinematics "
         f'method and solve.kinematics = "{kinematics}"{origin("kinematics")}: use '

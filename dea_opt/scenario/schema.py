@@ -74,13 +74,6 @@ LoadPathColumn = Literal[
 LOAD_PATH_COLUMNS: tuple[LoadPathColumn, ...] = get_args(LoadPathColumn)
 
 
-def __getattr__(name: str):
-    # METHOD_NAMES, the former constant: the names registered now
-    if name == "METHOD_NAMES":
-        return method_names()
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
 # --- [geometry] -------------------------------------------------------------------------
 
 

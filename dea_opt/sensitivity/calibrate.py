@@ -213,7 +213,7 @@ class Calibration:
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         from matplotlib.figure import Figure
 
-        from ..io.atomic import write_atomic
+        from ..files.atomic import write_atomic
         from ..io.marks import solution_verdict, stamp, verdict_lines
 
         table = self.residual_map()

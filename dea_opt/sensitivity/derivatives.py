@@ -3,7 +3,7 @@
 Written math: ``formulations/sensitivity.md``. The equilibrium minimizes the convex
 ``Phi(x) = sum_i V_i w(min(eps_i, 0)) - r . x``; on the active set the implicit function
 theorem gives ``K dx/dp = -dR/dp`` with Newton's tangent ``K = A_act^T diag(V sigma') A_act``,
-solved in the resisted basis of :class:`~dea_opt.formulations.energy.Resistance` (the
+solved in the resisted basis of :class:`~dea_opt.formulations.resistance.Resistance` (the
 formulations' scaling), so unresisted directions and units are handled as the solvers handle
 them. Springs on the edge of contact (strain within the certificate's precision of 0) make the
 derivative one-sided: each direction of change solves its own small piecewise-quadratic
@@ -22,8 +22,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._checks.threads import single_threaded_blas
 from ..errors import InputError
-from ..formulations.energy import modulus_scale, single_threaded_blas
+from ..formulations.resistance import modulus_scale
 from ..kinematics import DOFS
 from . import outputs as output_rates
 from .onesided import edge_solve, pinv_solve
@@ -377,8 +378,10 @@ def _sensitivities(solution, wrt, area_band, edge_mode) -> Sensitivities:
 
 
 def path_sensitivities(path, wrt=("H",), **options) -> list:
-    """``[Sensitivities]`` of every frame of a load path (``solve_path(..., keep_solutions=True)``),
+    """``[Sensitivities]`` of every frame of a load path (kept by default, ``PathOutputs(keep_solutions=True)``),
     each from its own certified solution; ``None`` for a frame that failed its certificate."""
     if not getattr(path, "solutions", None):
-        raise InputError("path_sensitivities needs the frames' solutions: solve_path(..., keep_solutions=True)")
+        raise InputError(
+            "path_sensitivities needs the frames' solutions: solve_path(..., outputs=PathOutputs(keep_solutions=True))"
+        )
     return [sensitivities(s, wrt, **options) if s is not None and s.success else None for s in path.solutions]

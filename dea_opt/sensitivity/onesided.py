@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..formulations.energy import unresisted
+from ..formulations.resistance import unresisted
 
 __all__ = ["edge_solve", "pinv_solve"]
 

@@ -74,7 +74,7 @@ def _calibrate_and_write(
     import dataclasses
     from pathlib import Path
 
-    from ..io.atomic import write_atomic
+    from ..files.atomic import write_atomic
     from ..io.summary import write_json
     from ..run import prepare_run
     from .covariance import spatial_correlation

@@ -9,7 +9,7 @@ per case, is rewritten atomically from the journal at intervals and at the end (
 
 A row counts as finished only while it was computed from the same content: the same
 scenario text, the same bytes of every input file the case reads, the same overrides and
-``--method``, the same dea-opt version (its ``key`` column, :mod:`dea_opt.sweep.keys`).
+``--method``, the same dea-opt version (its ``key`` column, :mod:`dea_opt.scenario.keys`).
 A rerun skips the finished cases and recomputes the others, saying why; the new row
 replaces the old one. ``retry_failed`` recomputes the rows of a case without a certified answer
 or with an error (:data:`~dea_opt.sweep.cases.RETRIED`). A row's ``status`` is a
@@ -39,8 +39,9 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import InputError, MissingDependencyError
-from ..io.publish import RunInterrupted
+from ..run.publish import RunInterrupted
 from ..scenario import check_method_name, load_scenario
+from ..scenario.keys import FileHashes, content_key, stale_reason
 from ..status import RunStatus
 from . import journal
 from .cases import (
@@ -56,7 +57,6 @@ from .cases import (
     work,
 )
 from .journal import JOURNAL_NAME, LOG_NAME, RESULTS_NAME, read_results
-from .keys import FileHashes, content_key, stale_reason
 from .logs import routed_to_log
 
 __all__ = [

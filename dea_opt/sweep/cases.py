@@ -12,10 +12,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from ..errors import DeaError, InputError, ScenarioError
+from ..mesh import cache as spring_cache
 from ..scenario import check_kinematics_method, parse_scenario, parse_set
+from ..scenario.keys import ContentKey, FileHashes, content_key
 from ..status import RunStatus
-from . import journal, spring_cache
-from .keys import ContentKey, FileHashes, content_key
+from . import journal
 
 __all__ = [
     "RETRIED",
@@ -38,7 +39,7 @@ __all__ = [
 #: a worker hashes the meshes of its first case only.
 _HASHES = FileHashes()
 
-#: Where a sweep's workers share their spring casts (:mod:`dea_opt.sweep.spring_cache`).
+#: Where a sweep's workers share their spring casts (:mod:`dea_opt.mesh.cache`).
 SPRING_CACHE = ".sweep/springs"
 
 #: Every status a case's row can have: a run's (:class:`~dea_opt.status.RunStatus`: ``ok``,
@@ -54,7 +55,7 @@ def case_id(overrides: dict) -> str:
     """A stable 12-character id of a case: the hash of its overrides (key order does not matter).
 
     The id names the case's row and folder; whether its row is still valid is decided by its
-    content key (:mod:`dea_opt.sweep.keys`), so an edited scenario replaces the row.
+    content key (:mod:`dea_opt.scenario.keys`), so an edited scenario replaces the row.
     """
     text = json.dumps(overrides, sort_keys=True, separators=(",", ":"))
     return hashlib.sha256(text.encode()).hexdigest()[:12]
@@ -222,7 +223,7 @@ def run_case(
         row |= {"status": str(RunStatus.ERROR), "message": f"{type(exc).__name__}: {exc} ({where})"}
     row |= {
         "wall_time_s": time.perf_counter() - start,
-        # a case refused before it wrote anything leaves no folder (dea_opt.io.folderlock): none named
+        # a case refused before it wrote anything leaves no folder (dea_opt.run.folderlock): none named
         "output_dir": str(case_dir) if Path(case_dir).is_dir() else "",
         "finished": time.strftime("%Y-%m-%dT%H:%M:%S"),
         "pid": os.getpid(),

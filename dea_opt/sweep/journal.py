@@ -17,14 +17,17 @@ is rewritten from the journal at the end of a sweep and at intervals (its cost i
 as a share of the wall time, see ``TablePublisher``), and a later record of a case replaces
 the earlier one there.
 
-Why ``fcntl.flock`` by hand and not a kept library: ``filelock`` is not among dea-opt's
-dependencies (nor installed by them), and a claim must be released by the kernel when its
-process dies (``kill -9`` included), which a lock held on an open file gives for free
-while lease files with timestamps do not. The price is POSIX only (Linux, macOS); on a
-network file system the locks are only as good as its ``flock`` (NFSv4: yes).
+The locks are dea-opt's one file lock (:mod:`dea_opt.files.locks`): a claim is released by the
+kernel when its process dies (``kill -9`` included). Lock files are never deleted: deleting a
+lock file while another process waits on it would let a third process lock a new file of the
+same name.
 
-Lock files are never deleted: deleting a lock file while another process waits on it
-would let a third process lock a new file of the same name.
+Why an append-only file and not SQLite (WAL): the journal is also the record a user reads
+(one JSON line per computed case), and a sweep's folder usually lies on a cluster's network
+file system, where SQLite's WAL mode does not work (it needs memory shared between the
+processes of one machine) and its other modes rely on POSIX locks that such file systems often
+get wrong; ``flock`` on NFSv4 holds. A line is written with one ``write`` under the lock, and a
+torn last line (a process killed mid-write) is cut before the next one is appended.
 """
 
 from __future__ import annotations
@@ -37,7 +40,8 @@ import time
 from pathlib import Path
 
 from ..errors import InputError
-from ..io.atomic import naming
+from ..files.atomic import naming
+from ..files.locks import hold, mark_holder
 
 __all__ = [
     "JOURNAL_NAME",
@@ -66,34 +70,8 @@ _JOURNAL_ONLY = ("inputs",)  # nested fields the journal keeps and sweep.csv lea
 _MOVE_AWAY = "move it away to start the sweep afresh"
 
 
-def _fcntl():
-    try:
-        import fcntl
-    except ImportError:  # pragma: no cover - Windows
-        raise InputError("sweeps need POSIX file locks (fcntl.flock): run them on Linux or macOS") from None
-    return fcntl
-
-
-@contextlib.contextmanager
-def _flock(path: Path, *, shared: bool = False, wait: bool = True):
-    """Hold ``flock`` on ``path`` (created when missing); yields False when ``wait=False`` and it is taken."""
-    fcntl = _fcntl()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        mode = fcntl.LOCK_SH if shared else fcntl.LOCK_EX
-        try:
-            fcntl.flock(fd, mode if wait else mode | fcntl.LOCK_NB)
-        except BlockingIOError:
-            yield False
-            return
-        yield fd
-    finally:
-        os.close(fd)  # closing the file releases the lock, as the death of the process does
-
-
 def _journal_lock(out: Path, shared: bool = False):
-    return _flock(Path(out) / _STATE / "lock", shared=shared)
+    return hold(Path(out) / _STATE / "lock", shared=shared)
 
 
 @contextlib.contextmanager
@@ -103,12 +81,11 @@ def claim(out, case_id: str, *, wait: bool = False):
     The claim is a lock on ``.sweep/claims/<case id>``; it ends when the block ends or the
     process dies, so a killed sweep never leaves a case claimed.
     """
-    with _flock(Path(out) / _STATE / "claims" / case_id, wait=wait) as fd:
-        if fd is False:
+    with hold(Path(out) / _STATE / "claims" / case_id, wait=wait) as fd:
+        if fd is None:
             yield False
             return
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, f"{os.getpid()}\n".encode(), 0)  # for a curious user; the lock is what counts
+        mark_holder(fd)  # for a curious user; the lock is what counts
         yield True
 
 
@@ -226,7 +203,7 @@ def results_table(records: dict):
 
 def publish_table(out):
     """Rewrite sweep.csv atomically from the journal (under its lock, so writers never interleave)."""
-    from ..io import write_data
+    from ..files import write_data
 
     out = Path(out)
     path = out / JOURNAL_NAME
@@ -298,7 +275,7 @@ def seed_from_csv(out, table) -> None:
         lines = []
         for row in table.to_dict("records"):
             lines.append(line_of({k: (None if isinstance(v, float) and math.isnan(v) else v) for k, v in row.items()}))
-        from ..io import write_data
+        from ..files import write_data
 
         write_data(path, b"".join(lines))
 
@@ -343,7 +320,7 @@ def read_case_record(out, case_id: str) -> dict:
 def write_case_record(out, case_id: str, record: dict, runs: int, pointer) -> None:
     """Replace ``.sweep/records/<id>.json`` atomically; call it only while holding the case's claim.
 
-    Unlike :func:`dea_opt.io.write_data` the temporary file has a fixed name: the claim makes
+    Unlike :func:`dea_opt.files.write_data` the temporary file has a fixed name: the claim makes
     this process its only writer, and a kill -9 leaves at most one temporary file per case,
     overwritten by the next computation, instead of one more random name each time.
     """

@@ -77,12 +77,12 @@ def assess(
     lost_through_layer : int, optional
         For finite kinematics: springs that carried load and were lost through the layer, still
         behind mesh 1's far side at the solved pose
-        (:meth:`~dea_opt.largemotion.MeshTracker.lost_through_layer`); without it the check is
+        (:meth:`~dea_opt.finite.MeshTracker.lost_through_layer`); without it the check is
         not evaluated for finite kinematics and passes for small kinematics, which loses no spring.
     stability : float, optional
         For finite kinematics: ``-min Re(lambda) / max |lambda|`` over the eigenvalues of the
         tangent stiffness on the free coordinates at the solved pose
-        (:func:`~dea_opt.largemotion.stability.softest`), above 0 when the equilibrium is unstable;
+        (:func:`~dea_opt.finite.stability.softest`), above 0 when the equilibrium is unstable;
         without it the check is not evaluated (the small kinematics' equilibria are all stable:
         their energy is convex).
     softest : str, optional
@@ -90,7 +90,7 @@ def assess(
     plane_error : (float, float), optional
         For finite kinematics on springs cast from meshes and not re-cast (``recast=False``): the
         largest error of their tangent planes' compression against mesh 2 at the solved pose, as a
-        strain and in mm (:func:`~dea_opt.largemotion.solution.plane_error`), the ``gap_error``
+        strain and in mm (:func:`~dea_opt.finite.solution.plane_error`), the ``gap_error``
         check; without it ``gap_error`` is not evaluated for finite kinematics.
 
     Returns

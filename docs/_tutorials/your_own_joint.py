@@ -205,7 +205,7 @@ fig.tight_layout()
 #
 # - the free (or prescribed) rotations ``rx, ry, rz`` of the answer turn body 2 about its
 #   **reference point**;
-# - a **pose** of mesh 2 (``pose=`` of ``cast_springs``, ``SpringLayer.from_meshes``, or a load
+# - a **pose** of mesh 2 (``pose=`` of ``cast_springs``, ``springs_from_meshes``, or a load
 #   path's ``pose_rx..pose_rz`` columns in degrees) is a 4x4 rigid transform applied to mesh 2's
 #   coordinates: its rotation turns about the **origin of the mesh file**.
 #

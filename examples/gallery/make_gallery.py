@@ -25,7 +25,7 @@ from pathlib import Path
 
 from PIL import Image
 
-from dea_opt.io import write_atomic
+from dea_opt.files import write_atomic
 
 GALLERY = Path(__file__).resolve().parent
 EXAMPLES = GALLERY.parent

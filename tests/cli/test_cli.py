@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import invoke, one_paragraph_error
+from conftest import invoke, one_paragraph_error, scenario_text
 from typer.testing import CliRunner
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
@@ -128,18 +128,7 @@ def test_uncertified_answer_exits_1_with_outputs_written(tmp_path):
 
 # --- acceptance 5: bad input ------------------------------------------------------------
 
-PLATE = """\
-[geometry]
-kind = "plate"
-nx = 20
-ny = 2
-[law]
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-"""
+PLATE = scenario_text(nx=20, ny=2, law=None)
 PATH = PLATE.replace("[load]\nforce = [0.0, 0.0, -500.0]\n", '[load_path]\nfile = "loads.csv"\n')
 
 
@@ -206,7 +195,7 @@ def test_console_script_reports_errors_without_traceback(tmp_path):
     assert "Traceback" not in done.stderr and done.stderr.count("\n") == 1
 
 
-# --- issue 10: every raw traceback of the scenario and the CLI is a named error ---------------
+# --- every raw traceback of the scenario and the CLI is a named error ---------------
 
 
 def _springs_npz(tmp_path, kind):

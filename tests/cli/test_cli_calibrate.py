@@ -154,9 +154,8 @@ def test_the_standard_errors_say_where_they_come_from(case, tmp_path):
     without = json.loads((tmp_path / "i" / "calibration.json").read_text())
     assert without["values"] == with_length["values"]  # the same fit: each reading weighted by its noise
     # the option is the API's spatial correlation of the map's points
-    from dea_opt.calibrate import PressureMap, calibrate
-
     from dea_opt.sensitivity import spatial_correlation
+    from dea_opt.sensitivity.calibrate import PressureMap, calibrate
 
     data = PressureMap.from_csv(film, noise=0.05)
     data = PressureMap(data.points, data.pressure, noise=0.05, correlation=spatial_correlation(data.points, 2.0))

@@ -9,36 +9,23 @@ from __future__ import annotations
 import os
 
 import pytest
-from conftest import KNEE_SCENARIO
+from conftest import KNEE_SCENARIO, scenario_text
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError, OutputFolderError
-from dea_opt.io import folderlock
-from dea_opt.io.atomic import write_data
-from dea_opt.io.publish import LOCK_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
+from dea_opt.files.atomic import write_data
+from dea_opt.run import folderlock
+from dea_opt.run.publish import LOCK_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
 
 runner = CliRunner()
 
 #: A plate pulled away from its bed: bad input found by the solve, inside the output folder's lock
 #: (the check before solving, which would stop it before the lock, is turned off).
-PULLED = """\
-[geometry]
-kind = "plate"
-nx = 8
-ny = 4
-[law]
-kind = "linear"
-H = 20.0
-[body2]
-free = ["uz"]
-[load]
-force = [0.0, 0.0, 500.0]
-[solve]
-check_inputs = false
-[output]
-formats = ["json"]
-"""
+PULLED = (
+    scenario_text(nx=8, H=20.0, free=("uz",), force=500.0)
+    + '[solve]\ncheck_inputs = false\n[output]\nformats = ["json"]\n'
+)
 PRESSED = PULLED.replace("force = [0.0, 0.0, 500.0]", "force = [0.0, 0.0, -500.0]")
 #: The coarse generated knee with finite kinematics: ``compare --methods qp`` is refused.
 

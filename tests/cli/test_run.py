@@ -1,5 +1,5 @@
 """dea-opt run: validity in every report and in the exit status (0 ok, 1 certificate failed, 2 bad
-input, 3 outside validity), the issue's reproducers end to end on the real knee, laws from the
+input, 3 outside validity), the reported reproducers end to end on the real knee, laws from the
 registry (a toy law of the test's own through solve, a scenario and the CLI, law kinds in sweeps),
 and no raw warning on the terminal."""
 
@@ -16,14 +16,14 @@ import numpy as np
 import pandas as pd
 import pytest
 from conftest import COARSE_SOCKET, KNEE
-from dea_opt.law_registry import Range
 from typer.testing import CliRunner
 
 import dea_opt as d
 from dea_opt.cli import app
 from dea_opt.geometry import plate_layer
-from dea_opt.io.publish import read_manifest
 from dea_opt.laws import LAWS, Law, register_law
+from dea_opt.laws.registry import Range
+from dea_opt.run.publish import read_manifest
 from dea_opt.scenario import parse_scenario, schema_text
 from dea_opt.status import RunStatus
 
@@ -174,7 +174,7 @@ def test_a_load_path_with_a_failed_frame_exits_1(tmp_path):
     assert read_manifest(tmp_path / "stopped") is None
 
 
-# --- the issue's reproducers on the real knee, through dea-opt run ------------------------------
+# --- the reported reproducers on the real knee, through dea-opt run ------------------------------
 
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 needs_knee = pytest.mark.skipif(not all((KNEE / f).is_file() for f in KNEE_FILES), reason="no knee meshes")
@@ -233,7 +233,7 @@ def test_knee_reproducers_exit_3_with_the_reason(tmp_path, case, options, failed
     summary = json.loads((tmp_path / "out" / "contact.json").read_text())
     assert summary["success"] and failed <= set(summary["validity"]["failed"])
     assert set(summary["regions"]) == {"medial", "lateral"}
-    if case == "six free dofs":  # the femur rotated about 21 degrees (issue 11)
+    if case == "six free dofs":  # the femur rotated about 21 degrees
         assert summary["validity"]["checks"]["rotation"]["value"] > 10.0
 
 

@@ -1,4 +1,4 @@
-"""The pieces wired end to end through ``dea-opt run``/``sweep``/``demo`` and the API (issues 10, 11):
+"""The pieces wired end to end through ``dea-opt run``/``sweep``/``demo`` and the API:
 load paths streamed frame by frame with every frame's status, the anatomical frame from the scenario,
 size checks before resampling, sweep statuses, the demo's regions, and a folder a killed run left
 behind (the re-cast at the solved pose and the unsupported-load diagnostic: test_wiring_recast.py)."""
@@ -17,13 +17,13 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from conftest import COARSE_SOCKET, KNEE
+from conftest import COARSE_SOCKET, KNEE, scenario_text
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError, SizeLimitError
-from dea_opt.io.atomic import TEMPORARY_NAME
-from dea_opt.io.publish import check_outputs, read_manifest
+from dea_opt.files.atomic import TEMPORARY_NAME
+from dea_opt.run.publish import check_outputs, read_manifest
 from dea_opt.scenario import load_scenario, parse_scenario, read_load_path, schema_text
 from dea_opt.status import RunStatus
 
@@ -186,22 +186,7 @@ def test_run_path_outputs_keeps_nothing_per_frame(tmp_path):
 
 # --- 2. the anatomical frame from the scenario ------------------------------------------------------
 
-PLATE = """\
-[geometry]
-kind = "plate"
-length = 40.0
-width = 10.0
-nx = 40
-ny = 10
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [5.0, 0.0, 0.0]
-"""
+PLATE = scenario_text(size=(40.0, 10.0), ny=10, point=(5.0, 0.0, 0.0))
 ANATOMY = '[output]\nanatomy = {medial = [0.0, 1.0, 0.0], proximal = [0.0, 0.0, 1.0], side = "left"}\n'
 
 
@@ -337,9 +322,8 @@ def test_the_guide_documents_the_sweep_statuses():
 
 
 def test_hip_regions_label_the_dome_and_the_walls():
-    from dea_opt.demo import hip_regions
-
     from dea_opt.geometry import socket_layer
+    from dea_opt.run.demo import hip_regions
 
     layer = socket_layer(25.0, 3.0, 80.0, 16, 36)
     frame = {"medial": (1.0, 0.0, 0.0), "proximal": (0.0, 0.0, -1.0), "side": "right"}
@@ -416,7 +400,7 @@ def test_kill_9_of_a_first_run_mid_path_then_rerun(tmp_path):
 
 
 def test_two_runs_into_one_folder_at_once(tmp_path):
-    from dea_opt.io.publish import output_run
+    from dea_opt.run.publish import output_run
 
     scenario = socket_path(tmp_path, [(0.0, 0.0, 0.0, -500.0)])
     with output_run(tmp_path / "out"):  # another run holds the folder

@@ -1,7 +1,7 @@
-"""Springs re-cast at the solved pose through ``dea-opt run`` and the API (issue 11 item 9 wired):
+"""Springs re-cast at the solved pose through ``dea-opt run`` and the API:
 ``Solution.with_validity``, the re-cast of a static answer and of a load path's peak frame (the
 real knee, a path with poses), the guide's example with the knee's numbers, and the
-unsupported-load diagnostic in commensurate units (issue 10)."""
+unsupported-load diagnostic in commensurate units."""
 
 from __future__ import annotations
 

@@ -6,11 +6,11 @@ import dataclasses
 
 import numpy as np
 import pytest
-from dea_opt.regions import label_by_axis
 
 import dea_opt as d
 from dea_opt import io
 from dea_opt.anatomy import AnatomicalFrame
+from dea_opt.anatomy.regions import label_by_axis
 from dea_opt.geometry import plate_layer
 from dea_opt.io.mapframe import map_frame
 

@@ -168,7 +168,7 @@ def test_outputs(solutions, tmp_path):
 
 
 # --------------------------------------------------------------------------------------------
-# The proximity window at the solved pose (issue 11 item 9)
+# The proximity window at the solved pose
 # --------------------------------------------------------------------------------------------
 @pytest.fixture(scope="module")
 def recast(solutions, knee):
@@ -230,7 +230,7 @@ def test_recast_force_agrees_with_the_load_within_the_small_kinematics_error(rec
     force = (-MODULUS * strain * new.areas) @ new.normals  # the test's own sum
     np.testing.assert_allclose(recast.force, force, rtol=1e-12)
     np.testing.assert_allclose(recast.solution_force[2], LOAD, rtol=1e-6)
-    # issue 13 measured +2.2 % on this knee: the error of the linearised kinematics
+    # finite kinematics measured +2.2 % on this knee: the error of the linearised kinematics
     assert 0.0 < force[2] / LOAD - 1.0 < 0.04
     assert recast.force_error < 0.04
 

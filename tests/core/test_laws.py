@@ -50,7 +50,7 @@ def test_ateshian_is_eq2(beta):
 
 
 def test_ateshian_value_at_30_percent_compression():
-    # The check: |sigma(-0.3)| is about 1.23 H x 0.3 for beta = 0.05.
+    # The reported check: |sigma(-0.3)| is about 1.23 H x 0.3 for beta = 0.05.
     law = d.AteshianLaw(1.0, 0.05)
     assert -law.stress(np.array([-0.3]))[0] / 0.3 == pytest.approx(1.2267, abs=1e-4)
 

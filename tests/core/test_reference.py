@@ -143,6 +143,9 @@ def test_contact_force_balances_the_load(case, method):
     scale = np.linalg.norm(load[:3])
     np.testing.assert_allclose(resultant[free], -load[free], rtol=0, atol=1e-8 * scale * max(1.0, R))
     assert s.success and s.certificate.passed
+    # scipy's x: the variables solved for, body 2's free dofs (u[6:12]) in the order of DOFS
+    np.testing.assert_array_equal(s.x, s.u[6:][free])
+    assert s.x.shape == (len(p.body2.free),)
 
 
 @pytest.mark.parametrize("case", list(CASES))
@@ -158,7 +161,7 @@ def test_methods_agree(case):
 @pytest.mark.filterwarnings("ignore::dea_opt.ValidityWarning")
 def test_compare_reports_disagreement():
     out = d.compare(problem("plate-e10"), qp={"tol": 1e-10}, nlp={"tol": 1e-12})
-    assert set(out["solutions"]) == {"qp", "nlp", "newton"}
-    assert out["displacement"] < 1e-6 and out["pressure"] < 1e-6
+    assert set(out.solutions) == {"qp", "nlp", "newton"}
+    assert out.displacement < 1e-6 and out.pressure < 1e-6
     out = d.compare(problem("bed-ateshian-0.05"), methods=("qp", "newton"))
-    assert "qp" in out["skipped"] and set(out["solutions"]) == {"newton"}
+    assert "qp" in out.skipped and set(out.solutions) == {"newton"}

@@ -8,9 +8,9 @@ import dataclasses
 
 import numpy as np
 import pytest
-from dea_opt.regions import RegionStats, region_statistics, regional_statistics, split_by_axis
 
 import dea_opt as d
+from dea_opt.anatomy.regions import RegionStats, region_statistics, regional_statistics, split_by_axis
 from dea_opt.errors import InputError
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 

@@ -1,4 +1,4 @@
-"""Scale and conditioning (issue 6): correct answers or named errors, and no warnings.
+"""Scale and conditioning: correct answers or named errors, and no warnings.
 
 Areas from 1e-6 to 1e2 mm^2, thicknesses from 1e-2 to 10 mm, H from 1e-2 to 1e3 MPa, lever
 arms (the distance from the body's reference point to the layer) from 1e-3 to 1e3 mm, one

@@ -78,7 +78,7 @@ def test_each_method_keeps_its_solver_s_own_status(method, native):
 
 @pytest.mark.parametrize("method", [*METHODS, "auto"])
 def test_zero_load_frames_of_a_load_path_have_one_status_by_every_method(method):
-    """Issue 11, item 7: zero-load frames were ``stalled`` in one frame and ``unloaded`` in
+    """Zero-load frames were ``stalled`` in one frame and ``unloaded`` in
     another, and failed their certificate with nlp. Every method now gives them one status and
     a certified answer: ``unloaded`` without overlap, ``preloaded`` with a press fit."""
     loads = [(0, 0, 0), (0, 0, -200.0), (0, 0, 0)]

@@ -1,24 +1,23 @@
-"""The package's layout: no import cycle, small modules, and the old import paths still work.
+"""The package's layout: its subpackages in layers, no import cycle, small modules, one name per thing.
 
 The import graph is read from the source with :mod:`ast` (nothing is imported to build it):
 a node per module of ``dea_opt`` (a package is its ``__init__``), an edge per import of
-another ``dea_opt`` module. ``from . import x`` is an edge to the submodule ``x`` when there
-is one, else to the package. Importing ``dea_opt.a.b`` runs ``dea_opt/a/__init__`` first,
-but that implicit edge to a parent package is left out: every module would otherwise sit in
-a cycle with ``dea_opt/__init__``, which imports the public API from its submodules.
+another ``dea_opt`` module, at module level or inside a function (an import inside a function
+runs later, but it is a dependency all the same). ``from . import x`` is an edge to the
+submodule ``x`` when there is one, else to the package. Importing ``dea_opt.a.b`` runs
+``dea_opt/a/__init__`` first, but that implicit edge to a parent package is left out: every
+module would otherwise sit in a cycle with ``dea_opt/__init__``, which imports the public API
+from its submodules.
 
-Two graphs are checked. The imports that run when a module is imported (module level, class
-bodies) must have no cycle at all. Adding the imports inside functions, which run only when
-the function is called (after every module has loaded, so they cannot fail half-initialised),
-the graph must have no cycle either, except through the edges of ``CALL_TIME_FRONTS``: methods
-that are thin fronts to a subpackage which itself builds the front's class.
+Above the modules, the subpackages (and the top-level modules) stand in :data:`LAYERS`, from the
+bottom up: each imports only from the layers below its own, so no two subpackages can depend on
+each other, whichever way round.
 """
 
 from __future__ import annotations
 
 import ast
 import graphlib
-import importlib
 import tomllib
 from pathlib import Path
 
@@ -29,11 +28,34 @@ import dea_opt
 PACKAGE = Path(dea_opt.__file__).resolve().parent
 #: Modules stay under this many lines, formatted by ruff (the project's guide says "~500").
 MAX_LINES = 520
-#: Function-level imports allowed to close a cycle, and why.
-CALL_TIME_FRONTS = {
-    # SpringLayer.from_meshes is a front to dea_opt.mesh, which builds SpringLayer objects.
-    ("dea_opt.layer", "dea_opt.mesh"),
-}
+#: The subpackages and top-level modules of dea_opt from the bottom up. A name imports (at module
+#: level or inside a function) only from the layers below its own; ``dea_opt`` itself, the public
+#: front, imports from any. A new subpackage takes its place here.
+LAYERS = (
+    ("_version", "errors"),  # the version; the one exception tree
+    ("status", "_checks", "files", "units"),  # status vocabularies; checks; atomic files, locks; units in names
+    ("laws", "kinematics", "anatomy", "progress", "gait"),  # spring laws; rigid motion; anatomical frames
+    ("formulations",),  # arrays and a law: the registry and every formulation
+    ("layer",),  # the spring layer
+    ("mesh", "io"),  # meshes to springs (and the cast cache); file formats
+    ("problem",),  # a contact problem: layer, law, bodies, kinematics
+    ("certificate_sums",),  # the certificate's sums over a problem's springs, in one sweep
+    ("certificate", "validity", "loadcheck", "agreement", "geometry"),  # judging an answer; embedded geometries
+    ("solution",),  # an answer with its certificate and validity
+    ("finite",),  # finite kinematics above the arrays: meshes re-cast at the pose
+    ("joint",),  # several bodies, layers and ligaments
+    ("solver",),  # solve and compare, by kinematics and method
+    ("loadpath", "study"),  # load paths; comparison studies
+    ("opensim",),  # OpenSim models and motions, read without OpenSim
+    ("scenario",),  # scenario files: schema, parse, build, content keys
+    ("report",),  # report.html of a run and of a sweep
+    ("run",),  # running a scenario: outputs published together, pictures, init
+    ("sensitivity", "sweep"),  # derivatives and calibration; sweeps over scenarios
+    ("cli",),  # the command line
+)
+LEVEL = {name: level for level, names in enumerate(LAYERS) for name in names}
+#: Modules stay under this many lines, formatted by ruff (the project's guide says "~500").
+MAX_LINES = 520
 
 
 def _module_name(path: Path) -> str:
@@ -45,12 +67,7 @@ MODULES = {_module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
 
 
 def _target(name: str) -> str | None:
-    """The dea_opt module ``name`` loads: itself, or the longest prefix that is a module (a former
-    module path, :data:`dea_opt.FORMER_MODULES`, is the module it names now)."""
-    for old, new in dea_opt.FORMER_MODULES.items():
-        if name == old or name.startswith(old + "."):
-            name = new + name[len(old) :]
-            break
+    """The dea_opt module ``name`` loads: itself, or the longest prefix that is a module."""
     while name:
         if name in MODULES:
             return name
@@ -128,21 +145,42 @@ def test_the_graph_sees_the_imports_it_must():
     assert len(EDGES) > 100
 
 
+def _unit(module: str) -> str:
+    """The subpackage or top-level module of ``module`` (``dea_opt`` for the package itself)."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else "dea_opt"
+
+
+def test_every_subpackage_has_its_layer():
+    units = {_unit(name) for name in MODULES} - {"dea_opt"}
+    assert units == set(LEVEL), f"not in LAYERS: {sorted(units - set(LEVEL))}; gone: {sorted(set(LEVEL) - units)}"
+
+
+def test_subpackages_import_only_from_the_layers_below():
+    """Counting the imports inside functions: no subpackage reaches up, or across its own layer."""
+    wrong = sorted(
+        (a, b)
+        for a, b in EDGES
+        if _unit(a) != "dea_opt" and _unit(a) != _unit(b) and LEVEL[_unit(a)] <= LEVEL[_unit(b)]
+    )
+    assert not wrong, "imports that break the layers: " + "; ".join(f"{a} -> {b}" for a, b in wrong)
+
+
+def test_the_layer_rule_would_see_an_upward_import_inside_a_function():
+    visitor = _Imports("dea_opt.layer", False)
+    visitor.visit(ast.parse("def from_meshes():\n    from .mesh import springs_from_meshes\n"))
+    assert visitor.found == [("dea_opt.mesh", False)]
+    assert LEVEL[_unit("dea_opt.layer")] <= LEVEL[_unit("dea_opt.mesh")]  # would be reported
+
+
 def test_no_import_cycle_at_import_time():
     cycle = _cycle([edge for edge, at_import in EDGES.items() if at_import])
     assert cycle is None, " -> ".join(cycle)
 
 
 def test_no_import_cycle_with_function_level_imports():
-    cycle = _cycle([edge for edge in EDGES if edge not in CALL_TIME_FRONTS])
+    cycle = _cycle(list(EDGES))
     assert cycle is None, " -> ".join(cycle)
-
-
-@pytest.mark.parametrize("front", sorted(CALL_TIME_FRONTS))
-def test_each_allowed_front_is_real_and_only_a_call_time_import(front):
-    """An entry of CALL_TIME_FRONTS that no longer closes a cycle must be removed from it."""
-    assert EDGES.get(front) is False, f"{front} is not a function-level import"
-    assert _cycle([edge for edge in EDGES if edge not in CALL_TIME_FRONTS - {front}]) is not None
 
 
 #: What the formulations never see (the guide: "Dependencies point one way: formulations code sees
@@ -153,26 +191,24 @@ NEVER_SEEN_BY_FORMULATIONS = (
     "dea_opt.io",
     "dea_opt.scenario",
     "dea_opt.loadpath",
-    "dea_opt.path",
     "dea_opt.problem",
     "dea_opt.layer",
     "dea_opt.solution",
-    "dea_opt.largemotion",
+    "dea_opt.finite",
     "dea_opt.solver",
 )
 #: What they may import besides each other: errors, statuses, input checks, tolerances, laws and
 #: the kinematics' array helpers, and the loader of optional dependencies and compiled parts
-#: (``dea_opt._checks.dependencies``, formerly ``dea_opt._optional``).
+#: (``dea_opt._checks.dependencies``).
 SEEN_BY_FORMULATIONS = (
     "dea_opt.errors",
     "dea_opt.status",
-    "dea_opt._validate",
-    "dea_opt._tolerances",
+    "dea_opt._checks.inputs",
+    "dea_opt._checks.thresholds",
     "dea_opt.laws",
-    "dea_opt.law_registry",
     "dea_opt.kinematics",
-    "dea_opt._optional",
     "dea_opt._checks.dependencies",
+    "dea_opt._checks.threads",
 )
 
 
@@ -213,106 +249,28 @@ def test_version_is_the_projects():
     assert dea_opt.__version__ == __version__ == project["version"]
 
 
-# The public names of the modules that became packages, as they were before the split.
-FORMER_NAMES = {
-    "dea_opt.io": [
-        "CSV_COLUMNS",
-        "SurfaceData",
-        "atomic_open",
-        "atomic_path",
-        "best_fit_frame",
-        "contact_surface",
-        "label_codes",
-        "plot_pressure",
-        "read_csv",
-        "read_json",
-        "read_vtk",
-        "summary_dict",
-        "to_csv",
-        "to_json",
-        "to_vtk",
-        "vtk_differences",
-        "write_atomic",
-        "write_data",
-        "write_results",
-    ],
-    "dea_opt.mesh": [
-        "ENGINES",
-        "LOADERS",
-        "MAX_ANGLE",
-        "MAX_GAP",
-        "MAX_OVERLAP",
-        "SpringCast",
-        "TwoWaySprings",
-        "as_mesh",
-        "cast_springs",
-        "check_pose",
-        "concatenate_meshes",
-        "load_mesh",
-        "springs_both_ways",
-        "springs_from_meshes",
-        "surface_thickness",
-    ],
-    "dea_opt.scenario": [
-        "Scenario",
-        "ScenarioError",
-        "LoadPathData",
-        "load_scenario",
-        "parse_scenario",
-        "build_problem",
-        "build_layer",
-        "build_geometry",
-        "build_law",
-        "pose_builder",
-        "read_load_path",
-        "read_springs",
-        "write_springs",
-        "parse_set",
-        "apply_overrides",
-        "schema_text",
-        "METHOD_NAMES",
-        "FORMATS",
-        "GEOMETRY_KINDS",
-        "pose_matrices",
-        "load_meshes",
-        "springs_from_mesh_section",
-        "MeshGeometry",
-        "LawSection",
-    ],
-    "dea_opt.path": ["solve_path", "PathResult", "Exposure", "exposure", "write_pvd", "TABLE_COLUMNS"],
-}
+def test_one_name_per_thing_no_former_names():
+    """Version 0.x keeps no aliases: no FORMER_* tables, and no module-level ``__getattr__`` (the
+    way a former name is served)."""
+    assert not [name for name in dir(dea_opt) if name.startswith("FORMER")]
+    serving = [
+        name
+        for name, path in MODULES.items()
+        if any(
+            isinstance(node, ast.FunctionDef) and node.name == "__getattr__"
+            for node in ast.parse(path.read_text(encoding="utf-8")).body
+        )
+    ]
+    assert not serving, f"modules that serve names by __getattr__: {serving}"
 
 
-@pytest.mark.parametrize("module", sorted(FORMER_NAMES))
-def test_former_import_paths_still_work(module):
-    loaded = importlib.import_module(module)
-    missing = [name for name in FORMER_NAMES[module] if not hasattr(loaded, name)]
-    assert not missing, f"{module} lost {missing}"
-    for name in getattr(loaded, "__all__", ()):
-        assert hasattr(loaded, name), f"{module}.__all__ names {name}, which it does not have"
+def test_import_dea_opt_starts_no_picture_machinery_nor_matplotlib():
+    import subprocess
+    import sys
 
-
-@pytest.mark.parametrize("old, new", sorted(dea_opt.FORMER_MODULES.items()))
-def test_each_former_module_path_is_its_module_now(old, new):
-    assert old not in MODULES, f"{old} is both a module and a former name"
-    assert new in MODULES
-    assert importlib.import_module(old) is importlib.import_module(new)
-    # ``import dea_opt.x`` then ``dea_opt.x.name``, unless the package has another ``x``
-    name = old.rpartition(".")[2]
-    assert getattr(dea_opt, name) is importlib.import_module(new) or name == "calibrate"
-
-
-def test_a_former_private_path_is_mapped_in_the_graph():
-    # a branch written before the move imports ``.._validate``: the edge goes to the module it is now
-    assert _target("dea_opt._validate") == "dea_opt._checks.inputs"
-    assert _target("dea_opt.regions.label_by_axis") == "dea_opt.anatomy.regions"
-
-
-def test_path_is_loadpath():
-    import dea_opt.path
-
-    import dea_opt.loadpath
-
-    for name in dea_opt.path.__all__:
-        assert getattr(dea_opt.path, name) is getattr(dea_opt.loadpath, name)
-    assert dea_opt.solve_path is dea_opt.loadpath.solve_path
+    code = (
+        "import sys, dea_opt; "
+        "print(sorted(m for m in sys.modules if m.startswith(('matplotlib', 'dea_opt.run', 'cvxpy', 'casadi'))))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]", out

@@ -1,5 +1,5 @@
-"""Issue 10, findings 1 and 6: directions no spring resists, judged absolutely, and a certificate
-that cannot be fooled (every reproducer of the issue fails it); zero load with a press fit.
+"""Directions no spring resists, judged absolutely, and a certificate
+that cannot be fooled (every reproducer of the failure fails it); zero load with a press fit.
 
 Equilibrium is checked here with force and moment sums written in this file; the certificate
 is only ever the thing under test.
@@ -49,7 +49,7 @@ def noise_equilibrium(problem):
     return problem.full_u(x)
 
 
-# --- finding 1: a ball in a socket with only its rotations free ------------------------------
+# --- a ball in a socket with only its rotations free ------------------------------
 
 
 @pytest.mark.parametrize("method", METHODS)
@@ -71,7 +71,7 @@ def test_a_moment_on_a_ball_with_only_rotations_free_is_rejected_by_every_method
 @pytest.mark.parametrize("moment", [(1e-13, 0.0, 0.0), (0.0, 4e-14, -3e-14)])
 @pytest.mark.parametrize("gap", [-2.0 / 6.0, -2.0 / 3.0])
 def test_the_certificate_fails_the_old_noise_driven_answer(moment, gap):
-    """The issue's reproducer (a tiny moment on a press-fitted ball, only rotations free): the
+    """The reported reproducer (a tiny moment on a press-fitted ball, only rotations free): the
     old answer turned the ball by about 1e14 rad and balanced the moment through the rounding
     noise in the lever arms. Forged here so that every spring stays compressed and the
     generalized spring force equals the load to rounding; it must still not pass."""
@@ -85,7 +85,7 @@ def test_the_certificate_fails_the_old_noise_driven_answer(moment, gap):
             break
         moment = tuple(0.1 * m for m in moment)
     assert strain.max() < 0
-    assert np.abs(u[9:]).max() > 1e10  # the garbage of the issue
+    assert np.abs(u[9:]).max() > 1e10  # the garbage answer once returned
     sigma = problem.law.stress(strain)
     _, spring_moment = springs_on_body2(problem.layer, -sigma, (0, 0, 0))
     total = float(-sigma @ problem.layer.areas)
@@ -146,7 +146,7 @@ def test_a_tiny_load_along_an_unresisted_dof_of_a_partly_resisted_body_is_reject
         d.solve(problem, method)
 
 
-# --- finding 6: zero load with a press fit ---------------------------------------------------
+# --- zero load with a press fit ---------------------------------------------------
 
 
 def box_layer(half=5.0, n=6, h=1.0, overlap=(0.1, 0.1, 0.1, 0.1, 0.1, 0.1)):
@@ -266,7 +266,7 @@ def test_solve_is_quiet_for_held_and_preloaded_answers():
 
 
 def test_the_cli_rejects_the_ball_in_socket_reproducer(tmp_path):
-    """Through the command line the issue's scenario exited 0 with the garbage answer."""
+    """Through the command line the reported scenario exited 0 with the garbage answer."""
     import subprocess
     import sys
 

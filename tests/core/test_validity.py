@@ -1,9 +1,9 @@
-"""Issue 11 item 1: "solved" is not "valid" — the validity report of every result.
+"""A solved answer is not yet a valid one: the validity report of every result.
 
 Each check is tested against a closed form or an independent computation written here: a
 plate pressed to a known uniform strain (the law's range, crushing), a prescribed rotation
 about a point at a known distance (the exact gap error ``y (sin t - t) + d (1 - cos t)``, and
-scipy's rotation matrix for random motions), and the issue's reproducers on the real knee
+scipy's rotation matrix for random motions), and the reported reproducers on the real knee
 (meshes in metres, a 1e6 N load, six free dofs that rotate the femur about 21 deg) beside
 the physiological case that must stay valid.
 """
@@ -394,7 +394,7 @@ def test_the_guide_validity_example_runs(capsys):
     assert namespace["loose"].limits.peak_pressure == 50.0 and namespace["loose"].valid
 
 
-# --- the real knee: the issue's reproducers and the physiological case -------------------------
+# --- the real knee: the reported reproducers and the physiological case -------------------------
 
 FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 
@@ -455,7 +455,7 @@ def test_knee_under_a_million_newtons_is_flagged_for_pressure(knee):
 
 @pytest.mark.parametrize("offset", [(0.0, 0.0, 0.0), (10.0, 0.0, 0.0)], ids=["midpoint", "medial-10mm"])
 def test_knee_with_six_free_dofs_rotates_out_of_the_small_rotation_model(knee, offset):
-    """Issue 11: with the default six free dofs the femur slid about 17 mm and rotated about 21 deg."""
+    """With the default six free dofs the femur slid about 17 mm and rotated about 21 deg."""
     point = tuple(np.add(knee.body2.reference, offset))
     problem = d.ContactProblem(
         knee.layer, knee.law, load=d.Load((0.0, 0.0, -1000.0), point=point), reference=knee.body2.reference, free=d.DOFS

@@ -1,4 +1,4 @@
-"""Issue 10, findings 5 (API part) and 7 (normals): inputs that used to raise raw tracebacks or
+"""Inputs that used to raise raw tracebacks or
 were silently mangled now raise a named InputError, and their neighbours (other products that
 overflow, subnormal scales) are handled by the same range rule, not case by case."""
 
@@ -10,9 +10,9 @@ import warnings
 
 import numpy as np
 import pytest
-from dea_opt._validate import LARGEST, SMALLEST
 
 import dea_opt as d
+from dea_opt._checks.inputs import LARGEST, SMALLEST
 from dea_opt.geometry import plate_layer, sphere_on_bed_layer
 
 
@@ -189,7 +189,7 @@ def test_tiny_loads_within_the_range_are_solved(method):
 
 
 def test_law_h_1e308_through_a_scenario_is_a_clean_cli_error(tmp_path):
-    """The issue's reproducer went through auto's qp fallback into cvxpy ('Problem data contains
+    """The reported reproducer went through auto's qp fallback into cvxpy ('Problem data contains
     NaN or Inf'); now the law is rejected when it is built, and the CLI says so."""
     scenario = tmp_path / "huge.toml"
     scenario.write_text(
@@ -208,7 +208,7 @@ def test_law_h_1e308_through_a_scenario_is_a_clean_cli_error(tmp_path):
     assert "1e+30" in done.stderr
 
 
-# --- finding 7: normals normalised without overflow -----------------------------------------------
+# --- normals normalised without overflow -----------------------------------------------
 
 
 @pytest.mark.parametrize("scale", [1e200, 1e155, 1e-200, 1e-310])

@@ -1,4 +1,4 @@
-"""Issue 10, finding 2: no input makes compiled code (NNLS, LAPACK, Clarabel, IPOPT) abort the
+"""No input makes compiled code (NNLS, LAPACK, Clarabel, IPOPT) abort the
 process. The reproducers run in a subprocess, which must exit cleanly with a named error."""
 
 from __future__ import annotations

@@ -60,7 +60,7 @@ class CountingFrames(Sequence):
 def test_a_sequence_of_a_billion_loads_is_refused_before_a_frame_is_read():
     frames = CountingFrames(BILLION)
     with pytest.raises(SizeLimitError, match="1000000000 frames") as caught:
-        solve_path(plate_problem(), frames, keep_solutions=False, keep_pressures=False)
+        solve_path(plate_problem(), frames, outputs=d.PathOutputs(keep_solutions=False, keep_pressures=False))
     assert caught.value.needed > caught.value.available
     assert frames.read == []
 
@@ -93,7 +93,7 @@ BROADCAST = textwrap.dedent("""
     row = np.array([0, 0, -10, 0, 0, 0], dtype=sys.argv[1])  # integers: a conversion would copy
     loads = np.broadcast_to(row, (10**9, 6))
     try:
-        d.solve_path(problem, loads, keep_solutions=False, keep_pressures=False)
+        d.solve_path(problem, loads, outputs=d.PathOutputs(keep_solutions=False, keep_pressures=False))
     except SizeLimitError as exc:
         print("refused:", exc)
     """)

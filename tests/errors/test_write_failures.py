@@ -16,9 +16,10 @@ import sys
 import textwrap
 
 import pytest
+from conftest import scenario_text
 
-from dea_opt.io.atomic import atomic_path, write_atomic, write_data
-from dea_opt.io.publish import MANIFEST_NAME
+from dea_opt.files.atomic import atomic_path, write_atomic, write_data
+from dea_opt.run.publish import MANIFEST_NAME
 from dea_opt.sweep import journal
 
 
@@ -58,18 +59,7 @@ def test_a_sweep_journal_that_cannot_grow_names_itself(tmp_path, monkeypatch):
     assert caught.value.filename == str(tmp_path / journal.JOURNAL_NAME)
 
 
-SCENARIO = """\
-[geometry]
-kind = "plate"
-nx = 40
-ny = 40
-[law]
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-"""
+SCENARIO = scenario_text(ny=40, law=None)
 
 LIMITED = textwrap.dedent("""
     import resource, signal, sys

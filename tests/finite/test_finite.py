@@ -1,4 +1,4 @@
-"""Finite kinematics (issue 13) against closed forms, finite differences and IPOPT.
+"""Finite kinematics against closed forms, finite differences and IPOPT.
 
 Every equilibrium is checked with sums written here (forces along the springs' normals, moments
 about body 2's reference where it is at the solved pose), never with the certificate. Geometry:
@@ -15,10 +15,10 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import dea_opt as d
-from dea_opt import largemotion
-from dea_opt.formulations._parts import finite_geometry as G
-from dea_opt.formulations._parts.finite_system import FiniteSystem
+from dea_opt import finite
 from dea_opt.formulations.finite import Targets
+from dea_opt.formulations.finite import geometry as G
+from dea_opt.formulations.finite.system import FiniteSystem
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 
 H = 10.0  # MPa
@@ -547,7 +547,7 @@ def test_bad_options_frames_and_starts_are_named():
     skew = np.eye(4)
     skew[0, 1] = 0.5
     with pytest.raises(d.InputError, match="frame is not rigid"):
-        largemotion.solve(problem, frame=skew)
+        finite.solve(problem, frame=skew)
     with pytest.raises(d.InputError, match="prescribed motion"):
         d.solve(
             d.ContactProblem(layer, d.LinearLaw(H), body1=d.Body(free=(), prescribed={"uz": 0.1}), kinematics="finite")

@@ -11,7 +11,7 @@ by ``dea_opt.solve`` as a user would (``method="auto"``). Each certified answer 
   plane of the face of mesh 2 it met for the knee), with the laws' stresses written here and the
   rotation's left Jacobian written here, against the load on the free dofs: at most ``1e-6`` of the
   load (moments over the springs' RMS radius);
-* for the knee also a fresh cast of the meshes at the solved pose (``SpringLayer.from_meshes``,
+* for the knee also a fresh cast of the meshes at the solved pose (``springs_from_meshes``,
   no re-casting state): its springs' resultant against the load (reported: the followed springs'
   thicknesses are measured again only once a hit moved 0.01 mm, and answers whose validity
   report counts springs dropped by the window or lost through the layer, which a fresh cast with
@@ -42,6 +42,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 import dea_opt as d  # noqa: E402
 from dea_opt.formulations.finite import Targets  # noqa: E402
 from dea_opt.geometry import plate_layer, sphere_on_bed_layer  # noqa: E402
+from dea_opt.mesh import springs_from_meshes  # noqa: E402
 
 TOL = 1e-6
 FREE_SETS = [
@@ -234,7 +235,7 @@ class Knee:
         """A fresh cast at the solved pose: its springs' force on the free translations and moment on
         the free rotations against the load, relative to it (as :func:`residual`)."""
         k = self.knee
-        layer = d.SpringLayer.from_meshes(k["mesh1"], k["mesh2"], pose=solution.pose, max_gap=2.0, max_overlap=10.0)
+        layer = springs_from_meshes(k["mesh1"], k["mesh2"], pose=solution.pose, max_gap=2.0, max_overlap=10.0)
         fake = type("S", (), {"problem": d.ContactProblem(layer, problem.law), "u": solution.u})
         return residual(problem, fake, layer.gap)
 
@@ -306,6 +307,7 @@ def attack(n: int, seed: int = 2025, out=print, first: int = 0) -> dict:
         "disagreements": [],
         "missed": [],
         "fresh_worst": 0.0,
+        "fresh_flagged": [],
         "by_kind": {},
         "seconds": 0.0,
     }

@@ -59,12 +59,12 @@ def springs_on_body2(solution):
 def test_compare_runs_newton_and_nlp_as_the_finite_formulations_and_they_agree(punch):
     problem, w, theta, force, moment = punch
     out = quiet(d.compare, problem, methods=("newton", "nlp"))
-    assert list(out["solutions"]) == ["finite", "finite_nlp"] and out["skipped"] == {}
-    assert out["notes"] == [
+    assert list(out.solutions) == ["finite", "finite_nlp"] and out.skipped == {}
+    assert out.notes == (
         "newton stands for finite with finite kinematics",
         "nlp stands for finite_nlp with finite kinematics",
-    ]
-    newton, ipopt = out["solutions"]["finite"], out["solutions"]["finite_nlp"]
+    )
+    newton, ipopt = out.solutions["finite"], out.solutions["finite_nlp"]
     for solution, method in ((newton, "finite"), (ipopt, "finite_nlp")):
         assert solution.success and solution.method == method
         assert (solution.strain < 0).all()  # full contact: the closed form holds
@@ -78,23 +78,23 @@ def test_compare_runs_newton_and_nlp_as_the_finite_formulations_and_they_agree(p
     du = np.abs(newton.u - ipopt.u).max() / scale
     dp = np.abs(newton.pressure - ipopt.pressure).max() / max(newton.peak_pressure, ipopt.peak_pressure)
     assert du <= 1e-6 and dp <= 1e-6
-    assert out["displacement"] == pytest.approx(du, rel=1e-12, abs=1e-300)
-    assert out["pressure"] == pytest.approx(dp, rel=1e-12, abs=1e-300)
+    assert out.displacement == pytest.approx(du, rel=1e-12, abs=1e-300)
+    assert out.pressure == pytest.approx(dp, rel=1e-12, abs=1e-300)
 
 
 def test_compare_by_default_runs_the_finite_formulations_and_says_why_qp_is_not_run(punch):
     problem, w, theta, *_ = punch
     out = quiet(d.compare, problem)
-    assert list(out["solutions"]) == ["finite", "finite_nlp"] and out["notes"] == []
-    assert list(out["skipped"]) == ["qp"]
-    assert out["skipped"]["qp"].startswith("qp is a small-kinematics method and this problem has kinematics='finite'")
-    assert "'newton' and 'nlp', which stand for 'finite' and 'finite_nlp'" in out["skipped"]["qp"]
-    assert out["displacement"] <= 1e-6 and out["pressure"] <= 1e-6
-    assert all(s.u[10] == pytest.approx(theta, rel=1e-8) for s in out["solutions"].values())
+    assert list(out.solutions) == ["finite", "finite_nlp"] and out.notes == ()
+    assert list(out.skipped) == ["qp"]
+    assert out.skipped["qp"].startswith("qp is a small-kinematics method and this problem has kinematics='finite'")
+    assert "'newton' and 'nlp', which stand for 'finite' and 'finite_nlp'" in out.skipped["qp"]
+    assert out.displacement <= 1e-6 and out.pressure <= 1e-6
+    assert all(s.u[10] == pytest.approx(theta, rel=1e-8) for s in out.solutions.values())
     # qp named beside newton: newton runs as finite, qp is skipped with the same reason
     out = quiet(d.compare, problem, methods=("qp", "newton"))
-    assert list(out["solutions"]) == ["finite"] and list(out["skipped"]) == ["qp"]
-    assert out["displacement"] == 0.0 and out["pressure"] == 0.0  # one answer: nothing to disagree
+    assert list(out.solutions) == ["finite"] and list(out.skipped) == ["qp"]
+    assert out.displacement == 0.0 and out.pressure == 0.0  # one answer: nothing to disagree
 
 
 def test_qp_alone_on_a_finite_problem_is_an_input_error_naming_method_and_kinematics(punch):
@@ -127,7 +127,7 @@ def test_a_small_problem_whose_named_methods_all_skip_is_an_input_error():
     with pytest.raises(d.InputError, match="no method in methods solves this problem: qp needs a linear law"):
         d.compare(problem, methods=("qp",))
     out = quiet(d.compare, problem, methods=("qp", "newton"))
-    assert list(out["solutions"]) == ["newton"] and out["skipped"] == {"qp": "qp needs a linear law"}
+    assert list(out.solutions) == ["newton"] and out.skipped == {"qp": "qp needs a linear law"}
 
 
 def test_disagreement_matches_springs_by_face_and_never_reads_nan_as_agreement():

@@ -206,7 +206,7 @@ def test_a_method_that_does_not_solve_the_kinematics_names_both_keys(finite, tmp
     )
     # the registry says it too, to Python callers
     with pytest.raises(d.InputError, match="it is a small-kinematics method; use method='finite'.*'newton' and 'nlp'"):
-        formulations.check_takes("qp", d.LinearLaw(1.0), "finite")
+        formulations.resolve("qp", d.LinearLaw(1.0), "finite").check()
     # in a sweep, that case is an error row and the others run
     result = invoke(
         "sweep", finite, "--set", "solve.method=qp,newton", "--scheduler", "synchronous", "-o", tmp_path / "sweep"

@@ -17,9 +17,10 @@ import pytest
 
 import dea_opt as dea
 from dea_opt import mesh as M
-from dea_opt.formulations._parts import finite_geometry, finite_system
-from dea_opt.formulations._parts.finite_geometry import MISSED, PlaneRows, Targets, plane_gaps, pose_matrix
-from dea_opt.formulations._parts.finite_system import stiffness_sum
+from dea_opt.formulations.finite import geometry as finite_geometry
+from dea_opt.formulations.finite import system as finite_system
+from dea_opt.formulations.finite.geometry import MISSED, PlaneRows, Targets, plane_gaps, pose_matrix
+from dea_opt.formulations.finite.system import stiffness_sum
 from dea_opt.geometry import hip_meshes
 
 PASSES = ["numpy"] + (["compiled"] if finite_geometry.compiled_system() is not None else [])

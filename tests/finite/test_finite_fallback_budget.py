@@ -3,7 +3,7 @@
 On the real knee under a load of micro-newtons with all six dofs free, Newton stopped at its
 iteration limit in 0.4 s and IPOPT, its fallback, then ran for minutes (``max_time``: an hour by
 default) and failed too. ``auto`` gives IPOPT the larger of ``FLOOR`` seconds and ``MULTIPLE``
-times Newton's time (``dea_opt/largemotion/fallback.py``), unless the user gave ``max_time``; an
+times Newton's time (``dea_opt/finite/fallback.py``), unless the user gave ``max_time``; an
 IPOPT stopped at it is no success and says so. Newton is made to fail here (as in
 ``tests/finite/test_finite_reliability.py``), and IPOPT is either replaced by a stand-in that records
 the ``max_time`` it is given and answers by Newton, or run for real on a budget of nothing.
@@ -21,8 +21,8 @@ import pytest
 import dea_opt as d
 from dea_opt import formulations
 from dea_opt import mesh as M
+from dea_opt.finite import fallback
 from dea_opt.geometry import hip_meshes, plate_layer
-from dea_opt.largemotion import fallback
 from dea_opt.status import CERTIFIABLE
 
 

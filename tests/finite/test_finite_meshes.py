@@ -1,4 +1,4 @@
-"""Finite kinematics on meshes (issue 13): the gap function against fresh casts, and the real knee.
+"""Finite kinematics on meshes: the gap function against fresh casts, and the real knee.
 
 Prescribed large poses (rotations of 5-30 degrees about a point 25 mm from the contact, with the
 translation of several mm that brings the contact back) on the embedded hip and on the real
@@ -21,7 +21,7 @@ from scipy.spatial import cKDTree
 
 import dea_opt as d
 from dea_opt import mesh as M
-from dea_opt.formulations._parts.finite_geometry import (
+from dea_opt.formulations.finite.geometry import (
     Targets,
     evaluate,
     rotation,
@@ -174,7 +174,7 @@ def test_the_knee_re_cast_afresh_at_the_solved_pose_carries_the_load(knee, knee_
     print(f"\nknee: rotation {degrees:.2f} deg, {solution.info['recast']}")
     assert degrees > 2.0  # beyond the small kinematics' 3-degree range of validity or near it
     layer = quiet(
-        d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_overlap=WIDE, **knee["options"]
+        M.springs_from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_overlap=WIDE, **knee["options"]
     )
     pressure = -d.LinearLaw(10.0).stress(np.minimum(layer.gap / layer.thickness, 0.0))
     push = (pressure * layer.areas)[:, None] * layer.normals
@@ -382,7 +382,7 @@ def test_springs_that_did_not_settle_within_max_recasts_fail_as_max_iterations(k
         quiet(d.solve, problem, "newton", max_recasts=0)
     unchecked = quiet(d.solve, problem, "newton", strict=False, max_recasts=0)
     fresh = quiet(
-        d.SpringLayer.from_meshes, cast.mesh1, cast.mesh2, pose=unchecked.pose, max_overlap=WIDE, **knee["options"]
+        M.springs_from_meshes, cast.mesh1, cast.mesh2, pose=unchecked.pose, max_overlap=WIDE, **knee["options"]
     )
     pressure = -d.LinearLaw(10.0).stress(np.minimum(fresh.gap / fresh.thickness, 0.0))
     carried = float(((pressure * fresh.areas)[:, None] * fresh.normals).sum(axis=0)[2])

@@ -1,4 +1,4 @@
-"""Finite kinematics through load paths, the registry and scenarios (issue 13).
+"""Finite kinematics through load paths, the registry and scenarios.
 
 A load path with ``kinematics="finite"`` gives, frame by frame, the answer of an independent
 finite solve (warm starts change the path, not the answer); with prescribed poses (the gait
@@ -17,8 +17,8 @@ import pytest
 from conftest import KNEE_SCENARIO
 
 import dea_opt as d
-from dea_opt import formulations, largemotion
-from dea_opt.formulations.finite import FiniteSystem, pose_matrix
+from dea_opt import finite, formulations
+from dea_opt.formulations.finite import FiniteSystem, InnerResult, pose_matrix
 from dea_opt.geometry import knee_meshes, plate_layer
 
 H, THICK, SIDE = 10.0, 10.0, 6.0
@@ -132,7 +132,7 @@ def test_each_gait_frame_is_the_answer_of_a_cold_solve_at_its_pose(gait):
     result = gait["result"]
     for k in (3, 6):
         frame = gait["problem"].with_load(force=gait["loads"][k, :3], moment=gait["loads"][k, 3:])
-        alone = quiet(largemotion.solve, frame, "auto", frame=gait["poses"][k])
+        alone = quiet(finite.solve, frame, "auto", frame=gait["poses"][k])
         path = result.solutions[k]
         assert alone.success
         assert abs(alone.u[8] - path.u[8]) <= 1e-4 * abs(path.u[8])
@@ -144,19 +144,27 @@ def test_the_registry_knows_which_formulations_solve_finite_kinematics():
     law = d.LinearLaw(H)
     assert [n for n in formulations.names() if formulations.takes(n, law, "finite")] == ["finite", "finite_nlp"]
     assert [n for n in formulations.names() if formulations.takes(n, law)] == ["newton", "qp", "nlp"]
-    assert formulations.why_not("qp", law, "finite") == "qp does not solve finite kinematics"
+    # one function reads a method's name: what it runs in these kinematics, and why it cannot
+    qp = formulations.resolve("qp", law, "finite")
+    assert qp.name == "qp" and qp.reason.startswith("qp is a small-kinematics method")
+    assert formulations.resolve("qp", law).reason is None and formulations.resolve("newton", law).note is None
+    assert formulations.resolve("newton", law, "finite").name == "finite"
+    assert formulations.resolve("nlp", law, "finite").note == "nlp stands for finite_nlp with finite kinematics"
+    # the second contract: finite kinematics' formulations take a FiniteSystem and give an InnerResult
+    assert formulations.contract("finite") == (FiniteSystem, InnerResult)
+    assert formulations.contract("small") == (formulations.SpringSystem, formulations.FormulationResult)
     layer, problem = _punch()
     loaded = problem.with_load(force=(0, 0, -50.0), moment=(0, 30.0, 0))
     out = quiet(d.compare, loaded)
-    assert set(out["solutions"]) == {"finite", "finite_nlp"} and out["displacement"] < 1e-6
-    assert list(out["skipped"]) == ["qp"] and out["notes"] == []  # newton and nlp stand for the finite ones
+    assert set(out.solutions) == {"finite", "finite_nlp"} and out.displacement < 1e-6
+    assert list(out.skipped) == ["qp"] and out.notes == ()  # newton and nlp stand for the finite ones
     # the small kinematics' names stand for the finite formulations
     assert quiet(d.solve, loaded, "newton").method == "finite"
     assert quiet(d.solve, loaded, "nlp").method == "finite_nlp"
     # the formulations see arrays: a FiniteSystem, never a problem
     with pytest.raises(d.InputError, match="the finite formulation solves a FiniteSystem"):
         formulations.get("finite").Model(d.ContactProblem(layer, law), law)
-    system = largemotion.driver.build_system(loaded, largemotion.driver.resolve_targets(loaded)[0])
+    system = finite.driver.build_system(loaded, finite.driver.resolve_targets(loaded)[0])
     assert isinstance(system, FiniteSystem)
     certified = quiet(d.solve, loaded)
     for name in ("finite", "finite_nlp"):
@@ -248,7 +256,7 @@ def test_an_answer_keeps_its_springs_when_the_next_frame_moves_them(gait):
     """The tracker hands its arrays to an answer read-only and copies them before its next update
     changes them: solving the next frame from the same tracker leaves the answer as it was."""
     problem, loads, poses = gait["problem"], gait["loads"], gait["poses"]
-    first = quiet(largemotion.solve, problem.with_load(force=loads[2, :3], moment=loads[2, 3:]), "auto", frame=poses[2])
+    first = quiet(finite.solve, problem.with_load(force=loads[2, :3], moment=loads[2, 3:]), "auto", frame=poses[2])
     layer, targets = first.problem.layer, first.problem.targets
     held = {
         name: np.array(getattr(layer, name))
@@ -265,7 +273,7 @@ def test_an_answer_keeps_its_springs_when_the_next_frame_moves_them(gait):
     }
     held_targets = (np.array(targets.points), np.array(targets.normals))
     later = quiet(
-        largemotion.solve,
+        finite.solve,
         problem.with_load(force=loads[6, :3], moment=loads[6, 3:]),
         "auto",
         frame=poses[6],

@@ -26,7 +26,7 @@ import pytest
 from conftest import ball_on_bed
 
 import dea_opt as d
-from dea_opt.formulations._parts import finite_ipopt
+from dea_opt.formulations.finite import ipopt as finite_ipopt
 from dea_opt.geometry import sphere_on_bed_layer
 
 REFERENCE, MOMENT, FORCE = (3.6, -1.7, 18.7), (-49.0, 108.0, 23.0), (0.0, 0.0, -25.0)

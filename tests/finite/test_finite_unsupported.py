@@ -226,7 +226,7 @@ def _basin(a):
 
 
 def test_the_line_search_leaps_a_contact_that_resists_over_a_few_degrees_and_the_scan_finds_it():
-    from dea_opt.formulations._parts.finite_newton import _scan
+    from dea_opt.formulations.finite.newton import _scan
     from dea_opt.formulations.newton import _line_search
 
     line = _Line(_basin)
@@ -239,7 +239,7 @@ def test_the_line_search_leaps_a_contact_that_resists_over_a_few_degrees_and_the
 
 
 def test_the_scan_finds_nothing_on_a_turn_no_spring_resists_nor_on_a_line_that_only_slides():
-    from dea_opt.formulations._parts.finite_newton import _scan
+    from dea_opt.formulations.finite.newton import _scan
 
     alpha, state, used = _scan(_Line(lambda a: -1.0), np.array([2, 3]), -1.0, 0.9)
     assert alpha is None and state is None and used == 360  # one a degree over a whole turn

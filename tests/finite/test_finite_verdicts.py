@@ -22,6 +22,7 @@ import dea_opt as d
 from dea_opt import mesh as M
 from dea_opt.formulations.finite import pose_matrix
 from dea_opt.geometry import plate_layer
+from dea_opt.mesh import springs_from_meshes
 
 
 def quiet(function, *args, **kw):
@@ -88,7 +89,7 @@ def test_a_punch_lifted_off_an_ateshian_layer_is_carried_not_crushed(case):
     law stiffens without bound there, so nothing proves the load too large. ``auto`` goes on: a load
     continuation from a fraction of the load finds the punch tilted 60-80 deg, balanced (summed
     here), springs short of -1; IPOPT by name finds the same pose."""
-    from dea_opt.largemotion import verdict
+    from dea_opt.finite import verdict
 
     problem = punch(*case)
     newton = quiet(d.solve, problem, "newton", strict=False)
@@ -121,7 +122,7 @@ def test_what_the_punch_s_springs_carry_at_strain_minus_one_is_the_bound_of_the_
     thickness, body 2 on body 1): 36 mm^2 of 10 MPa carry 360 N along z. Past it the load is proved
     beyond what the layer bears (the bound and the load in words); the equations still have a
     solution past strain -1, which every method certifies and the validity report rejects."""
-    from dea_opt.largemotion import verdict
+    from dea_opt.finite import verdict
 
     def problem(force):
         return d.ContactProblem(PUNCH, d.LinearLaw(10.0), force=(0, 0, -force), free=("uz", "ry"), kinematics="finite")
@@ -203,12 +204,12 @@ def test_the_flexed_knee_gives_the_same_answer_from_starts_above_and_deep_in_the
 
 
 def test_a_layer_from_meshes_is_re_cast_by_default_and_a_fresh_cast_carries_the_load():
-    """``SpringLayer.from_meshes`` then ``kinematics="finite"`` without ``targets=``: the layer
+    """``springs_from_meshes`` then ``kinematics="finite"`` without ``targets=``: the layer
     remembers its cast, so the springs follow the femur. A fresh cast of the meshes at the solved
     pose (no state of the solve) carries the load to 1e-4 (summed here); on the start hits' tangent
     planes it carried 1.0 % less, while the answer read valid."""
     knee = real_knee()
-    layer = quiet(d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], **knee["options"])
+    layer = quiet(springs_from_meshes, knee["mesh1"], knee["mesh2"], **knee["options"])
     problem = d.ContactProblem(
         layer,
         d.LinearLaw(10.0),
@@ -220,9 +221,7 @@ def test_a_layer_from_meshes_is_re_cast_by_default_and_a_fresh_cast_carries_the_
     )
     solution = quiet(d.solve, problem)
     assert solution.success
-    fresh = quiet(
-        d.SpringLayer.from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_gap=2.0, max_overlap=10.0
-    )
+    fresh = quiet(springs_from_meshes, knee["mesh1"], knee["mesh2"], pose=solution.pose, max_gap=2.0, max_overlap=10.0)
     carried = float((10.0 * np.maximum(-fresh.gap / fresh.thickness, 0.0) * fresh.areas) @ fresh.normals[:, 2])
     assert carried == pytest.approx(1000.0, rel=1e-4)
     assert layer.cast is not None and layer.cast.layer is layer

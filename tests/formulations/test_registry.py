@@ -14,12 +14,14 @@ import warnings
 
 import numpy as np
 import pytest
+from conftest import scenario_text
 from scipy.optimize import minimize
 
 import dea_opt as d
 from dea_opt import Status, formulations
 from dea_opt.formulations import Capabilities, FormulationResult, Option, Variant
-from dea_opt.formulations.energy import scaling, start_vector, trivial_result
+from dea_opt.formulations.scaling import scaling
+from dea_opt.formulations.system import start_vector, trivial_result
 from dea_opt.geometry import plate_layer
 from dea_opt.run import solve_options
 from dea_opt.study import run_study
@@ -145,8 +147,8 @@ def test_a_registered_formulation_through_solve_path_warm_starts(toy, monkeypatc
 def test_a_registered_formulation_in_compare_and_a_study(toy):
     problem = plate()
     out = d.compare(problem, methods=("newton", "toy"))
-    assert set(out["solutions"]) == {"newton", "toy"} and out["skipped"] == {}
-    assert out["pressure"] <= 1e-6 and out["displacement"] <= 1e-6
+    assert set(out.solutions) == {"newton", "toy"} and out.skipped == {}
+    assert out.pressure <= 1e-6 and out.displacement <= 1e-6
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         study = run_study(problem, methods=("newton", "toy"), accuracy=("low", "default"))
@@ -157,23 +159,7 @@ def test_a_registered_formulation_in_compare_and_a_study(toy):
     assert rows.loc["low", "solver_tol"] == 1e-3 and rows.loc["low", "iterations"] < rows.loc["default", "iterations"]
 
 
-PLATE_SCENARIO = """\
-[geometry]
-kind = "plate"
-nx = 80
-ny = 4
-[law]
-kind = "linear"
-H = 20.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [10.0, 0.0, 0.0]
-[output]
-formats = ["json"]
-[solve]
-"""
+PLATE_SCENARIO = scenario_text(nx=80, H=20.0, point=(10.0, 0.0, 0.0), formats=("json",)) + "[solve]\n"
 
 
 def test_a_registered_formulation_is_a_scenario_s_method(toy, tmp_path):
@@ -241,7 +227,7 @@ def test_capabilities_decide_where_it_applies():
         with pytest.raises(d.InputError, match="method 'toy_linear' needs a LinearLaw"):
             d.solve_path(nonlinear, [(0, 0, -1.0)], method="toy_linear")
         out = d.compare(nonlinear, methods=("newton", "toy_linear"))
-        assert out["skipped"] == {"toy_linear": "toy_linear needs a linear law"}
+        assert out.skipped == {"toy_linear": "toy_linear needs a linear law"}
         assert d.solve(plate(), "toy_linear").success
     finally:
         formulations.unregister("toy_linear")

@@ -1,4 +1,4 @@
-"""What each solver sees (issue 15): Clarabel through its own API gets exactly the minimal QP, a
+"""What each solver sees: Clarabel through its own API gets exactly the minimal QP, a
 solver reached through cvxpy gets no auxiliary variable or row, IPOPT gets the block copies of
 the dofs and nothing more; and each answers random systems whose equilibrium and law this file
 checks with its own sums."""
@@ -13,9 +13,9 @@ import pytest
 import scipy.sparse as sp
 
 import dea_opt as d
-from dea_opt.formulations.energy import SpringSystem
 from dea_opt.formulations.nlp import NLPModel
 from dea_opt.formulations.qp import QPModel
+from dea_opt.formulations.system import SpringSystem
 from dea_opt.study import installed_qp_solvers
 
 #: QP solvers reached through cvxpy that are installed here (OSQP and PIQP are in [dev]).
@@ -49,7 +49,7 @@ def own_check(system: SpringSystem, H: float, load, u, stress) -> None:
 
 def test_clarabel_sees_the_minimal_qp():
     """k + N variables, a diagonal P with the N springs' weights, and 2N rows of the
-    nonnegative cone: the same matrices as the issue's QP built here with scipy's blocks."""
+    nonnegative cone: the same matrices as the reported QP built here with scipy's blocks."""
     system, _ = random_system(0)
     H = 2.0
     model = QPModel(system, d.LinearLaw(H))

@@ -97,7 +97,7 @@ def test_compare_solves_the_joint_by_each_method(tmp_path):
     assert float(rows[0]["displacement_difference"]) < 1e-8
     assert "skipped: qp" in result.stdout
     linear = d.compare(_linear_chain(), methods=("newton", "qp", "nlp"))
-    assert set(linear["solutions"]) == {"newton", "qp", "nlp"} and linear["displacement"] < 1e-7
+    assert set(linear.solutions) == {"newton", "qp", "nlp"} and linear.displacement < 1e-7
 
 
 def _linear_chain():

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import xml.etree.ElementTree as ET
 
 import numpy as np
@@ -106,7 +107,7 @@ def test_constrained_paths_reuse_one_model(hip, gait, newton_path, monkeypatch, 
 
 def test_loads_as_arrays_and_load_objects(hip, newton_path, gait):
     forces = gait[["Fx", "Fy", "Fz"]].to_numpy()
-    by_array = solve_path(hip, forces, times=gait["time"], keep_solutions=False)
+    by_array = solve_path(hip, forces, times=gait["time"], outputs=d.PathOutputs(keep_solutions=False))
     by_loads = solve_path(hip, [d.Load(force=f) for f in forces], times=gait["time"].to_numpy())
     assert by_array.solutions is None
     for a, b, c in zip(by_array.pressures, by_loads.pressures, newton_path.pressures):
@@ -155,7 +156,7 @@ def test_uncertified_frames_are_flagged_or_raised(hip, gait):
     result = solve_path(hip, gait.iloc[:3], method="newton", max_iter=1)
     assert not result.success and result.failed_frames == [0, 1, 2]
     with pytest.raises(SolverError, match="frame 0"):
-        solve_path(hip, gait.iloc[:3], method="newton", max_iter=1, strict=True)
+        solve_path(hip, gait.iloc[:3], method="newton", max_iter=1, stop_on_error=True)
 
 
 # --- exposure ---------------------------------------------------------------------------
@@ -222,11 +223,26 @@ def test_writes_table_series_plots_and_exposure(newton_path, tmp_path):
 
 
 def test_pvd_needs_solutions(hip, gait, tmp_path):
-    result = solve_path(hip, gait.iloc[:2], keep_solutions=False)
+    result = solve_path(hip, gait.iloc[:2], outputs=d.PathOutputs(keep_solutions=False))
     with pytest.raises(InputError, match="keep_solutions"):
         result.to_pvd(tmp_path / "s.pvd")
     files = result.write(tmp_path, formats=("csv", "png"))
     assert set(files) == {"table", "cycle_plot", "exposure_map"}
+
+
+@pytest.mark.parametrize(
+    "outputs, words",
+    [
+        (lambda: {"keep_solutions": False}, "outputs must be a PathOutputs, got dict"),
+        (lambda: d.PathOutputs(keep_solutions=0), "PathOutputs.keep_solutions must be True or False, got 0"),
+        (lambda: d.PathOutputs(keep_pressures="no"), "PathOutputs.keep_pressures must be True or False"),
+        (lambda: d.PathOutputs(series=3), "PathOutputs.series must be a folder"),
+    ],
+    ids=["dict", "int", "str", "series"],
+)
+def test_bad_outputs_are_named(hip, gait, outputs, words):
+    with pytest.raises(InputError, match=re.escape(words)):
+        solve_path(hip, gait.iloc[:1], outputs=outputs())
 
 
 # --- moving meshes ----------------------------------------------------------------------

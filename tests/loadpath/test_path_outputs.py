@@ -16,9 +16,9 @@ import meshio
 import numpy as np
 import pandas as pd
 import pytest
-from dea_opt.regions import label_by_axis
 
 import dea_opt as d
+from dea_opt.anatomy.regions import label_by_axis
 from dea_opt.geometry import plate_layer
 from dea_opt.loadpath import REGION_COLUMNS, TABLE_COLUMNS, solve_path
 
@@ -122,11 +122,14 @@ def test_regions_given_for_a_path(labelled):
     bare = dataclasses.replace(labelled, labels=None)
     problem = d.ContactProblem(bare, d.LinearLaw(H), free=("uz", "ry"))
     result = solve_path(
-        problem, LOADS[:3], method="newton", regions=lambda layer: label_by_axis(layer, "x", names=("left", "right"))
+        problem,
+        LOADS[:3],
+        method="newton",
+        outputs=d.PathOutputs(regions=lambda layer: label_by_axis(layer, "x", names=("left", "right"))),
     )
     assert set(result.regions) == {"left", "right"}
     with pytest.raises(d.InputError, match="one label per spring"):
-        solve_path(problem, LOADS[:1], regions=np.zeros(3))
+        solve_path(problem, LOADS[:1], outputs=d.PathOutputs(regions=np.zeros(3)))
 
 
 def test_label_by_axis_in_an_anatomical_frame(labelled):

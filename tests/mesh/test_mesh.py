@@ -201,7 +201,7 @@ def test_a_clean_mesh_gives_no_warning():
 # --------------------------------------------------------------------------------------------
 def test_plate_pair_springs_are_the_top_faces():
     pair = geometry.plate_meshes(nx=20, ny=5)
-    layer = d.SpringLayer.from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0)
+    layer = M.springs_from_meshes(pair.mesh1, pair.mesh2, thickness2=0.0)
     top = np.flatnonzero(np.isclose(pair.mesh1.triangles_center[:, 2], 0.0) & (pair.mesh1.face_normals[:, 2] > 0.5))
     assert np.array_equal(np.sort(layer.source_face), top)
     np.testing.assert_allclose(layer.normals, np.tile([0, 0, 1.0], (len(layer), 1)), atol=1e-12)
@@ -235,24 +235,93 @@ def test_rays_never_take_the_back_of_a_curved_mesh():
     np.testing.assert_allclose(layer.gap, np.sqrt(25.0 - rho2), atol=0.05)
 
 
-def test_embree_and_grid_engines_agree():
-    pair = geometry.hip_meshes(step=6.0)
-    a = M.cast_springs(pair.mesh1, pair.mesh2, engine="embree")
-    b = M.cast_springs(pair.mesh1, pair.mesh2, engine="grid")
-    assert np.array_equal(a.layer.source_face, b.layer.source_face)
-    np.testing.assert_allclose(a.layer.gap, b.layer.gap, atol=1e-9)
-    np.testing.assert_allclose(a.layer.thickness, b.layer.thickness, atol=1e-6)
-    assert np.array_equal(a.hit_face, b.hit_face) or np.abs(a.hit_point - b.hit_point).max() < 1e-9
+#: The ray casters this install has: the exact numpy grid always, Embree with the ``fast`` extra.
+ENGINES_HERE = ("grid", "embree") if M.raycast._has_embree() else ("grid",)
+
+
+def _tilted_plane(a=0.05, b=-0.02, c=0.3, n=9, half=5.0):
+    """The plane ``z = c + a x + b y`` over ``[-half, half]^2``, its faces turned down (-z)."""
+    xs = np.linspace(-half, half, n)
+    X, Y = np.meshgrid(xs, xs, indexing="ij")
+    vertices = np.column_stack([X.ravel(), Y.ravel(), c + a * X.ravel() + b * Y.ravel()])
+    k = np.arange(n * n).reshape(n, n)
+    quads = np.stack([k[:-1, :-1], k[1:, :-1], k[1:, 1:], k[:-1, 1:]], axis=-1).reshape(-1, 4)
+    faces = np.vstack([quads[:, [0, 2, 1]], quads[:, [0, 3, 2]]])  # wound so that normals point down
+    return trimesh.Trimesh(vertices, faces, process=False)
+
+
+@pytest.mark.parametrize("engine", ENGINES_HERE)
+def test_each_installed_caster_measures_a_tilted_plane_exactly(engine):
+    """The gap from each face of a flat bed up to the plane z = c + a x + b y is that plane's height
+    above the face's centroid: a closed form every caster must meet to rounding."""
+    bed = geometry.slab_mesh(6.0, 6.0, 1.0, 12, 12)
+    plane = _tilted_plane()
+    assert (plane.face_normals[:, 2] < -0.99).all()
+    layer = M.springs_from_meshes(bed, plane, thickness2=0.0, max_gap=10.0, engine=engine)
+    assert len(layer) == 2 * 12 * 12  # every articular face of the bed meets the plane
+    x, y, z = layer.points.T
+    np.testing.assert_allclose(layer.gap, 0.3 + 0.05 * x - 0.02 * y - z, rtol=0, atol=1e-12)
+
+
+if "embree" in ENGINES_HERE:  # generated only where Embree is installed (the fast and dev extras)
+
+    def test_embree_and_grid_engines_agree():
+        pair = geometry.hip_meshes(step=6.0)
+        a = M.cast_springs(pair.mesh1, pair.mesh2, engine="embree")
+        b = M.cast_springs(pair.mesh1, pair.mesh2, engine="grid")
+        assert np.array_equal(a.layer.source_face, b.layer.source_face)
+        np.testing.assert_allclose(a.layer.gap, b.layer.gap, atol=1e-9)
+        np.testing.assert_allclose(a.layer.thickness, b.layer.thickness, atol=1e-6)
+        assert np.array_equal(a.hit_face, b.hit_face) or np.abs(a.hit_point - b.hit_point).max() < 1e-9
 
 
 def test_without_embree_auto_falls_back_to_the_grid(monkeypatch):
     pair = geometry.hip_meshes(step=8.0)
-    with_embree = pair.layer()
+    grid = pair.layer(engine="grid")
     monkeypatch.setattr(M.raycast, "_has_embree", lambda: False)
     fallback = pair.layer()
-    np.testing.assert_allclose(fallback.gap, with_embree.gap, atol=1e-9)
-    with pytest.raises(d.MissingDependencyError, match="embreex"):
+    assert np.array_equal(fallback.gap, grid.gap) and np.array_equal(fallback.source_face, grid.source_face)
+    with pytest.raises(d.MissingDependencyError, match=re.escape("pip install dea-opt[fast]")):
         pair.layer(engine="embree")
+
+
+#: Run in a process of its own where ``embreex`` cannot be imported, as on an install without the
+#: ``fast`` extra: the package imports, ``auto`` is the grid caster, and its springs are returned.
+WITHOUT_EMBREE = """
+import importlib.abc, sys
+
+class NoEmbree(importlib.abc.MetaPathFinder):
+    def find_spec(self, name, path, target=None):
+        if name.partition(".")[0] == "embreex":
+            raise ModuleNotFoundError(f"No module named {name!r}")
+        return None
+
+sys.meta_path.insert(0, NoEmbree())
+import numpy as np
+import dea_opt
+from dea_opt import geometry
+from dea_opt.mesh import raycast
+
+assert raycast._engine("auto") == "grid" and not raycast._has_embree()
+layer = geometry.hip_meshes(step=8.0).layer()
+try:
+    geometry.hip_meshes(step=8.0).layer(engine="embree")
+except dea_opt.MissingDependencyError as exc:
+    assert "dea-opt[fast]" in str(exc)
+else:
+    raise AssertionError("engine='embree' ran without embreex")
+assert not any(name.partition(".")[0] == "embreex" for name in sys.modules)
+np.save(sys.argv[1], np.column_stack([layer.gap, layer.source_face]))
+"""
+
+
+def test_an_install_without_embree_casts_with_the_grid(tmp_path):
+    import subprocess
+
+    out = tmp_path / "springs.npy"
+    subprocess.run([sys.executable, "-c", WITHOUT_EMBREE, str(out)], check=True, timeout=300)
+    grid = geometry.hip_meshes(step=8.0).layer(engine="grid")
+    assert np.array_equal(np.load(out), np.column_stack([grid.gap, grid.source_face]))
 
 
 def test_engine_is_validated():
@@ -361,7 +430,7 @@ def sphere_levels(tmp_path_factory):
         pair = geometry.sphere_on_bed_meshes(R, H_BED, extent=6.0, n_bed=n_bed, step=step)
         pair.mesh1.export(folder / "bed.stl")
         pair.mesh2.export(folder / "sphere.stl")
-        layer = d.SpringLayer.from_meshes(folder / "bed.stl", folder / "sphere.stl", thickness2=0.0, max_gap=0.8)
+        layer = M.springs_from_meshes(folder / "bed.stl", folder / "sphere.stl", thickness2=0.0, max_gap=0.8)
         out.append((layer, M.load_mesh(folder / "bed.stl"), M.load_mesh(folder / "sphere.stl")))
     return out
 
@@ -449,10 +518,12 @@ def test_thickness_of_a_closed_spherical_shell(articular):
     np.testing.assert_allclose(M.surface_thickness(shell, interior), 2.5, rtol=0.01)
 
 
-def test_thickness_nan_where_the_surface_is_open():
+@pytest.mark.parametrize("engine", ENGINES_HERE)
+def test_thickness_nan_where_the_surface_is_open(engine):
+    # rays searched to infinity that meet nothing: the grid caster stops where they leave its box
     slab = small_slab()
     open_slab = trimesh.Trimesh(slab.vertices, slab.faces[slab.face_normals[:, 2] > 0.5])  # top only
-    assert np.isnan(M.surface_thickness(open_slab)).all()
+    assert np.isnan(M.surface_thickness(open_slab, engine=engine)).all()
 
 
 # --------------------------------------------------------------------------------------------

@@ -252,10 +252,10 @@ def test_the_guard_estimates_the_memory_from_the_face_count(monkeypatch):
 
 def test_the_face_counts_bound_what_is_built():
     for nx, ny in ((1, 1), (3, 7), (20, 5)):
-        assert len(geometry.slab_mesh(nx=nx, ny=ny).faces) == geometry._slab_faces(nx, ny)
+        assert len(geometry.slab_mesh(nx=nx, ny=ny).faces) == geometry.meshes._slab_faces(nx, ny)
     for args in ((85.0, 25.0, 60.0, 3.0), (105.0, 0.0, 0.0, 4.0), (180.0, 0.0, 0.0, 10.0)):
         shell = geometry.spherical_shell_mesh(24.0, 2.0, args[0], fossa=args[1], notch=args[2], step=args[3])
-        assert len(shell.faces) <= geometry._shell_grid(*args)[2]
+        assert len(shell.faces) <= geometry.meshes._shell_grid(*args)[2]
 
 
 def test_the_estimates_bound_the_measured_peak(tmp_path):

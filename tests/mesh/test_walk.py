@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dea_opt import mesh as M
-from dea_opt.formulations._parts.finite_geometry import rotation
+from dea_opt.formulations.finite.geometry import rotation
 from dea_opt.geometry import hip_meshes
 from dea_opt.mesh import facecast, raycast
 from dea_opt.mesh.walk import Planes, Walker
@@ -140,7 +140,7 @@ def _springs_of(n, seed):
     """Springs of ``n`` made-up faces, every array numbered by face (as a layer and its cast)."""
     from types import SimpleNamespace
 
-    from dea_opt.largemotion.springs import Springs
+    from dea_opt.finite.springs import Springs
 
     rng = np.random.default_rng(seed)
     faces = rng.permutation(10 * n)[:n]
@@ -246,7 +246,7 @@ def test_springs_lost_and_gained_keep_their_arrays_together_and_say_where_they_s
 
 
 def test_rows_put_whole_are_a_fancy_assignment():
-    from dea_opt.largemotion.springs import put_rows
+    from dea_opt.finite.springs import put_rows
 
     rng = np.random.default_rng(3)
     # contiguous, the head of a longer array (as the tracker keeps them), a transposed view, a

@@ -116,7 +116,9 @@ def path_table(forces, moments=None, failed=()) -> pd.DataFrame:
         loads[k, 2] = 100.0  # pulls the plate off: no certified answer
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # the frames outside validity: the figures say so
-        return d.solve_path(problem, loads, times=np.linspace(0.0, 1.0, len(forces)), keep_frames=["peak"])
+        return d.solve_path(
+            problem, loads, times=np.linspace(0.0, 1.0, len(forces)), outputs=d.PathOutputs(keep_frames=("peak",))
+        )
 
 
 # --- maps ----------------------------------------------------------------------------------------

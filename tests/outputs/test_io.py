@@ -10,10 +10,10 @@ import struct
 
 import numpy as np
 import pytest
-from dea_opt.regions import split_by_axis
 
 import dea_opt as d
-from dea_opt import io
+from dea_opt import files, io
+from dea_opt.anatomy.regions import split_by_axis
 from dea_opt.errors import InputError
 from dea_opt.geometry import sphere_on_bed_layer
 
@@ -89,7 +89,7 @@ def leftovers(directory):
 # --- atomic writes ----------------------------------------------------------------------
 def test_write_atomic_creates_parents_and_leaves_no_temporary(tmp_path):
     target = tmp_path / "a" / "b" / "out.txt"
-    assert io.write_atomic(target, lambda tmp: tmp.write_text("hello")) == target
+    assert files.write_atomic(target, lambda tmp: tmp.write_text("hello")) == target
     assert target.read_text() == "hello"
     assert leftovers(target.parent) == []
 
@@ -103,7 +103,7 @@ def test_write_atomic_keeps_old_file_when_writer_raises(tmp_path):
         raise RuntimeError("interrupted")
 
     with pytest.raises(RuntimeError, match="interrupted"):
-        io.write_atomic(target, failing)
+        files.write_atomic(target, failing)
     assert target.read_text() == "old"
     assert leftovers(tmp_path) == []
 
@@ -112,12 +112,12 @@ def test_atomic_open_keeps_old_file_on_keyboard_interrupt(tmp_path):
     target = tmp_path / "out.bin"
     target.write_bytes(b"old")
     with pytest.raises(KeyboardInterrupt):
-        with io.atomic_open(target, "wb") as handle:
+        with files.atomic_open(target, "wb") as handle:
             handle.write(b"new")
             raise KeyboardInterrupt
     assert target.read_bytes() == b"old"
     assert leftovers(tmp_path) == []
-    with io.atomic_open(target, "w") as handle:
+    with files.atomic_open(target, "w") as handle:
         handle.write("new")
     assert target.read_text() == "new"
 
@@ -125,10 +125,10 @@ def test_atomic_open_keeps_old_file_on_keyboard_interrupt(tmp_path):
 def test_atomic_file_modes(tmp_path):
     plain = tmp_path / "plain.txt"
     plain.write_text("x")
-    fresh = io.write_atomic(tmp_path / "fresh.txt", lambda tmp: tmp.write_text("x"))
+    fresh = files.write_atomic(tmp_path / "fresh.txt", lambda tmp: tmp.write_text("x"))
     assert stat.S_IMODE(fresh.stat().st_mode) == stat.S_IMODE(plain.stat().st_mode)  # the umask, not 0600
     os.chmod(plain, 0o640)
-    io.write_atomic(plain, lambda tmp: tmp.write_text("y"))
+    files.write_atomic(plain, lambda tmp: tmp.write_text("y"))
     assert stat.S_IMODE(plain.stat().st_mode) == 0o640
 
 
@@ -136,20 +136,20 @@ def test_atomic_bad_paths(tmp_path):
     blocker = tmp_path / "file"
     blocker.write_text("")
     with pytest.raises(InputError, match="path: cannot create the directory"):
-        io.write_atomic(blocker / "sub" / "out.txt", lambda tmp: None)
+        files.write_atomic(blocker / "sub" / "out.txt", lambda tmp: None)
     with pytest.raises(InputError, match="path must be a file path, got the directory"):
-        io.write_atomic(tmp_path, lambda tmp: None)
+        files.write_atomic(tmp_path, lambda tmp: None)
     with pytest.raises(InputError, match="path must be a file path"):
-        io.write_atomic(3.5, lambda tmp: None)
+        files.write_atomic(3.5, lambda tmp: None)
     with pytest.raises(InputError, match="writer must be callable"):
-        io.write_atomic(tmp_path / "x", "not callable")
+        files.write_atomic(tmp_path / "x", "not callable")
     with pytest.raises(InputError, match="out_dir: cannot create"):
-        io.write_atomic(blocker / "x.txt", lambda tmp: None, argument="out_dir")
+        files.write_atomic(blocker / "x.txt", lambda tmp: None, argument="out_dir")
 
 
 def test_atomic_open_bad_mode(tmp_path):
     with pytest.raises(InputError, match="mode must be 'w' or 'wb', got 'a'"):
-        with io.atomic_open(tmp_path / "x.txt", "a"):
+        with files.atomic_open(tmp_path / "x.txt", "a"):
             pass
     assert not list(tmp_path.iterdir())
 

@@ -23,8 +23,8 @@ import pytest
 from conftest import COARSE_SOCKET
 
 from dea_opt.errors import OutputFolderError
-from dea_opt.io.atomic import TEMPORARY_NAME, write_data
-from dea_opt.io.publish import (
+from dea_opt.files.atomic import TEMPORARY_NAME, write_data
+from dea_opt.run.publish import (
     INCOMPLETE_NAME,
     MANIFEST_NAME,
     RunInterrupted,
@@ -188,7 +188,7 @@ def test_ctrl_c_inside_a_string_exec_still_exits_130_under_python_m(tmp_path):
 
 
 def test_the_report_of_a_folder_after_its_run_published_says_so_however_it_is_named(tmp_path, monkeypatch):
-    from dea_opt.io.publish import forget_published, interrupted_report
+    from dea_opt.run.publish import forget_published, interrupted_report
 
     monkeypatch.chdir(tmp_path)
     forget_published()
@@ -434,7 +434,7 @@ def test_a_run_leaves_the_temporary_files_of_a_comparison_or_sweep_below_it_alon
 
 
 def test_a_process_that_publishes_run_after_run_keeps_only_the_last_ones_for_its_report(tmp_path):
-    from dea_opt.io import publish
+    from dea_opt.run import publish
 
     publish.forget_published()
     for k in range(publish._PUBLISHED_KEPT + 5):  # a sweep's worker: case after case

@@ -181,7 +181,9 @@ def test_sizes_are_checked_before_allocating(monkeypatch):
     monkeypatch.setattr(memory, "available_memory", lambda: need)  # 0.8 of it is usable
     solved = []
     monkeypatch.setattr(d.ContactProblem, "system", lambda self: solved.append(1))
-    with pytest.raises(SizeLimitError, match="keep_solutions=False and keep_pressures=False") as caught:
+    with pytest.raises(
+        SizeLimitError, match=r"PathOutputs\(keep_solutions=False, keep_pressures=False, series=<folder>\)"
+    ) as caught:
         solve_path(problem, np.tile([0, 0, -10.0], (4, 1)))
     assert not solved and caught.value.needed == need
     check_frames(4, len(layer), keep_solutions=False, keep_pressures=False)  # fits without them

@@ -1,7 +1,7 @@
 """A load path's pictures (``cycle.png``, ``exposure.png``) are outputs like the others: staged,
 published with the rest, listed in ``manifest.json`` with their SHA-256, removed by a rerun that no
 longer writes them, and checked by ``check_outputs`` -- also when a
-:class:`~dea_opt.io.pictures.PictureWorker` draws them in its own process."""
+:class:`~dea_opt.run.pictures.PictureWorker` draws them in its own process."""
 
 from __future__ import annotations
 
@@ -15,12 +15,12 @@ import numpy as np
 import pytest
 
 import dea_opt as d
+from dea_opt.files.atomic import TEMPORARY_NAME
 from dea_opt.geometry import plate_layer
-from dea_opt.io import pictures as pictures_module
-from dea_opt.io.atomic import TEMPORARY_NAME
-from dea_opt.io.pictures import DrawHere, PictureFiles, PictureWorker
-from dea_opt.io.publish import INCOMPLETE_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
 from dea_opt.loadpath import solve_path
+from dea_opt.run import pictures as pictures_module
+from dea_opt.run.pictures import DrawHere, PictureFiles, PictureWorker
+from dea_opt.run.publish import INCOMPLETE_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
 
 LOADS = np.array([[0.0, 0.0, -400.0, 0.0, m, 0.0] for m in (-1500.0, 0.0, 1500.0)])
 PNGS = ("cycle.png", "exposure.png")
@@ -46,7 +46,9 @@ def _solve(scale: float):
     problem = d.ContactProblem(plate_layer(40.0, 10.0, 40, 10, thickness=2.0), d.LinearLaw(10.0), free=("uz", "ry"))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return solve_path(problem, LOADS * scale, times=[0.0, 0.1, 0.2], method="newton", keep_solutions=True)
+        return solve_path(
+            problem, LOADS * scale, times=[0.0, 0.1, 0.2], method="newton", outputs=d.PathOutputs(keep_solutions=True)
+        )
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""Pictures drawn in a second process (``dea_opt.io.pictures``): the same files as drawn in the
+"""Pictures drawn in a second process (``dea_opt.run.pictures``): the same files as drawn in the
 run's own process, the same errors, and nothing left behind however the worker or the run ends."""
 
 from __future__ import annotations
@@ -15,8 +15,8 @@ import pytest
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer
-from dea_opt.io.pictures import PictureWorker
 from dea_opt.loadpath import solve_path
+from dea_opt.run.pictures import PictureWorker
 
 LOADS = np.array([[0.0, 0.0, -400.0, 0.0, m, 0.0] for m in (-1500.0, 0.0, 1500.0)])
 
@@ -93,7 +93,7 @@ def test_only_picture_functions_run_in_the_worker(tmp_path):
 def test_the_worker_ends_when_its_run_is_killed(tmp_path):
     script = (
         "import sys, time\n"
-        "from dea_opt.io.pictures import PictureWorker\n"
+        "from dea_opt.run.pictures import PictureWorker\n"
         "w = PictureWorker()\n"
         "print(w._drawer.process.pid, flush=True)\n"
         "time.sleep(60)\n"
@@ -113,7 +113,7 @@ def test_the_worker_ends_when_its_run_is_killed(tmp_path):
 
 
 def test_pictures_that_are_no_worker_are_a_named_error(path, tmp_path):
-    with pytest.raises(d.InputError, match="pictures must be a dea_opt.io.pictures.PictureWorker"):
+    with pytest.raises(d.InputError, match="pictures must be a dea_opt.run.pictures.PictureWorker"):
         path.write(tmp_path, formats=("png",), pictures="yes please")
     assert not any(tmp_path.iterdir())
 

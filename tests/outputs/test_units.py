@@ -19,16 +19,8 @@ import pytest
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
-from dea_opt.units import (
-    SUFFIXES,
-    UNITLESS,
-    dof_name,
-    is_unitless,
-    label,
-    split_unit,
-    unnamed_units,
-    with_unit,
-)
+from dea_opt.run.units import is_unitless, unnamed_units
+from dea_opt.units import SUFFIXES, UNITLESS, dof_name, label, split_unit, with_unit
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples" / "scenarios"
 runner = CliRunner()

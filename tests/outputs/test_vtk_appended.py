@@ -1,4 +1,4 @@
-"""Binary VTK files as raw appended data (issue 15): meshio and dea-opt's own reader get every
+"""Binary VTK files as raw appended data: meshio and dea-opt's own reader get every
 array back bit for bit, whatever the arrays' sizes, types, bytes and memory layout."""
 
 from __future__ import annotations

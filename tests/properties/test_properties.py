@@ -1,4 +1,4 @@
-"""Property-based tests (issue 6): generated problems, every method, and the invariants.
+"""Property-based tests: generated problems, every method, and the invariants.
 
 Every example is a small generated contact problem (10 to 200 springs) on a plate grid, a
 spherical cap, a cylindrical trough or a triaxial ellipsoidal bowl, with random areas

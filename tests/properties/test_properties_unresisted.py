@@ -1,4 +1,4 @@
-"""Property tests (issue 10): layers whose free dofs include directions no spring resists.
+"""Property tests: layers whose free dofs include directions no spring resists.
 
 Every example is a plate, a spherical socket or a closed spherical shell around a ball, with
 the moving body's reference at the geometry's centre, so that the unresisted dofs are known

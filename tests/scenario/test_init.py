@@ -21,7 +21,7 @@ from typer.testing import CliRunner
 from dea_opt.cli import app
 from dea_opt.errors import InputError
 from dea_opt.laws.moduli import MODULI, confined_modulus
-from dea_opt.scenario.init import choose_free, parse_part, sniff_scale
+from dea_opt.run.init import choose_free, parse_part, sniff_scale
 
 runner = CliRunner()
 

@@ -67,7 +67,7 @@ def test_example_scenarios_validate(path):
 
 
 def test_example_hip_gait_is_the_demo_scenario():
-    from dea_opt.demo import DEMO_SCENARIO
+    from dea_opt.run.demo import DEMO_SCENARIO
 
     example = load_scenario(EXAMPLES / "hip_gait.toml")
     demo = parse(DEMO_SCENARIO)

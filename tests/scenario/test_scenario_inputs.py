@@ -7,7 +7,7 @@ import json
 
 import numpy as np
 import pytest
-from conftest import KNEE
+from conftest import KNEE, scenario_text
 
 from dea_opt.geometry import plate_meshes
 from dea_opt.io.tables import read_springs, write_springs
@@ -21,18 +21,7 @@ from dea_opt.scenario import (
     read_load_path,
 )
 
-PLATE = """\
-[geometry]
-kind = "plate"
-nx = 40
-ny = 4
-[law]
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-"""
+PLATE = scenario_text(law=None)
 
 
 def parse(text, tmp_path):

@@ -8,7 +8,11 @@ import warnings
 import numpy as np
 import pytest
 from conftest import KNEE
-from dea_opt.calibrate import (
+from scipy.special import log_ndtr
+
+import dea_opt as d
+from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
+from dea_opt.sensitivity.calibrate import (
     FILMS,
     ContactData,
     Film,
@@ -18,10 +22,6 @@ from dea_opt.calibrate import (
     apply_parameters,
     calibrate,
 )
-from scipy.special import log_ndtr
-
-import dea_opt as d
-from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 TRUE = {"H": 5.0, "beta": 0.6}

@@ -19,10 +19,10 @@ import warnings
 
 import numpy as np
 import pytest
-from dea_opt.calibrate import ContactData, ForceDisplacement, PressureMap, calibrate
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer, sphere_on_bed_layer
+from dea_opt.sensitivity.calibrate import ContactData, ForceDisplacement, PressureMap, calibrate
 from dea_opt.sensitivity.covariance import spatial_correlation
 
 H_TRUE = 5.0

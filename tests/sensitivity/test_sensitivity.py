@@ -8,11 +8,11 @@ import warnings
 
 import numpy as np
 import pytest
-from dea_opt.parametric import nlp_sensitivities
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 from dea_opt.sensitivity import sensitivities
+from dea_opt.sensitivity.parametric import nlp_sensitivities
 
 LAWS = (
     d.LinearLaw(0.6),

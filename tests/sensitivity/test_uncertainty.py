@@ -6,10 +6,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from conftest import KNEE
-from dea_opt.uncertainty import SCALARS, monte_carlo, propagate
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer
+from dea_opt.sensitivity.uncertainty import SCALARS, monte_carlo, propagate
 
 KNEE_FILES = ("femoral_cartilage.stl", "medial_tibial_cartilage.stl", "lateral_tibial_cartilage.stl")
 

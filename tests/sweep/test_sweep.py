@@ -216,7 +216,7 @@ def test_sweep_command(scenario, tmp_path):
 
 def test_a_sweeps_cases_draw_their_pictures_in_their_own_process(scenario, tmp_path, monkeypatch):
     """A sweep keeps every core busy with cases: no second process per case for the PNGs."""
-    import dea_opt.io.pictures as pictures
+    import dea_opt.run.pictures as pictures
 
     def no_worker(*args, **kwargs):
         raise AssertionError("a sweep's case started a PictureWorker")
@@ -231,7 +231,7 @@ def test_a_sweeps_cases_draw_their_pictures_in_their_own_process(scenario, tmp_p
 
 def test_ctrl_c_in_a_sweep_says_how_many_cases_are_finished_and_a_rerun_completes_it(tmp_path, monkeypatch):
     import dea_opt.sweep as sweep_module
-    from dea_opt.io.publish import RunInterrupted
+    from dea_opt.run.publish import RunInterrupted
 
     scenario = tmp_path / "hip.toml"
     scenario.write_text(LIGHT)

@@ -1,4 +1,4 @@
-"""The sweep's spring cache (issue 15): springs cast once per distinct geometry and pose, shared
+"""The sweep's spring cache: springs cast once per distinct geometry and pose, shared
 on disk by the workers; and the cases' outputs chosen per sweep.
 
 A cast taken from the cache must be the cast, bit for bit; its key must follow the content
@@ -23,8 +23,9 @@ import pytest
 
 import dea_opt as d
 from dea_opt import geometry
+from dea_opt.mesh import cache as spring_cache
 from dea_opt.mesh import cast_springs
-from dea_opt.sweep import RESULTS_NAME, run_sweep, spring_cache
+from dea_opt.sweep import RESULTS_NAME, run_sweep
 from dea_opt.sweep.cases import SPRING_CACHE
 
 TILT = np.array(
@@ -184,7 +185,7 @@ CONCURRENT = textwrap.dedent("""
     from pathlib import Path
     import numpy as np
     from dea_opt import geometry
-    from dea_opt.sweep import spring_cache
+    from dea_opt.mesh import cache as spring_cache
     folder, go = Path(sys.argv[1]), Path(sys.argv[2])
     pair = geometry.sphere_on_bed_meshes(25.0, 2.0, extent=6.0, n_bed=14, step=3.0)
     print("ready", flush=True)
@@ -227,7 +228,7 @@ KILLED = textwrap.dedent("""
     from pathlib import Path
     from dea_opt import geometry
     from dea_opt.mesh import springs
-    from dea_opt.sweep import spring_cache
+    from dea_opt.mesh import cache as spring_cache
     real = springs._cast
     def slow(*args, **kwargs):
         out = real(*args, **kwargs)

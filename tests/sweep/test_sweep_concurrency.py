@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import scenario_text
 
 from dea_opt.sweep import (
     JOURNAL_NAME,
@@ -31,23 +32,7 @@ from dea_opt.sweep import (
 )
 from dea_opt.sweep.cases import CaseTask, read_text
 
-PLATE = """\
-title = "plate for sweeps"
-[geometry]
-kind = "plate"
-nx = 100
-ny = 10
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [5.0, 0.0, 0.0]
-[output]
-formats = ["json"]
-"""
+PLATE = scenario_text(title="plate for sweeps", nx=100, ny=10, point=(5.0, 0.0, 0.0), formats=("json",))
 
 # A sweep in its own process, started when the file `go` appears, so two start together.
 DRIVER = """\

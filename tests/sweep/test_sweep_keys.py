@@ -10,40 +10,22 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import scenario_text
 from typer.testing import CliRunner
 
 from dea_opt.cli import app
 from dea_opt.errors import InputError
 from dea_opt.geometry import plate_layer
-from dea_opt.scenario import load_scenario, write_springs
+from dea_opt.scenario import keys, load_scenario, write_springs
 from dea_opt.sweep import (
     JOURNAL_NAME,
     RESULTS_NAME,
-    keys,
     make_cases,
     read_results,
     run_sweep,
 )
 
-PLATE = """\
-title = "plate"
-[geometry]
-kind = "plate"
-length = 40.0
-width = 10.0
-nx = 40
-ny = 4
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [5.0, 0.0, 0.0]
-[output]
-formats = ["json"]
-"""
+PLATE = scenario_text(title="plate", size=(40.0, 10.0), point=(5.0, 0.0, 0.0), formats=("json",))
 
 SPRINGS = """\
 title = "springs table under a load path"

@@ -9,25 +9,11 @@ import subprocess
 import sys
 
 import pytest
+from conftest import scenario_text
 
 from dea_opt.sweep import RESULTS_NAME, format_row, make_cases
 
-PLATE = """\
-[geometry]
-kind = "plate"
-nx = 40
-ny = 4
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -500.0]
-point = [5.0, 0.0, 0.0]
-[output]
-formats = ["json"]
-"""
+PLATE = scenario_text(point=(5.0, 0.0, 0.0), formats=("json",))
 # A negative scale pulls the plate off: two error rows. H >= 8 keeps the others inside validity
 # (peak 2.19 MPa: strain 0.27 at H = 8, under the linear law's 30 %).
 SETS = ["law.H=8,10", "load.scale=1,-1"]

@@ -1,4 +1,4 @@
-"""Scale-out shown, not assumed (issue 15): a Dask scheduler and two workers started as separate
+"""Scale-out shown, not assumed: a Dask scheduler and two workers started as separate
 processes on the loopback interface, and ``dea-opt sweep --scheduler tcp://127.0.0.1:PORT``
 running its cases on them, as it would on a cluster's nodes sharing a file system."""
 
@@ -14,28 +14,20 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from conftest import scenario_text
 
 from dea_opt.sweep import RESULTS_NAME, read_results
 
 pytest.importorskip("distributed")
 
-PLATE = """\
-title = "plate for a distributed sweep"
-[geometry]
-kind = "plate"
-nx = 100
-ny = 10
-[law]
-kind = "linear"
-H = 10.0
-[body2]
-free = ["uz", "rx", "ry"]
-[load]
-force = [0.0, 0.0, -100.0]
-point = [5.0, 0.0, 0.0]
-[output]
-formats = ["csv", "json", "vtk", "png"]
-"""
+PLATE = scenario_text(
+    title="plate for a distributed sweep",
+    nx=100,
+    ny=10,
+    force=-100.0,
+    point=(5.0, 0.0, 0.0),
+    formats=("csv", "json", "vtk", "png"),
+)
 
 
 def _free_port() -> int:

@@ -18,9 +18,9 @@ import numpy as np
 from ...errors import InputError, SolverError
 from ...laws import LinearLaw
 from ...status import Status
-from ..energy import require_finite
 from ..joint import JointResult, JointSystem, joint_scaling, law_stresses
 from ..nlp import NATIVE_STATUS, _casadi, ipopt_solver
+from ..resistance import require_finite
 from .options import Option, validate
 
 #: IPOPT's options for a joint.

@@ -10,7 +10,7 @@ and ``dea_opt.laws.kinds.LinearLaw``) gets one page, at its *home*: the shortest
 exports it (the package itself first), ties broken alphabetically. Every other module that
 exports it links to that page. ``write_api_pages`` writes the module pages and the object pages
 (reStructuredText for autodoc and numpydoc) under ``docs/reference/api/``; the build calls it
-every time, and ``tests/test_docs_site.py`` checks that every public name has its page.
+every time, and ``tests/docs/test_site.py`` checks that every public name has its page.
 """
 
 from __future__ import annotations

@@ -1,0 +1,512 @@
+"""Finite kinematics, re-casting: the springs of a mesh layer follow body 2 as it moves.
+
+Written math: ``formulations/finite.md`` ("Re-casting"). Within a solve each spring's gap is
+taken to the tangent plane of the face of mesh 2 its ray met, exact while the hit stays on that
+face. After a converged solve the springs are brought up to date at the solved pose, by the
+rules of a cast (:func:`dea_opt.mesh.cast_springs`, the window following the pose as in
+:func:`dea_opt.mesh.recast`), on the faces of mesh 1 where anything can have changed:
+
+* the springs whose hit left its face meet mesh 2 again, their rays followed across its edges
+  from where they left (:func:`dea_opt.mesh.follow_faces`), cast where that settles nothing (a
+  new face, or lost: beyond the window, turned past ``max_angle``, back through body 1's own
+  layer, no face of mesh 2 facing it); a hit that moved less than its clearance on its face
+  is not tested;
+* every spring whose hit moved more than ``recast_shift`` since its thickness was measured is
+  measured again at its hit; springs beyond ``max_gap`` are dropped (they carry nothing);
+* the faces of mesh 1 next to the springs (the springs' ring) are cast: springs coming into
+  range are picked up there, overlaps deeper than the window counted as dropped. A partial
+  update looks at one ring at the contact's edges and casts no ray; a complete one grows the
+  rings around every spring, the window's far edge included.
+
+Once the hits moved more than ``full_shift`` (5 mm) from where every face was last cast (a
+contact away from the springs could have appeared), the whole mesh is re-cast
+(:func:`dea_opt.mesh.recast`). The solve goes on from the same pose until a complete update
+changes nothing that carries load; every event is counted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..formulations.finite import Targets
+from ..mesh import Mesh1, Mesh2, cast_faces, follow_faces, measure, recast
+from ..mesh.springs import LOST_REASONS, NoSpringsError
+from ..mesh.walk import ON_FACE, dot
+from .springs import Springs, face_labels, joined, put_rows, ring
+
+__all__ = ["MeshTracker"]
+
+
+@dataclass
+class Update:
+    """The springs brought up to date: the new system, its state at the solved pose, and whether
+    a loaded spring changed (so that the equilibrium must be solved again)."""
+
+    system: object
+    state: object
+    resolve: bool
+    #: Why no spring is left at the pose (a whole re-cast made none): the solve ends there, failed.
+    none_left: str | None = None
+
+
+class MeshTracker:
+    """Keeps a finite-kinematics layer cast against mesh 2 as body 2 moves, and counts the events.
+
+    Parameters
+    ----------
+    cast : SpringCast
+        The cast that made the problem's layer (:func:`dea_opt.mesh.cast_springs`); ``cast.pose``
+        is mesh 2's pose at zero displacement.
+    recast_shift : float
+        A spring's thickness is measured again once its hit moved more than this (mm).
+    full_shift : float
+        The whole of mesh 1 is cast again once the hits moved more than this (mm) since it last
+        was: a contact that appears away from the springs is found then.
+    thickness_tol : float
+        Relative change of a loaded spring's thickness below which an update changed nothing.
+    """
+
+    def __init__(self, cast, *, recast_shift: float = 0.01, full_shift: float = 5.0, thickness_tol: float = 1e-6):
+        self.cast = cast
+        self.frame = np.asarray(cast.pose, dtype=float)
+        self.recast_shift, self.full_shift, self.thickness_tol = recast_shift, full_shift, thickness_tol
+        self.mesh1, self.mesh2 = Mesh1.of(cast), Mesh2.of(cast)
+        self._take(cast)
+        self._first_layer, self._first_cast = cast.layer, cast
+        self.begin()
+
+    def _take(self, cast) -> None:
+        """Start from a whole cast (the first, or a full re-cast)."""
+        self.cast, self.full = cast, np.asarray(cast.pose, dtype=float)
+        self.updated_at = self.full  # mesh 2's pose where the springs were last brought up to date
+        self.springs = Springs(cast.layer, cast.thickness1, cast.thickness2)
+        # Per face of mesh 1, the face of mesh 2 its ray met first facing it at its last cast, and
+        # where (mesh 2's own frame): -1 and NaN where not known.
+        n = len(cast.mesh1.faces)
+        met, point = getattr(cast, "met", None), getattr(cast, "met_point", None)
+        known = met is not None and point is not None and len(met) == n
+        self.met = np.array(met, dtype=np.int64) if known else np.full(n, -1, dtype=np.int64)
+        self.met_point = np.array(point, dtype=float) if known else np.full((n, 3), np.nan)
+        self.met[self.springs.faces1] = self.springs.faces2
+        put_rows(self.met_point, self.springs.faces1, self.springs.q)
+        self._slot = np.zeros(len(cast.mesh1.faces), dtype=np.int64)
+        # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
+        self._layer = cast.layer if not hasattr(self, "_first_layer") else None
+        self.dropped_faces = np.asarray(cast.dropped.faces["overlap"], dtype=np.int64)
+
+    def begin(self, frame=None) -> None:
+        """Start counting a solve's events; ``frame`` (4x4) is mesh 2's pose at zero displacement
+        from now on (a load path's prescribed pose), else it is kept."""
+        from ..mesh import check_pose
+
+        if frame is not None:
+            self.frame = np.asarray(check_pose(frame, "frame"), dtype=float)
+        self.complete = False  # the next update is partial (see update)
+        self.last = None  # the pose of the last update
+        self.counts = {
+            "recasts": 0,
+            "updates": 0,
+            "gained": 0,
+            "lost": 0,
+            "left_face": 0,
+            "dropped": len(self.dropped_faces),
+        }
+        self.lost: dict = {}
+        self.crushed_faces: list = []  # faces of mesh 1 whose springs were lost through the layer while loaded
+        self.crushed_at: np.ndarray | None = None  # body 2's coordinates (6,) where the first of them were lost
+
+    @property
+    def origin(self):
+        """The :class:`~dea_opt.mesh.SpringCast` the springs started from (``cast`` is the last whole re-cast)."""
+        return self._first_cast
+
+    def targets(self) -> Targets:
+        s = self.springs
+        return Targets.cast_planes(s.q, s.m, self.frame, s.faces2)
+
+    @property
+    def thickness(self) -> np.ndarray:
+        return self.springs.h1 + self.springs.h2
+
+    @property
+    def layer(self):
+        """The springs as a :class:`~dea_opt.layer.SpringLayer` (gaps at the last update's pose)."""
+        return self.layer_with_gap(None)
+
+    def changed_from(self, layer) -> bool:
+        """Whether the springs are no longer those of ``layer`` (the problem's own)."""
+        return self._layer is not layer
+
+    def layer_with_gap(self, gap):
+        """The springs as a :class:`~dea_opt.layer.SpringLayer` with gaps ``gap`` (N,), or those of
+        the last update's pose (None)."""
+        if gap is None and self._layer is not None:
+            return self._layer
+        from ..layer import SpringLayer
+
+        s = self.springs
+        # every array comes from the checked meshes and the rules of a cast; the springs' own are
+        # handed over read-only (the next update copies them before it changes them: Springs.own)
+        layer = SpringLayer._checked(
+            s.points,
+            s.normals,
+            s.areas,
+            self.thickness,
+            s.gap if gap is None else np.asarray(gap, dtype=float),
+            s.faces1,
+            self._first_layer.surface,
+            self._labels(s.faces1),
+            (s.q, s.m, s.faces2),
+        )
+        if gap is None:
+            self._layer = layer
+        return layer
+
+    def _labels(self, faces):
+        """The labels of faces ``faces`` of mesh 1 (:func:`~dea_opt.finite.springs.face_labels`)."""
+        return face_labels(self._first_cast, self.mesh1.centroids, faces)
+
+    #: mm beyond the window within which a face's tangent-plane gap makes it a candidate: the
+    #: plane of the face its ray met departs from a curved mesh 2 as the hit moves on it.
+    _REACH = 1.0
+
+    def _candidates(self, pose, tried) -> np.ndarray:
+        """The faces of mesh 1 not ``tried`` whose ray met mesh 2 at their last cast (``met``) and
+        whose gap to that face's tangent plane at ``pose`` lies within the window widened by
+        ``_REACH``: where springs most likely came into range."""
+        known = np.flatnonzero((self.met >= 0) & ~tried)
+        if not len(known):
+            return known
+        R, shift = pose[:3, :3], pose[:3, 3]
+        # whole rows gathered (one cache line a face), then the plane's gap along each ray
+        m = np.take(self.mesh2.planes.normals, self.met[known], axis=0)
+        mR = m @ R.T  # the normals at the pose
+        along = dot(np.take(self.mesh1.normals, known, axis=0), mR)
+        ahead = dot(np.take(self.met_point, known, axis=0), m) + mR @ shift
+        ahead -= dot(np.take(self.mesh1.centroids, known, axis=0), mR)
+        options = self.cast.options
+        with np.errstate(divide="ignore", invalid="ignore"):
+            gap = np.where(along < 0, ahead / along, np.inf)
+        low = -(options["max_overlap"] + 2.0 * self._REACH)  # the window follows the pose: wide
+        return known[(gap >= low) & (gap <= options["max_gap"] + self._REACH)]
+
+    def _near_spring(self, faces) -> np.ndarray:
+        """For faces of mesh 1, the face of mesh 2 a spring next to each meets now (-1: none), where
+        its ray most likely meets mesh 2 too."""
+        springs = self.springs
+        met = self._slot  # scratch (F,): here the face of mesh 2 each spring's face meets
+        met[:] = -1
+        met[springs.faces1] = springs.faces2
+        near = np.take(self.mesh1.neighbours, faces, axis=0)
+        found = np.where(near >= 0, met[near.clip(0)], -1)
+        return found.max(axis=1)
+
+    def _remember(self, faces, fresh) -> None:
+        """Keep what the rays of ``faces`` met first (a :class:`~dea_opt.mesh.FaceCast`'s ``first2``)."""
+        self.met[faces] = fresh.first2
+        put_rows(self.met_point, faces, fresh.first_point)
+
+    def _lose(self, reason: str, count: int) -> None:
+        if count:
+            self.lost[reason] = self.lost.get(reason, 0) + int(count)
+            self.counts["lost"] += int(count)
+
+    def update(self, system, state, complete: bool = True):
+        """After a converged solve: the system with its springs brought up to date at the solved pose,
+        or None when nothing changed. A partial update (not ``complete``) keeps the springs it has
+        up to date and picks up none: the faces next to them, where springs come into the window,
+        are cast only in a complete update (at the window's far edge they carry nothing, so a
+        solve's intermediate poses need not look there)."""
+        pose = system.transform(state.y)
+        since_full, since_last = self._moved(pose, self.full, self.last)
+        self.last = self.updated_at = pose
+        if since_full > self.full_shift:
+            self.complete = True
+            return self._recast_all(system, state, pose)
+        self.springs.own()  # what the last answer holds is left as it was
+        springs, options = self.springs, self.cast.options
+        gaps = state.gaps
+        R, shift = pose[:3, :3], pose[:3, 3]
+        # the hits in mesh 2's own frame, as rows (3, N): R^T (p + s n - shift)
+        rows = system.planes
+        pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
+        along = np.where(gaps.valid, gaps.s, 0.0)
+        ownT = R.T @ (pT - shift[:, None]) + along * (R.T @ nT)
+        # Which hits left their face: a hit that moved less than its clearance since it was last
+        # found on its face is still on it; the others are tested (barycentric coordinates).
+        step = ownT - springs.tested.T
+        check = np.flatnonzero(~gaps.valid | (np.einsum("ij,ij->j", step, step) >= springs.clear * springs.clear))
+        bary = self.mesh2.planes.barycentric(ownT[:, check], springs.faces2[check], rows=True)
+        low = bary.min(axis=0)
+        out = ~((low >= -ON_FACE) & gaps.valid[check])
+        left = np.zeros(len(springs.faces1), dtype=bool)
+        left[check] = out
+        stays = check[~out]
+        put_rows(springs.tested, stays, ownT[:, stays].T)
+        springs.clear[stays] = self.mesh2.planes.clearance(springs.faces2[stays], low[~out])
+        shifted = ownT - springs.measured.T
+        moved = ~left & (np.einsum("ij,ij->j", shifted, shifted) > self.recast_shift**2)
+        beyond = ~left & (gaps.s > options["max_gap"])
+        loaded = state.eps < 0
+        before_faces, before_h = springs.faces2.copy(), self.thickness.copy()
+        # 1. Springs whose hit left its face: met again (followed across mesh 2's edges, else cast),
+        #    allowed the overlap they have now.
+        index = np.flatnonzero(left)
+        again = follow_faces(
+            self.cast,
+            pose,
+            springs.faces1[index],
+            self.mesh2.planes.beyond(springs.faces2[index], np.take(bary, np.flatnonzero(out), axis=1)),
+            np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
+            self.mesh1,
+            self.mesh2,
+        )
+        self._remember(springs.faces1[index], again)
+        found = again.spring
+        met = np.flatnonzero(found)
+        at = index[met]
+        hits = np.take(again.q, met, axis=0)
+        springs.retarget(at, hits, np.take(again.m, met, axis=0))
+        put_rows(springs.measured, at, hits)
+        put_rows(springs.tested, at, hits)
+        springs.faces2[at], springs.gap[at], springs.clear[at] = again.faces2[met], again.gap[met], again.clear[met]
+        for reason, count in again.reasons(~found).items():
+            self._lose(reason, count)
+        gone = np.flatnonzero(~found)
+        if len(gone):
+            through = again.outcome[gone] == LOST_REASONS.index("through_layer")
+            self._crushed(springs.faces1[index[gone[through & loaded[index[gone]]]]], state.y)
+        on = np.flatnonzero(~left)
+        springs.gap[on] = np.where(gaps.valid[on], gaps.s[on], springs.gap[on])
+        # 2. Their thickness where the hits are now, and that of springs whose hit moved on its face.
+        stay = np.flatnonzero(moved & ~beyond)
+        put_rows(springs.measured, stay, ownT[:, stay].T)
+        remeasure = np.concatenate([at, stay])
+        keep = ~beyond
+        keep[index[~found]] = False
+        if len(remeasure):
+            h2, springs.far2[remeasure] = self.mesh2.thickness(
+                options["thickness2"],
+                springs.faces2[remeasure],
+                np.take(springs.measured, remeasure, axis=0),
+                springs.far2[remeasure],
+            )
+            springs.h2[remeasure] = h2
+            total = springs.h1[remeasure] + h2
+            bad = remeasure[~(np.isfinite(total) & (total > 0))]
+            keep[bad] = False
+            self._lose("thickness", len(bad))
+        self._lose("gap", int(beyond.sum()))
+        # where each spring stood before (the lost ones' places go to the last springs)
+        before = springs.keep(keep) if not keep.all() else np.arange(len(keep))
+        # 3. The faces next to the springs, ring after ring while springs come into range there
+        #    (their window's edge: only in a complete update).
+        if complete:
+            gained = self._grow(pose)
+        else:  # the contact's edges, after a step long enough to move them (else the complete update sees them)
+            gained = self._grow(pose, self._NEAR) if since_last > self._LONG else 0
+        self.counts["updates"] += 1
+        self.counts["gained"] += gained
+        self.counts["left_face"] += len(index)
+        self._layer = None
+        kept = len(before)
+        if not (springs.faces2[:kept] != before_faces[before]).any() and not gained and keep.all():
+            ratio = self.thickness[loaded] / before_h[loaded]
+            if not len(ratio) or np.abs(ratio - 1).max() <= self.thickness_tol:
+                return None  # nothing changed
+        new_system = self.springs_of(system)
+        # Springs that carry nothing before and after change no force: no new solve for them.
+        changed = np.zeros(len(keep), dtype=bool)
+        changed[index] = True
+        changed[:] |= ~keep
+        after = new_system.state(state.y, state.law)
+        thicker = np.abs(self.thickness[:kept] / before_h[before] - 1) > self.thickness_tol
+        moved_loaded = (changed[before] | thicker) & (loaded[before] | (after.eps[:kept] < 0))
+        resolve = bool((changed & loaded).any() or moved_loaded.any() or (after.eps[kept:] < 0).any())
+        return Update(new_system, after, resolve)
+
+    #: Gap (mm) within which springs border the contact in a partial update: the faces next to
+    #: them may carry load at the next equilibrium (an edge of the contact, where the surfaces
+    #: turn past ``max_angle`` or the window cut the layer).
+    _NEAR = 0.5
+    #: A step (mm, the hits' largest motion since the last update) after which a partial update
+    #: looks at the contact's edges.
+    _LONG = 0.05
+
+    def _grow(self, pose, near=None) -> int:
+        """Cast the faces next to the springs at ``pose``, ring after ring (each twice as wide as
+        the last, at most 24 faces) while springs come into range there; add those springs. The
+        number gained; what the window dropped there is kept for the count.
+
+        With ``near`` (mm), a partial update: one ring next to the springs with a gap below it
+        (the contact's edges, not the window's far edge), with no ray cast: its rays are followed
+        from what they, or the face they were reached from, met (:func:`~dea_opt.mesh.follow_faces`);
+        what lies beyond, and what a walk cannot settle, waits for the complete update, which
+        casts its rings (:func:`~dea_opt.mesh.cast_faces`)."""
+        springs = self.springs
+        dropped, tried = [], np.zeros(len(self.mesh1.areas), dtype=bool)
+        tried[springs.faces1] = True
+        width = 3
+        seeds = slice(None) if near is None else springs.gap < near
+        grown = []
+        known = np.zeros(0, dtype=np.int64)
+        if near is None:  # the faces whose ray met mesh 2 within the window's reach, followed first
+            candidates = self._candidates(pose, tried)
+            if len(candidates):
+                allowed = self._allowed(candidates, pose)
+                start = self._near_spring(candidates)
+                start = np.where(start >= 0, start, self.met[candidates])
+                fresh = follow_faces(
+                    self.cast, pose, candidates, start, allowed, self.mesh1, self.mesh2, cast_rest=False
+                )
+                settled = fresh.outcome != -2  # the others are left to the rings' casts
+                self.met[candidates[settled]] = fresh.first2[settled]
+                judged = np.flatnonzero(settled)
+                put_rows(self.met_point, candidates[judged], np.take(fresh.first_point, judged, axis=0))
+                grown.append(fresh.subset(fresh.spring))
+                dropped.append(fresh.faces[fresh.dropped])
+                tried[candidates[fresh.spring]] = True
+                known = candidates[settled & ~fresh.spring]  # judged: the rings pass them, not cast them
+        is_known = np.zeros(len(tried), dtype=bool)
+        is_known[known] = True
+        ring, guess = self._ring(springs.faces1[seeds], springs.faces2[seeds], tried, width)
+        if grown:  # and around the springs the candidates gave
+            more = grown[0]
+            extra, extra_guess = self._ring(more.faces, more.faces2, tried, width)
+            ring, guess = np.concatenate([ring, extra]), np.concatenate([guess, extra_guess])
+        while len(ring):
+            if len(known):
+                cast = ~is_known[ring]
+                ring, guess = ring[cast], guess[cast]
+                if not len(ring):
+                    break
+            allowed = self._allowed(ring, pose)
+            if near is None:
+                fresh = cast_faces(self.cast, pose, ring, allowed, self.mesh1, self.mesh2, thickness=False)
+            else:
+                fresh = follow_faces(self.cast, pose, ring, guess, allowed, self.mesh1, self.mesh2, cast_rest=False)
+            self._remember(fresh.faces, fresh)
+            new = fresh.spring
+            grown.append(fresh.subset(new))
+            dropped.append(fresh.faces[fresh.dropped])
+            width = min(2 * width, 24)
+            if near is not None:
+                break  # one ring: what lies beyond waits for the complete update
+            ring, guess = self._ring(fresh.faces[new], fresh.faces2[new], tried, width)
+        if near is None:
+            self.dropped_faces = np.concatenate(dropped) if dropped else np.zeros(0, dtype=np.int64)
+            self.counts["dropped"] = len(self.dropped_faces)
+        if not grown:
+            return 0
+        fresh = grown[0] if len(grown) == 1 else joined(grown)
+        measure(fresh, self.mesh1, self.mesh2)
+        new = fresh.spring
+        springs.extend(self.mesh1, fresh, new)
+        return int(new.sum())
+
+    def _recast_all(self, system, state, pose):
+        try:
+            new = recast(self._first_cast, pose)  # the window of the first cast's pose, as _allowed's
+        except NoSpringsError as error:
+            return self._none_left(state, error)
+        self.counts["recasts"] += 1
+        own = (np.nan_to_num(state.gaps.hit) - pose[:3, 3]) @ pose[:3, :3]
+        self.counts["left_face"] += int(
+            (~(self.mesh2.planes.inside(own, self.springs.faces2) & state.gaps.valid)).sum()
+        )
+        self.counts["gained"] += len(new.gained)
+        for reason, faces in new.lost.items():
+            self._lose(reason, len(faces))
+        through = np.asarray(new.lost.get("through_layer", ()), dtype=np.int64)
+        self._crushed(through[np.isin(through, self.springs.faces1[state.eps < 0])], state.y)
+        self._take(new.cast)
+        self.counts["dropped"] = len(self.dropped_faces)
+        new_system = self.springs_of(system)
+        return Update(new_system, new_system.state(state.y, state.law), True)
+
+    def _none_left(self, state, error) -> Update:
+        """No spring at the pose (a whole re-cast made none, ``error``): every spring is lost, those
+        that carried load through the layer where the rays went back through it (the load drove
+        body 2 through the cartilage). The springs are left as they were; the solve ends failed."""
+        self.counts["recasts"] += 1
+        self._lose("through_layer" if error.through_layer else "no_hit", len(self.springs))
+        if error.through_layer:
+            self._crushed(self.springs.faces1[state.eps < 0], state.y)
+            why = f"the rays of {error.through_layer} faces of mesh 1 met mesh 2 only behind mesh 1's far side"
+        else:
+            why = "no face of mesh 1 faces mesh 2 within the proximity window there"
+        return Update(None, state, False, none_left=why)
+
+    def _crushed(self, faces, y) -> None:
+        """Count ``faces`` of mesh 1, whose springs carried load, as lost through the layer at body 2's
+        coordinates ``y`` (6,): the first such are kept (``crushed_at``)."""
+        if len(faces):
+            if not self.crushed_faces:
+                self.crushed_at = np.array(y, dtype=float)
+            self.crushed_faces.append(np.array(faces, dtype=np.int64))
+
+    @property
+    def crushed_through(self) -> int:
+        """The springs this solve lost through the layer while they carried load."""
+        return sum(len(faces) for faces in self.crushed_faces)
+
+    def lost_through_layer(self, pose) -> int:
+        """The springs this solve lost through the layer while they carried load whose rays, at
+        mesh 2's ``pose`` (4x4), still meet mesh 2 behind mesh 1's far side: the overlap is deeper
+        than mesh 1's cartilage there, so the lumped layer would still carry them, but the cast
+        cannot place them (the ``lost_through_layer`` validity check)."""
+        if not self.crushed_faces:
+            return 0
+        faces = np.unique(np.concatenate(self.crushed_faces))
+        faces = faces[~np.isin(faces, self.springs.faces1)]
+        if not len(faces):
+            return 0
+        again = cast_faces(self.cast, pose, faces, self._allowed(faces, pose), self.mesh1, self.mesh2, thickness=False)
+        return int((again.outcome == LOST_REASONS.index("through_layer")).sum())
+
+    def springs_of(self, system):
+        """``system`` with this tracker's springs and targets (the load and coordinates kept)."""
+        s = self.springs
+        rows = (s.pT, s.nT, s.arms, s.mT, s.qm)
+        return system.with_springs(s.points, s.normals, s.areas, self.thickness, self.targets(), rows)
+
+    def moved_from_update(self, pose) -> float:
+        """How far (mm) the springs' hits on body 2 moved between their last update and ``pose``."""
+        return self._moved(pose, self.updated_at)[0]
+
+    def short_step(self, pose) -> bool:
+        """Whether the hits moved no more than ``recast_shift`` since the last update (a partial
+        update would see nothing there, so the next one may as well be complete)."""
+        return self.last is not None and self._moved(pose, self.last)[0] <= self.recast_shift
+
+    def _moved(self, pose, since, last=None) -> tuple[float, float]:
+        """How far (mm) the springs' hits on body 2 moved between ``since`` and ``pose``, and between
+        ``last`` and ``pose`` (inf without ``last``)."""
+        hits = self.springs.q
+        if not len(hits):
+            return 0.0, 0.0
+        rows = np.ascontiguousarray(hits.T)
+        moved = []
+        for p in (since,) if last is None else (since, last):
+            change = pose - p
+            shift = change[:3, :3] @ rows
+            shift += change[:3, 3:]
+            moved.append(float(np.sqrt((shift[0] * shift[0] + shift[1] * shift[1] + shift[2] * shift[2]).max())))
+        return moved[0], moved[1] if last is not None else np.inf
+
+    def _ring(self, faces1, met, tried, rings: int = 3) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`~dea_opt.finite.springs.ring` on mesh 1's faces, with what each met at its last cast."""
+        return ring(self.mesh1.neighbours, self._slot, self.met, faces1, met, tried, rings)
+
+    def _allowed(self, faces, pose) -> np.ndarray:
+        """The overlap a face's ray may take: ``max_overlap`` plus how far mesh 2 came toward it from
+        the pose of the cast the springs started from (the window following the pose, as in
+        :func:`dea_opt.mesh.recast` of that cast, which the whole re-casts also are): the same
+        window whatever path led to ``pose``, the one ``recast_at_solution`` counts drops in."""
+        motion = pose @ np.linalg.inv(self._first_cast.pose)
+        points = np.take(self.mesh1.centroids, faces, axis=0)  # whole rows: one cache line a face
+        moved = points @ (motion[:3, :3] - np.eye(3)).T + motion[:3, 3]
+        toward = -dot(np.take(self.mesh1.normals, faces, axis=0), moved)
+        return self.cast.options["max_overlap"] + np.maximum(toward, 0.0)

@@ -1,0 +1,284 @@
+"""Pictures drawn in a second process while a run solves and writes its other outputs.
+
+Matplotlib's import (0.3-0.5 s) and the drawing of a load path's two pictures (0.6-0.9 s on
+the knee of ``../shared/data/knee``) are most of what ``dea-opt run`` spends outside its
+solve. :class:`PictureWorker` starts a Python process when the run starts; it imports
+matplotlib on the other core while the run casts and solves, then draws the pictures while
+the run writes its tables and VTK files. The run waits for it before it publishes.
+
+Written here rather than with :class:`concurrent.futures.ProcessPoolExecutor` because the
+worker must end with the run however the run ends: it reads its jobs from a pipe and returns
+when the pipe closes (``kill -9`` of the run included), and it never re-imports the console
+script that started the run. Whatever goes wrong in the worker (it could not start, it died, a
+job raised) the picture is drawn in the run's own process instead, so the run's errors and
+files are the same either way.
+
+Jobs are ``(module, function, args, kwargs)`` of :mod:`dea_opt.io`'s picture functions,
+pickled into files of a temporary folder whose names go through the pipe; the answers come
+back pickled through the other pipe: ``("ok", value)`` or ``("error", text)``.
+
+A run's outputs are staged in the run's process (:func:`dea_opt.files.atomic.staged`), which the
+worker does not see: given the output's own name it would rename its picture straight into the
+output folder, outside the manifest. :class:`PictureFiles` therefore hands the drawer a
+temporary file reserved beside each output (:func:`~dea_opt.files.atomic.atomic_path`) and,
+once the picture is drawn there, stages it (or renames it into place) in the run's process,
+like every other output: published with the others and listed in ``manifest.json``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import importlib
+import os
+import pickle
+import shutil
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+from ..files.atomic import atomic_path
+
+__all__ = ["DrawHere", "PictureFiles", "PictureWorker"]
+
+#: The modules a worker may run functions of.
+_MODULES = ("dea_opt.io.cycle", "dea_opt.io.plots")
+
+
+def _call(module: str, function: str, args, kwargs):
+    if module not in _MODULES:
+        raise ValueError(f"a picture worker runs functions of {_MODULES}, not {module!r}")
+    return getattr(importlib.import_module(module), function)(*args, **kwargs)
+
+
+class DrawHere:
+    """:class:`PictureWorker`'s interface, drawing in this process: each job when its result is
+    asked for."""
+
+    def __init__(self):
+        self._jobs: list = []
+
+    def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
+        self._jobs.append((module, function, tuple(args), dict(kwargs or {})))
+        return len(self._jobs) - 1
+
+    def result(self, number: int):
+        return _call(*self._jobs[number])
+
+    def draw(self, job: tuple):
+        """Run ``job`` ``(module, function, args, kwargs)`` now; its value."""
+        return self.result(self.submit(*job))
+
+    def files(self) -> PictureFiles:
+        """:class:`PictureFiles` drawn in this process (as :meth:`PictureWorker.files`)."""
+        return PictureFiles(self)
+
+
+class _Drawer:
+    """One worker process: the jobs sent to it and the answers read back, in order."""
+
+    def __init__(self, env):
+        self.sent = 0
+        self.answers: list = []
+        try:
+            self.process: subprocess.Popen | None = subprocess.Popen(
+                [sys.executable, "-m", "dea_opt.run.pictures"],
+                stdin=subprocess.PIPE,
+                stdout=subprocess.PIPE,
+                stderr=subprocess.DEVNULL,
+                env=env,
+            )
+        except OSError:
+            self.process = None  # drawn in the run's process instead
+
+    def send(self, path: str) -> int | None:
+        """Hand the job file ``path`` over; its place among this worker's answers, or None."""
+        process = self.process
+        if process is None or process.stdin is None:
+            return None
+        try:
+            process.stdin.write(path.encode() + b"\n")
+            process.stdin.flush()
+        except OSError:
+            self.stop()
+            return None
+        self.sent += 1
+        return self.sent - 1
+
+    def answer(self, place: int):
+        """The answer in ``place`` (answers come in order), or None if the worker failed."""
+        try:
+            while len(self.answers) <= place:
+                assert self.process is not None and self.process.stdout is not None
+                self.answers.append(pickle.load(self.process.stdout))
+        except Exception:  # the worker died or wrote something else: drawn in the run instead
+            self.stop()
+            return None
+        return self.answers[place]
+
+    def stop(self) -> None:
+        process, self.process = self.process, None
+        if process is None:
+            return
+        # Closing its pipes ends the worker; it is not waited for (its interpreter's shutdown is
+        # no part of the run).
+        for stream in (process.stdin, process.stdout):
+            try:
+                if stream is not None:
+                    stream.close()
+            except OSError:
+                pass
+
+
+class PictureWorker:
+    """A second Python process that draws pictures; :meth:`submit` jobs, then :meth:`result`.
+
+    Start it early (``PictureWorker()``): the process imports matplotlib while the caller
+    works. Use it as a context manager, or call :meth:`close`.
+    """
+
+    def __init__(self):
+        self._jobs: list = []
+        self._folder: str | None = None
+        package = str(Path(__file__).resolve().parents[2])
+        env = dict(os.environ)
+        env["PYTHONPATH"] = os.pathsep.join(p for p in (package, env.get("PYTHONPATH")) if p)
+        env.setdefault("MPLBACKEND", "Agg")
+        self._drawer = _Drawer(env)
+
+    def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
+        """Queue ``module.function(*args, **kwargs)``; returns the job's number for :meth:`result`.
+
+        The job goes to the worker as a file (its name through the pipe), so that handing it
+        over never waits for the worker to finish drawing the one before."""
+        job = (module, function, tuple(args), dict(kwargs or {}))
+        place = None
+        if self._drawer.process is not None:
+            try:
+                if self._folder is None:
+                    self._folder = tempfile.mkdtemp(prefix="dea-opt-pictures-")
+                path = os.path.join(self._folder, f"job{len(self._jobs)}.pickle")
+                with open(path, "wb") as handle:
+                    pickle.dump(job, handle, protocol=pickle.HIGHEST_PROTOCOL)
+                place = self._drawer.send(path)
+            except (OSError, pickle.PicklingError, TypeError, AttributeError):
+                place = None
+        self._jobs.append((job, place))
+        return len(self._jobs) - 1
+
+    def result(self, number: int):
+        """The value of job ``number``: the worker's, or, if the worker failed, the job run here."""
+        job, place = self._jobs[number]
+        if place is not None:
+            answer = self._drawer.answer(place)
+            if answer is not None and answer[0] == "ok":
+                return answer[1]
+        return _call(*job)
+
+    def files(self) -> PictureFiles:
+        """The run's pictures drawn here, as outputs: :class:`PictureFiles` of this worker (what
+        :meth:`dea_opt.loadpath.PathResult.write` draws its PNGs through)."""
+        return PictureFiles(self)
+
+    def close(self) -> None:
+        """End the worker (it finishes the job it is drawing first) and remove the job files."""
+        self._drawer.stop()
+        if self._folder is not None:
+            shutil.rmtree(self._folder, ignore_errors=True)
+            self._folder = None
+
+    def __enter__(self) -> PictureWorker:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def __del__(self):
+        if hasattr(self, "_drawer"):
+            self.close()
+
+
+class PictureFiles:
+    """Pictures that are outputs of a run, drawn by ``drawer`` (a :class:`PictureWorker` or
+    :class:`DrawHere`) and written like every other output.
+
+    :meth:`submit` reserves a temporary file beside the output (:func:`~dea_opt.files.atomic.atomic_path`)
+    and hands the drawer the job that draws into it; :meth:`results` waits for the drawings
+    and then stages each file in this process (inside :func:`~dea_opt.files.atomic.staged`; else
+    renames it into place). Use it as a context manager: leaving the block with an error, or
+    without :meth:`results`, removes the reserved files.
+    """
+
+    def __init__(self, drawer):
+        self._drawer = drawer
+        self._files = contextlib.ExitStack()
+        self._jobs: dict = {}
+
+    def submit(self, name: str, target, job) -> None:
+        """Draw output ``name`` into ``target``: ``job(path)`` gives the drawer's job
+        ``(module, function, args, kwargs)`` writing the picture to ``path``."""
+        target = Path(target)
+        reserved = self._files.enter_context(atomic_path(target))
+        self._jobs[name] = (target, self._drawer.submit(*job(reserved)))
+
+    def results(self) -> dict:
+        """``{name: target}`` once every picture is drawn and staged (an error of a drawing is
+        raised, and no picture is kept)."""
+        with self._files:
+            for _, number in self._jobs.values():
+                self._drawer.result(number)
+        files, self._jobs = {name: target for name, (target, _) in self._jobs.items()}, {}
+        return files
+
+    def __enter__(self) -> PictureFiles:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._files.__exit__(*exc)
+
+
+def _warm_up() -> None:
+    """Draw a small figure with text, so that the first real picture does not pay for matplotlib's
+    first drawing (fonts, caches) while the run waits."""
+    import io
+
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(2, 2))
+    FigureCanvasAgg(fig)
+    ax = fig.subplots()
+    ax.plot([0, 1], [0, 1], label="warm")
+    ax.legend()
+    ax.set_title("warm", fontweight="bold")
+    fig.savefig(io.BytesIO(), format="png", dpi=40)
+
+
+def _serve(source, sink) -> None:
+    """The worker's loop: read job files' names from ``source`` until it closes, answer each
+    job on ``sink``."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    for module in _MODULES:
+        importlib.import_module(module)
+    _warm_up()
+    for line in source:
+        try:
+            with open(line.decode().rstrip("\n"), "rb") as handle:
+                job = pickle.load(handle)
+            answer = ("ok", _call(*job))
+        except BaseException as error:  # answered, and the run draws it itself to raise the same
+            answer = ("error", f"{type(error).__name__}: {error}")
+        try:
+            pickle.dump(answer, sink, protocol=pickle.HIGHEST_PROTOCOL)
+            sink.flush()
+        except (OSError, pickle.PicklingError):
+            return
+
+
+if __name__ == "__main__":
+    try:
+        _serve(sys.stdin.buffer, sys.stdout.buffer)
+    except KeyboardInterrupt:  # Ctrl-C reaches the run's whole process group: the run says what happened
+        pass
