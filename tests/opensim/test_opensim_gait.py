@@ -87,6 +87,7 @@ def test_each_compartment_is_the_sum_of_its_springs_in_the_frame_s_series(gait):
     series = (run / "knee_contact.pvd").read_text()
     scenario = tomllib.loads((out / "dm_gait.toml").read_text())
     insert = np.array(next(f["pose"] for f in scenario["frames"] if f["name"] == "tibia_implant"))
+    both = 0
     for k, row in enumerate(frames):
         assert f'file="knee_contact_frames/frame_{k:04d}.vtu"' in series
         mesh = meshio.read(run / "knee_contact_frames" / f"frame_{k:04d}.vtu")
@@ -97,12 +98,17 @@ def test_each_compartment_is_the_sum_of_its_springs_in_the_frame_s_series(gait):
         push = (data["pressure"] * data["area"])[:, None] * data["normal"]
         medial = own_z > 0
         loaded = data["pressure"] > 0
-        assert (data["label"][medial & loaded] == data["label"][medial & loaded][0]).all()
+        # each loaded side carries one label, not the other's (a side may lift off in a frame whose
+        # rotations are all prescribed: then it has no loaded spring to name)
+        labels = [set(data["label"][side & loaded].tolist()) for side in (medial, ~medial)]
+        assert all(len(s) <= 1 for s in labels) and not (labels[0] & labels[1]), labels
+        both += bool(labels[0] and labels[1])
         for name, side in (("medial", medial), ("lateral", ~medial)):
             assert float(row[f"knee_contact.{name}.force_N"]) == pytest.approx(
                 np.linalg.norm(push[side].sum(axis=0)), rel=1e-6
             )
         assert float(row["knee_contact.force_N"]) == pytest.approx(np.linalg.norm(push.sum(axis=0)), rel=1e-9)
+    assert both >= len(frames) // 2  # both condyles in contact through most of the gait
 
 
 def test_the_ligament_table_has_every_bundle_every_frame(gait):

@@ -270,7 +270,7 @@ def test_the_real_knee_init_then_run_is_valid_with_no_hand_edit(tmp_path):
     assert summary["validity"]["valid"] and set(summary["regions"]) == {"medial", "lateral"}
     # the reference is the springs' area-weighted centroid, summed here from contact.csv
     springs = np.genfromtxt(tmp_path / "out" / "contact.csv", delimiter=",", names=True)
-    centre = np.array([springs["area"] @ springs[c] for c in "xyz"]) / springs["area"].sum()
+    centre = np.array([springs["area_mm2"] @ springs[f"{c}_mm"] for c in "xyz"]) / springs["area_mm2"].sum()
     reference = re_reference(out.read_text())
     np.testing.assert_allclose(reference, centre, atol=0.01)
 
