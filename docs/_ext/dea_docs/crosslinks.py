@@ -15,7 +15,7 @@ import re
 
 from docutils import nodes
 
-_MODULE_PATH = re.compile(r"(dea_opt(?:/\w+)*)(?:/__init__)?\.py")
+_MODULE_PATH = re.compile(r"(dea_opt(?:/\w+)*?)(?:/__init__)?\.py")  # lazy: a package's __init__.py is the package
 _MATH_PAGE = re.compile(r"formulations/(\w+)\.md")
 _DOTTED = re.compile(r"dea_opt(?:\.\w+)+")
 
