@@ -9,7 +9,9 @@ Written math: ``formulations/nlp.md``.
 * ``form="reduced"``: ``min_x sum V_i w(min(e0 + A x, 0)) - r . x`` with no constraints
   (the energy is C1); spring stress from the law at the optimum.
 
-Both are built with vectorized MX (``A @ x`` is one node), without ``expand``.
+Both are built with vectorized MX (``A @ x`` is one node), without ``expand``. The constrained
+form's first solve starts from Newton's answer (``_parts/nlp_start.py``; nlp.md, "Start from
+Newton's answer").
 """
 
 from __future__ import annotations
