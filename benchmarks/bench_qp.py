@@ -22,8 +22,16 @@ either side at random). ``ratio`` is qp over direct. For information: the whole
 direct first solve, Clarabel's own ``solve_time``, and what Clarabel saw (variables, rows,
 nonzeros of ``G``).
 
-Targets (speed issue): at 1e4 and 1e5 springs, ratio <= 1.1 on the first solve and on a
-re-solve. Writes ``benchmarks/results/qp_overhead.csv``.
+On a machine other jobs load, the best of a few alternating repeats still moves by 10-20 % between
+the two sides (both are Clarabel's time, one read by the other's delays). So each row also gives
+``outside_s``: qp's own time outside Clarabel, the best over every other repeat of qp's time less the time
+spent inside Clarabel's constructor and ``solve`` (timed by a thin proxy around
+``clarabel.DefaultSolver`` in the same calls), and ``quiet_ratio = (direct_s + outside_s) /
+direct_s``, the ratio the machine's load cannot move.
+
+Targets (speed issue): at 1e4 and 1e5 springs, ratio <= 1.1 (``goal``) on the first solve and on a
+re-solve; ``met`` says whether the row's ``ratio`` meets it. Writes
+``benchmarks/results/qp_overhead.csv``.
 """
 
 from __future__ import annotations
@@ -45,6 +53,10 @@ COLUMNS = [
     "qp_build_s",
     "direct_s",
     "ratio",
+    "goal",
+    "met",
+    "outside_s",
+    "quiet_ratio",
     "clarabel_s",
     "iterations",
     "direct_iterations",
@@ -87,12 +99,38 @@ def minimal_qp(system, law, tol):
     return P, q, G, b, [clarabel.NonnegativeConeT(2 * n)], settings, sc
 
 
+#: The goal of ``ratio`` (and of ``quiet_ratio``).
+GOAL = 1.1
+
+
+class _Inside:
+    """A proxy of ``clarabel.DefaultSolver`` that adds the time of its constructor and ``solve``
+    to :attr:`seconds`; every other attribute is the solver's own."""
+
+    seconds = 0.0
+    real = None
+
+    def __init__(self, *args):
+        start = time.perf_counter()
+        self._solver = _Inside.real(*args)
+        _Inside.seconds += time.perf_counter() - start
+
+    def solve(self):
+        start = time.perf_counter()
+        out = self._solver.solve()
+        _Inside.seconds += time.perf_counter() - start
+        return out
+
+    def __getattr__(self, name):
+        return getattr(self._solver, name)
+
+
 def overhead(
     problem: str,
     n: int,
     resolves: int = len(FACTORS),
-    repeats: int = 3,
-    budget: float = 40.0,
+    repeats: int = 5,
+    budget: float = 90.0,
     blas_threads: int | None = None,
 ) -> list[dict]:
     """The first solve and ``resolves`` re-solves, qp against the direct call; one row per call."""
@@ -114,6 +152,7 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
     from dea_opt.formulations.qp import OPTIONS, QPModel
 
     tol = next(o.default for o in OPTIONS if o.name == "tol")
+    _Inside.real = clarabel.DefaultSolver
     warnings.simplefilter("ignore", dea.ValidityWarning)
     # Warm both code paths on a tiny problem first.
     tiny = make_problem(problem, 200)
@@ -130,7 +169,7 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
     best = {}
     started = time.perf_counter()
     done = 0
-    while done < repeats and (done == 0 or time.perf_counter() - started < budget):
+    while done < repeats and (done < 2 or time.perf_counter() - started < budget):
         # Direct: DefaultSolver + solve, then update(q) + solve per new load.
         for i, qi in enumerate(qs):
             start = time.perf_counter()
@@ -143,23 +182,32 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
             row = best.setdefault(i, {"direct_s": np.inf, "qp_s": np.inf})
             row["direct_s"] = min(row["direct_s"], elapsed)
             row["direct_iterations"], row["direct_status"] = int(out.iterations), str(out.status)
-        # qp: QPModel(...) + solve(), then solve(new load).
-        for i, load in enumerate(loads):
-            start = time.perf_counter()
-            if i == 0:
-                model = QPModel(system, p.law)
-                build = time.perf_counter() - start
-            result = model.solve(load)
-            elapsed = time.perf_counter() - start
-            row = best[i]
-            if elapsed < row["qp_s"]:
-                row.update(qp_s=elapsed, qp_build_s=build if i == 0 else 0.0)
-            row.update(
-                iterations=result.iterations,
-                clarabel_s=float(result.info.get("solver_time", np.nan)),
-                success=bool(result.success),
-                status=str(result.status),
-            )
+        # qp: QPModel(...) + solve(), then solve(new load); every other repeat with the time
+        # inside Clarabel taken out (the proxy's own cost is in outside_s, not in qp_s).
+        timed = done % 2 == 1
+        clarabel.DefaultSolver = _Inside if timed else _Inside.real
+        try:
+            for i, load in enumerate(loads):
+                _Inside.seconds = 0.0
+                start = time.perf_counter()
+                if i == 0:
+                    model = QPModel(system, p.law)
+                    build = time.perf_counter() - start
+                result = model.solve(load)
+                elapsed = time.perf_counter() - start
+                row = best[i]
+                if timed:
+                    row["outside_s"] = min(row.get("outside_s", np.inf), elapsed - _Inside.seconds)
+                elif elapsed < row["qp_s"]:
+                    row.update(qp_s=elapsed, qp_build_s=build if i == 0 else 0.0)
+                row.update(
+                    iterations=result.iterations,
+                    clarabel_s=float(result.info.get("solver_time", np.nan)),
+                    success=bool(result.success),
+                    status=str(result.status),
+                )
+        finally:
+            clarabel.DefaultSolver = _Inside.real
         done += 1
     whole_s = np.inf
     for _ in range(2 if best[0]["direct_s"] < budget / 8 else 1):
@@ -176,6 +224,9 @@ def _overhead(problem: str, n: int, resolves: int, repeats: int, budget: float) 
                 "call": "first" if i == 0 else f"re-solve {i}",
                 **row,
                 "ratio": row["qp_s"] / row["direct_s"],
+                "goal": GOAL,
+                "met": bool(row["qp_s"] / row["direct_s"] <= GOAL),
+                "quiet_ratio": (row["direct_s"] + row.get("outside_s", np.nan)) / row["direct_s"],
                 "dea_solve_s": whole_s if i == 0 else np.nan,
                 "dea_solve_ratio": whole_s / row["direct_s"] if i == 0 else np.nan,
                 "variables": G.shape[1],

@@ -83,6 +83,7 @@ SECTIONS = (
     "run",
     "sweep",
     "bandwidth",
+    "nlpqp",
 )
 
 FULL = {
@@ -106,6 +107,7 @@ FULL = {
     "run": {"repeats": 3, "frames": 51},
     "sweep": {"cases": 200, "workers": 2},
     "bandwidth": {"problem": "box", "springs": 1e6},
+    "nlpqp": {"problems": ["sphere", "box"], "sizes": [1e5]},
 }
 
 QUICK = {
@@ -122,6 +124,7 @@ QUICK = {
     "run": {"repeats": 1, "frames": 11},
     "sweep": {"cases": 6, "workers": 2},
     "bandwidth": {"problem": "box", "springs": 1e5},
+    "nlpqp": {"problems": ["sphere"], "sizes": [1e3]},
 }
 
 CORE_COLUMNS = [
@@ -593,6 +596,15 @@ def main(argv=None) -> int:
         results["bandwidth"] = rows
         say.table(rows, bench_bandwidth.COLUMNS)
         save("bandwidth", rows, bench_bandwidth.COLUMNS)
+
+    if "nlpqp" in sections:
+        import bench_nlp
+
+        say("\n## nlpqp: nlp under the cubic law against qp under the linear law on the same springs")
+        rows = speed_sections.section_nlpqp(cfg, args, say)
+        results["nlpqp"] = rows
+        say.table(rows, bench_nlp.COLUMNS)
+        save("nlp_vs_qp", rows, bench_nlp.COLUMNS)
 
     rows = targets(results)
     say("\n## TARGETS" + (" (--quick: sizes below the targets' are 'not run')" if args.quick else ""))

@@ -6,14 +6,16 @@
 * ``sweep``: 200 knee cases on 2 local Dask workers against one case's in-process solve
   (``bench_sweep.py``);
 * ``bandwidth``: Newton at 1e6 springs, the bytes its kernels read per second against the
-  machine's copy bandwidth (``bench_bandwidth.py``).
+  machine's copy bandwidth (``bench_bandwidth.py``);
+* ``nlpqp``: the NLP under the cubic law against the QP under the linear law on the same springs
+  (``bench_nlp.py``).
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["section_bandwidth", "section_run", "section_sweep", "target", "targets_issue15"]
+__all__ = ["section_bandwidth", "section_nlpqp", "section_run", "section_sweep", "target", "targets_issue15"]
 
 
 def fmt_s(value) -> str:
@@ -75,6 +77,17 @@ def section_bandwidth(cfg, args, say) -> list[dict]:
     return [row]
 
 
+def section_nlpqp(cfg, args, say) -> list[dict]:
+    rows = []
+    for problem in cfg["nlpqp"]["problems"]:
+        for n in cfg["nlpqp"]["sizes"]:
+            row = _quick_or_isolated("bench_nlp", "compare", {"problem": problem, "n": int(n)}, args)
+            row = {"problem": problem, "n_springs": int(n), **row}
+            say.progress(f"nlp/qp {problem} N={n:.0e}", row, "nlp_s")
+            rows.append(row)
+    return rows
+
+
 def _qp_rows(qp) -> list[dict]:
     import numpy as np
 
@@ -116,6 +129,21 @@ def targets_issue15(results) -> list[dict]:
     out = []
     if results.get("qp") is not None:
         out += _qp_rows(results["qp"])
+    for r in results.get("nlpqp") or []:
+        ok = "ratio" in r and _decade(r.get("n_springs", 0)) == 100_000
+        out.append(
+            target(
+                f"nlp (cubic law) / qp (linear) on the same springs, 1e5 springs ({r['problem']})",
+                "<= 4x",
+                r["ratio"] if ok else None,
+                lambda v: v <= 4.0,
+                f"nlp {r['nlp_s']:.3g} s ({r['nlp_iterations']} IPOPT iterations from {r['nlp_start']}), "
+                f"qp {r['qp_s']:.3g} s"
+                if ok
+                else r.get("status", "not 1e5 springs (quick)"),
+                fmt=lambda v: f"{v:.2f}x",
+            )
+        )
     for r in results.get("run") or []:
         ok = "cli_s" in r and r.get("frames") == 51
         if "cli_s" in r and not ok:

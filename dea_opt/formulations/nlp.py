@@ -9,7 +9,9 @@ Written math: ``formulations/nlp.md``.
 * ``form="reduced"``: ``min_x sum V_i w(min(e0 + A x, 0)) - r . x`` with no constraints
   (the energy is C1); spring stress from the law at the optimum.
 
-Both are built with vectorized MX (``A @ x`` is one node), without ``expand``.
+Both are built with vectorized MX (``A @ x`` is one node), without ``expand``. The constrained
+form's first solve starts from Newton's answer (``_parts/nlp_start.py``; nlp.md, "Start from
+Newton's answer").
 """
 
 from __future__ import annotations
@@ -21,6 +23,7 @@ import numpy as np
 
 from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
+from ._parts.nlp_start import WARM_OPTIONS, newton_start
 from ._parts.options import Capabilities, Option, Variant, validate
 from ._parts.recentre import recentred_solve
 from .resistance import require_finite
@@ -126,6 +129,7 @@ class NLPModel:
         k, n, s0 = sc.n_dofs, system.n_springs, sc.strain_scale
         self._warm: dict[str, Any] | None = None
         self._solved = False
+        self._cold = None
         self.trivial = k == 0  # nothing resisted: no model (IPOPT must not see an empty one)
         if self.trivial:
             self.build_time = time.perf_counter() - start
@@ -140,7 +144,7 @@ class NLPModel:
             # long as N, which MUMPS's ordering handles badly (formulations/nlp.md, "Block copies").
             size = max(int(np.ceil(np.sqrt(n))), 1)
             self.n_blocks = nb = max(int(np.ceil(n / size)), 1)
-            block = np.arange(n) // size
+            self._block = block = np.arange(n) // size
             select = ca.DM(ca.Sparsity.triplet(nb, n, block.tolist(), list(range(n))), 1.0)
             copies = ca.MX.sym("xi_blocks", k, nb)
             xi = copies[:, 0]
@@ -152,7 +156,7 @@ class NLPModel:
             g = ca.vertcat(contact, tie)
             self.lbg = np.concatenate([-e0 / s0, np.zeros(k * (nb - 1))])
             self.ubg = np.concatenate([np.full(n, np.inf), np.zeros(k * (nb - 1))])
-            upper = (1.0 - _CRUSH_MARGIN) / s0 if law.bounded_strain else np.inf
+            self._upper = upper = (1.0 - _CRUSH_MARGIN) / s0 if law.bounded_strain else np.inf
             self.lbx = np.concatenate([np.full(k * nb, -np.inf), np.zeros(n)])
             self.ubx = np.concatenate([np.full(k * nb, np.inf), np.full(n, upper)])
             nlp = {"x": z, "p": r, "f": stored - ca.dot(r, xi), "g": g}
@@ -163,9 +167,23 @@ class NLPModel:
             self.lbg = self.ubg = np.zeros(0)
             self.lbx, self.ubx = np.full(k, -np.inf), np.full(k, np.inf)
             nlp = {"x": xi, "p": r, "f": stored - ca.dot(r, xi)}
+        self._nlp, self._tol, self._max_iter = nlp, tol, max_iter
         # AMD ordering: the dense dof columns of A make MUMPS's default ordering slow.
-        self.solver = ipopt_solver("dea_nlp", nlp, tol, max_iter, {"mumps_pivot_order": 0, **(ipopt_options or {})})
+        self._ipopt_options = {"mumps_pivot_order": 0, **(ipopt_options or {})}
+        if form == "constrained":
+            # The first solve starts from Newton's answer (``_parts/nlp_start.py``), with IPOPT's
+            # options of a warm start; IPOPT checks the caller's options here, when the model is built.
+            self.solver = ipopt_solver("dea_nlp_warm", nlp, tol, max_iter, {**WARM_OPTIONS, **self._ipopt_options})
+        else:
+            self.solver = self._cold = ipopt_solver("dea_nlp", nlp, tol, max_iter, self._ipopt_options)
         self.build_time = time.perf_counter() - start
+
+    def _cold_solver(self):
+        """CasADi's IPOPT solver of a cold start (from ``x0``, or from this model's last answer),
+        built on first use."""
+        if self._cold is None:
+            self._cold = ipopt_solver("dea_nlp", self._nlp, self._tol, self._max_iter, self._ipopt_options)
+        return self._cold
 
     def _start(self, x0):
         sc = self.scale
@@ -204,17 +222,33 @@ class NLPModel:
         scaled = sc.load(load)
         require_finite("the load", scaled)
         args = {"p": scaled, "lbx": self.lbx, "ubx": self.ubx, "lbg": self.lbg, "ubg": self.ubg}
+        start = time.perf_counter()
+        newton = None
+        if x0 is None and self.form == "constrained" and not (warm_start and self._warm is not None):
+            newton = newton_start(system, self.law, load, self._start, sc, self._block, self.n_blocks, self._upper)
+        if newton is not None:
+            solved = self._solved
+            found = self._ipopt(self.solver, {**args, **newton}, start, "Newton's answer")
+            if found.success:
+                return found
+            # IPOPT did not settle from there: the cold start decides, as without one.
+            self._solved, self._warm, start = solved, None, time.perf_counter()
         if x0 is None and warm_start and self._warm is not None:
             args.update(self._warm)
         else:
             args["x0"] = self._start(x0)
-        start = time.perf_counter()
+        return self._ipopt(self._cold_solver(), args, start, "cold")
+
+    def _ipopt(self, solver, args: dict, start: float, began: str) -> FormulationResult:
+        """IPOPT's answer by ``solver`` from ``args`` (begun at ``start``, from ``began``) as a
+        :class:`FormulationResult`; this model's last answer (its warm start) becomes it."""
+        system, sc = self.system, self.scale
         try:
-            out = self.solver(**args)
+            out = solver(**args)
         except RuntimeError as exc:
             raise SolverError(f"IPOPT raised: {exc}", status=Status.SOLVER_ERROR, native_status="exception") from exc
         elapsed = time.perf_counter() - start
-        stats = self.solver.stats()
+        stats = solver.stats()
         z = np.asarray(out["x"], dtype=float).reshape(-1)
         u_free = sc.to_u_free(z[: sc.n_dofs])
         if self.form == "constrained":
@@ -238,7 +272,7 @@ class NLPModel:
             iterations=int(stats.get("iter_count", 0)),
             build_time=self.build_time if first else 0.0,
             solve_time=elapsed,
-            info={"native_status": native, "form": self.form},
+            info={"native_status": native, "form": self.form, "start": began},
         )
 
 

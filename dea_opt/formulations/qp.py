@@ -144,6 +144,43 @@ def _rejected(solver: str, options: dict, exc: Exception) -> InputError:
     )
 
 
+def _contact_rows(AT, s0: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(data, indices, indptr)`` of Clarabel's ``G`` (2N, k + N), CSC with int32 indices, written
+    in place in one pass per column: rows 0..N-1 are ``-c_hat`` (``c >= 0``), rows N..2N-1 are
+    ``-(M xi + c_hat)`` with ``M = A T / s0``, so that ``s = b - G z`` is ``c_hat`` and
+    ``c_hat + M xi + e0 / s0``. Column ``j < k`` (a dof) holds ``-M[:, j]`` in rows N..2N-1, without
+    its zeros: a dof a spring does not feel (a face parallel to a translation) is a structural zero,
+    which stored would cost Clarabel's KKT fill-in (10 % more time on the box). Column ``k + i`` (a
+    spring) holds -1 in rows ``i`` and ``N + i``. Built here rather than by scipy's blocks and
+    ``eliminate_zeros``, which copy every entry two or three times around a solve that is all of a
+    large problem's time."""
+    k, n = AT.shape
+    felt = [np.flatnonzero(row) if not row.all() else None for row in AT]
+    counts = [n if f is None else f.size for f in felt]
+    nnz = sum(counts) + 2 * n
+    if nnz >= np.iinfo(np.int32).max:  # pragma: no cover - beyond Clarabel's memory anyway
+        raise InputError(f"the QP has {nnz} nonzeros, more than its int32 indices hold")
+    data = np.empty(nnz)
+    rows = np.empty(nnz, dtype=np.int32)
+    indptr = np.empty(k + n + 1, dtype=np.int32)
+    indptr[0] = 0
+    at = 0
+    for j, (row, f, count) in enumerate(zip(AT, felt, counts)):
+        if f is None:
+            np.divide(row, -s0, out=data[at : at + count])
+            rows[at : at + count] = np.arange(n, 2 * n, dtype=np.int32)
+        else:
+            np.divide(row[f], -s0, out=data[at : at + count])
+            np.add(f, n, out=rows[at : at + count], casting="unsafe")
+        at += count
+        indptr[j + 1] = at
+    data[at:] = -1.0
+    rows[at::2] = np.arange(n, dtype=np.int32)
+    rows[at + 1 :: 2] = np.arange(n, 2 * n, dtype=np.int32)
+    indptr[k + 1 :] = at + 2 * np.arange(1, n + 1, dtype=np.int32)
+    return data, rows, indptr
+
+
 class _Clarabel:
     """The minimal QP in Clarabel's own form: ``min 1/2 z'Pz + q'z`` s.t. ``Gz + s = b``,
     ``s >= 0``, with ``z = (xi, c_hat)``; the matrices are built in place as CSC arrays."""
@@ -162,22 +199,12 @@ class _Clarabel:
         self.settings = self._settings(tol)
         self.relaxed: float | None = None  # the looser tolerance the last solve ended at, if any
         # P: diag(0_k, Vs H s0^2), upper triangle, only the c columns stored.
-        p_ptr = np.concatenate([np.zeros(k, dtype=np.int64), np.arange(n + 1, dtype=np.int64)])
-        self.P = sp.csc_array((scale.volume * modulus * s0**2, np.arange(k, k + n), p_ptr), shape=(k + n, k + n))
-        # G: rows 0..N-1 are -c_hat (c >= 0), rows N..2N-1 are -(M xi + c_hat) with M = A T / s0,
-        # so that s = b - G z is c_hat and c_hat + M xi + e0 / s0. Column j < k (a dof) holds
-        # -M[:, j] in rows N..2N-1; column k + i (a spring) holds -1 in rows i and N + i.
-        rows = np.empty(k * n + 2 * n, dtype=np.int64)
-        data = np.empty(k * n + 2 * n)
-        rows[: k * n] = np.tile(np.arange(n, 2 * n), k)
-        data[: k * n] = (scale.AT / -s0).ravel()
-        rows[k * n :] = np.stack([np.arange(n), np.arange(n, 2 * n)], axis=1).ravel()
-        data[k * n :] = -1.0
-        g_ptr = np.concatenate([np.arange(k + 1) * n, k * n + 2 * np.arange(1, n + 1)])
-        self.G = sp.csc_array((data, rows, g_ptr), shape=(2 * n, k + n))
-        # A dof a spring does not feel (a face parallel to a translation) is a structural zero:
-        # stored, it would cost Clarabel's KKT fill-in (10 % more time on the box).
-        self.G.eliminate_zeros()
+        p_ptr = np.zeros(k + n + 1, dtype=np.int32)
+        p_ptr[k + 1 :] = np.arange(1, n + 1, dtype=np.int32)
+        self.P = sp.csc_array(
+            (scale.volume * modulus * s0**2, np.arange(k, k + n, dtype=np.int32), p_ptr), shape=(k + n, k + n)
+        )
+        self.G = sp.csc_array(_contact_rows(scale.AT, s0), shape=(2 * n, k + n))
         self.b = np.concatenate([np.zeros(n), e0 / s0])
         self.cones = [clarabel.NonnegativeConeT(2 * n)]
         self.solver = None

@@ -51,6 +51,41 @@ def _call(module: str, function: str, args, kwargs):
     return getattr(importlib.import_module(module), function)(*args, **kwargs)
 
 
+def _layer(cls, state: dict):
+    """A :class:`~dea_opt.layer.SpringLayer` of ``state`` (its attributes), made without its
+    ``__init__``'s checks: the worker's copy of a layer the run has already checked."""
+    layer = object.__new__(cls)
+    layer.__dict__.update(state)
+    return layer
+
+
+class _JobPickler(pickle.Pickler):
+    """A job's pickler: a spring layer goes without the :class:`~dea_opt.mesh.SpringCast` its
+    springs were cast from (the meshes, their caches and ray tracer: 33 MB on the knee, and
+    trimesh's import in the worker, 1.6 s), which no picture reads; a solution goes with its
+    validity assessed here first, where the meshes are (its ``gap_error`` check reads them), and
+    where that assessment raises, the layers after it keep their casts."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        from ..layer import SpringLayer
+        from ..solution import Solution
+
+        self._types = SpringLayer, Solution
+        self._keep_casts = False
+
+    def reducer_override(self, obj):
+        layer, solution = self._types
+        if isinstance(obj, solution):
+            try:
+                obj.validity  # noqa: B018 - assessed (and kept in its __dict__) before it is pickled
+            except Exception:  # noqa: BLE001 - the picture assesses it, and raises as the run would
+                self._keep_casts = True  # with the meshes, as it would here
+        elif isinstance(obj, layer) and obj.cast is not None and not self._keep_casts:
+            return _layer, (type(obj), {k: v for k, v in vars(obj).items() if k != "_cast"})
+        return NotImplemented
+
+
 class DrawHere:
     """:class:`PictureWorker`'s interface, drawing in this process: each job when its result is
     asked for."""
@@ -159,7 +194,7 @@ class PictureWorker:
                     self._folder = tempfile.mkdtemp(prefix="dea-opt-pictures-")
                 path = os.path.join(self._folder, f"job{len(self._jobs)}.pickle")
                 with open(path, "wb") as handle:
-                    pickle.dump(job, handle, protocol=pickle.HIGHEST_PROTOCOL)
+                    _JobPickler(handle, protocol=pickle.HIGHEST_PROTOCOL).dump(job)
                 place = self._drawer.send(path)
             except (OSError, pickle.PicklingError, TypeError, AttributeError):
                 place = None

@@ -14,7 +14,7 @@ import scipy.sparse as sp
 
 import dea_opt as d
 from dea_opt.formulations.nlp import NLPModel
-from dea_opt.formulations.qp import QPModel
+from dea_opt.formulations.qp import QPModel, _contact_rows
 from dea_opt.formulations.system import SpringSystem
 from dea_opt.study import installed_qp_solvers
 
@@ -62,6 +62,38 @@ def test_clarabel_sees_the_minimal_qp():
     assert P.shape == (k + n, k + n) and P.nnz == n
     assert abs(G - expected_G).max() == 0 and abs(P - expected_P).max() == 0
     np.testing.assert_array_equal(b, np.concatenate([np.zeros(n), system.e0 / s0]))
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_clarabel_s_contact_rows_leave_out_the_dofs_a_spring_does_not_feel(seed):
+    """``G`` of an ``A T`` with a dof some springs do not feel (zeros), one no spring feels and one
+    every spring feels: the issue's QP built with scipy's blocks and ``eliminate_zeros``, entry for
+    entry and in the same order, with int32 indices; and the model's ``P``, likewise."""
+    rng = np.random.default_rng(seed)
+    k, n = 4, 50
+    AT = rng.normal(size=(k, n))
+    AT[0, rng.random(n) < 0.4] = 0.0
+    AT[2] = 0.0
+    s0 = rng.uniform(0.1, 10.0)
+    G = sp.csc_array(_contact_rows(AT, s0), shape=(2 * n, k + n))
+    expected = sp.csc_array(sp.block_array([[None, -sp.eye_array(n)], [sp.csc_array(-AT.T / s0), -sp.eye_array(n)]]))
+    expected.eliminate_zeros()
+    expected.sort_indices()
+    assert G.indices.dtype == np.int32 and G.indptr.dtype == np.int32
+    assert G.has_sorted_indices and G.shape == expected.shape
+    np.testing.assert_array_equal(G.indptr, expected.indptr)
+    np.testing.assert_array_equal(G.indices, expected.indices)
+    np.testing.assert_array_equal(G.data, expected.data)
+    system, _ = random_system(seed)
+    H = 3.0
+    model = QPModel(system, d.LinearLaw(H))
+    sc = model.scale
+    expected_P = sp.csc_array(sp.diags_array(np.concatenate([np.zeros(sc.n_dofs), sc.volume * H * sc.strain_scale**2])))
+    expected_P.eliminate_zeros()
+    P = model.backend.P
+    np.testing.assert_array_equal(P.indptr, expected_P.indptr)
+    np.testing.assert_array_equal(P.indices, expected_P.indices)
+    np.testing.assert_array_equal(P.data, expected_P.data)
 
 
 @pytest.mark.parametrize("solver", THROUGH_CVXPY)

@@ -136,3 +136,52 @@ def test_a_run_of_a_load_path_draws_in_a_worker_and_a_static_run_does_not(tmp_pa
         assert isinstance(worker, PictureWorker)
     with picture_worker(load_scenario(gait), background=False) as none:
         assert none is None
+
+
+def test_a_job_goes_to_the_worker_without_the_meshes_its_springs_were_cast_from(tmp_path):
+    """A load path on springs cast from meshes: the worker's pictures are the run's, byte for
+    byte, and its jobs carry no SpringCast (the meshes and their ray tracer) and need no trimesh
+    to be read, while the solutions they carry keep the validity assessed with the meshes."""
+    import io
+    import pickle
+
+    from dea_opt.geometry import knee_meshes
+    from dea_opt.mesh import springs_from_meshes
+    from dea_opt.run.pictures import _JobPickler
+
+    pair = knee_meshes(n_plateau=12, step=4.0)
+    layer = springs_from_meshes(pair.mesh1, pair.mesh2, **pair.options)
+    assert layer.cast is not None
+    problem = d.ContactProblem(layer, d.LinearLaw(10.0), free=("uz", "ry"), reference=pair.reference2)
+    loads = np.array([[0.0, 0.0, -300.0 * f, 0.0, 400.0 * f, 0.0] for f in (1.0, 2.0, 1.5)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = solve_path(
+            problem, loads, times=[0.0, 0.1, 0.2], method="newton", outputs=d.PathOutputs(keep_frames=("peak",))
+        )
+        here = result.write(tmp_path / "here", formats=("png",))
+        with PictureWorker() as pictures:
+            there = result.write(tmp_path / "there", formats=("png",), pictures=pictures)
+    assert set(here) == set(there) and "peak_map" in here
+    for name in here:
+        assert there[name].read_bytes() == here[name].read_bytes(), name
+    job = result._exposure_job(tmp_path / "e.png")
+    peak = result.frame_solution(int(np.argmax(result.table["peak_pressure_MPa"].to_numpy())))
+    buffer = io.BytesIO()
+    _JobPickler(buffer, protocol=pickle.HIGHEST_PROTOCOL).dump((job, peak))
+    (tmp_path / "job.pickle").write_bytes(buffer.getvalue())
+    code = (
+        "import pickle, sys; (m, f, args, kw), peak = pickle.load(open(sys.argv[1], 'rb')); "
+        "assert args[0].cast is None and peak.problem.layer.cast is None; "
+        "assert 'validity' in vars(peak); "
+        "assert len(args[0]) == int(sys.argv[2]); "
+        "print('trimesh' in sys.modules)"
+    )
+    out = subprocess.run(
+        [sys.executable, "-c", code, str(tmp_path / "job.pickle"), str(len(layer))],
+        capture_output=True,
+        text=True,
+        check=True,
+    )
+    assert out.stdout.strip() == "False", out.stdout + out.stderr
+    np.testing.assert_array_equal(pickle.loads(buffer.getvalue())[0][2][0].points, layer.points)
