@@ -39,6 +39,7 @@ def test_schema():
 # --- acceptance 1: the demo -------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_demo_writes_table_series_plots_and_exposure_map(tmp_path):
     result = invoke("demo", "--coarse", "--frames", "6", "-o", tmp_path)
     assert result.exit_code == 0, result.stderr

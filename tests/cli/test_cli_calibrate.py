@@ -119,6 +119,7 @@ def test_help():
     assert result.exit_code == 0 and "--data" in result.stdout and "--film" in result.stdout
 
 
+@pytest.mark.slow
 def test_the_standard_errors_say_where_they_come_from(case, tmp_path):
     """The film read at one point for one parameter: with --noise the noise carried through the
     slope; without it, nothing to estimate it from, and the command says so (JSON null)."""

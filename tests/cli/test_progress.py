@@ -77,6 +77,7 @@ def run_command(command, terminal: bool, *, stdout: bool = False, cwd=None, code
 
 
 @pytest.mark.parametrize("code, unit", [(PATH, "frame"), (STUDY, "run")])
+@pytest.mark.slow
 def test_a_bar_on_a_terminal_and_nothing_in_a_pipe(code, unit):
     shown = run(code.format(progress=True), terminal=True)
     assert f"{unit}" in shown and "|" in shown  # a tqdm bar: "frames: 100%|####| 5/5 [...frame/s]"
@@ -169,6 +170,7 @@ def sphere(tmp_path_factory):
 
 
 @pytest.mark.parametrize("terminal", [True, False])
+@pytest.mark.slow
 def test_compare_and_calibrate_show_progress_on_a_terminal_only(sphere, tmp_path, terminal):
     compared = run_command(
         cli("compare", sphere / "sphere.toml", "--methods", "newton,nlp", "-o", tmp_path / "c"), terminal

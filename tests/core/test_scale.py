@@ -284,7 +284,7 @@ def test_one_spring_cannot_carry_a_sideways_load(method):
         d.solve(problem, method)
 
 
-@pytest.mark.parametrize("n", [100_000, 1_000_000], ids=["1e5", "1e6"])
+@pytest.mark.parametrize("n", [100_000, pytest.param(1_000_000, marks=pytest.mark.slow)], ids=["1e5", "1e6"])
 def test_many_springs_newton(n):
     """Newton on 1e5 and 1e6 springs: the centred load exactly, lift-off to the closed form."""
     nx, ny = (1000, 100) if n == 100_000 else (1000, 1000)

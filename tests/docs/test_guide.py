@@ -90,6 +90,7 @@ def test_laws(capsys):
             formulations.unregister("bfgs")
 
 
+@pytest.mark.slow
 def test_sensitivities():
     namespace = short_example({})
     with warnings.catch_warnings():

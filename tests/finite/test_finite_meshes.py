@@ -319,6 +319,7 @@ def _behind_far_side(mesh1, mesh2, faces, normals, depth=3.0):
 
 
 @pytest.mark.parametrize("law", [d.AteshianLaw(2.0, 0.3), d.LinearLaw(10.0)], ids=["ateshian-2MPa", "linear-10MPa"])
+@pytest.mark.slow
 def test_springs_lost_through_the_layer_in_deep_compression_make_the_answer_invalid(knee, law):
     """AteshianLaw(2, 0.3) at 1000 N compresses the knee's layer past the tibial cartilage's own
     thickness (strain -0.65, inside that law's range): the springs there meet the femur behind the
@@ -401,6 +402,7 @@ def test_the_knee_counts_its_re_casts_and_reports_them_in_validity(knee_solved):
     assert len(solution.problem.layer) == len(solution.pressure) != len(knee_solved["problem"].layer)
 
 
+@pytest.mark.slow
 def test_the_knee_by_newton_and_by_ipopt_agree(knee_solved):
     newton = knee_solved["newton"]
     ipopt = quiet(d.solve, knee_solved["problem"], "nlp", form="reduced")

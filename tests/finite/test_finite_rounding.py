@@ -96,12 +96,14 @@ def test_residuals_jittered_in_their_last_digits_leave_ipopt_s_answer_as_it_is(l
         *(pytest.param(s, marks=pytest.mark.slow) for s in ((0.0, -1e-12), (1e-12, 1e-12))),
     ],
 )
+@pytest.mark.slow
 def test_a_start_moved_by_1e_12_gives_the_same_answer(layer, newton, shift):
     for method in ("nlp", "newton"):
         solution = quiet(problem(layer), method, x0=np.asarray(shift))
         assert solution.success and np.abs(solution.pose - newton.pose).max() < 1e-6
 
 
+@pytest.mark.slow
 def test_ipopt_never_takes_a_centre_turned_past_the_range_its_rotation_is_exact_for(layer, monkeypatch):
     """Every centre IPOPT's outer iterations evaluate turns body 2 at most 120 deg (where its
     rotation polynomial is exact), whatever Anderson extrapolates."""
@@ -118,6 +120,7 @@ def test_ipopt_never_takes_a_centre_turned_past_the_range_its_rotation_is_exact_
 
 
 @pytest.mark.parametrize("threads", ["1", "2"])
+@pytest.mark.slow
 def test_the_same_answer_with_blas_on_one_thread_or_two(layer, newton, threads, tmp_path):
     script = textwrap.dedent(f"""
         import sys, warnings

@@ -173,6 +173,7 @@ def test_assess_takes_a_stability_value_and_its_limit(layer):
         ValidityLimits(stability=-1.0)
 
 
+@pytest.mark.slow
 def test_a_line_search_step_grown_past_a_quarter_turn_is_scanned_not_taken(layer):
     """``rx, ry`` free about a reference 6.7 mm below the ball's centre and aside: the moment turns
     the ball 75 deg to a stable pose. The line search once grew its steps fourfold to a point

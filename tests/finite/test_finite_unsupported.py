@@ -188,6 +188,7 @@ def test_a_moment_along_the_line_through_the_centre_turns_the_ball_without_bound
     assert caught.value.status is d.Status.MAX_ITERATIONS
 
 
+@pytest.mark.slow
 def test_auto_tries_the_other_means_before_it_says_newton_found_no_equilibrium(bed):
     """No pose is an equilibrium (the turn about that line changes nothing but the moment's work),
     but that is not proved from the problem: ``auto`` tries the other start, a load continuation

@@ -26,6 +26,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
+import pytest
 from hypothesis import HealthCheck, Phase, given, note, settings
 from hypothesis import strategies as st
 
@@ -177,6 +178,7 @@ def make_joint(case: Case):
     suppress_health_check=[HealthCheck.too_slow],
 )
 @given(st.builds(Case, st.integers(2, 4), st.integers(0, 2**31 - 1), st.booleans(), st.integers(0, 12)))
+@pytest.mark.slow
 def test_random_joints_find_their_manufactured_equilibrium(case):
     note(repr(case))
     joint, target = make_joint(case)

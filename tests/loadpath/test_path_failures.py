@@ -42,7 +42,10 @@ def own_equilibrium(solution, force):
     return float(np.linalg.norm(springs + force) / np.linalg.norm(force))
 
 
-@pytest.mark.parametrize("method, options", [("newton", {}), ("auto", {}), ("qp", {"tol": 1e-12}), ("nlp", {})])
+@pytest.mark.parametrize(
+    "method, options",
+    [("newton", {}), ("auto", {}), ("qp", {"tol": 1e-12}), pytest.param("nlp", {}, marks=pytest.mark.slow)],
+)
 def test_a_frame_the_springs_cannot_carry_is_recorded_and_the_path_goes_on(hip, method, options):
     result = solve_path(hip, LOADS, times=TIMES, method=method, **options)
     table = result.table

@@ -125,6 +125,7 @@ def hover_pressure(browser, page: Path):
         browser.call("Target.closeTarget", {"targetId": target})
 
 
+@pytest.mark.slow
 def test_a_run_writes_its_report_with_its_other_outputs_and_it_reads_in_chromium(browser, tmp_path):
     (tmp_path / "plate.toml").write_text(PLATE.format(H=10.0))
     result = run("run", tmp_path / "plate.toml", "-o", tmp_path / "out")
@@ -168,6 +169,7 @@ def test_a_result_outside_validity_says_so_first(browser, tmp_path):
     assert '<tr class="failed"><td>strain</td>' in html
 
 
+@pytest.mark.slow
 def test_the_demo_report_has_the_cycle_the_peak_frame_and_the_comparison(browser, tmp_path):
     result = run("demo", "--coarse", "--frames", "5", "-o", tmp_path / "demo")
     assert result.exit_code == 0, result.stdout + result.stderr
@@ -192,6 +194,7 @@ def test_without_plotly_the_report_says_how_to_get_its_views(monkeypatch, tmp_pa
     assert "plotly-gz" not in html and "pip install plotly" in html and "VALID" in html
 
 
+@pytest.mark.slow
 def test_a_sweep_report_sorts_its_table_and_plots_any_output_against_any_swept_value(browser, tmp_path):
     (tmp_path / "plate.toml").write_text(PLATE.format(H=10.0))
     sets = ["--set", "law.H=3,8,12", "--set", "load.scale=0.5,1"]

@@ -589,6 +589,7 @@ def _unresolved(exc) -> bool:
 @budget("agree")
 @SEEDED
 @given(case=cases())
+@pytest.mark.slow
 def test_methods_agree_or_raise_the_same_error(case):
     """Inside the cone: all methods succeed, certified, and agree to 1e-6."""
     problem = make_problem(case)

@@ -184,6 +184,7 @@ def test_init_negates_a_load_path_that_pulls_apart(tmp_path, meshes):
     assert ran.exit_code == 0, ran.output
 
 
+@pytest.mark.slow
 def test_init_reads_an_opensim_file_its_columns_sign_and_units(tmp_path, meshes):
     write_sto(tmp_path / "walk.sto", moment_factor=1.0)  # the tibia's reaction, moments in N mm
     out = tmp_path / "walk.toml"
