@@ -126,7 +126,7 @@ def write_scenario(
         f"prescribe = [{', '.join(repr(p).replace(chr(39), chr(34)) for p in prescribe)}]\n"
         "\n[output]\n"
         'directory = "run"\n'
-        'formats = ["csv", "json", "vtk"]\n'
+        'formats = ["csv", "json", "vtk", "html"]\n'
     )
     scenario.write_text(text)
     return scenario

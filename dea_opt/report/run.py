@@ -250,10 +250,17 @@ def _frames(page: Page, frames) -> None:
 
 def _joint(page: Page, result, outcome) -> None:
     """A joint's answer (``[[bodies]]``): its checks, each layer and bundle, each layer in 3-D."""
-    solutions = result if isinstance(result, list) else [result]
-    last = next((s for s in reversed(solutions) if s is not None and s.success), None)
-    if isinstance(result, list):
-        page.paragraph(f"A joint's path of {len(result)} frames; the figures show its last certified frame.")
+    last = result
+    if outcome.kind == "path":
+        _joint_frames(page, result["frames"])
+        if result["shown"] is None:
+            _pictures(page, outcome.files)
+            return
+        frame, time_s, last, force = result["shown"]
+        page.paragraph(
+            f"The tables and 3-D views below are frame {frame} (time {time_s:.4g} s), the certified frame "
+            f"whose contact layers carry the largest force ({force:.4g} N); every frame is in frames.csv."
+        )
     if last is None:
         return
     page.heading("Validity", "validity")
@@ -273,6 +280,20 @@ def _joint(page: Page, result, outcome) -> None:
             page.plotly(f"view3d_{k}", figure)
     _pictures(page, outcome.files)
     certificate_section(page, last.certificate)
+
+
+def _joint_frames(page: Page, rows: list) -> None:
+    """A joint path's frames (the rows of ``frames.csv``): status, validity and each layer's and
+    compartment's force and peak pressure per frame, sortable."""
+    if not rows:
+        return
+    keep = [
+        c
+        for c in rows[0]
+        if c in ("frame", "time_s", "status", "valid") or c.endswith(("force_N", "peak_pressure_MPa"))
+    ]
+    page.heading("Frames", "frames")
+    page.add(f'<div class="scroll">{table(keep, [[r[c] for c in keep] for r in rows], sortable=True)}</div>')
 
 
 def _comparison(page: Page, rows: list) -> None:

@@ -143,6 +143,9 @@ class JointPathWriter:
         self.elastic: list[dict] = []
         self.good: list[int] = []
         self.peaks: dict = {}
+        #: ``(frame, time_s, solution, force_N)`` of the certified frame with the largest contact force: what
+        #: the run's report shows in 3-D (one solution kept, whatever the path's length)
+        self.shown: tuple | None = None
         self.series = (
             {c.name: FrameSeries(out / f"{_stem(c.name)}_frames", len(self.times)) for c in joint.contacts}
             if out is not None
@@ -166,6 +169,10 @@ class JointPathWriter:
         for i, contact in enumerate(self.joint.contacts):
             self._layer(row, k, t, contact, None if s is None else s.contacts[i])
         self.frames.append(row)
+        if s is not None and s.success:
+            force = sum(float(np.linalg.norm(c.contact_force)) for c in s.contacts)
+            if self.shown is None or force > self.shown[3]:
+                self.shown = (k, t, s, force)
         for i, lig in enumerate(self.joint.ligaments):
             r = s.ligaments[i] if s is not None else None
             self.bundles.append(
@@ -343,7 +350,7 @@ def run_joint_path(scenario, joint, path, method, out, stop_on_error) -> RunOutc
         message,
         files,
         headline,
-        None,
+        {"frames": writer.frames, "shown": writer.shown},
         valid=valid,
         validity=[f"validity: {summary['valid']} of {certified} certified frames valid"],
         reasons=outside,

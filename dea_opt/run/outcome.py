@@ -27,7 +27,10 @@ class RunOutcome:
     files : dict {name: Path}
     headline : dict
         The numbers a sweep puts in its table (with ``valid`` and ``validity_failed``).
-    result : Solution or PathResult
+    result : Solution, PathResult, JointSolution or dict
+        The answer. A whole joint's path keeps ``{"frames": rows, "shown": shown}``: the rows of
+        ``frames.csv`` and ``(frame, time_s, JointSolution, force_N)`` of the certified frame with
+        the largest contact force, which its report shows (None without one).
     warnings : list of str
         dea-opt's own warnings of the run (validity, dropped springs, ...), one line each.
     valid : bool or None

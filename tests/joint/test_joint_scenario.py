@@ -89,6 +89,25 @@ def test_a_load_path_writes_one_row_per_frame_and_per_bundle_and_frame(tmp_path)
     assert summary["frames"] == summary["certified"] == 11
 
 
+def test_a_joint_path_s_report_has_every_frame_and_shows_the_frame_of_the_largest_force(tmp_path):
+    result = runner.invoke(app, ["run", str(EXAMPLE / "chain_cycle.toml"), "-o", str(tmp_path), "-q"])
+    assert result.exit_code == 0, result.stdout + result.stderr
+    html = (tmp_path / "report.html").read_text()
+    frames = _rows(tmp_path / "frames.csv")
+    # the frame shown: the largest force of the two layers together, summed here from frames.csv
+    forces = [float(r["lower.force_N"]) + float(r["upper.force_N"]) for r in frames]
+    shown = int(np.argmax(forces))
+    assert f"frame {shown} (time {float(frames[shown]['time_s']):.4g} s)" in html
+    assert f"({forces[shown]:.4g} N)" in html
+    # one sortable row per frame, the layers' table and one 3-D view per layer, the certificate
+    section = html[html.index('id="frames"') :]
+    section = section[: section.index("</table>")]
+    assert section.count("<tr") == 1 + len(frames) and "sortable" in section
+    for name in ("Contact layers", "Validity", "Certificate"):
+        assert name in html
+    assert html.count('id="view3d_') == 2
+
+
 def test_compare_solves_the_joint_by_each_method(tmp_path):
     result = runner.invoke(app, ["compare", str(EXAMPLE / "chain.toml"), "-o", str(tmp_path)])
     assert result.exit_code == 0, result.stdout + result.stderr
