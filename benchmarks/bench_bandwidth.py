@@ -155,8 +155,8 @@ def measure(problem: str = "box", n: int = 1_000_000, repeats: int = 5) -> dict:
     from bench_core import make_problem
 
     import dea_opt as dea
+    from dea_opt.formulations import scaling
     from dea_opt.formulations.newton import NewtonModel
-    from dea_opt.formulations.scaling import scaling
 
     warnings.simplefilter("ignore", dea.ValidityWarning)
     p = make_problem(problem, n)

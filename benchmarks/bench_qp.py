@@ -82,8 +82,8 @@ def minimal_qp(system, law, tol):
     import numpy as np
     import scipy.sparse as sp
 
+    from dea_opt.formulations import scaling
     from dea_opt.formulations.qp import TOLERANCE_OPTIONS
-    from dea_opt.formulations.scaling import scaling
 
     sc = scaling(system, law.H)
     k, n, s0 = sc.n_dofs, system.n_springs, sc.strain_scale

@@ -30,7 +30,7 @@ import numpy as np
 
 from ._checks.threads import single_threaded_blas
 from .certificate_sums import sums
-from .formulations.resistance import modulus_scale, require_finite, unresisted
+from .formulations._parts.resistance import modulus_scale, require_finite, unresisted
 
 __all__ = ["Certificate", "certify"]
 
@@ -48,7 +48,7 @@ class Certificate:
         ``rho_j = sum_i |A_ij| V_i max |sigma(eps_i +- delta_i) - sigma(eps_i)|`` the most the
         strains' rounding ``delta`` (``problem.strain_rounding(u)``) can move the spring force on
         the dof. (2) The fraction of the load that acts along directions no spring resists
-        (:class:`~dea_opt.formulations.resistance.Resistance`): ``|P r / L| / |r / L|`` with
+        (:class:`~dea_opt.formulations._parts.resistance.Resistance`): ``|P r / L| / |r / L|`` with
         ``P`` the orthogonal projector onto those directions (in arc lengths), so a load no
         spring can carry counts in full whatever its size. (3) The spring forces that the
         answer's motion along those directions produces (motion no spring resists changes no
@@ -66,7 +66,7 @@ class Certificate:
     energy : float
         Energy a further Newton step could still release, ``g^T K^+ g / 2`` with ``g = q - r``
         and ``K`` the tangent of the compressed springs, over the resisted directions (its
-        pseudo-inverse drops what :func:`~dea_opt.formulations.resistance.unresisted` calls no
+        pseudo-inverse drops what :func:`~dea_opt.formulations._parts.resistance.unresisted` calls no
         stiffness), relative to the load's ``r^T K^+ r / 2`` (without a load, the stored energy).
     tolerance : float
         The bound every residual must meet.

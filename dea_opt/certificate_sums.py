@@ -18,7 +18,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .formulations._parts.sweeps import blocks
-from .formulations.system import ROUNDING
+from .formulations._parts.system import ROUNDING
 from .problem import ContactProblem
 
 

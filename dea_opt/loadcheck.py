@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from .errors import LoadNotSupportedError
-from .formulations.resistance import require_finite, unresisted
+from .formulations._parts.resistance import require_finite, unresisted
 from .problem import ContactProblem
 
 __all__ = ["check_cone", "check_load_supported", "check_unresisted", "describe_direction"]

@@ -10,8 +10,8 @@ import numpy as np
 
 from ._checks.inputs import SMALLEST, finite_number, vector3
 from .errors import InputError
-from .formulations.resistance import require_finite, resistance, unresisted
-from .formulations.system import ROUNDING, SpringSystem
+from .formulations._parts.resistance import require_finite, resistance, unresisted
+from .formulations._parts.system import ROUNDING, SpringSystem
 from .kinematics import DOF_NAMES, DOFS, normal_operator
 from .laws import Law, check_law
 from .layer import SpringLayer
@@ -310,7 +310,7 @@ class ContactProblem:
     @cached_property
     def _stiffness(self) -> float:
         """``sum_i S_i / h_i`` (mm): the layer's stiffness scale per unit modulus, against
-        which directions are judged unresisted (:func:`~dea_opt.formulations.resistance.unresisted`)."""
+        which directions are judged unresisted (:func:`~dea_opt.formulations._parts.resistance.unresisted`)."""
         return float(np.sum(self.layer.areas / self.layer.thickness))
 
     @cached_property

@@ -13,8 +13,8 @@ from ._checks.threads import single_threaded_blas
 from .agreement import Comparison, disagreement
 from .certificate import certify
 from .errors import InputError, SolverError, ValidityWarning
-from .formulations.crush import CRUSHED_MESSAGE, crushed
-from .formulations.system import failed_result, start_vector, trivial_result
+from .formulations._parts.crush import CRUSHED_MESSAGE, crushed
+from .formulations._parts.system import failed_result, start_vector, trivial_result
 from .loadcheck import check_load_supported
 from .problem import ContactProblem
 from .solution import Solution

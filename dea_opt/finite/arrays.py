@@ -10,8 +10,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
+from ..formulations._parts.system import SpringSystem
 from ..formulations.finite import SHARED, FiniteSystem, Targets, evaluate, scale, small_system
-from ..formulations.system import SpringSystem
 from ..kinematics import DOFS
 from ..mesh import SpringCast
 
@@ -110,7 +110,7 @@ def build_system(problem, targets, tracker=None) -> FiniteSystem:
 
 
 def scaled_directions(system, law) -> tuple[np.ndarray, float, SpringSystem]:
-    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations.scaling.scaling`,
+    """``(T, E0, small)``: the scaled directions of :func:`~dea_opt.formulations._parts.scaling.scaling`,
     from the resistance of the springs' small system at zero displacement (held directions left
     out; :func:`~dea_opt.formulations.finite.small_system`: the springs of this solve at body 2's
     base pose, exact gaps), sized by the larger of the load and the overlap of those gaps."""

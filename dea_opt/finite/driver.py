@@ -21,8 +21,8 @@ import numpy as np
 from .. import formulations
 from .._checks.threads import single_threaded_blas
 from ..errors import InputError, SolverError, ValidityWarning
+from ..formulations._parts.system import start_vector
 from ..formulations.finite import evaluate, rms_radius, status_of
-from ..formulations.system import start_vector
 from ..mesh import SpringCast, check_pose
 from . import fallback, means, verdict
 from .arrays import build_system, check_bodies, plan, planes_note, remembered, resolve_targets, scaled_directions

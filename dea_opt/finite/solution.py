@@ -15,8 +15,8 @@ from functools import cached_property
 import numpy as np
 
 from ..certificate import certify
+from ..formulations._parts.system import ROUNDING, SpringSystem
 from ..formulations.finite import Targets, generalized, left_jacobian, pose_matrix
-from ..formulations.system import ROUNDING, SpringSystem
 from ..kinematics import DOF_NAMES
 from ..solution import Solution
 

@@ -10,8 +10,8 @@ A formulation is a module (or any object with these attributes):
     without it a formulation that warm-starts begins from its own last answer. The system and
     the result are the :class:`Contract` of the kinematics the formulation solves
     (:data:`CONTRACTS`): for small kinematics a
-    :class:`~dea_opt.formulations.system.SpringSystem` in and a
-    :class:`~dea_opt.formulations.system.FormulationResult` out (whose ``build_time`` is the
+    :class:`SpringSystem` in and a
+    :class:`FormulationResult` out (whose ``build_time`` is the
     build's on the first solve and 0 after); for finite kinematics a
     :class:`~dea_opt.formulations.finite.system.FiniteSystem` in and an
     :class:`~dea_opt.formulations.finite.newton.InnerResult` out, which
@@ -32,7 +32,10 @@ A formulation is a module (or any object with these attributes):
 Nothing outside this package names a formulation: ``dea_opt.solve`` (``auto``'s fallback is
 :func:`fallback_for`), load paths, studies and scenarios ask the functions below; what a method
 name runs in given kinematics, and why it cannot, is :func:`resolve`'s alone. The option and
-capability declarations live in :mod:`dea_opt.formulations._parts.options`.
+capability declarations live in :mod:`dea_opt.formulations._parts.options`. A formulation of
+your own finds its contract here: :class:`SpringSystem`, :class:`FormulationResult`,
+:func:`scaling` (the scaled variables every formulation solves in), :func:`trivial_result` (no
+load, or nothing resisted: no solver) and :func:`start_vector`.
 """
 
 from __future__ import annotations
@@ -42,7 +45,8 @@ from typing import NamedTuple
 
 from ..errors import InputError
 from ._parts.options import Capabilities, Option, Variant, validate
-from .system import FormulationResult, SpringSystem, start_vector
+from ._parts.scaling import Scaling, scaling
+from ._parts.system import FormulationResult, SpringSystem, start_vector, trivial_result
 
 #: name -> module, or its import path (imported on first use: cvxpy and CasADi are heavy).
 #: The order is the order of preference where several fit (:func:`fallback_for`).
@@ -74,7 +78,10 @@ class Contract(NamedTuple):
 #: kinematics -> ``(system, result)`` of its :class:`Contract`, as ``"module:name"`` (finite
 #: kinematics' types are imported when first asked for).
 CONTRACTS: dict = {
-    "small": ("dea_opt.formulations.system:SpringSystem", "dea_opt.formulations.system:FormulationResult"),
+    "small": (
+        "dea_opt.formulations._parts.system:SpringSystem",
+        "dea_opt.formulations._parts.system:FormulationResult",
+    ),
     "finite": ("dea_opt.formulations.finite.system:FiniteSystem", "dea_opt.formulations.finite.newton:InnerResult"),
 }
 
@@ -328,7 +335,7 @@ def tolerance_options(name: str, tol: float | None) -> dict:
 def build(name: str, system, law, **given):
     """``Model(system, law, **options)`` of ``name``, options checked first: ``name`` must solve
     ``law`` in the kinematics whose :class:`Contract` ``system`` is (a
-    :class:`~dea_opt.formulations.system.SpringSystem`: small kinematics)."""
+    :class:`~dea_opt.formulations._parts.system.SpringSystem`: small kinematics)."""
     kinematics = "small" if isinstance(system, SpringSystem) else None
     if kinematics is None:
         kinematics = next((k for k in CONTRACTS if isinstance(system, contract(k).system)), None)
@@ -359,6 +366,7 @@ __all__ = [
     "Option",
     "Resolution",
     "Selection",
+    "Scaling",
     "SpringSystem",
     "Variant",
     "build",
@@ -372,9 +380,11 @@ __all__ = [
     "options",
     "register",
     "resolve",
+    "scaling",
     "select",
     "solve",
     "takes",
+    "trivial_result",
     "tolerance_options",
     "unregister",
     "variant",

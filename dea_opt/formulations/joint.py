@@ -16,7 +16,7 @@ meshes or files: :mod:`dea_opt.joint` builds the groups from a :class:`~dea_opt.
 
 Also here: the ligaments' tension-only laws (:class:`TensionLaw`: Blankevoort 1991 as OpenSim's
 ``Blankevoort1991Ligament`` writes it, and linear), the joint's resisted directions and scaling
-(the one test of :func:`~dea_opt.formulations.resistance.unresisted`, on the factors of its groups)
+(the one test of :func:`~dea_opt.formulations._parts.resistance.unresisted`, on the factors of its groups)
 and the joint as one compression-only spring system (:meth:`JointSystem.flat`, every ligament a
 spring in reverse) for the QP.
 """
@@ -31,8 +31,8 @@ import numpy as np
 
 from ..errors import InputError
 from ..status import Status
-from .resistance import Resistance, factor_resistance, require_finite
-from .system import SpringSystem
+from ._parts.resistance import Resistance, factor_resistance, require_finite
+from ._parts.system import SpringSystem
 
 PAGE = "formulations/joint.md"
 
@@ -321,7 +321,7 @@ class JointSystem:
     @cached_property
     def resistance(self) -> Resistance:
         """Which free directions the elements resist, bonded (springs two-sided, bundles too), by
-        the one test of :func:`~dea_opt.formulations.resistance.unresisted` on the stacked factors."""
+        the one test of :func:`~dea_opt.formulations._parts.resistance.unresisted` on the stacked factors."""
         if "resistance" not in self._cache:
             m = self.n_dofs
             rows = []
@@ -431,7 +431,7 @@ def energy(system: JointSystem, strains) -> float:
 class JointScaling:
     """``x = T xi`` with ``T = T1 s`` (``T1^T K0 T1 = I`` over the resisted directions, ``K0`` the
     joint's bonded stiffness at its moduli) and energies over ``E0 = s^2``, as
-    :class:`~dea_opt.formulations.scaling.Scaling` for one spring system."""
+    :class:`~dea_opt.formulations._parts.scaling.Scaling` for one spring system."""
 
     T: np.ndarray
     energy_scale: float

@@ -8,7 +8,7 @@ paper's extended range: every spring active, tension included, which also closes
 gaps in one step. A line search on the directional derivative of the convex ``Phi``
 (Wolfe conditions, expanding too-short steps and bisecting overshoots) makes it converge
 from any start; where the active tangent misses a direction, the all-spring tangent is
-added. The problem is solved in the variables of :class:`~dea_opt.formulations.scaling.Scaling`,
+added. The problem is solved in the variables of :class:`~dea_opt.formulations._parts.scaling.Scaling`,
 so units and reference points do not matter.
 """
 
@@ -21,12 +21,12 @@ import numpy as np
 from .._checks.threads import single_threaded_blas
 from ..status import Status
 from ._parts import sweeps
+from ._parts.crush import CRUSHED_MESSAGE, crushed
 from ._parts.options import Capabilities, Option, validate
 from ._parts.recentre import RECENTRE
-from .crush import CRUSHED_MESSAGE, crushed
-from .resistance import UNRESISTED, modulus_scale, require_finite, unresisted
-from .scaling import scaling
-from .system import ROUNDING, FormulationResult, SpringSystem, start_vector, trivial_result
+from ._parts.resistance import UNRESISTED, modulus_scale, require_finite, unresisted
+from ._parts.scaling import scaling
+from ._parts.system import ROUNDING, FormulationResult, SpringSystem, start_vector, trivial_result
 
 PAGE = "formulations/newton.md"
 
@@ -267,7 +267,7 @@ def solve(system: SpringSystem, law, *, x0=None, **options) -> FormulationResult
     **options
         :data:`OPTIONS`: ``xtol`` (default 1e-12), ``gtol`` (1e-12, relative to the load in the
         scaled variables, or without one to the overlap at the stage's origin, of size 1 there:
-        :func:`~dea_opt.formulations.scaling.scaling`), ``max_iter`` (100), ``extended_start``.
+        :func:`~dea_opt.formulations._parts.scaling.scaling`), ``max_iter`` (100), ``extended_start``.
     """
     return NewtonModel(system, law, **options).solve(x0=x0)
 
@@ -287,7 +287,7 @@ def _solve(
     max_iter: int = 100,
     extended_start: bool = True,
 ) -> FormulationResult:
-    """Newton in stages: each in the scaling of its origin (:func:`~dea_opt.formulations.scaling.scaling`),
+    """Newton in stages: each in the scaling of its origin (:func:`~dea_opt.formulations._parts.scaling.scaling`),
     the next from the iterate where what is in equilibrium there has fallen below ``RECENTRE`` of that
     scale (``formulations/newton.md``, "Stopping"): an overlap that set the scale and opened under a
     smaller load is then solved on in the load's scale, never stopped at the overlap's."""

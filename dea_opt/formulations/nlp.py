@@ -26,9 +26,9 @@ from ..status import Status
 from ._parts.nlp_start import WARM_OPTIONS, newton_start
 from ._parts.options import Capabilities, Option, Variant, validate
 from ._parts.recentre import recentred_solve
-from .resistance import require_finite
-from .scaling import scaling
-from .system import FormulationResult, SpringSystem, start_vector, trivial_result
+from ._parts.resistance import require_finite
+from ._parts.scaling import scaling
+from ._parts.system import FormulationResult, SpringSystem, start_vector, trivial_result
 
 PAGE = "formulations/nlp.md"
 

@@ -23,9 +23,9 @@ from ..errors import InputError, MissingDependencyError, SolverError
 from ..status import Status
 from ._parts.options import Capabilities, Option, Variant, validate
 from ._parts.recentre import recentred_solve
-from .resistance import require_finite
-from .scaling import scaling
-from .system import FormulationResult, SpringSystem, start_vector, trivial_result
+from ._parts.resistance import require_finite
+from ._parts.scaling import scaling
+from ._parts.system import FormulationResult, SpringSystem, start_vector, trivial_result
 
 PAGE = "formulations/qp.md"
 

@@ -13,8 +13,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..formulations._parts.resistance import unresisted
 from ..formulations.joint import JointSystem, assemble, internal_force, law_stresses
-from ..formulations.resistance import unresisted
 from ..kinematics import DOFS
 
 __all__ = ["JointCertificate", "body_forces", "certify_joint"]

@@ -19,9 +19,9 @@ from types import MappingProxyType
 
 import numpy as np
 
+from ..formulations._parts.resistance import modulus_scale
 from ..formulations.finite.geometry import evaluate
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
-from ..formulations.resistance import modulus_scale
 from ..kinematics import DOFS, normal_operator
 from ..layer import SpringLayer
 from ..problem import Body

@@ -462,6 +462,6 @@ def _unloaded(body: Body) -> Body:
 
 
 def _modulus(law) -> float:
-    from ..formulations.resistance import modulus_scale
+    from ..formulations._parts.resistance import modulus_scale
 
     return modulus_scale(law.modulus)

@@ -70,7 +70,7 @@ class LayerBasis:
     def factor(self, dofs) -> np.ndarray:
         """``F`` (r, m) with ``F^T F = A^T diag(V) A`` over ``dofs``, from the 6 x 6 Gram matrix in arc
         lengths, eigenvalues below the one test of "unresisted" dropped (as the two-body factor)."""
-        from ..formulations.resistance import unresisted
+        from ..formulations._parts.resistance import unresisted
 
         Dg = np.array([1.0, 1.0, 1.0, self.radius, self.radius, self.radius])
         vals, vecs = np.linalg.eigh(self.gram / np.outer(Dg, Dg))

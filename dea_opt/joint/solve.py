@@ -19,8 +19,8 @@ import numpy as np
 from .._checks.threads import single_threaded_blas
 from ..errors import InputError, SolverError
 from ..formulations._parts import joint_ipopt, joint_newton
+from ..formulations._parts.resistance import require_finite
 from ..formulations.joint import JointResult, law_stresses
-from ..formulations.resistance import require_finite
 from ..status import CERTIFIABLE, Status
 from .certificate import body_forces, certify_joint
 from .checks import check_joint_cone, check_joint_unresisted, finish, start_vector

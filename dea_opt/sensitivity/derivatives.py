@@ -3,7 +3,7 @@
 Written math: ``formulations/sensitivity.md``. The equilibrium minimizes the convex
 ``Phi(x) = sum_i V_i w(min(eps_i, 0)) - r . x``; on the active set the implicit function
 theorem gives ``K dx/dp = -dR/dp`` with Newton's tangent ``K = A_act^T diag(V sigma') A_act``,
-solved in the resisted basis of :class:`~dea_opt.formulations.resistance.Resistance` (the
+solved in the resisted basis of :class:`~dea_opt.formulations._parts.resistance.Resistance` (the
 formulations' scaling), so unresisted directions and units are handled as the solvers handle
 them. Springs on the edge of contact (strain within the certificate's precision of 0) make the
 derivative one-sided: each direction of change solves its own small piecewise-quadratic
@@ -24,7 +24,7 @@ import numpy as np
 
 from .._checks.threads import single_threaded_blas
 from ..errors import InputError
-from ..formulations.resistance import modulus_scale
+from ..formulations._parts.resistance import modulus_scale
 from ..kinematics import DOFS
 from . import outputs as output_rates
 from .onesided import edge_solve, pinv_solve

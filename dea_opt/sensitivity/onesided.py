@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..formulations.resistance import unresisted
+from ..formulations._parts.resistance import unresisted
 
 __all__ = ["edge_solve", "pinv_solve"]
 

@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..errors import InputError
-from ..formulations.scaling import scaling
+from ..formulations._parts.scaling import scaling
 from ..kinematics import DOFS
 from .derivatives import LOADS, PER_SPRING
 

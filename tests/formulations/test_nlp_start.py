@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 import dea_opt as d
+from dea_opt.formulations import SpringSystem
 from dea_opt.formulations._parts.nlp_start import block_tie_duals
 from dea_opt.formulations.nlp import NLPModel
-from dea_opt.formulations.system import SpringSystem
 
 
 def cubic_stress(H: float, beta: float, eps):

@@ -19,9 +19,7 @@ from scipy.optimize import minimize
 
 import dea_opt as d
 from dea_opt import Status, formulations
-from dea_opt.formulations import Capabilities, FormulationResult, Option, Variant
-from dea_opt.formulations.scaling import scaling
-from dea_opt.formulations.system import start_vector, trivial_result
+from dea_opt.formulations import Capabilities, FormulationResult, Option, Variant, scaling, start_vector, trivial_result
 from dea_opt.geometry import plate_layer
 from dea_opt.run import solve_options
 from dea_opt.study import run_study

@@ -13,9 +13,9 @@ import pytest
 import scipy.sparse as sp
 
 import dea_opt as d
+from dea_opt.formulations import SpringSystem
 from dea_opt.formulations.nlp import NLPModel
 from dea_opt.formulations.qp import QPModel, _contact_rows
-from dea_opt.formulations.system import SpringSystem
 from dea_opt.study import installed_qp_solvers
 
 #: QP solvers reached through cvxpy that are installed here (OSQP and PIQP are in [dev]).

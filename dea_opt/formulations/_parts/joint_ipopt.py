@@ -20,8 +20,8 @@ from ...laws import LinearLaw
 from ...status import Status
 from ..joint import JointResult, JointSystem, joint_scaling, law_stresses
 from ..nlp import NATIVE_STATUS, _casadi, ipopt_solver
-from ..resistance import require_finite
 from .options import Option, validate
+from .resistance import require_finite
 
 #: IPOPT's options for a joint.
 NLP_OPTIONS = (

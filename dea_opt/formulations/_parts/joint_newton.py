@@ -15,11 +15,11 @@ import time
 import numpy as np
 
 from ..._checks.threads import single_threaded_blas
-from ..crush import CRUSH_WINDOW
 from ..joint import JointResult, JointSystem, assemble, internal_force, joint_scaling
 from ..newton import _WOLFE_CURVATURE, _WOLFE_CURVATURE_SAFE, NATIVE_STATUS, _line_search, _solve_step
-from ..resistance import require_finite
+from .crush import CRUSH_WINDOW
 from .options import Option, validate
+from .resistance import require_finite
 
 #: Newton's options for a joint (the two-body Newton's, checked the same way).
 OPTIONS = (

@@ -2,11 +2,11 @@
 formulation takes where an overlap set the scale it solved in and opened under a smaller load
 (``formulations/energy.md``, "Scaling", step 5).
 
-A formulation's tolerances are relative to the size ``s`` of :func:`~dea_opt.formulations.scaling.scaling`,
+A formulation's tolerances are relative to the size ``s`` of :func:`~dea_opt.formulations._parts.scaling.scaling`,
 the larger of the load and the initial overlap. A layer that starts in deep overlap and separates
 under a small load is solved in the overlap's units, where the load (and every force at the answer)
 is below the solver's tolerances: the answer stops short. Moved to that answer
-(:meth:`~dea_opt.formulations.system.SpringSystem.recentred`), the problem has the answer's own size,
+(:meth:`~dea_opt.formulations._parts.system.SpringSystem.recentred`), the problem has the answer's own size,
 and solved again from there its tolerances are the answer's.
 """
 
@@ -17,11 +17,11 @@ import time
 import numpy as np
 
 from ...errors import SolverError
-from ..resistance import modulus_scale
-from ..scaling import norm as _norm
-from ..system import FormulationResult, SpringSystem
+from .resistance import modulus_scale
+from .scaling import norm as _norm
+from .system import FormulationResult, SpringSystem
 
-#: A formulation solves on from its answer, in that answer's own scale (:meth:`~dea_opt.formulations.system.SpringSystem.recentred`),
+#: A formulation solves on from its answer, in that answer's own scale (:meth:`~dea_opt.formulations._parts.system.SpringSystem.recentred`),
 #: when what is in equilibrium there (the load, the springs' compression) is at most this fraction of
 #: the scale ``s`` it solved in: an overlap that set ``s`` and opened under the load
 #: (formulations/energy.md, "Scaling", step 5).
@@ -29,7 +29,7 @@ RECENTRE = 0.1
 
 
 def answer_size(system: SpringSystem, modulus: float, u_free) -> float:
-    """The size ``s`` of :func:`~dea_opt.formulations.scaling.scaling` at the free-dof motion ``u_free`` (mm, rad): the larger of
+    """The size ``s`` of :func:`~dea_opt.formulations._parts.scaling.scaling` at the free-dof motion ``u_free`` (mm, rad): the larger of
     the load's ``|T1^T r|`` and the compression's ``sqrt(sum_i V_i H min(eps_i, 0)^2)`` there, both
     the square root of an energy (N^0.5 mm^0.5), 0 for neither."""
     T1 = system.resistance.basis(modulus)

@@ -24,8 +24,8 @@ import numpy as np
 
 from ...status import CERTIFIABLE, Status
 from .._parts.options import Capabilities, Option
-from ..resistance import modulus_scale, resistance
-from ..system import SpringSystem, start_vector
+from .._parts.resistance import modulus_scale, resistance
+from .._parts.system import SpringSystem, start_vector
 from .geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
 from .motion import motion
 from .newton import InnerResult, escape_step
@@ -137,7 +137,7 @@ def scale(T1, load, system: FiniteSystem, law, e0=None) -> tuple[np.ndarray, flo
 
 
 def small_system(system: FiniteSystem, law) -> SpringSystem:
-    """The small kinematics' :class:`~dea_opt.formulations.system.SpringSystem` of ``system`` at
+    """The small kinematics' :class:`~dea_opt.formulations._parts.system.SpringSystem` of ``system`` at
     ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
     strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
     a rotation), with its resisted directions decided, and, for targets not cast from meshes, as

@@ -10,7 +10,7 @@ each target along itself, and a spring whose ray misses its target (a target fac
 body 1) has no gap to change. Where no free motion changes a gap, the springs' forces stay those
 of the base pose whatever body 2 does, however their lever arms could turn it: a load they do not
 already balance is not carried (``formulations/finite.md``). :func:`motion` decides it with the
-same test as the forces' resistance (:func:`~dea_opt.formulations.resistance.resistance`);
+same test as the forces' resistance (:func:`~dea_opt.formulations._parts.resistance.resistance`);
 ``dea_opt.solve``'s load check raises on it.
 """
 
@@ -20,8 +20,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..resistance import Resistance, resistance
-from ..system import SpringSystem
+from .._parts.resistance import Resistance, resistance
+from .._parts.system import SpringSystem
 from .geometry import FACING
 
 __all__ = ["Motion", "motion"]

@@ -1,7 +1,7 @@
 """Finite kinematics, Newton: the consistent tangent and the small-kinematics Newton's globalization.
 
 Written math: ``formulations/finite.md`` ("Newton"). The iterate is body 2's free coordinates
-``x = x0 + T xi`` in the scaled variables of :func:`~dea_opt.formulations.scaling.scaling`
+``x = x0 + T xi`` in the scaled variables of :func:`~dea_opt.formulations._parts.scaling.scaling`
 (``T`` from the layer at the start pose). Each iteration solves ``T^T K T dxi = -T^T r`` with
 the exact (non-symmetric) tangent ``K`` of the residual ``r``, and searches the line with the
 Wolfe conditions of the small Newton on ``phi'(a) = r(x + a T dxi) . T dxi``: the power of the
@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._parts.resistance import UNRESISTED, unresisted
 from ..newton import _line_search
-from ..resistance import UNRESISTED, unresisted
 
 _WOLFE_CURVATURE = 0.9
 _WOLFE_CURVATURE_SAFE = 0.01

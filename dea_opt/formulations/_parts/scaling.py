@@ -1,9 +1,9 @@
 """The variables every formulation solves in: a change of variables that makes units, lever arms
 and far reference points not matter (``formulations/energy.md``, "Scaling").
 
-``u_free = T xi`` over the resisted directions (:class:`~dea_opt.formulations.resistance.Resistance`),
+``u_free = T xi`` over the resisted directions (:class:`~dea_opt.formulations._parts.resistance.Resistance`),
 sized so that ``xi = O(1)`` for the larger of the load and the overlap; energies divided by
-``E0 = s^2``, strain variables by ``s0`` (:class:`Scaling`, built by :func:`~dea_opt.formulations.scaling.scaling`). Tolerances
+``E0 = s^2``, strain variables by ``s0`` (:class:`Scaling`, built by :func:`~dea_opt.formulations._parts.scaling.scaling`). Tolerances
 then mean the same for every unit and load. Units: mm, rad, N, N mm.
 """
 
@@ -25,7 +25,7 @@ class Scaling:
 
     ``u_free = T xi`` with ``T = T1 s`` and ``T1 = D^-1 Rk Sigma_k^-1 / sqrt(H)`` from the
     singular value decomposition of the factor ``W = U Sigma R^T`` of the bonded stiffness
-    (:func:`~dea_opt.formulations.resistance.resistance`; never an eigendecomposition of ``K0 = A^T diag(V H) A``, which would
+    (:func:`~dea_opt.formulations._parts.resistance.resistance`; never an eigendecomposition of ``K0 = A^T diag(V H) A``, which would
     square its condition number), so that ``T1^T K0 T1 = I`` (``formulations/energy.md``,
     "Scaling"): directions no spring resists are dropped, the remaining ones are made
     K0-orthonormal (so units, lever arms and far reference points no longer matter), and

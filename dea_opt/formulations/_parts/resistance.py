@@ -2,10 +2,10 @@
 
 A direction no spring resists can carry no load and takes no motion (``formulations/energy.md``,
 "Unresisted directions"). :func:`unresisted` is the one test, with its threshold
-:data:`UNRESISTED`; :func:`~dea_opt.formulations.resistance.resistance` applies it to a
-:class:`~dea_opt.formulations.system.SpringSystem` (:func:`factor_resistance` to a stiffness given
+:data:`UNRESISTED`; :func:`~dea_opt.formulations._parts.resistance.resistance` applies it to a
+:class:`~dea_opt.formulations._parts.system.SpringSystem` (:func:`factor_resistance` to a stiffness given
 by its factor, as a joint's), and :class:`Resistance` holds the answer: the resisted basis the
-scaling solves in (:mod:`~dea_opt.formulations.scaling`), and the unresisted part of a load or a
+scaling solves in (:mod:`~dea_opt.formulations._parts.scaling`), and the unresisted part of a load or a
 motion. Also here :func:`require_finite`, the guard before LAPACK and every compiled solver.
 Units: mm, N, N mm, MPa.
 """
@@ -16,8 +16,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import SolverError
-from ..status import Status
+from ...errors import SolverError
+from ...status import Status
 
 __all__ = [
     "UNRESISTED",
@@ -48,7 +48,7 @@ def unresisted(stiffness, scale: float) -> np.ndarray:
         squared singular values of its factor.
     scale : float
         The stiffness the directions are judged against, in the same units: the layer's own
-        (:attr:`~dea_opt.formulations.system.SpringSystem.stiffness` times the modulus), or the largest stiffness of the
+        (:attr:`~dea_opt.formulations._parts.system.SpringSystem.stiffness` times the modulus), or the largest stiffness of the
         same matrix where that is larger (rounding in a matrix is relative to its largest
         entry, so nothing below ``UNRESISTED`` of it can be told from noise).
 
@@ -76,7 +76,7 @@ def require_finite(what: str, *arrays) -> None:
 class Resistance:
     """Which directions of the free dofs the springs resist, decided once by :func:`unresisted`.
 
-    Directions are measured in arc lengths: ``D x`` with ``D`` (:attr:`~dea_opt.formulations.system.SpringSystem.lengths`)
+    Directions are measured in arc lengths: ``D x`` with ``D`` (:attr:`~dea_opt.formulations._parts.system.SpringSystem.lengths`)
     1 for a translation and the layer's radius about the reference for a rotation, and loads
     as ``r / D`` (moments over that radius), so translations and rotations compare like with
     like.
@@ -94,7 +94,7 @@ class Resistance:
     range : ndarray, shape (m, k)
         Orthonormal basis (in arc lengths) of the resisted directions.
     scale : float
-        The stiffness they were judged against (:attr:`~dea_opt.formulations.system.SpringSystem.stiffness`, mm).
+        The stiffness they were judged against (:attr:`~dea_opt.formulations._parts.system.SpringSystem.stiffness`, mm).
     """
 
     T1: np.ndarray
@@ -171,7 +171,7 @@ def resistance(system) -> Resistance:
     point far from the layer makes the dofs nearly dependent, and the tilt of the layer must
     survive that. ``W`` is the system's small ``factor`` when it has one, else the N x m matrix
     ``diag(sqrt(V)) A``. A direction is unresisted when its squared singular value passes
-    :func:`unresisted` against the layer's stiffness :attr:`~dea_opt.formulations.system.SpringSystem.stiffness`, which does
+    :func:`unresisted` against the layer's stiffness :attr:`~dea_opt.formulations._parts.system.SpringSystem.stiffness`, which does
     not depend on which dofs are free: when every free dof is unresisted, rounding noise is
     not mistaken for stiffness.
     """
@@ -181,8 +181,8 @@ def resistance(system) -> Resistance:
 
 def factor_resistance(factor, lengths, stiffness: float | None) -> Resistance:
     """The :class:`Resistance` of the bonded stiffness ``factor^T factor`` (at unit modulus) over
-    dofs of ``lengths`` (:attr:`~dea_opt.formulations.system.SpringSystem.lengths`), judged against ``stiffness``
-    (:attr:`~dea_opt.formulations.system.SpringSystem.stiffness`): :func:`~dea_opt.formulations.resistance.resistance` for a system given by its factor alone
+    dofs of ``lengths`` (:attr:`~dea_opt.formulations._parts.system.SpringSystem.lengths`), judged against ``stiffness``
+    (:attr:`~dea_opt.formulations._parts.system.SpringSystem.stiffness`): :func:`~dea_opt.formulations._parts.resistance.resistance` for a system given by its factor alone
     (a joint's, stacked from its elements' factors: ``formulations/joint.md``)."""
     D = np.asarray(lengths, dtype=float)
     m = D.size

@@ -17,9 +17,9 @@ Here: the system (:class:`SpringSystem`) and the raw answer (:class:`Formulation
 rounding bound of a computed strain (:data:`ROUNDING`), the check of a start (:func:`start_vector`)
 and the answers that need no solver (:func:`trivial_result`, and :func:`failed_result` for a solver
 that raised). Beside it: which directions the springs resist and the guard before compiled code
-(:mod:`~dea_opt.formulations.resistance`), the variables the
-formulations solve in (:mod:`~dea_opt.formulations.scaling`), the one test of a crushed layer
-(:mod:`~dea_opt.formulations.crush`) and BLAS on one thread (``dea_opt._checks.threads``).
+(:mod:`~dea_opt.formulations._parts.resistance`), the variables the
+formulations solve in (:mod:`~dea_opt.formulations._parts.scaling`), the one test of a crushed layer
+(:mod:`~dea_opt.formulations._parts.crush`) and BLAS on one thread (``dea_opt._checks.threads``).
 """
 
 from __future__ import annotations
@@ -29,8 +29,8 @@ from functools import cached_property
 
 import numpy as np
 
-from ..errors import InputError, SolverError
-from ..status import Status
+from ...errors import InputError, SolverError
+from ...status import Status
 from .resistance import Resistance, resistance
 
 __all__ = [
@@ -62,12 +62,12 @@ class SpringSystem:
         See :attr:`lengths`.
     factor : ndarray, shape (r, m), optional
         ``F`` with ``F^T F = A^T diag(V) A``, computed from the geometry in a well-conditioned
-        basis (rotations about the layer's centroid); lets :func:`~dea_opt.formulations.resistance.resistance` skip a singular
+        basis (rotations about the layer's centroid); lets :func:`~dea_opt.formulations._parts.resistance.resistance` skip a singular
         value decomposition of an N x m matrix.
     stiffness : float, optional
         The layer's own stiffness scale per unit modulus, ``k = sum_i S_i / h_i`` (mm): the sum
         of every spring's stiffness along its normal, independent of which dofs are free.
-        Directions are judged unresisted against it (:func:`~dea_opt.formulations.resistance.unresisted`). Without it (a system
+        Directions are judged unresisted against it (:func:`~dea_opt.formulations._parts.resistance.unresisted`). Without it (a system
         built by hand) the largest stiffness among the free dofs stands in, which cannot tell
         a layer that resists none of its free dofs from one that resists them all.
     """
@@ -116,7 +116,7 @@ class SpringSystem:
         """The same springs and load with the origin of the free dofs moved to ``u_free`` (mm, rad):
         ``e0`` becomes the strains there, computed afresh from this system's (never accumulated
         step by step), so that a formulation can solve on in the scale of what is in equilibrium
-        there (:func:`~dea_opt.formulations.scaling.scaling`)."""
+        there (:func:`~dea_opt.formulations._parts.scaling.scaling`)."""
         new = SpringSystem(
             self.AT, self.strain_at(u_free), self.volume, self.load, self.dof_length, self.factor, self.stiffness
         )
@@ -127,7 +127,7 @@ class SpringSystem:
 
     @cached_property
     def resistance(self) -> Resistance:
-        """Which free-dof directions the springs resist (:func:`~dea_opt.formulations.resistance.resistance`), computed once."""
+        """Which free-dof directions the springs resist (:func:`~dea_opt.formulations._parts.resistance.resistance`), computed once."""
         return resistance(self)
 
 
@@ -188,7 +188,7 @@ def start_vector(system: SpringSystem, x0) -> np.ndarray | None:
 def trivial_result(system: SpringSystem, law, load=None) -> FormulationResult | None:
     """The answer without a solver, or ``None`` when a solver is needed.
 
-    * :attr:`Status.HELD`: no free direction is resisted (:class:`~dea_opt.formulations.resistance.Resistance`), and so none can
+    * :attr:`Status.HELD`: no free direction is resisted (:class:`~dea_opt.formulations._parts.resistance.Resistance`), and so none can
       carry a load (:func:`dea_opt.check_load_supported` rejects one): every free dof is held at
       zero motion, the minimum-norm answer, and the springs keep the strain of the gap and the
       prescribed motion;
