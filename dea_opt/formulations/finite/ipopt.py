@@ -251,8 +251,8 @@ def solve(
     """The fixed point of the re-centred IPOPT solves (targets fixed): body 2's equilibrium.
 
     ``system``, ``law``, ``T`` (m, k), ``energy_scale`` (N mm) and ``x0`` (m,; mm, rad) as for
-    :func:`~dea_opt.formulations.finite.newton.solve`; the other options are
-    :data:`dea_opt.formulations.finite.nlp.OPTIONS`.
+    :func:`~dea_opt.formulations.finite.newton.solve`; the other keywords are the IPOPT options of
+    :data:`dea_opt.formulations.finite.nlp.OPTIONS` (not the re-casting ones).
 
     Stops when the scaled step of an outer iteration is below ``outer_tol`` and the physical
     residual is below ``max(outer_tol, 1e-9)`` relative to the load; or, as ``max_iterations``,
