@@ -8,6 +8,8 @@ and the benchmarks. :mod:`dea_opt.geometry` exports them beside its mesh builder
 
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from .._checks.inputs import as_float_array, positive_integer
@@ -21,9 +23,28 @@ __all__ = ["plate_layer", "socket_layer", "sphere_on_bed_layer"]
 _FEWER = "use fewer cells (a coarser grid) for a joint-sized layer"
 
 
-def _check_springs(what: str, n: int) -> None:
-    """A layer of ``n`` springs must fit in memory (checked before any array is made)."""
+def _cells(builder: str, **counts) -> tuple[int, ...]:
+    """The grid's cell counts (``nx=..., ny=...`` or ``n_rings=..., n_sectors=...``), each checked to
+    be a positive whole number, once the layer of their product's springs is known to fit in memory
+    (checked before any array is made)."""
+    checked = {name: positive_integer(name, value) for name, value in counts.items()}
+    n = math.prod(checked.values())
+    what = f"{builder}({', '.join(f'{name}={value}' for name, value in checked.items())})"
     check_memory(BYTES_PER_LAYER_SPRING * n, f"{what} ({format_count(n)} springs)", _FEWER, share=PEAK_SHARE)
+    return tuple(checked.values())
+
+
+def _by_sectors(per_ring: np.ndarray, n_sectors: int) -> tuple[np.ndarray, np.ndarray]:
+    """``(ring, angle)`` (n_rings, n_sectors): each ring's value beside each sector's mid-angle (rad)
+    of ``n_sectors`` equal sectors, as for a polar grid's cells."""
+    angle = 2 * np.pi * (np.arange(n_sectors) + 0.5) / n_sectors
+    ring, angle = np.meshgrid(per_ring, angle, indexing="ij")
+    return ring, angle
+
+
+def _per_spring(name: str, value, n: int) -> np.ndarray:
+    """``value`` (mm) as one per spring: a number is broadcast to all ``n``."""
+    return as_float_array(name, value, (n,), allow_scalar_for=n)
 
 
 def plate_layer(
@@ -34,8 +55,7 @@ def plate_layer(
     Springs sit at the cell centres, normals +z (body 1 below, body 2 above), x along the
     ``length`` (mm) and y along the ``width`` (mm); the plate is centred at the origin.
     """
-    nx, ny = positive_integer("nx", nx), positive_integer("ny", ny)
-    _check_springs(f"plate_layer(nx={nx}, ny={ny})", nx * ny)
+    nx, ny = _cells("plate_layer", nx=nx, ny=ny)
     dx, dy = length / nx, width / ny
     xs = -length / 2 + dx * (np.arange(nx) + 0.5)
     ys = -width / 2 + dy * (np.arange(ny) + 0.5)
@@ -43,9 +63,7 @@ def plate_layer(
     points = np.column_stack([X.ravel(), Y.ravel(), np.zeros(X.size)])
     normals = np.tile([0.0, 0.0, 1.0], (X.size, 1))
     n = len(points)
-    return SpringLayer(
-        points, normals, np.full(n, dx * dy), as_float_array("thickness", thickness, (n,), allow_scalar_for=n)
-    )
+    return SpringLayer(points, normals, np.full(n, dx * dy), _per_spring("thickness", thickness, n))
 
 
 def sphere_on_bed_layer(
@@ -57,22 +75,20 @@ def sphere_on_bed_layer(
     sphere's height above the bed at the cell's centroid radius, ``R - sqrt(R^2 - rho^2)``.
     Normals +z: body 1 is the bed, body 2 the sphere (centre at ``(0, 0, radius)``).
     """
-    n_rings, n_sectors = positive_integer("n_rings", n_rings), positive_integer("n_sectors", n_sectors)
-    _check_springs(f"sphere_on_bed_layer(n_rings={n_rings}, n_sectors={n_sectors})", n_rings * n_sectors)
+    n_rings, n_sectors = _cells("sphere_on_bed_layer", n_rings=n_rings, n_sectors=n_sectors)
     if extent >= radius:
         raise InputError(f"extent must be smaller than radius={radius}, got {extent}")
     edges = np.linspace(0.0, extent, n_rings + 1)
     r0, r1 = edges[:-1], edges[1:]
     ring_area = np.pi * (r1**2 - r0**2) / n_sectors
     rho = np.sqrt(0.5 * (r0**2 + r1**2))  # the radius that halves the ring's area
-    theta = 2 * np.pi * (np.arange(n_sectors) + 0.5) / n_sectors
-    R, T = np.meshgrid(rho, theta, indexing="ij")
+    R, T = _by_sectors(rho, n_sectors)
     points = np.column_stack([(R * np.cos(T)).ravel(), (R * np.sin(T)).ravel(), np.zeros(R.size)])
     normals = np.tile([0.0, 0.0, 1.0], (R.size, 1))
     areas = np.repeat(ring_area, n_sectors)
     gap = radius - np.sqrt(radius**2 - R.ravel() ** 2)
     n = len(points)
-    return SpringLayer(points, normals, areas, as_float_array("thickness", thickness, (n,), allow_scalar_for=n), gap)
+    return SpringLayer(points, normals, areas, _per_spring("thickness", thickness, n), gap)
 
 
 def socket_layer(
@@ -89,16 +105,14 @@ def socket_layer(
     ``(0, 0, -radius)``. Cells are exact spherical patches; normals point from the socket
     (body 1) to the ball (body 2), i.e. toward the centre.
     """
-    n_rings, n_sectors = positive_integer("n_rings", n_rings), positive_integer("n_sectors", n_sectors)
-    _check_springs(f"socket_layer(n_rings={n_rings}, n_sectors={n_sectors})", n_rings * n_sectors)
+    n_rings, n_sectors = _cells("socket_layer", n_rings=n_rings, n_sectors=n_sectors)
     if not 0 < coverage <= 180:
         raise InputError(f"coverage must be in (0, 180] degrees, got {coverage}")
     edges = np.radians(np.linspace(0.0, coverage, n_rings + 1))
     t0, t1 = edges[:-1], edges[1:]
     area = 2 * np.pi * radius**2 * (np.cos(t0) - np.cos(t1)) / n_sectors
     polar = np.arccos(0.5 * (np.cos(t0) + np.cos(t1)))  # the angle that halves the patch
-    phi = 2 * np.pi * (np.arange(n_sectors) + 0.5) / n_sectors
-    P, F = np.meshgrid(polar, phi, indexing="ij")
+    P, F = _by_sectors(polar, n_sectors)
     direction = np.column_stack(
         [(np.sin(P) * np.cos(F)).ravel(), (np.sin(P) * np.sin(F)).ravel(), (-np.cos(P)).ravel()]
     )
@@ -107,6 +121,6 @@ def socket_layer(
         radius * direction,
         -direction,
         np.repeat(area, n_sectors),
-        as_float_array("thickness", thickness, (n,), allow_scalar_for=n),
-        as_float_array("gap", gap, (n,), allow_scalar_for=n),
+        _per_spring("thickness", thickness, n),
+        _per_spring("gap", gap, n),
     )

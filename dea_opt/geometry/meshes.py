@@ -62,6 +62,11 @@ def _shell_grid(coverage: float, fossa: float, notch: float, step: float) -> tup
     return n_polar, n_azimuth, 4 * n_polar * n_azimuth + 4 * (n_polar + n_azimuth)
 
 
+def _shell_faces(coverage: float, step: float, fossa: float = 0.0, notch: float = 0.0) -> int:
+    """Faces of :func:`spherical_shell_mesh` with these angles (deg), at most: :func:`_shell_grid`'s."""
+    return _shell_grid(coverage, fossa, notch, step)[2]
+
+
 # --------------------------------------------------------------------------------------------
 # Mesh builders: closed cartilage volumes as triangle surfaces, and pairs of them
 # --------------------------------------------------------------------------------------------
@@ -371,15 +376,12 @@ def sphere_on_bed_meshes(
     if not 0 < extent * np.sqrt(2) < radius:
         raise InputError(f"extent * sqrt(2) must be smaller than radius={radius}, got extent={extent}")
     n_bed, step = positive_integer("n_bed", n_bed), _step(step)
-    reach = np.degrees(np.arcsin(extent * np.sqrt(2) / radius)) + 2 * step
+    reach = min(np.degrees(np.arcsin(extent * np.sqrt(2) / radius)) + 2 * step, 90.0)
     _check_faces(
-        f"sphere_on_bed_meshes(n_bed={n_bed}, step={step:g})",
-        _slab_faces(n_bed, n_bed) + _shell_grid(min(reach, 90.0), 0.0, 0.0, step)[2],
+        f"sphere_on_bed_meshes(n_bed={n_bed}, step={step:g})", _slab_faces(n_bed, n_bed) + _shell_faces(reach, step)
     )
     bed = slab_mesh(2 * extent, 2 * extent, thickness, n_bed, n_bed)
-    cap = spherical_shell_mesh(
-        radius, radius / 4, min(reach, 90.0), center=(0.0, 0.0, radius), axis=(0.0, 0.0, -1.0), step=step
-    )
+    cap = spherical_shell_mesh(radius, radius / 4, reach, center=(0.0, 0.0, radius), axis=(0.0, 0.0, -1.0), step=step)
     return MeshPair(
         "sphere_on_bed",
         bed,
@@ -414,16 +416,16 @@ def hip_meshes(
     if not 0 < head_radius < socket_radius:
         raise InputError(f"need 0 < head_radius < socket_radius, got {head_radius}, {socket_radius}")
     step = _step(step)
+    head_coverage = min(coverage + 20.0, 180.0)
     _check_faces(
-        f"hip_meshes(step={step:g})",
-        _shell_grid(coverage, fossa, notch, step)[2] + _shell_grid(min(coverage + 20.0, 180.0), 0.0, 0.0, step)[2],
+        f"hip_meshes(step={step:g})", _shell_faces(coverage, step, fossa, notch) + _shell_faces(head_coverage, step)
     )
     socket = spherical_shell_mesh(
         socket_radius, socket_thickness, coverage, articular="inner", fossa=fossa, notch=notch, step=step
     )
     head_centre = (0.0, 0.0, head_radius - socket_radius)
     head = spherical_shell_mesh(
-        head_radius, head_thickness, min(coverage + 20.0, 180.0), center=head_centre, articular="outer", step=step
+        head_radius, head_thickness, head_coverage, center=head_centre, articular="outer", step=step
     )
     info = {
         "head_radius": head_radius,
@@ -465,7 +467,7 @@ def knee_meshes(
     n_plateau, step = positive_integer("n_plateau", n_plateau), _step(step)
     _check_faces(
         f"knee_meshes(n_plateau={n_plateau}, step={step:g})",
-        2 * _slab_faces(n_plateau, n_plateau) + 2 * _shell_grid(coverage, 0.0, 0.0, step)[2],
+        2 * _slab_faces(n_plateau, n_plateau) + 2 * _shell_faces(coverage, step),
     )
     medial = slab_mesh(plateau, plateau, tibial_thickness, n_plateau, n_plateau, center=(half, 0.0))
     lateral = slab_mesh(plateau, plateau, tibial_thickness, n_plateau, n_plateau, center=(-half, 0.0))

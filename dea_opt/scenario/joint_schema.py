@@ -10,10 +10,9 @@ solved statically (the bodies' own loads) or along ``[load_path]``: a CSV whose 
 
 from __future__ import annotations
 
-from pathlib import Path
 from typing import Annotated, Literal
 
-from pydantic import Field, PrivateAttr, model_validator
+from pydantic import Field, model_validator
 
 from .fields import DofList, File, NonNegative, Positive, Vector3, _Section
 from .schema import (
@@ -23,6 +22,7 @@ from .schema import (
     OutputSection,
     PlateGeometry,
     RegionsSection,
+    ScenarioFile,
     SocketGeometry,
     SphereOnBedGeometry,
     SpringsGeometry,
@@ -235,7 +235,7 @@ class JointSolveSection(_Section):
         return self
 
 
-class JointScenario(_Section):
+class JointScenario(ScenarioFile):
     """A whole joint: several bodies, contact layers and ligaments."""
 
     title: str = Field("", description="a name for reports")
@@ -249,10 +249,6 @@ class JointScenario(_Section):
     load_path: JointLoadPathSection | None = None
     solve: JointSolveSection = Field(default_factory=JointSolveSection)
     output: OutputSection = Field(default_factory=OutputSection)
-    _source: str | None = PrivateAttr(None)
-    _text_sha256: str | None = PrivateAttr(None)
-    _overrides: dict = PrivateAttr(default_factory=dict)
-    _notes: list = PrivateAttr(default_factory=list)
 
     @model_validator(mode="after")
     def _names(self):
@@ -265,30 +261,3 @@ class JointScenario(_Section):
                     if getattr(item, end) not in names:
                         raise ValueError(f"{kind}[{i}].{end} is {getattr(item, end)!r}, not a body (bodies: {names})")
         return self
-
-    @property
-    def source(self) -> str | None:
-        return self._source
-
-    @property
-    def text_sha256(self) -> str | None:
-        return self._text_sha256
-
-    @property
-    def overrides(self) -> dict:
-        return dict(self._overrides)
-
-    @property
-    def notes(self) -> list:
-        return list(self._notes)
-
-    @property
-    def base_dir(self) -> Path:
-        return Path(self._source).parent if self._source else Path.cwd()
-
-    def output_dir(self, override=None) -> Path:
-        """The output folder: ``override`` (relative to the working directory) or ``[output].directory``."""
-        if override is not None:
-            return Path(override).expanduser().resolve()
-        path = Path(self.output.directory).expanduser()
-        return path if path.is_absolute() else (self.base_dir / path).resolve()

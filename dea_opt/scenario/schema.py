@@ -9,7 +9,7 @@ generated from the models below, so it cannot drift. Units: mm, N, N mm, MPa, s.
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Annotated, Any, Literal, get_args
+from typing import TYPE_CHECKING, Annotated, Any, Literal, get_args
 
 from pydantic import (
     AfterValidator,
@@ -56,6 +56,7 @@ __all__ = [
     "PlateGeometry",
     "RegionsSection",
     "Scenario",
+    "ScenarioFile",
     "SocketGeometry",
     "SolveSection",
     "SphereOnBedGeometry",
@@ -423,31 +424,23 @@ class OutputSection(_Section):
     )
 
 
-class Scenario(_Section):
-    """A whole analysis. Exactly one of [load] and [load_path]."""
+class ScenarioFile(_Section):
+    """What a scenario read from a file knows besides its tables: the file, the SHA-256 of its text,
+    the ``--set`` overrides applied to it, notes for the user, and where its outputs go.
 
-    title: str = Field("", description="a name for reports")
-    geometry: Geometry
-    law: LawSection
-    body1: BodySection = Field(default_factory=BodySection)
-    body2: BodySection = Field(default_factory=BodySection)
-    load: LoadSection | None = None
-    load_path: LoadPathSection | None = None
-    regions: RegionsSection | None = None
-    solve: SolveSection = Field(default_factory=SolveSection)
-    output: OutputSection = Field(default_factory=OutputSection)
+    :class:`Scenario` (two bodies) and :class:`~dea_opt.scenario.joint_schema.JointScenario` (a
+    whole joint) are both; :func:`~dea_opt.scenario.parse.parse_scenario` fills these in after
+    validating the tables.
+    """
+
     # Not TOML keys: the file the scenario came from (relative paths resolve against it), the
     # SHA-256 of its text, the --set overrides applied to it and notes for the user.
     _source: str | None = PrivateAttr(None)
     _text_sha256: str | None = PrivateAttr(None)
     _overrides: dict = PrivateAttr(default_factory=dict)
     _notes: list = PrivateAttr(default_factory=list)
-
-    @model_validator(mode="after")
-    def _one_load(self):
-        if (self.load is None) == (self.load_path is None):
-            raise ValueError("give exactly one of the tables [load] and [load_path]")
-        return self
+    if TYPE_CHECKING:  # each scenario declares [output] among its own tables, in its own order
+        output: OutputSection
 
     @property
     def source(self) -> str | None:
@@ -471,6 +464,7 @@ class Scenario(_Section):
 
     @property
     def base_dir(self) -> Path:
+        """The folder relative paths resolve against: the scenario file's, else the working directory."""
         return Path(self._source).parent if self._source else Path.cwd()
 
     def output_dir(self, override=None) -> Path:
@@ -479,3 +473,24 @@ class Scenario(_Section):
             return Path(override).expanduser().resolve()
         path = Path(self.output.directory).expanduser()
         return path if path.is_absolute() else (self.base_dir / path).resolve()
+
+
+class Scenario(ScenarioFile):
+    """A whole analysis. Exactly one of [load] and [load_path]."""
+
+    title: str = Field("", description="a name for reports")
+    geometry: Geometry
+    law: LawSection
+    body1: BodySection = Field(default_factory=BodySection)
+    body2: BodySection = Field(default_factory=BodySection)
+    load: LoadSection | None = None
+    load_path: LoadPathSection | None = None
+    regions: RegionsSection | None = None
+    solve: SolveSection = Field(default_factory=SolveSection)
+    output: OutputSection = Field(default_factory=OutputSection)
+
+    @model_validator(mode="after")
+    def _one_load(self):
+        if (self.load is None) == (self.load_path is None):
+            raise ValueError("give exactly one of the tables [load] and [load_path]")
+        return self

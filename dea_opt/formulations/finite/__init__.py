@@ -1,21 +1,38 @@
-"""Finite kinematics by Newton: the registry's entry ``"finite"`` (exact rotation, gaps at the current pose).
+"""Finite kinematics as arrays: the formulation ``"finite"`` (Newton, exact rotation, gaps at the current pose).
 
-Written math: ``formulations/finite.md``. Arrays in, a raw answer out, like every formulation:
-a :class:`FiniteSystem` holds the springs (points, normals, areas, thickness), each spring's
-target on body 2 as a plane or a sphere (:class:`Targets`), body 2's reference point, its free
-and prescribed coordinates (translation of the reference and rotation vector, ``u[6:12]``, taken
-as an exact rotation) and the load; :func:`solve` finds the equilibrium of the free coordinates
-by Newton with the consistent tangent (:mod:`~dea_opt.formulations.finite.newton`) for those
-targets and returns an :class:`InnerResult` (``u_free``, the springs' state at the answer, the
-solver's status), which ``dea_opt`` certifies. The gap of each spring is the one to its target
-at the current pose (:mod:`~dea_opt.formulations.finite.geometry`); forces, residual and
-tangent are :mod:`~dea_opt.formulations.finite.system`'s.
+Written math: ``formulations/finite.md``. This package is the formulations' side of finite
+kinematics: like every formulation it sees arrays and a law, never meshes, files or problems.
+It holds
 
-What knows meshes, problems and poses lives outside this package: :mod:`dea_opt.finite`
-builds the arrays from a ``ContactProblem(..., kinematics="finite")``, alternates solve and
-re-cast of springs cast from meshes, and certifies the answer at the solved pose
-(``dea_opt.solve`` sends a finite problem there). The independent cross-check by IPOPT is
-:mod:`~dea_opt.formulations.finite.nlp`; the QP is a small-kinematics method only.
+- this module: the registry's formulation ``"finite"`` (:data:`OPTIONS`, :data:`CAPABILITIES`,
+  :class:`Model`, :func:`solve`), the scaling of a solve (:func:`scale`, :func:`small_system`)
+  and the status of its answer (:func:`status_of`);
+- :mod:`~dea_opt.formulations.finite.geometry`: exact rotations, body 2's pose, each spring's
+  target on body 2 (:class:`Targets`: a plane or a sphere) and its gap, with the gap's derivative;
+- :mod:`~dea_opt.formulations.finite.system`: the arrays of one problem (:class:`FiniteSystem`)
+  and everything at one pose of body 2 (:class:`State`: forces, residual, tangent);
+- :mod:`~dea_opt.formulations.finite.newton`: Newton with the consistent tangent, and the raw
+  answer every finite solve gives (:class:`InnerResult`);
+- :mod:`~dea_opt.formulations.finite.motion`: which motions of body 2 change a gap at all (the
+  load check's question);
+- :mod:`~dea_opt.formulations.finite.nlp` with :mod:`~dea_opt.formulations.finite.ipopt`: the
+  formulation ``"finite_nlp"``, IPOPT on a conservative surrogate, the independent cross-check;
+- ``_finite.c``: the optional C kernel of the two passes over the springs (the gaps to plane
+  targets and the tangent's sum), each with its numpy twin.
+
+A solve takes a :class:`FiniteSystem`: the springs on body 1 (points and unit normals (N, 3),
+areas (N,) mm^2, thicknesses (N,) mm), their targets, body 2's reference point (3,) mm, its free
+and prescribed coordinates among ``(ux, uy, uz, rx, ry, rz)`` (mm, rad: ``u[6:12]`` of the
+12-vector, the rotation vector taken as an exact rotation) and the load on body 2 (force (3,) N
+at the reference, moment (3,) N mm). It returns an :class:`InnerResult`: body 2's free
+coordinates at equilibrium (m,), the springs' :class:`State` there and the solver's status. These
+two types are the registry's contract for finite kinematics
+(``dea_opt.formulations.CONTRACTS["finite"]``).
+
+:mod:`dea_opt.finite` is the other side: it builds these arrays from a
+``ContactProblem(..., kinematics="finite")``, re-casts springs cast from meshes between solves and
+certifies the answer at the solved pose; ``dea_opt.solve`` sends a finite problem there. The QP
+is a small-kinematics method only.
 """
 
 from __future__ import annotations
@@ -137,7 +154,7 @@ def scale(T1, load, system: FiniteSystem, law, e0=None) -> tuple[np.ndarray, flo
 
 
 def small_system(system: FiniteSystem, law) -> SpringSystem:
-    """The small kinematics' :class:`~dea_opt.formulations._parts.system.SpringSystem` of ``system`` at
+    """The small kinematics' :class:`~dea_opt.formulations.SpringSystem` of ``system`` at
     ``system.base``: the strain per unit free coordinate ``blockdiag(I, J)^T a_i / h_i``, the
     strains there, the load, and lengths (1 mm, the springs' RMS distance from the reference for
     a rotation), with its resisted directions decided, and, for targets not cast from meshes, as
@@ -212,7 +229,7 @@ def solve(
     **options
         :data:`OPTIONS` (the re-casting ones are :mod:`dea_opt.finite`'s and ignored here).
     """
-    from . import newton as _finite_newton
+    from . import newton
 
     x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
     cold = x0 is None if cold is None else cold
@@ -222,7 +239,7 @@ def solve(
     defaults = {option.name: option.default for option in OPTIONS}
     chosen = {k: options.get(k, defaults[k]) for k in _NEWTON}
     start = start_state if x0 is not None else None
-    return _finite_newton.solve(system, law, T, energy_scale, x0=x, cold=cold, start_state=start, **chosen)
+    return newton.solve(system, law, T, energy_scale, x0=x, cold=cold, start_state=start, **chosen)
 
 
 class FiniteModel:

@@ -1,17 +1,15 @@
-"""Finite kinematics, geometry: exact rotations and each spring's gap to its target, with derivatives.
+"""Finite kinematics, geometry: exact rotations, body 2's pose, each spring's target and its gap.
 
-Written math: ``formulations/finite.md`` ("Pose", "Targets", "Gap and its derivative"). Body 2's
-pose is ``x' = c + t + R(theta) (x - c)`` with ``R`` the exact rotation of the rotation vector
-``theta`` about the reference ``c``. Each spring ``i`` of the layer (a point ``p_i`` and a unit
-normal ``n_i`` of body 1, which stays fixed) looks along its ray ``p_i + s n_i`` at its target on
-body 2: the tangent plane of a mesh face (a point ``q_i`` and the face's outward normal ``m_i``)
-or a sphere (centre ``o_i``, radius ``rho_i``, the spring outside a ball or inside a socket).
-The gap ``s_i`` is where the ray meets the target moved by the pose; its derivative along a
-motion of body 2 (translation rate ``v`` of the reference, angular velocity ``w``) is
-
-    ds_i = m_i' . (v + w x (h_i - c')) / (n_i . m_i')
-
-with ``h_i = p_i + s_i n_i`` the hit and ``m_i'`` the target's normal there. Lengths in mm.
+Written math: ``formulations/finite.md`` ("Pose", "Targets", "Gap and its derivative"); mm, rad.
+Body 2 moves by ``x' = c + t + R(theta) (x - c)``: ``t`` (3,) the translation of its reference
+``c`` (3,), ``R`` (3, 3) the exact rotation of the rotation vector ``theta`` (3,). Each spring
+``i`` (a point ``p_i`` and unit normal ``n_i`` of body 1, which stays fixed) looks along its ray
+``p_i + s n_i`` at its target on body 2 (:class:`Targets`, in body 2's own frame): the tangent
+plane of a face (a point ``q_i``, the outward normal ``m_i``) or a sphere (centre ``o_i``, radius
+``rho_i``). The gap ``s_i`` is where the ray meets the moved target (:func:`evaluate`; ``inf``
+where it misses); along a motion of body 2 (translation rate ``v`` of the reference, angular
+velocity ``w``) ``ds_i = m_i' . (v + w x (h_i - c')) / (n_i . m_i')``, ``h_i = p_i + s_i n_i``
+the hit and ``m_i'`` the target's normal there (:meth:`Gaps.rows`).
 """
 
 from __future__ import annotations
@@ -28,13 +26,13 @@ from ...errors import InputError
 
 __all__ = [
     "Gaps",
-    "as_rows",
-    "compiled_system",
     "PlaneRows",
     "Targets",
+    "compiled_system",
     "evaluate",
-    "plane_gaps",
+    "jacobian_transpose_derivative",
     "left_jacobian",
+    "plane_gaps",
     "pose_matrix",
     "rotation",
     "rotation_and_jacobian",
@@ -70,7 +68,8 @@ def _hat(v) -> np.ndarray:
 
 
 def rotation(theta) -> np.ndarray:
-    """``R = exp([theta]x) = I + a [theta]x + b [theta]x^2`` (Rodrigues), shape (3, 3)."""
+    """``R = exp([theta]x) = I + a [theta]x + b [theta]x^2`` (Rodrigues), shape (3, 3), of the
+    rotation vector ``theta`` (3,): the turn ``|theta|`` (rad) about the axis ``theta / |theta|``."""
     theta = np.asarray(theta)
     a, b, _ = _coefficients(theta)
     W = _hat(theta)
@@ -196,9 +195,11 @@ class Targets:
 
     @property
     def is_plane(self) -> np.ndarray:
+        """(N,) bool: the targets that are planes (``radius == 0``), not spheres."""
         return self.radius == 0
 
     def subset(self, index) -> Targets:
+        """The targets of the springs ``index`` (an index array or a mask), in the same frame."""
         faces = None if self.faces is None else self.faces[index]
         return Targets(
             self.points[index], self.normals[index], self.radius[index], self.concave[index], self.frame, faces
@@ -360,6 +361,7 @@ class Gaps:
     along : ndarray (N,)
         ``n . m`` (< 0 where the target faces the spring).
     valid : ndarray of bool (N,)
+        The springs whose ray meets its target (``s`` finite).
     """
 
     def __init__(self, s, mT, along, points, normals):
@@ -417,7 +419,7 @@ def compiled_system() -> Any:
     return compiled(f"{__package__}._finite")
 
 
-def as_rows(a) -> np.ndarray:
+def _as_rows(a) -> np.ndarray:
     """``a`` (float64, each row contiguous: what the compiled passes read) as it is where it already
     is so (a view of the first columns of a longer buffer too), else a contiguous copy."""
     a = np.asarray(a)
@@ -439,7 +441,7 @@ def plane_gaps(rows: PlaneRows, transform, compiled: bool | None = None) -> Gaps
         k = len(rows.qm)
         mT, along, s = np.empty((3, k)), np.empty(k), np.empty(k)
         T = np.ascontiguousarray(transform, dtype=float)
-        pT, nT, mT_own, qm = (as_rows(a) for a in (rows.pT, rows.nT, rows.mT, rows.qm))
+        pT, nT, mT_own, qm = (_as_rows(a) for a in (rows.pT, rows.nT, rows.mT, rows.qm))
         kernel.plane_gaps(k, FACING, MISSED, T, pT, nT, mT_own, qm, mT, along, s)
         return Gaps(s, mT, along, rows.points, rows.normals)
     R, shift = transform[:3, :3], transform[:3, 3]
@@ -453,8 +455,9 @@ def plane_gaps(rows: PlaneRows, transform, compiled: bool | None = None) -> Gaps
 
 
 def evaluate(targets: Targets, points, normals, transform) -> Gaps:
-    """The gaps of springs ``(points, normals)`` to ``targets`` moved by ``transform`` (4x4: body 2's
-    own frame to the world, i.e. the displacement composed with ``targets.frame``)."""
+    """The :class:`Gaps` of springs ``(points, normals)`` ((N, 3), world frame: mm, unit) to their
+    ``targets`` moved by ``transform`` (4x4: body 2's own frame to the world, i.e. the displacement
+    composed with ``targets.frame``)."""
     plane = targets.is_plane
     if plane.all():
         return plane_gaps(PlaneRows(targets, points, normals), transform)

@@ -1,10 +1,14 @@
-"""Finite kinematics by IPOPT: an independent cross-check of the finite Newton, built in CasADi.
+"""Finite kinematics by IPOPT: the solver behind the formulation ``"finite_nlp"``, built in CasADi.
 
 Written math: ``formulations/finite_nlp.md`` (the registry's entry is
-:mod:`~dea_opt.formulations.finite.nlp`). The springs push along their own directions, and
-the moment on body 2 is constant in space: neither is the gradient of an energy of the pose,
-so IPOPT minimises, at each outer iteration ``k``, a conservative surrogate re-centred at the
-current iterate ``x_k``:
+:mod:`~dea_opt.formulations.finite.nlp`). An independent cross-check of the finite Newton
+(:mod:`~dea_opt.formulations.finite.newton`): :func:`solve` takes the same
+:class:`~dea_opt.formulations.finite.system.FiniteSystem` and scaled directions ``T`` (m, k) and
+returns the same :class:`~dea_opt.formulations.finite.newton.InnerResult`.
+
+The springs push along their own directions, and the moment on body 2 is constant in space:
+neither is the gradient of an energy of the pose, so IPOPT minimises, at each outer iteration
+``k``, a conservative surrogate re-centred at the current iterate ``x_k`` (m,; mm, rad):
 
     Phi_k(x) = sum_i V_i w(min(sh_i(x) / h_i, 0)) - r_k . (x - x_k)
     sh_i(x) = s_i(x) + (g_i - grad s_i(x_k)) . (x - x_k)
@@ -16,7 +20,7 @@ gradient of ``Phi_k`` at ``x_k`` is the physical residual, so ``x_k`` is the min
 when it is an equilibrium; ``x_{k+1} = argmin Phi_k`` contracts to it. Springs are constrained to
 compression as in :mod:`~dea_opt.formulations.nlp` (``form="constrained"``: their forces are the
 multipliers) or enter through ``min(eps, 0)`` (``form="reduced"``). Nothing is shared with the
-Newton of :mod:`~dea_opt.formulations.finite.newton` but the targets and the law.
+Newton but the targets and the law.
 """
 
 from __future__ import annotations
@@ -31,6 +35,8 @@ from ..nlp import _casadi, ipopt_solver
 from .geometry import FACING
 from .newton import InnerResult
 from .system import generalized
+
+__all__ = ["ROTATION_RANGE", "solve"]
 
 _TERMS = 16  # Taylor terms of the rotation's coefficients: exact to rounding below 120 degrees
 _CRUSH_MARGIN = 1e-9
@@ -242,7 +248,11 @@ def solve(
     max_time=3600.0,
     ipopt_options=None,
 ) -> InnerResult:
-    """The fixed point of the re-centred IPOPT solves (targets fixed).
+    """The fixed point of the re-centred IPOPT solves (targets fixed): body 2's equilibrium.
+
+    ``system``, ``law``, ``T`` (m, k), ``energy_scale`` (N mm) and ``x0`` (m,; mm, rad) as for
+    :func:`~dea_opt.formulations.finite.newton.solve`; the other keywords are the IPOPT options of
+    :data:`dea_opt.formulations.finite.nlp.OPTIONS` (not the re-casting ones).
 
     Stops when the scaled step of an outer iteration is below ``outer_tol`` and the physical
     residual is below ``max(outer_tol, 1e-9)`` relative to the load; or, as ``max_iterations``,

@@ -1,4 +1,7 @@
-"""Finite kinematics: which motions of body 2 change the springs' gaps at its base pose.
+"""Finite kinematics, the load check: which motions of body 2 change the springs' gaps at its base pose.
+
+Written math: ``formulations/finite.md`` ("Loads no motion can carry"). Rows (6, N) are per
+unit translation (mm) and rotation (rad) of body 2 about its reference point.
 
 The small kinematics takes a spring's force direction and the change of its gap as one row
 ``a_i = [n_i; (p_i - c) x n_i]``, so the directions the springs resist are those of the forces.
@@ -9,9 +12,11 @@ normals pass through body 2's reference point (spheres centred there) turning ab
 each target along itself, and a spring whose ray misses its target (a target facing away from
 body 1) has no gap to change. Where no free motion changes a gap, the springs' forces stay those
 of the base pose whatever body 2 does, however their lever arms could turn it: a load they do not
-already balance is not carried (``formulations/finite.md``). :func:`motion` decides it with the
-same test as the forces' resistance (:func:`~dea_opt.formulations._parts.resistance.resistance`);
-``dea_opt.solve``'s load check raises on it.
+already balance is not carried. :func:`motion` decides it with the one test of unresisted
+directions the forces' resistance uses (on a
+:class:`~dea_opt.formulations.SpringSystem` of the gap-change rows);
+:func:`~dea_opt.formulations.finite.small_system` keeps the answer, and ``dea_opt.solve``'s load
+check raises :class:`~dea_opt.errors.LoadNotSupportedError` on it.
 """
 
 from __future__ import annotations

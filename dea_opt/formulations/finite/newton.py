@@ -1,14 +1,20 @@
-"""Finite kinematics, Newton: the consistent tangent and the small-kinematics Newton's globalization.
+"""Finite kinematics, Newton: the equilibrium of body 2's free coordinates for fixed targets.
 
-Written math: ``formulations/finite.md`` ("Newton"). The iterate is body 2's free coordinates
-``x = x0 + T xi`` in the scaled variables of :func:`~dea_opt.formulations._parts.scaling.scaling`
-(``T`` from the layer at the start pose). Each iteration solves ``T^T K T dxi = -T^T r`` with
-the exact (non-symmetric) tangent ``K`` of the residual ``r``, and searches the line with the
-Wolfe conditions of the small Newton on ``phi'(a) = r(x + a T dxi) . T dxi``: the power of the
-net forces along the line, the derivative of a 1-D energy whatever the forces. Where the Newton
-direction is no descent (the tangent's skew part dominates) the symmetric part, then the
-springs' material stiffness, give one; where the compressed springs miss a direction, the safe
-step of the small Newton adds the stiffness of every spring.
+Written math: ``formulations/finite.md`` ("Newton"; "Stability" for :func:`escape_step`).
+:func:`solve` runs Newton's method on the residual of a
+:class:`~dea_opt.formulations.finite.system.FiniteSystem` and returns an :class:`InnerResult`,
+the raw answer every finite solve gives (IPOPT's too, :mod:`~dea_opt.formulations.finite.ipopt`),
+which :mod:`dea_opt.finite` re-casts and certifies at the solved pose.
+
+The iterate is body 2's free coordinates ``x = x0 + T xi`` (m,; mm and rad) in the scaled
+variables of :func:`dea_opt.formulations.scaling` (``T`` (m, k) from the layer at the start
+pose). Each iteration solves ``T^T K T dxi = -T^T r`` with the exact (non-symmetric) tangent
+``K`` of the residual ``r``, and searches the line with the Wolfe conditions of the small
+Newton on ``phi'(a) = r(x + a T dxi) . T dxi``: the power of the net forces along the line, the
+derivative of a 1-D energy whatever the forces. Where the Newton direction is no descent (the
+tangent's skew part dominates) the symmetric part, then the springs' material stiffness, give
+one; where the compressed springs miss a direction, the safe step of the small Newton adds the
+stiffness of every spring.
 """
 
 from __future__ import annotations
@@ -20,6 +26,8 @@ import numpy as np
 
 from .._parts.resistance import UNRESISTED, unresisted
 from ..newton import _line_search
+
+__all__ = ["InnerResult", "escape_step", "solve"]
 
 _WOLFE_CURVATURE = 0.9
 _WOLFE_CURVATURE_SAFE = 0.01
@@ -36,7 +44,29 @@ _MAX_TURN = 0.5 * np.pi
 
 @dataclass
 class InnerResult:
-    """What one Newton (or IPOPT) solve with fixed targets found."""
+    """What one Newton (or IPOPT) solve with fixed targets found: the result type of finite kinematics.
+
+    Attributes
+    ----------
+    u_free : ndarray (m,)
+        Body 2's free coordinates at the answer (mm, rad).
+    state : State
+        The springs at the answer (:class:`~dea_opt.formulations.finite.system.State`).
+    success : bool
+        The solver converged.
+    status : str
+        The solver's status (``"converged"``, ``"max_iterations"``, ``"unbounded"``, ``"crushed"``, ...), which
+        :func:`~dea_opt.formulations.finite.status_of` turns into a :class:`~dea_opt.status.Status`.
+    message : str
+        What happened, in words.
+    iterations : int
+        Newton iterations (IPOPT: its iterations over every outer one).
+    solve_time : float
+        Seconds.
+    info : dict
+        The solver's own records (Newton's residual history, line evaluations and the kinds of
+        direction taken; IPOPT's stresses, its multipliers, as ``info["stress"]``).
+    """
 
     u_free: np.ndarray
     state: object

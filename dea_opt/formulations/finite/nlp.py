@@ -64,14 +64,14 @@ def solve(system, law, T, energy_scale: float, *, x0=None, cold=None, start_stat
     has no extended start, and evaluates the springs in CasADi); ``options`` are :data:`OPTIONS` (the re-casting ones are ignored here). The springs'
     stresses IPOPT reports (its multipliers) are ``info["stress"]``.
     """
-    from . import ipopt as _finite_ipopt
+    from . import ipopt  # CasADi, imported when IPOPT runs
 
     x = np.zeros(len(system.free)) if x0 is None else np.asarray(x0, dtype=float)
     if not len(system.free):
         state = system.state(system.base, law)
         return InnerResult(np.zeros(0), state, True, "no_free_dofs", "every dof is fixed or prescribed")
     defaults = {option.name: option.default for option in OPTIONS}
-    return _finite_ipopt.solve(system, law, T, energy_scale, x0=x, **{k: options.get(k, defaults[k]) for k in _IPOPT})
+    return ipopt.solve(system, law, T, energy_scale, x0=x, **{k: options.get(k, defaults[k]) for k in _IPOPT})
 
 
 class Model(FiniteModel):

@@ -1,16 +1,28 @@
-"""Finite kinematics, equilibrium: the springs' forces at a pose of body 2, the residual and its tangent.
+"""Finite kinematics, equilibrium: a problem's arrays, and the forces, residual and tangent at a pose of body 2.
 
-Written math: ``formulations/finite.md`` ("Forces", "Residual", "Tangent"). Body 2's coordinates
-are ``y = (t, theta)``: the translation of its reference point and its rotation vector (``u[6:12]``
-of the 12-vector, taken exactly). Spring ``i`` pushes body 2 along its own direction ``n_i`` (body
-1, fixed) with ``f_i = S_i sigma(min(s_i / h_i, 0))`` (tension positive), ``s_i`` the gap to its
-target at the pose. On the six coordinates the net generalized force is
+Written math: ``formulations/finite.md`` ("Forces and the residual", "Tangent"). Units: mm, rad,
+N, N mm, MPa.
+
+:class:`FiniteSystem` holds the arrays of one problem: the springs on body 1 (points and unit
+normals (N, 3), areas ``S_i`` (N,) mm^2, thicknesses ``h_i`` (N,) mm), their
+:class:`~dea_opt.formulations.finite.geometry.Targets` on body 2, body 2's reference point ``c``
+(3,), its free coordinates and prescribed values, and the load (a force ``F`` (3,) N at the
+reference and a moment ``M`` (3,) N mm, constant in space). Body 2's coordinates are
+``y = (t, theta)`` (6,): the translation of its reference point and its rotation vector
+(``u[6:12]`` of the 12-vector, taken exactly). :meth:`FiniteSystem.state` gives the
+:class:`State` at ``y``: the springs' gaps, strains and forces, the residual, and on demand its
+tangent.
+
+Spring ``i`` pushes body 2 along its own direction ``n_i`` (body 1 is fixed) with
+``f_i = S_i sigma(min(s_i / h_i, 0))`` (N, tension positive), ``s_i`` the gap to its target at
+the pose. On the six coordinates the net generalized force is
 
     r(y) = [rho_F; J(theta)^T rho_M],   rho_F = sum_i f_i n_i - F,
     rho_M = sum_i f_i (p_i - c') x n_i - M,   c' = c + t
 
-(``F`` a constant force at the reference, ``M`` a constant moment), zero on the free coordinates
-at equilibrium; on the others it is minus the reaction. Its exact Jacobian is the tangent.
+zero on the free coordinates at equilibrium; on the others it is minus the reaction. Its exact
+Jacobian is the tangent (:meth:`State.tangent`), whose sum over the springs is one pass
+(:func:`stiffness_sum`: compiled where the install built ``_finite.c``, else its numpy twin).
 """
 
 from __future__ import annotations
@@ -23,13 +35,15 @@ from .geometry import (
     Gaps,
     PlaneRows,
     Targets,
-    as_rows,
+    _as_rows,
     compiled_system,
     evaluate,
     jacobian_transpose_derivative,
     plane_gaps,
     rotation_and_jacobian,
 )
+
+__all__ = ["FiniteSystem", "State", "arms_of", "generalized", "stiffness_sum"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -129,6 +143,7 @@ class FiniteSystem:
         return evaluate(self.targets, self.points, self.normals, transform)
 
     def with_load(self, force, moment) -> FiniteSystem:
+        """The same springs and body 2 under another load: ``force`` (3,) N, ``moment`` (3,) N mm."""
         return FiniteSystem(
             self.points,
             self.normals,
@@ -182,7 +197,26 @@ class FiniteSystem:
 class State:
     """The springs' gaps, strains and forces at one pose, the residual there, and (on demand) its tangent.
 
-    ``bilateral`` evaluates the law in tension too (the extended range of a cold start).
+    Made by :meth:`FiniteSystem.state`. ``bilateral`` evaluates the law in tension too (the
+    extended range of a cold start).
+
+    Attributes
+    ----------
+    y : ndarray (6,)
+        Body 2's coordinates ``(t, theta)`` (mm, rad).
+    J : ndarray (3, 3)
+        ``J(theta)``, the left Jacobian of the rotation.
+    centre : ndarray (3,)
+        ``c' = c + t``, body 2's reference point at the pose (mm).
+    gaps : Gaps
+        Each spring's gap to its target at the pose.
+    eps, sigma : ndarray (N,)
+        Strains ``s_i / h_i`` and stresses (MPa; zero in tension unless ``bilateral``).
+    residual6 : ndarray (6,)
+        ``r(y)`` on all six coordinates (N, N mm); :meth:`residual` is its free part.
+    load6, internal6 : ndarray (6,)
+        The load on the six coordinates and the springs' part of the residual
+        (``residual6 = internal6 - load6``).
     """
 
     def __init__(self, system: FiniteSystem, y, law, bilateral: bool = False):
@@ -291,7 +325,7 @@ def stiffness_sum(w, s, pT, nT, mT, arms, compiled: bool | None = None) -> np.nd
     kernel = compiled_system() if compiled is None or compiled else None
     if kernel is not None:
         G = np.empty((6, 6))
-        kernel.tangent_sum(len(w), *(as_rows(a) for a in (w, s, pT, nT, mT, arms)), G)
+        kernel.tangent_sum(len(w), *(_as_rows(a) for a in (w, s, pT, nT, mT, arms)), G)
         return G
     gap = np.where(w != 0.0, s, 0.0)
     hit = pT + gap * nT
