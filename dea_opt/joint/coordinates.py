@@ -31,9 +31,19 @@ def cross(a, b) -> np.ndarray:
     """``a x b`` over the last axis (3), written out: the products ``np.cross`` makes, without its
     cost on a few vectors (a solve takes tens of thousands of them)."""
     a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.shape == (3,) and b.shape == (3,):  # two vectors: in floats, the same products
+        x0, x1, x2 = a.tolist()
+        y0, y1, y2 = b.tolist()
+        return np.array([x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0])
     a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
     b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
     return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _cross_columns(w, p) -> np.ndarray:
+    """``w_j x p`` for each column ``w_j`` of ``w`` (3, k) and a vector ``p`` (3,), as columns (3, k)."""
+    p0, p1, p2 = np.asarray(p, dtype=float).tolist()
+    return np.array([w[1] * p2 - w[2] * p1, w[2] * p0 - w[0] * p2, w[0] * p1 - w[1] * p0])
 
 
 def _axis_rotation(axis, angle) -> np.ndarray:
@@ -190,11 +200,11 @@ class Coordinates:
         dp[:, :3] = (self.slopes[:3, None] * self.translation_axes).T  # type: ignore[index]
         turned = np.stack([self.rotation_axes[0], R1 @ self.rotation_axes[1], R1 @ R2 @ self.rotation_axes[2]], axis=1)
         w_local[:, 3:] = turned * self.slopes[3:]  # type: ignore[index]
-        v_local = dp - cross(w_local.T, p).T
+        v_local = dp - _cross_columns(w_local, p)
         w = sign * G[:3, :3] @ w_local
-        v = sign * (G[:3, :3] @ v_local) - cross(w.T, G[:3, 3]).T
+        v = sign * (G[:3, :3] @ v_local) - _cross_columns(w, G[:3, 3])
         B = np.empty((6, 6))
-        B[:3] = cross(w.T, point).T + v
+        B[:3] = _cross_columns(w, point) + v
         B[3:] = w
         return B
 

@@ -182,7 +182,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
     measure = _Measure(config)
     K, last = tangent0, None
     # the residual where the springs last changed, and the steps by then
-    changed, changed_at, follows, tangents = None, 0, 0, 0
+    changed, changed_at, follows, tangents, casts = None, 0, 0, 0, 0
     stale = False  # the kept tangent is a previous answer's or the springs' before a cast: made again
     while True:
         residual = measure(config)
@@ -214,6 +214,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
             if new is None:
                 status, message = Status.CONVERGED, "the forces balance at the exact pose"
                 break
+            casts += 1
             config = Configuration(joint, config.y, new)
             if measure.exact(config) <= own["gtol"]:
                 status, message = Status.CONVERGED, "the forces balance at the exact pose, with the springs cast there"
@@ -281,6 +282,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
     info = {
         "steps": steps,
         "recasts": recasts,
+        "casts": casts,
         "follows": follows,
         "tangents": tangents,
         "line_evaluations": evaluations,
