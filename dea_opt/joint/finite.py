@@ -238,12 +238,12 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
             # the tangent is kept, with Broyden's updates, while each step cuts the residual by 4 or more,
             # else made again
             fresh = K is None or stale or (last is not None and residual > _CHORD * last)
-            K = tangent(joint, config.states, x) if fresh else K
+            K = tangent(joint, config.states, x, config, central=False) if fresh else K
             tangents += fresh
             stale = False
             dx = _newton_step(config, K)
             if dx is None and not fresh:
-                K = tangent(joint, config.states, x)
+                K = tangent(joint, config.states, x, config, central=False)
                 tangents += 1
                 dx = _newton_step(config, K)
         last = residual
@@ -454,19 +454,26 @@ def exact_residual(joint, states, x) -> np.ndarray:
     return Configuration(joint, _coordinates(joint, x), states).net_force()
 
 
-def tangent(joint, states, x) -> np.ndarray:
-    """``dr/dx`` of :func:`exact_residual` on the free coordinates by central differences (1e-6 mm
-    of the elements' motion: rotations over each body's radius), shape (m, m)."""
+def tangent(joint, states, x, at: Configuration | None = None, central: bool = True) -> np.ndarray:
+    """``dr/dx`` of :func:`exact_residual` on the free coordinates by differences (1e-6 mm of the
+    elements' motion: rotations over each body's radius), shape (m, m): central, or forward from
+    ``at`` (the configuration at ``x``, whose forces are at hand: half the evaluations, an error of
+    the order of the step, which a Newton step does not see)."""
     m = len(joint.free_index)
     lengths = joint.lengths
     K = np.zeros((m, m))
     # a step of 1e-6 mm moves no spring whose gap is above 1e-3 mm into contact: only the others count
-    states = Configuration(joint, _coordinates(joint, x), states).near(1e-3)
+    here = Configuration(joint, _coordinates(joint, x), states) if at is None else at
+    near = here.near(1e-3)
+    base = None if central else here.net_force()
     for j, (_, dof) in enumerate(joint.free_index):
         h = 1e-6 if dof[0] == "u" else 1e-6 / lengths[j]
         step = np.zeros(m)
         step[j] = h
-        K[:, j] = (exact_residual(joint, states, x + step) - exact_residual(joint, states, x - step)) / (2 * h)
+        if base is None:
+            K[:, j] = (exact_residual(joint, near, x + step) - exact_residual(joint, near, x - step)) / (2 * h)
+        else:
+            K[:, j] = (exact_residual(joint, near, x + step) - base) / h
     return K
 
 
@@ -481,7 +488,7 @@ def stability(config: Configuration) -> tuple:
         return 0.0, "", None
     x = np.array([config.y[b][DOFS.index(d)] for b, d in free])
     lengths = joint.lengths
-    K = tangent(joint, config.states, x)
+    K = tangent(joint, config.states, x, config)
     scaled = K / lengths[:, None] / lengths[None, :]
     if not np.isfinite(scaled).all():
         return float("nan"), "", None
