@@ -20,11 +20,12 @@ from types import MappingProxyType
 import numpy as np
 
 from ..formulations._parts.resistance import modulus_scale
-from ..formulations.finite.geometry import evaluate
+from ..formulations.finite.geometry import evaluate, plane_gaps
 from ..formulations.joint import ElementGroup, JointSystem, TensionLaw
 from ..kinematics import DOFS, normal_operator
 from ..layer import SpringLayer
 from ..problem import Body
+from .coordinates import _rigid_inverse, cross
 from .model import Joint, _unloaded
 from .rows import line_operator
 from .states import ContactState, WorldView
@@ -172,24 +173,40 @@ class Configuration:
         """Contact ``i``'s body 2 own frame in body 1's start frame: ``T_1^-1 T_2 frame``."""
         c = self.joint.contacts[i]
         frame = np.asarray(self.states[i].targets.frame)
-        return np.linalg.inv(self.poses[c.body1]) @ self.poses[c.body2] @ frame
+        return _rigid_inverse(self.poses[c.body1]) @ self.poses[c.body2] @ frame
 
     # --- the springs at the pose -------------------------------------------------------------
     @cached_property
     def gaps(self) -> list:
         """Each contact's :class:`~dea_opt.formulations.finite.geometry.Gaps` at the pose."""
         return [
-            evaluate(s.targets, s.layer.points, s.layer.normals, self.relative(i)) for i, s in enumerate(self.states)
+            evaluate(s.targets, s.layer.points, s.layer.normals, self.relative(i))
+            if s.plane_rows is None
+            else plane_gaps(s.plane_rows, self.relative(i))
+            for i, s in enumerate(self.states)
         ]
+
+    @cached_property
+    def spring_arrays(self) -> list[tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per contact ``(points, normals, gap)``: its springs moved with body 1 into the world (mm) and
+        their exact gaps (:data:`OPEN` where a ray misses its target), the arrays of :attr:`layers`
+        without making (and checking) a layer: the solve's arrays read these."""
+        out = []
+        for c, s, gaps in zip(self.joint.contacts, self.states, self.gaps):
+            T = self.poses[c.body1]
+            R = T[:3, :3]
+            out.append(
+                (s.layer.points @ R.T + T[:3, 3], s.layer.normals @ R.T, np.where(np.isfinite(gaps.s), gaps.s, OPEN))
+            )
+        return out
 
     @cached_property
     def layers(self) -> list[SpringLayer]:
         """Each contact's springs at the pose, in the world: moved with body 1, their gaps the exact
         ones (:data:`OPEN` where a ray misses its target)."""
         out = []
-        for c, s, gaps in zip(self.joint.contacts, self.states, self.gaps):
+        for c, s, (points, normals, gap) in zip(self.joint.contacts, self.states, self.spring_arrays):
             T = self.poses[c.body1]
-            gap = np.where(np.isfinite(gaps.s), gaps.s, OPEN)
             layer = s.layer
             surface = layer.surface
             if surface is not None:
@@ -197,8 +214,8 @@ class Configuration:
                 surface = (np.asarray(vertices) @ T[:3, :3].T + T[:3, 3], faces)
             out.append(
                 SpringLayer(
-                    layer.points @ T[:3, :3].T + T[:3, 3],
-                    layer.normals @ T[:3, :3].T,
+                    points,
+                    normals,
                     layer.areas,
                     layer.thickness,
                     gap,
@@ -242,7 +259,7 @@ class Configuration:
         """The springs and bushings at the pose (exact lengths and relative poses), their rows over
         the coordinates' rates."""
 
-        return tuple(replace(g, G=g.G @ self._pair_rates(g.body1, g.body2)) for g in self._world_elastic)
+        return tuple(replace(g, G=g.G @ self._pair_rates(g.body1, g.body2)) for g in self.world_elastic)
 
     # --- the arrays of the solve -------------------------------------------------------------
     def _free(self, body1: str, body2: str) -> tuple[list, np.ndarray]:
@@ -255,8 +272,8 @@ class Configuration:
     def contact_rows(self) -> list[np.ndarray]:
         """Each layer's rows ``n . B`` over its two bodies' coordinate rates (N, 12)."""
         out = []
-        for c, layer in zip(self.joint.contacts, self.layers):
-            G = normal_operator(layer.points, layer.normals, self.references[c.body1], self.references[c.body2])
+        for c, (points, normals, _) in zip(self.joint.contacts, self.spring_arrays):
+            G = normal_operator(points, normals, self.references[c.body1], self.references[c.body2])
             G = np.ascontiguousarray(G)
             G[:, :6] = G[:, :6] @ self.rates[c.body1]
             G[:, 6:] = G[:, 6:] @ self.rates[c.body2]
@@ -275,71 +292,15 @@ class Configuration:
         return self.__dict__["_forces_cache"]
 
     def _forces(self) -> tuple[np.ndarray, np.ndarray]:
-        """``(q, load)``: the generalized force on the free coordinates at the pose (N, N mm): every element's
-        exact force there takes from the bodies and their loads, both projected by each body's rates
-        (``B^T``) on the free coordinates (N, N mm). Computed from the elements that carry load alone
-        (compressed springs, taut bundles), without the arrays of a solve: the tangent's differences
-        call it."""
-        from ..kinematics import normal_operator
+        """``(q, load)`` on the free coordinates at the pose (:func:`~dea_opt.joint.exact.exact_forces`)."""
+        from .exact import exact_forces
 
-        taken = {name: np.zeros(6) for name, b in self.joint.bodies.items() if b.free}
-        if not taken:
-            return np.zeros(0), np.zeros(0)
-
-        def add(body1, body2, q) -> None:
-            if body1 in taken:
-                taken[body1] += q[:6]
-            if body2 in taken:
-                taken[body2] += q[6:]
-
-        with np.errstate(invalid="ignore", over="ignore"):
-            for c, state, gaps in zip(self.joint.contacts, self.states, self.gaps):
-                active = np.flatnonzero(gaps.s < 0)  # an open spring (or a missed target) carries nothing
-                if not active.size or (c.body1 not in taken and c.body2 not in taken):
-                    continue
-                layer = state.layer
-                h = np.broadcast_to(layer.thickness, (len(layer),))[active]
-                f = layer.areas[active] * c.law.stress(gaps.s[active] / h)
-                T = self.poses[c.body1]
-                points = layer.points[active] @ T[:3, :3].T + T[:3, 3]
-                normals = layer.normals[active] @ T[:3, :3].T
-                add(
-                    c.body1,
-                    c.body2,
-                    f @ normal_operator(points, normals, self.references[c.body1], self.references[c.body2]),
-                )
-            p1, p2 = self.insertions
-            for g, (_, _, k, law) in zip(self.joint.ligament_groups, self.joint.ligament_arrays):
-                if g.body1 not in taken and g.body2 not in taken:
-                    continue
-                idx = np.asarray(g.members)
-                d = p2[idx] - p1[idx]
-                length = np.linalg.norm(d, axis=1)
-                f = k * law.force(length / g.slack - 1.0)
-                taut = f > 0
-                if taut.any():
-                    add(
-                        g.body1,
-                        g.body2,
-                        f[taut]
-                        @ line_operator(
-                            p1[idx][taut], p2[idx][taut], self.references[g.body1], self.references[g.body2]
-                        ),
-                    )
-            for e in self._world_elastic:
-                add(e.body1, e.body2, (e.k * e.e0) @ e.G)
-        out, load = np.zeros(len(self.joint.free_index)), np.zeros(len(self.joint.free_index))
-        for name, q in taken.items():
-            body = self.joint.bodies[name]
-            cols = [DOFS.index(d) for d in body.free]
-            B = self.rates[name]
-            with np.errstate(invalid="ignore", over="ignore"):  # a law past its domain: inf, which the solve sees
-                out[self.joint.free_of(name)] = (B.T @ q)[cols]
-            load[self.joint.free_of(name)] = (B.T @ self.world_loads[name])[cols]
-        return out, load
+        return exact_forces(self)
 
     @cached_property
-    def _world_elastic(self) -> tuple:
+    def world_elastic(self) -> tuple:
+        """The springs and bushings at the pose (exact lengths and relative poses), their rows over
+        the bodies' 12 dofs (:func:`~dea_opt.joint.elastic.elastic_groups`)."""
         from .elastic import elastic_groups
 
         return elastic_groups(self.joint, self.poses, self.references)
@@ -392,7 +353,8 @@ class Configuration:
     @cached_property
     def _systems(self) -> tuple[JointSystem, JointSystem]:
         groups = []
-        for c, G, layer in zip(self.joint.contacts, self.contact_rows, self.layers):
+        for c, G, state, (_, _, gap) in zip(self.joint.contacts, self.contact_rows, self.states, self.spring_arrays):
+            layer = state.layer
             cols, dofs = self._free(c.body1, c.body2)
             AT = np.ascontiguousarray(G[:, cols].T / layer.thickness)
             volume = layer.areas * layer.thickness
@@ -404,7 +366,7 @@ class Configuration:
                     c.law,
                     dofs,
                     AT,
-                    layer.gap / layer.thickness,
+                    gap / layer.thickness,
                     volume,
                     layer.areas,
                     H,
@@ -478,16 +440,16 @@ class Configuration:
     def _sideways(self, name, body1, body2, p1, p2, cols, dofs, tension) -> ElementGroup:
         length = np.linalg.norm(p2 - p1, axis=1)
         e = (p2 - p1) / length[:, None]
-        side1 = np.cross(e, np.where(np.abs(e[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
+        side1 = cross(e, np.where(np.abs(e[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]]))
         side1 /= np.linalg.norm(side1, axis=1)[:, None]
-        side2 = np.cross(e, side1)
+        side2 = cross(e, side1)
         B = self._pair_rates(body1, body2)
         keep = tension > 0
         rows, weights = [], []
         for side in (side1, side2):
             G = line_operator(p1, p1 + side, self.references[body1], self.references[body2])
             # the row of the sideways motion of both ends: body 2's end at P2, not at P1 + side
-            G[:, 9:12] = np.cross(p2 - self.references[body2], side)
+            G[:, 9:12] = cross(p2 - self.references[body2], side)
             rows.append((G @ B)[keep][:, cols])
             weights.append((tension / length)[keep])
         AT = np.ascontiguousarray(np.vstack(rows).T)

@@ -27,6 +27,25 @@ __all__ = ["LOAD_FRAMES", "BodyLoad", "Coordinates", "rotation_vector_motion"]
 LOAD_FRAMES = ("ground", "body")
 
 
+def cross(a, b) -> np.ndarray:
+    """``a x b`` over the last axis (3), written out: the products ``np.cross`` makes, without its
+    cost on a few vectors (a solve takes tens of thousands of them)."""
+    a, b = np.asarray(a, dtype=float), np.asarray(b, dtype=float)
+    if a.shape == (3,) and b.shape == (3,):  # two vectors: in floats, the same products
+        x0, x1, x2 = a.tolist()
+        y0, y1, y2 = b.tolist()
+        return np.array([x1 * y2 - x2 * y1, x2 * y0 - x0 * y2, x0 * y1 - x1 * y0])
+    a0, a1, a2 = a[..., 0], a[..., 1], a[..., 2]
+    b0, b1, b2 = b[..., 0], b[..., 1], b[..., 2]
+    return np.stack([a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0], axis=-1)
+
+
+def _cross_columns(w, p) -> np.ndarray:
+    """``w_j x p`` for each column ``w_j`` of ``w`` (3, k) and a vector ``p`` (3,), as columns (3, k)."""
+    p0, p1, p2 = np.asarray(p, dtype=float).tolist()
+    return np.array([w[1] * p2 - w[2] * p1, w[2] * p0 - w[0] * p2, w[0] * p1 - w[1] * p0])
+
+
 def _axis_rotation(axis, angle) -> np.ndarray:
     return rotation(np.asarray(axis) * angle)
 
@@ -181,11 +200,11 @@ class Coordinates:
         dp[:, :3] = (self.slopes[:3, None] * self.translation_axes).T  # type: ignore[index]
         turned = np.stack([self.rotation_axes[0], R1 @ self.rotation_axes[1], R1 @ R2 @ self.rotation_axes[2]], axis=1)
         w_local[:, 3:] = turned * self.slopes[3:]  # type: ignore[index]
-        v_local = dp - np.cross(w_local.T, p).T
+        v_local = dp - _cross_columns(w_local, p)
         w = sign * G[:3, :3] @ w_local
-        v = sign * (G[:3, :3] @ v_local) - np.cross(w.T, G[:3, 3]).T
+        v = sign * (G[:3, :3] @ v_local) - _cross_columns(w, G[:3, 3])
         B = np.empty((6, 6))
-        B[:3] = np.cross(w.T, np.asarray(point, dtype=float)).T + v
+        B[:3] = _cross_columns(w, point) + v
         B[3:] = w
         return B
 
@@ -242,6 +261,8 @@ def rotation_vector_motion(u6, reference) -> tuple[np.ndarray, np.ndarray]:
     rotation vector ``theta`` (``x' = c + t + R(theta) (x - c)``), and ``diag(I, J(theta))``."""
     u6 = np.asarray(u6, dtype=float)
     B = np.eye(6)
+    if not u6.any():  # the start pose (a fixed body): both are exactly the identity
+        return np.eye(4), B
     B[3:, 3:] = left_jacobian(u6[3:])
     return pose_matrix(u6, reference), B
 
@@ -296,4 +317,4 @@ class BodyLoad:
             point, c = R @ point + t, R @ c + t
             if self.frame == "body":
                 F, M = R @ F, R @ M
-        return np.concatenate([F, M + np.cross(point - c, F)])
+        return np.concatenate([F, M + cross(point - c, F)])

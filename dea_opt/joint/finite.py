@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import replace
 
 import numpy as np
 
@@ -34,6 +33,7 @@ from .certificate import certify_joint
 from .checks import check_joint_unresisted, finish, start_vector
 from .configuration import Configuration
 from .elastic import elastic_results
+from .recasting import follow, recast
 from .results import JointSolution, body_results, layer_solutions, ligament_results
 from .rows import line_operator
 from .states import ContactState, initial_states
@@ -60,6 +60,10 @@ _OWN = {o.name for o in OPTIONS}
 _MAX_TURN = 0.5
 #: A Newton step that cut the residual by less than this factor makes the next one take a fresh tangent.
 _CHORD = 0.25
+#: Once a step cut the residual below this fraction of where the springs last changed, the springs
+#: near contact follow body 2 to the faces under them (:func:`~dea_opt.joint.recasting.follow`)
+#: before the next step.
+_FOLLOW = 1e-2
 
 
 def solve_finite_joint(joint, method: str, *, certificate_tol: float, strict: bool, **options) -> JointSolution:
@@ -177,6 +181,9 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
     radius = joint.extent
     measure = _Measure(config)
     K, last = tangent0, None
+    # the residual where the springs last changed, and the steps by then
+    changed, changed_at, follows, tangents, casts = None, 0, 0, 0, 0
+    stale = False  # the kept tangent is a previous answer's or the springs' before a cast: made again
     while True:
         residual = measure(config)
         if residual <= own["gtol"]:
@@ -185,9 +192,20 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
         if not math.isfinite(residual):
             status, message = Status.NON_FINITE, "the forces at the pose are not finite"
             break
+        if changed is None:
+            changed, changed_at = residual, steps
+        if own["recast"] and own["gtol"] < residual <= _FOLLOW * changed and steps > changed_at:
+            # on the way to equilibrium the springs near contact take the faces under them: the next
+            # steps see the surface as it is there, and the cast where the forces balance changes little
+            new = follow(config)
+            if new is not None:
+                follows += 1
+                config = Configuration(joint, config.y, new)
+                changed, last = None, None  # the tangent is kept (a few springs' planes changed)
+                continue
         if residual <= own["gtol"]:
             try:
-                new = _recast(config) if own["recast"] else None
+                new = recast(config) if own["recast"] else None
             except NoSpringsError as exc:
                 # the springs left their targets entirely: the solve ends failed, the springs as they were
                 status = Status.MAX_ITERATIONS
@@ -196,6 +214,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
             if new is None:
                 status, message = Status.CONVERGED, "the forces balance at the exact pose"
                 break
+            casts += 1
             config = Configuration(joint, config.y, new)
             if measure.exact(config) <= own["gtol"]:
                 status, message = Status.CONVERGED, "the forces balance at the exact pose, with the springs cast there"
@@ -209,7 +228,7 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
                 )
                 break
             recasts += 1
-            last = None
+            changed, last, stale = None, None, True
             continue
         if steps >= own["max_steps"]:
             break
@@ -218,11 +237,14 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
         if name == "newton":
             # the tangent is kept, with Broyden's updates, while each step cuts the residual by 4 or more,
             # else made again
-            fresh = K is None or last is None or residual > _CHORD * last
-            K = tangent(joint, config.states, x) if fresh else K
+            fresh = K is None or stale or (last is not None and residual > _CHORD * last)
+            K = tangent(joint, config.states, x, config, central=False) if fresh else K
+            tangents += fresh
+            stale = False
             dx = _newton_step(config, K)
             if dx is None and not fresh:
-                K = tangent(joint, config.states, x)
+                K = tangent(joint, config.states, x, config, central=False)
+                tangents += 1
                 dx = _newton_step(config, K)
         last = residual
         if dx is None:
@@ -260,6 +282,9 @@ def _solve(joint, name, method, tol, own, inner, x0, states=None, tangent0=None)
     info = {
         "steps": steps,
         "recasts": recasts,
+        "casts": casts,
+        "follows": follows,
+        "tangents": tangents,
         "line_evaluations": evaluations,
         "tangent_steps": newton_steps,
         "residual_history": history,
@@ -341,26 +366,6 @@ def _along(joint, config: Configuration, x, dx, turn: float) -> tuple:
             alpha = 0.5 * (lo + hi)
     final = lo if lo > 0 else alpha
     return final, used, at.get(final)
-
-
-def _recast(config: Configuration) -> tuple | None:
-    """The contacts' springs cast again at the pose where they came from a cast, or None where no
-    contact was cast from meshes."""
-    from ..mesh import recast
-
-    states, any_cast = [], False
-    for i, state in enumerate(config.states):
-        if state.cast is None:
-            states.append(state)
-            continue
-        any_cast = True
-        again = recast(state.cast, config.relative(i))
-        layer = again.cast.layer
-        from ..formulations.finite import Targets
-
-        targets = Targets.from_layer(layer, pose=state.targets.frame)
-        states.append(replace(state, layer=layer, targets=targets, dropped=again.dropped))
-    return tuple(states) if any_cast else None
 
 
 def _world_forces(config: Configuration, layer_forces, ligament_forces, elastic_forces=()) -> dict:
@@ -449,19 +454,26 @@ def exact_residual(joint, states, x) -> np.ndarray:
     return Configuration(joint, _coordinates(joint, x), states).net_force()
 
 
-def tangent(joint, states, x) -> np.ndarray:
-    """``dr/dx`` of :func:`exact_residual` on the free coordinates by central differences (1e-6 mm
-    of the elements' motion: rotations over each body's radius), shape (m, m)."""
+def tangent(joint, states, x, at: Configuration | None = None, central: bool = True) -> np.ndarray:
+    """``dr/dx`` of :func:`exact_residual` on the free coordinates by differences (1e-6 mm of the
+    elements' motion: rotations over each body's radius), shape (m, m): central, or forward from
+    ``at`` (the configuration at ``x``, whose forces are at hand: half the evaluations, an error of
+    the order of the step, which a Newton step does not see)."""
     m = len(joint.free_index)
     lengths = joint.lengths
     K = np.zeros((m, m))
     # a step of 1e-6 mm moves no spring whose gap is above 1e-3 mm into contact: only the others count
-    states = Configuration(joint, _coordinates(joint, x), states).near(1e-3)
+    here = Configuration(joint, _coordinates(joint, x), states) if at is None else at
+    near = here.near(1e-3)
+    base = None if central else here.net_force()
     for j, (_, dof) in enumerate(joint.free_index):
         h = 1e-6 if dof[0] == "u" else 1e-6 / lengths[j]
         step = np.zeros(m)
         step[j] = h
-        K[:, j] = (exact_residual(joint, states, x + step) - exact_residual(joint, states, x - step)) / (2 * h)
+        if base is None:
+            K[:, j] = (exact_residual(joint, near, x + step) - exact_residual(joint, near, x - step)) / (2 * h)
+        else:
+            K[:, j] = (exact_residual(joint, near, x + step) - base) / h
     return K
 
 
@@ -476,7 +488,7 @@ def stability(config: Configuration) -> tuple:
         return 0.0, "", None
     x = np.array([config.y[b][DOFS.index(d)] for b, d in free])
     lengths = joint.lengths
-    K = tangent(joint, config.states, x)
+    K = tangent(joint, config.states, x, config)
     scaled = K / lengths[:, None] / lengths[None, :]
     if not np.isfinite(scaled).all():
         return float("nan"), "", None

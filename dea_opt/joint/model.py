@@ -155,7 +155,19 @@ class Joint:
 
     def free_of(self, name: str) -> np.ndarray:
         """Positions in the free vector of body ``name``'s free dofs (in :data:`DOFS` order)."""
-        return np.array([self.free_index[(name, d)] for d in DOFS if (name, d) in self.free_index], dtype=int)
+        return self._free_positions[name]
+
+    @cached_property
+    def _free_positions(self) -> dict:
+        return {
+            name: np.array([self.free_index[(name, d)] for d in DOFS if (name, d) in self.free_index], dtype=int)
+            for name in self.bodies
+        }
+
+    @cached_property
+    def free_columns(self) -> dict:
+        """``{body: [column]}``: each body's free dofs as columns of its 6 (in :data:`DOFS` order)."""
+        return {name: [DOFS.index(d) for d in DOFS if d in b.free] for name, b in self.bodies.items()}
 
     def prescribed(self, name: str) -> np.ndarray:
         """Body ``name``'s 6-vector with its prescribed values and zeros elsewhere (the start values

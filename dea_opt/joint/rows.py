@@ -13,6 +13,8 @@ from functools import cached_property
 
 import numpy as np
 
+from .coordinates import cross
+
 __all__ = ["LayerBasis", "LigamentGroup", "layer_basis", "line_operator"]
 
 
@@ -25,9 +27,9 @@ def line_operator(point1, point2, reference1, reference2) -> np.ndarray:
     e = e / np.linalg.norm(e, axis=1)[:, None]
     rows = np.empty((p1.shape[0], 12))
     rows[:, 0:3] = -e
-    rows[:, 3:6] = -np.cross(p1 - np.asarray(reference1, dtype=float), e)
+    rows[:, 3:6] = -cross(p1 - np.asarray(reference1, dtype=float), e)
     rows[:, 6:9] = e
-    rows[:, 9:12] = np.cross(p2 - np.asarray(reference2, dtype=float), e)
+    rows[:, 9:12] = cross(p2 - np.asarray(reference2, dtype=float), e)
     return rows
 
 
@@ -104,3 +106,8 @@ class LigamentGroup:
     G: np.ndarray  # (N, 12) rows dL/du of body1's and body2's 6-vectors
     slack: np.ndarray  # (N,) L0, mm
     start: np.ndarray  # (N,) L at the start pose, mm
+
+    @cached_property
+    def index(self) -> np.ndarray:
+        """:attr:`members` as an index array (into arrays over all of a joint's bundles)."""
+        return np.asarray(self.members, dtype=np.int64)

@@ -9,6 +9,7 @@ Written math: ``formulations/joint.md`` ("Finite kinematics").
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from types import MappingProxyType
 
 import numpy as np
@@ -32,6 +33,17 @@ class ContactState:
     targets: object
     cast: object = None
     dropped: int | None = None
+
+    @cached_property
+    def plane_rows(self):
+        """The springs and their targets as :class:`~dea_opt.formulations.finite.geometry.PlaneRows`
+        where every target is a plane (else None): made once, read at every pose of a solve."""
+        from ..formulations.finite.geometry import PlaneRows
+
+        t = self.targets
+        if not bool(np.all(t.is_plane)):
+            return None
+        return PlaneRows(t, self.layer.points, self.layer.normals)
 
 
 def initial_states(joint) -> list[ContactState]:

@@ -162,3 +162,31 @@ def test_the_three_body_tka_solves_certified_with_its_ligament_table(tmp_path):
         )
     for name in ("medial", "lateral", "patellofemoral"):
         assert (tmp_path / f"{name}.vtu").stat().st_size > 0 and (tmp_path / f"{name}.json").stat().st_size > 0
+
+
+def test_the_springs_that_follow_the_femur_only_steer_the_steps_the_answer_s_are_a_fresh_cast(knee):
+    """On the way the springs near contact follow the femur to the faces under them without a cast;
+    the answer's springs are a cast at the solved pose all the same: each spring's gap is the one a
+    cast of the two meshes made there from scratch gives it, every spring that such a cast finds
+    compressed is one of them, and the forces balance. A start moved by 1e-12 comes to the same
+    answer (no result hinges on rounding)."""
+    from dea_opt.mesh import cast_springs
+
+    s = d.solve(knee)
+    assert s.success and s.info["follows"] >= 1 and s.info["casts"] >= 1
+    assert_balanced_at_pose(s, 1e-9)
+    cast = knee.contacts[0].targets
+    fresh = cast_springs(cast.mesh1, cast.mesh2, pose=s.bodies["femur"].pose, max_gap=2.0, max_overlap=2.0).layer
+    layer = s.contacts[0].problem.layer
+    at = {int(f): i for i, f in enumerate(layer.source_face)}
+    common = [(at[int(f)], j) for j, f in enumerate(fresh.source_face) if int(f) in at]
+    assert len(common) > 0.9 * len(fresh)
+    mine, theirs = np.array(common).T
+    np.testing.assert_allclose(layer.gap[mine], fresh.gap[theirs], rtol=0, atol=1e-9)
+    compressed = {int(f) for f, g in zip(fresh.source_face, fresh.gap) if g < 0}
+    assert compressed and compressed <= set(at)
+    moved = d.solve(knee, x0=np.full(len(knee.free_index), 1e-12))
+    assert moved.success
+    np.testing.assert_allclose(moved.bodies["femur"].u, s.bodies["femur"].u, rtol=0, atol=1e-9)
+    force = np.linalg.norm(s.contacts[0].contact_force)
+    np.testing.assert_allclose(moved.contacts[0].contact_force, s.contacts[0].contact_force, rtol=0, atol=1e-8 * force)

@@ -18,27 +18,12 @@ from ..._checks.threads import single_threaded_blas
 from ..joint import JointResult, JointSystem, assemble, internal_force, joint_scaling
 from ..newton import _WOLFE_CURVATURE, _WOLFE_CURVATURE_SAFE, NATIVE_STATUS, _line_search, _solve_step
 from .crush import CRUSH_WINDOW
-from .options import Option, validate
+from .options import Option, newton_tolerances, validate
 from .resistance import require_finite
 
 #: Newton's options for a joint (the two-body Newton's, checked the same way).
 OPTIONS = (
-    Option(
-        "xtol",
-        float,
-        1e-12,
-        "relative step that counts as converged once the active sets are unchanged",
-        range=(0, 1),
-        tolerance=True,
-    ),
-    Option(
-        "gtol",
-        float,
-        1e-12,
-        "equilibrium residual in the scaled variables that counts as converged",
-        range=(0, 1),
-        tolerance=True,
-    ),
+    *newton_tolerances("the active sets are"),
     Option("max_iter", int, 100, "iteration limit", range=(1, None)),
     Option("extended_start", bool, True, "every element two-sided in the first iteration of a cold start"),
 )

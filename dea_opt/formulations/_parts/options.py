@@ -15,7 +15,7 @@ from typing import Any
 
 from ...errors import InputError
 
-__all__ = ["Capabilities", "Option", "Variant", "validate"]
+__all__ = ["Capabilities", "Option", "Variant", "newton_tolerances", "validate"]
 
 
 @dataclass(frozen=True)
@@ -153,6 +153,30 @@ class Capabilities:
     def takes(self, law) -> bool:
         """Whether it solves problems with ``law``."""
         return self.laws == "any" or bool(law.is_linear)
+
+
+def newton_tolerances(settled: str) -> tuple[Option, Option]:
+    """``(xtol, gtol)`` of a Newton that re-solves at a pose (the joint's, the finite formulation's):
+    the relative step that counts as converged once ``settled`` (``"the contact set is"``) is
+    unchanged, and the equilibrium residual in the scaled variables; both 1e-12."""
+    return (
+        Option(
+            "xtol",
+            float,
+            1e-12,
+            f"relative step that counts as converged once {settled} unchanged",
+            range=(0, 1),
+            tolerance=True,
+        ),
+        Option(
+            "gtol",
+            float,
+            1e-12,
+            "equilibrium residual in the scaled variables that counts as converged",
+            range=(0, 1),
+            tolerance=True,
+        ),
+    )
 
 
 def validate(method: str, options: tuple, given: dict, extra: str | None = None) -> dict[str, Any]:

@@ -40,7 +40,7 @@ from __future__ import annotations
 import numpy as np
 
 from ...status import CERTIFIABLE, Status
-from .._parts.options import Capabilities, Option
+from .._parts.options import Capabilities, Option, newton_tolerances
 from .._parts.resistance import modulus_scale, resistance
 from .._parts.system import SpringSystem, start_vector
 from .geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
@@ -98,22 +98,7 @@ RECAST_OPTIONS = (
 SHARED = tuple(option.name for option in RECAST_OPTIONS)
 #: The options of :func:`solve` with ``method="finite"``.
 OPTIONS = (
-    Option(
-        "xtol",
-        float,
-        1e-12,
-        "relative step that counts as converged once the contact set is unchanged",
-        range=(0, 1),
-        tolerance=True,
-    ),
-    Option(
-        "gtol",
-        float,
-        1e-12,
-        "equilibrium residual in the scaled variables that counts as converged",
-        range=(0, 1),
-        tolerance=True,
-    ),
+    *newton_tolerances("the contact set is"),
     Option("max_iter", int, 100, "Newton iterations per solve, at most", range=(1, None)),
     Option(
         "extended_start",
