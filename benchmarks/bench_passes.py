@@ -80,7 +80,7 @@ def measure(problem: str = "box", n: int = 1_000_000, repeats: int = 5) -> dict:
 
     from bench_core import make_problem
     from common import _cpu_model
-    from dea_opt.formulations.energy import single_threaded_blas
+    from dea_opt._checks.threads import single_threaded_blas
 
     import dea_opt as dea
 

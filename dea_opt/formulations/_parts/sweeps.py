@@ -97,6 +97,23 @@ def state(AT, V, eps, law, *, tangent: bool = True, extended: bool = False) -> S
     return State(internal, compression, K, bilateral, K_all)
 
 
+def scaled(raw: State, T, energy_scale: float) -> State:
+    """``raw``, summed over the unscaled ``A^T`` and volumes, in the scaled variables ``xi`` of
+    :class:`~dea_opt.formulations._parts.scaling.Scaling` (``u = T xi``, energies over ``E0``):
+    forces ``T^T q / E0``, tangents ``T^T K T / E0``, the compression over ``E0``. The same sums as
+    over ``T^T A^T`` and ``V / E0``, without that copy of ``A^T``."""
+
+    def force(q):
+        return None if q is None else (T.T @ q) / energy_scale
+
+    def matrix(K):
+        return None if K is None else (T.T @ K @ T) / energy_scale
+
+    internal = force(raw.internal)
+    assert internal is not None
+    return State(internal, raw.compression / energy_scale, matrix(raw.K), force(raw.bilateral), matrix(raw.K_all))
+
+
 def tangent(AT, weight) -> np.ndarray:
     """``AT diag(weight) AT^T``, shape (k, k), summed by blocks (no copy of ``AT``)."""
     k, n = AT.shape
