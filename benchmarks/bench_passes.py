@@ -80,9 +80,9 @@ def measure(problem: str = "box", n: int = 1_000_000, repeats: int = 5) -> dict:
 
     from bench_core import make_problem
     from common import _cpu_model
-    from dea_opt._checks.threads import single_threaded_blas
 
     import dea_opt as dea
+    from dea_opt._checks.threads import single_threaded_blas
 
     warnings.simplefilter("ignore", dea.ValidityWarning)
     dea.solve(make_problem(problem, 2000), "newton")  # imports and code paths, not the big arrays
