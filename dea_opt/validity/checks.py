@@ -87,10 +87,14 @@ def rotation_gap_error(problem, u) -> np.ndarray:
 
 def _gap_error_block(problem, u, part: slice) -> np.ndarray:
     """:func:`rotation_gap_error` over the springs ``part``, from the springs' points and normals
-    (their temporaries in cache: ``dea_opt/formulations/_parts/sweeps.py``)."""
+    (their temporaries in cache: ``dea_opt/formulations/_parts/sweeps.py``).
+
+    ``R - I - W = a W + b W^2`` (:func:`_rotation_error_factors`) is a 3 x 3 matrix ``M_k`` per
+    body: the error is ``n . sum_k (+-) M_k (x - c_k)``, one small product of the block's points
+    and one row-wise dot with its normals, rather than cross products spring by spring."""
     layer = problem.layer
     normals, points = layer.normals[part], layer.points[part]
-    error = np.zeros(len(points))
+    moved = None
     for sign, body, k in ((-1.0, problem.body1, 3), (1.0, problem.body2, 9)):
         theta = u[k : k + 3]
         angle = float(np.linalg.norm(theta))
@@ -99,14 +103,14 @@ def _gap_error_block(problem, u, part: slice) -> np.ndarray:
         if angle == 0.0:
             continue
         a, b = _rotation_error_factors(angle)
-        r = points - np.asarray(body.reference, dtype=float)
-        # n . (theta x r) = theta . (r x n) (for either body; Eq. (11)'s rows hold r x n signed
-        # by the body)
-        n_theta_r = np.cross(r, normals) @ theta
-        # n . (theta x (theta x r)) = (n . theta)(r . theta) - |theta|^2 (n . r)
-        n_twice = (normals @ theta) * (r @ theta) - angle**2 * np.einsum("ij,ij->i", normals, r)
-        error += sign * (a * n_theta_r + b * n_twice)
-    return error
+        W = np.array([[0.0, -theta[2], theta[1]], [theta[2], 0.0, -theta[0]], [-theta[1], theta[0], 0.0]])
+        # W^2 = theta theta^T - |theta|^2 I
+        M = sign * (a * W + b * (np.outer(theta, theta) - angle**2 * np.eye(3)))
+        term = (points - np.asarray(body.reference, dtype=float)) @ M.T
+        moved = term if moved is None else moved + term
+    if moved is None:
+        return np.zeros(len(points))
+    return np.einsum("ij,ij->i", normals, moved)
 
 
 _KINEMATICS_ADVICE = (
