@@ -22,10 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Springs per block: ``k`` rows of ``A^T`` over a block (6 x 16384 x 8 bytes = 786 kB) and its
-#: few temporaries stay in the second- or third-level cache, and the Python per block (a dozen
-#: NumPy calls) is under a tenth of the block's memory time.
-BLOCK = 1 << 14
+#: Springs per block: ``k`` rows of ``A^T`` over a block (6 x 8192 x 8 bytes = 393 kB) and its
+#: few temporaries stay in the second-level cache, and the Python per block (a dozen NumPy calls)
+#: stays small beside the block's memory time. Twice as many springs ran the sweeps 3-5x slower in
+#: some processes (measured at a million springs on a 2-core EPYC): a temporary of one value a
+#: spring was then exactly 128 kB, the C library's threshold for mapping fresh pages, which are
+#: faulted in anew block after block; 64 kB stays clear of it.
+BLOCK = 1 << 13
 
 
 def blocks(n: int):
