@@ -398,12 +398,16 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
     history: list = []
     evaluations = 0
     it = 0
+    # A linear law's full Newton step that kept the contact set lands on the answer: the next sweep
+    # then sums the residual alone, and the tangent only where that residual is not converged.
+    expect_converged = False
     for it in range(1, max_iter + 1):
         # The extended range (first iteration) uses the law in tension too.
         extended = it == 1 and extended_start and x0 is None
         # One sweep: the residual, the tangent over the compressed springs and (extended) the
         # bilateral ones (formulations/newton.md).
-        here = sweeps.scaled(sweeps.state(AT, V, eps, law, extended=extended), T, E0)
+        tangent = extended or not expect_converged
+        here = sweeps.scaled(sweeps.state(AT, V, eps, law, tangent=tangent, extended=extended), T, E0)
         internal = here.internal
         g = internal - r
         # Without a load, the scaling makes the overlap at this stage's origin of size 1: that floor
@@ -434,6 +438,8 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         if gnorm <= gtol:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
+        if here.K is None:  # (not converged after all: the tangent at these strains)
+            here = sweeps.scaled(sweeps.state(AT, V, eps, law), T, E0)
 
         def all_springs(eps=eps):  # this iteration's strains
             return T.T @ _tangent(AT, V * law.tangent(np.minimum(eps, 0.0))) @ T / E0
@@ -473,6 +479,7 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         active = eps < 0
         settled = previous_active is not None and np.array_equal(active, previous_active)
         previous_active = active
+        expect_converged = bool(getattr(law, "is_linear", False) and alpha == 1.0 and settled)
         if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(float(np.linalg.norm(xi)), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
             internal = T.T @ sweeps.state(AT, V, eps, law, tangent=False).internal / E0
