@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .formulations._parts.sweeps import blocks
+from .formulations._parts.sweeps import BLOCK, blocks
 from .formulations._parts.system import ROUNDING
 from .problem import ContactProblem
 
@@ -59,18 +59,25 @@ class Sums:
     compressed: int
 
 
-def rounding(problem, u, part: slice) -> np.ndarray:
+def rounding(problem, u, part: slice, work: np.ndarray | None = None) -> np.ndarray:
     """``problem.strain_rounding(u)`` over the springs ``part``: ``ROUNDING`` ulps of the sizes of the
     terms each strain is summed from (formulations/energy.md, "The certificate"). The distance of a
-    spring from a body's reference is computed only where that body rotates."""
+    spring from a body's reference is computed only where that body rotates, in ``work`` (a buffer
+    of at least the block's (n, 3), reused block after block) where given."""
     layer = problem.layer
     size = np.abs(layer.gap[part])
     for k, body in enumerate((problem.body1, problem.body2)):
         turn = float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum())
         shift = float(np.abs(u[6 * k : 6 * k + 3]).sum())
         if turn:
-            r = layer.points[part] - np.asarray(body.reference, dtype=float)
-            arm = np.sqrt(np.einsum("ij,ij->i", r, r))  # |p - c| (a norm along rows is 3x slower)
+            points = layer.points[part]
+            reference = np.asarray(body.reference, dtype=float)
+            r = points - reference if work is None else np.subtract(points, reference, out=work[: len(points)])
+            # |p - c| by columns (a norm along rows of three is 3x slower)
+            arm = r[:, 0] * r[:, 0]
+            arm += r[:, 1] * r[:, 1]
+            arm += r[:, 2] * r[:, 2]
+            np.sqrt(arm, out=arm)
             arm *= turn
             arm += shift
             size += arm
@@ -108,6 +115,8 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
     # A contact problem's rounding is summed here block by block; another problem (a finite
     # kinematics' deformed state) gives its own whole.
     whole = None if type(problem).strain_rounding is ContactProblem.strain_rounding else problem.strain_rounding(u)
+    size = min(BLOCK, eps.size)
+    work, weighted = np.empty((size, 3)), np.empty((k, size))  # buffers reused block after block
     with np.errstate(invalid="ignore", over="ignore"):
         for part in blocks(eps.size):
             e, v, a, A = eps[part], V[part], areas[part], AT[:, part]
@@ -122,14 +131,14 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
                 break
             force += block_force
             q += A @ (v * sigma)
-            delta = rounding(problem, u, part) if whole is None else np.array(whole[part], dtype=float)
+            delta = rounding(problem, u, part, work) if whole is None else np.array(whole[part], dtype=float)
             if k and (e < delta).any():
                 # sigma moved by the strain's rounding: exactly 0 for a spring clear of contact by it
                 moved = np.maximum(
                     np.abs(law.stress(np.minimum(e - delta, 0.0)) - sigma),
                     np.abs(law.stress(np.minimum(e + delta, 0.0)) - sigma),
                 )
-                spread += np.abs(A) @ (v * _finite_or_inf(moved))
+                spread += np.abs(A, out=weighted[:, : e.size]) @ (v * _finite_or_inf(moved))
             tension += float(np.maximum(reported, 0.0).sum())
             complementarity += float(np.abs(reported) @ np.maximum(e, 0.0))
             delta += window
@@ -146,7 +155,7 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
                 count = int(np.count_nonzero(active))
                 if count == e.size:  # every spring compressed (c = e): nothing to gather
                     compressed += count
-                    K += (A * (v * law.tangent(c))) @ A.T
+                    K += np.multiply(A, v * law.tangent(c), out=weighted[:, : e.size]) @ A.T
                     stored += float(v @ law.energy(c))
                 elif count:
                     compressed += count

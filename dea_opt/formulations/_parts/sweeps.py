@@ -81,6 +81,7 @@ def state(AT, V, eps, law, *, tangent: bool = True, extended: bool = False) -> S
     K = np.zeros((k, k)) if tangent else None
     bilateral = np.zeros(k) if extended else None
     K_all = np.zeros((k, k)) if extended else None
+    work = np.empty((k, min(BLOCK, n)))  # the weighted block, one buffer for every block
     with np.errstate(over="ignore", invalid="ignore"):
         for part in blocks(n):
             A, v, e = AT[:, part], V[part], eps[part]
@@ -90,13 +91,13 @@ def state(AT, V, eps, law, *, tangent: bool = True, extended: bool = False) -> S
             if K is not None:
                 active = e < 0
                 if active.all():
-                    K += (A * (v * law.tangent(c))) @ A.T
+                    K += np.multiply(A, v * law.tangent(c), out=work[:, : e.size]) @ A.T
                 elif active.any():
                     Aa = A[:, active]
                     K += (Aa * (v[active] * law.tangent(c[active]))) @ Aa.T
             if bilateral is not None and K_all is not None:
                 bilateral += A @ (v * law.stress(e))
-                K_all += (A * (v * law.tangent(e))) @ A.T
+                K_all += np.multiply(A, v * law.tangent(e), out=work[:, : e.size]) @ A.T
     return State(internal, compression, K, bilateral, K_all)
 
 
@@ -107,10 +108,12 @@ def scaled(raw: State, T, energy_scale: float) -> State:
     over ``T^T A^T`` and ``V / E0``, without that copy of ``A^T``."""
 
     def force(q):
-        return None if q is None else (T.T @ q) / energy_scale
+        with np.errstate(over="ignore", invalid="ignore"):  # (non-finite sums stay so: Newton says "nan")
+            return None if q is None else (T.T @ q) / energy_scale
 
     def matrix(K):
-        return None if K is None else (T.T @ K @ T) / energy_scale
+        with np.errstate(over="ignore", invalid="ignore"):
+            return None if K is None else (T.T @ K @ T) / energy_scale
 
     internal = force(raw.internal)
     assert internal is not None
@@ -121,9 +124,10 @@ def tangent(AT, weight) -> np.ndarray:
     """``AT diag(weight) AT^T``, shape (k, k), summed by blocks (no copy of ``AT``)."""
     k, n = AT.shape
     K = np.zeros((k, k))
+    work = np.empty((k, min(BLOCK, n)))
     for part in blocks(n):
         A = AT[:, part]
-        K += (A * weight[part]) @ A.T
+        K += np.multiply(A, weight[part], out=work[:, : A.shape[1]]) @ A.T
     return K
 
 
