@@ -59,24 +59,23 @@ class Sums:
     compressed: int
 
 
-def rounding(problem, u, part: slice, work: np.ndarray | None = None) -> np.ndarray:
+def rounding(problem, u, part: slice, motion: list | None = None) -> np.ndarray:
     """``problem.strain_rounding(u)`` over the springs ``part``: ``ROUNDING`` ulps of the sizes of the
     terms each strain is summed from (formulations/energy.md, "The certificate"). The distance of a
-    spring from a body's reference is computed only where that body rotates, in ``work`` (a buffer
-    of at least the block's (n, 3), reused block after block) where given."""
+    spring from a body's reference is computed only where that body rotates. ``motion``:
+    :func:`_motion` of ``u``, where the caller sweeps block after block."""
     layer = problem.layer
     size = np.abs(layer.gap[part])
-    for k, body in enumerate((problem.body1, problem.body2)):
-        turn = float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum())
-        shift = float(np.abs(u[6 * k : 6 * k + 3]).sum())
+    for reference, turn, shift in _motion(problem, u) if motion is None else motion:
         if turn:
+            # |p - c| column by column: arithmetic along rows of three values is several times slower
             points = layer.points[part]
-            reference = np.asarray(body.reference, dtype=float)
-            r = points - reference if work is None else np.subtract(points, reference, out=work[: len(points)])
-            # |p - c| by columns (a norm along rows of three is 3x slower)
-            arm = r[:, 0] * r[:, 0]
-            arm += r[:, 1] * r[:, 1]
-            arm += r[:, 2] * r[:, 2]
+            arm = points[:, 0] - reference[0]
+            arm *= arm
+            for j in (1, 2):
+                r = points[:, j] - reference[j]
+                r *= r
+                arm += r
             np.sqrt(arm, out=arm)
             arm *= turn
             arm += shift
@@ -86,6 +85,18 @@ def rounding(problem, u, part: slice, work: np.ndarray | None = None) -> np.ndar
     size *= ROUNDING * np.finfo(float).eps
     size /= layer.thickness[part]
     return size
+
+
+def _motion(problem, u) -> list:
+    """``[(c_k, |w_k|_1, |t_k|_1)]`` for the two bodies: reference (mm), rotation (rad), translation (mm)."""
+    return [
+        (
+            np.asarray(body.reference, dtype=float),
+            float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum()),
+            float(np.abs(u[6 * k : 6 * k + 3]).sum()),
+        )
+        for k, body in enumerate((problem.body1, problem.body2))
+    ]
 
 
 def _finite_or_inf(values: np.ndarray) -> np.ndarray:
@@ -116,7 +127,8 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
     # kinematics' deformed state) gives its own whole.
     whole = None if type(problem).strain_rounding is ContactProblem.strain_rounding else problem.strain_rounding(u)
     size = min(BLOCK, eps.size)
-    work, weighted = np.empty((size, 3)), np.empty((k, size))  # buffers reused block after block
+    weighted = np.empty((k, size))  # a buffer reused block after block
+    motion = _motion(problem, u)
     with np.errstate(invalid="ignore", over="ignore"):
         for part in blocks(eps.size):
             e, v, a, A = eps[part], V[part], areas[part], AT[:, part]
@@ -131,7 +143,7 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
                 break
             force += block_force
             q += A @ (v * sigma)
-            delta = rounding(problem, u, part, work) if whole is None else np.array(whole[part], dtype=float)
+            delta = rounding(problem, u, part, motion) if whole is None else np.array(whole[part], dtype=float)
             if k and (e < delta).any():
                 # sigma moved by the strain's rounding: exactly 0 for a spring clear of contact by it
                 moved = np.maximum(

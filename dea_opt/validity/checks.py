@@ -87,9 +87,9 @@ def rotation_gap_error(problem, u) -> np.ndarray:
 
 
 def _gap_error_matrices(problem, u) -> list | None:
-    """``[(M_k^T, c_k)]`` for each rotating body: ``R - I - W = a W + b W^2``
-    (:func:`_rotation_error_factors`) signed by the body (body 1 -, body 2 +), transposed and
-    contiguous for the blocks' products; None where a rotation is not finite."""
+    """``[(M_k, c_k)]`` for each rotating body: ``R - I - W = a W + b W^2``
+    (:func:`_rotation_error_factors`) signed by the body (body 1 -, body 2 +); None where a
+    rotation is not finite."""
     matrices = []
     for sign, body, k in ((-1.0, problem.body1, 3), (1.0, problem.body2, 9)):
         theta = u[k : k + 3]
@@ -102,15 +102,15 @@ def _gap_error_matrices(problem, u) -> list | None:
         W = np.array([[0.0, -theta[2], theta[1]], [theta[2], 0.0, -theta[0]], [-theta[1], theta[0], 0.0]])
         # W^2 = theta theta^T - |theta|^2 I
         M = sign * (a * W + b * (np.outer(theta, theta) - angle**2 * np.eye(3)))
-        matrices.append((np.ascontiguousarray(M.T), np.asarray(body.reference, dtype=float)))
+        matrices.append((M, np.asarray(body.reference, dtype=float)[:, None]))
     return matrices
 
 
 def _work(n: int) -> tuple[np.ndarray, np.ndarray]:
-    """Two (min(BLOCK, n), 3) buffers for :func:`_gap_error_block`, made once per sweep: a fresh temporary
-    of three values a spring per block is a fresh mapping of pages (``sweeps.BLOCK``)."""
+    """Two (3, min(BLOCK, n)) buffers for :func:`_gap_error_block`, made once per sweep: a fresh
+    temporary of three values a spring per block is a fresh mapping of pages (``sweeps.BLOCK``)."""
     size = min(BLOCK, n)
-    return np.empty((size, 3)), np.empty((size, 3))
+    return np.empty((3, size)), np.empty((3, size))
 
 
 def _gap_error_block(problem, part: slice, matrices, work) -> np.ndarray:
@@ -125,17 +125,18 @@ def _gap_error_block(problem, part: slice, matrices, work) -> np.ndarray:
         return np.full(m, np.nan)
     if not matrices:
         return np.zeros(m)
-    r, moved = work[0][:m], work[1][:m]
-    for j, (MT, reference) in enumerate(matrices):
-        np.subtract(points, reference, out=r)
+    # Coordinates by rows of the buffers (3, m): arithmetic along rows of three values a spring
+    # is several times slower.
+    r, moved = work[0][:, :m], work[1][:, :m]
+    for j, (M, reference) in enumerate(matrices):
+        np.subtract(points.T, reference, out=r)
         if j == 0:
-            np.matmul(r, MT, out=moved)
+            np.matmul(M, r, out=moved)
         else:
-            moved += r @ MT
-    # n . moved by columns (strided products beat a row-wise einsum on three values a row)
-    error = normals[:, 0] * moved[:, 0]
-    error += normals[:, 1] * moved[:, 1]
-    error += normals[:, 2] * moved[:, 2]
+            moved += M @ r
+    error = normals[:, 0] * moved[0]
+    error += normals[:, 1] * moved[1]
+    error += normals[:, 2] * moved[2]
     return error
 
 
