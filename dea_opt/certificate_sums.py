@@ -128,7 +128,7 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
     whole = None if type(problem).strain_rounding is ContactProblem.strain_rounding else problem.strain_rounding(u)
     size = min(BLOCK, eps.size)
     weighted = np.empty((k, size))  # a buffer reused block after block
-    motion = _motion(problem, u)
+    motion = _motion(problem, u) if whole is None else None
     with np.errstate(invalid="ignore", over="ignore"):
         for part in blocks(eps.size):
             e, v, a, A = eps[part], V[part], areas[part], AT[:, part]
