@@ -13,11 +13,12 @@ and every spring array is read once. The definitions are those of ``formulations
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
-from .formulations._parts.sweeps import blocks
+from .formulations._parts.sweeps import BLOCK, blocks
 from .formulations._parts.system import ROUNDING
 from .problem import ContactProblem
 
@@ -58,27 +59,60 @@ class Sums:
     compressed: int
 
 
-def rounding(problem, u, part: slice) -> np.ndarray:
+def rounding(problem, u, part: slice, motion: list | None = None) -> np.ndarray:
     """``problem.strain_rounding(u)`` over the springs ``part``: ``ROUNDING`` ulps of the sizes of the
     terms each strain is summed from (formulations/energy.md, "The certificate"). The distance of a
-    spring from a body's reference is computed only where that body rotates."""
+    spring from a body's reference is computed only where that body rotates. ``motion``:
+    :func:`_motion` of ``u``, where the caller sweeps block after block."""
     layer = problem.layer
     size = np.abs(layer.gap[part])
-    for k, body in enumerate((problem.body1, problem.body2)):
-        turn = float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum())
-        shift = float(np.abs(u[6 * k : 6 * k + 3]).sum())
+    for reference, turn, shift in _motion(problem, u) if motion is None else motion:
         if turn:
-            arm = np.linalg.norm(layer.points[part] - np.asarray(body.reference, dtype=float), axis=1)
-            size = size + (shift + arm * turn)
-        else:
-            size = size + shift
-    return ROUNDING * np.finfo(float).eps * size / layer.thickness[part]
+            # |p - c| column by column: arithmetic along rows of three values is several times slower
+            points = layer.points[part]
+            arm = points[:, 0] - reference[0]
+            arm *= arm
+            for j in (1, 2):
+                r = points[:, j] - reference[j]
+                r *= r
+                arm += r
+            np.sqrt(arm, out=arm)
+            arm *= turn
+            arm += shift
+            size += arm
+        elif shift:
+            size += shift
+    size *= ROUNDING * np.finfo(float).eps
+    size /= layer.thickness[part]
+    return size
+
+
+def _motion(problem, u) -> list:
+    """``[(c_k, |w_k|_1, |t_k|_1)]`` for the two bodies: reference (mm), rotation (rad), translation (mm)."""
+    return [
+        (
+            np.asarray(body.reference, dtype=float),
+            float(np.abs(u[6 * k + 3 : 6 * k + 6]).sum()),
+            float(np.abs(u[6 * k : 6 * k + 3]).sum()),
+        )
+        for k, body in enumerate((problem.body1, problem.body2))
+    ]
+
+
+def _finite_or_inf(values: np.ndarray) -> np.ndarray:
+    """``values`` with NaN (a bounded law beyond its domain) counted as ``inf``, as ``nan_to_num``
+    counts it; checked first, since nearly always nothing is to be replaced."""
+    return values if np.isfinite(values).all() else np.nan_to_num(values, nan=np.inf)
 
 
 def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = True) -> Sums:
     """One sweep over ``problem``'s springs at the answer ``u`` (12,), strains ``eps`` (N,) and the
     formulation's ``reported_stress`` (N, MPa): the certificate's :class:`Sums`. ``tangent``: sum the
-    compressed springs' tangent and energy too (for the Newton decrement)."""
+    compressed springs' tangent and energy too (for the Newton decrement).
+
+    Each block's sums are taken over all its springs, without gathering the compressed or the
+    near ones: an open spring, clear of contact by its rounding, adds exactly zero to ``rho``,
+    and the tangent's springs are gathered only where some of the block is open."""
     layer, law = problem.layer, problem.law
     system = problem.system()
     AT, V, areas = system.AT, system.volume, layer.areas
@@ -92,39 +126,53 @@ def sums(problem, u, eps, reported_stress, tolerance: float, tangent: bool = Tru
     # A contact problem's rounding is summed here block by block; another problem (a finite
     # kinematics' deformed state) gives its own whole.
     whole = None if type(problem).strain_rounding is ContactProblem.strain_rounding else problem.strain_rounding(u)
+    size = min(BLOCK, eps.size)
+    weighted = np.empty((k, size))  # a buffer reused block after block
+    motion = _motion(problem, u) if whole is None else None
     with np.errstate(invalid="ignore", over="ignore"):
         for part in blocks(eps.size):
             e, v, a, A = eps[part], V[part], areas[part], AT[:, part]
             c = np.minimum(e, 0.0)
             sigma = law.stress(c)
             reported = a * reported_stress[part]
-            finite = finite and bool(np.isfinite(sigma).all() and np.isfinite(reported).all())
-            if not finite:
+            f = a * sigma
+            block_force = float(np.abs(f).sum())
+            # (a sum is finite when every term is, short of overflow: the exact test only then)
+            if not (math.isfinite(block_force) or np.isfinite(sigma).all()) or not np.isfinite(reported).all():
+                finite = False
                 break
+            force += block_force
             q += A @ (v * sigma)
-            force += float(np.abs(a * sigma).sum())
-            delta = rounding(problem, u, part) if whole is None else np.array(whole[part], dtype=float)
-            near = np.flatnonzero(e - delta < 0)
-            if near.size and k:
-                en, dn, sn = e[near], delta[near], sigma[near]
+            delta = rounding(problem, u, part, motion) if whole is None else np.array(whole[part], dtype=float)
+            if k and (e < delta).any():
+                # sigma moved by the strain's rounding: exactly 0 for a spring clear of contact by it
                 moved = np.maximum(
-                    np.abs(law.stress(np.minimum(en - dn, 0.0)) - sn), np.abs(law.stress(np.minimum(en + dn, 0.0)) - sn)
+                    np.abs(law.stress(np.minimum(e - delta, 0.0)) - sigma),
+                    np.abs(law.stress(np.minimum(e + delta, 0.0)) - sigma),
                 )
-                spread += np.abs(A[:, near]) @ (v[near] * np.nan_to_num(moved, nan=np.inf))
+                spread += np.abs(A, out=weighted[:, : e.size]) @ (v * _finite_or_inf(moved))
             tension += float(np.maximum(reported, 0.0).sum())
             complementarity += float(np.abs(reported) @ np.maximum(e, 0.0))
             delta += window
             low = a * law.stress(np.minimum(e - delta, 0.0))
             high = a * law.stress(np.minimum(e + delta, 0.0))
-            excess = np.maximum(low - reported, 0.0) + np.maximum(reported - high, 0.0)
-            consistency += float(np.nan_to_num(excess, nan=np.inf).sum())
+            low -= reported
+            high -= reported
+            np.maximum(low, 0.0, out=low)
+            np.minimum(high, 0.0, out=high)
+            low -= high  # max(low - rep, 0) + max(rep - high, 0)
+            consistency += float(_finite_or_inf(low).sum())
             if tangent:
-                rows = np.flatnonzero(e < 0)
-                if rows.size:
-                    compressed += rows.size
-                    cr = e[rows]
-                    Ar = A[:, rows]
-                    K += (Ar * (v[rows] * law.tangent(cr))) @ Ar.T
-                    stored += float(v[rows] @ law.energy(cr))
+                active = e < 0
+                count = int(np.count_nonzero(active))
+                if count == e.size:  # every spring compressed (c = e): nothing to gather
+                    compressed += count
+                    K += np.multiply(A, v * law.tangent(c), out=weighted[:, : e.size]) @ A.T
+                    stored += float(v @ law.energy(c))
+                elif count:
+                    compressed += count
+                    cr, vr, Ar = e[active], v[active], A[:, active]
+                    K += (Ar * (vr * law.tangent(cr))) @ Ar.T
+                    stored += float(vr @ law.energy(cr))
     finite = finite and bool(np.isfinite(q).all())
     return Sums(finite, q, force, spread, tension, complementarity, consistency, K, stored, compressed)

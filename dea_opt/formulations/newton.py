@@ -87,14 +87,15 @@ class _Line:
     reads the strains, the direction and the volumes once and writes the trial strains to
     ``out`` (a buffer of N values that is not ``eps``; ``slope`` returns it)."""
 
-    def __init__(self, law, V, r, eps, Ad, d, out=None):
+    def __init__(self, law, V, r, eps, Ad, d, out=None, energy_scale=1.0):
         self.law, self.V, self.eps, self.Ad = law, V, eps, Ad
         self.rd = float(r @ d)
         self.out = np.empty_like(eps) if out is None else out
+        self.E0 = energy_scale  # (``V`` unscaled: the sums are divided by it)
 
     def phi(self, alpha) -> float:
         """``phi(a) = Phi(x + a d)`` up to a constant (one pass)."""
-        value = sweeps.energy(self.law, self.V, self.eps, self.Ad, alpha) - alpha * self.rd
+        value = sweeps.energy(self.law, self.V, self.eps, self.Ad, alpha) / self.E0 - alpha * self.rd
         return value if np.isfinite(value) else np.inf
 
     def touch(self, alpha) -> float | None:
@@ -111,7 +112,7 @@ class _Line:
 
     def slope(self, alpha):
         # (inf beyond a bounded law's domain: an overshoot)
-        value = sweeps.slope(self.law, self.V, self.eps, self.Ad, alpha, self.out) - self.rd
+        value = sweeps.slope(self.law, self.V, self.eps, self.Ad, alpha, self.out) / self.E0 - self.rd
         return (value if np.isfinite(value) else np.inf), self.out
 
 
@@ -362,7 +363,8 @@ def _rounding(system, law, scale, u_free, eps) -> float:
         spread = np.maximum(
             np.abs(law.stress(np.minimum(e - dl, 0.0)) - sigma), np.abs(law.stress(np.minimum(e + dl, 0.0)) - sigma)
         )
-    return float(np.linalg.norm(np.abs(scale.AT[:, near]) @ (scale.volume[near] * spread)))
+    columns = np.abs(scale.T.T @ scale.system_AT[:, near])  # the scaled A^T's, of these springs only
+    return float(np.linalg.norm(columns @ (scale.system_volume[near] * spread)) / scale.energy_scale)
 
 
 #: Iterations without halving the best residual after which Newton asks whether the strains' rounding
@@ -376,13 +378,16 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
     ``may_recentre``). Under a load the residual is judged against the load (and the springs' net
     force), which is what the certificate measures; ``noise(xi, eps)`` is the residual's rounding
     (:func:`_rounding`), asked when the residual stagnates."""
-    AT, V, e0 = scale.AT, scale.volume, system.e0
+    # The sums run over the system's own A^T and V; T and E0 act on the k-vectors and k x k
+    # matrices only (sweeps.scaled): a scaled copy of A^T would cost a pass of its own.
+    AT, V, e0 = system.AT, system.volume, system.e0
+    T, E0 = scale.T, scale.energy_scale
     r = scale.load(system.load)
     r_norm = float(np.linalg.norm(r))
     stiffness_scale = modulus_scale(law.modulus)
-    k = AT.shape[0]
+    k = scale.n_dofs
     xi = np.zeros(k) if x0 is None else scale.to_xi(x0)
-    eps = e0 + xi @ AT
+    eps = e0.copy() if x0 is None else e0 + (T @ xi) @ AT
     if law.bounded_strain and (eps <= -1).any():
         xi = np.zeros(k)  # a warm start outside the law's domain is no start
         eps = e0.copy()
@@ -393,12 +398,16 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
     history: list = []
     evaluations = 0
     it = 0
+    # A linear law's full Newton step that kept the contact set lands on the answer: the next sweep
+    # then sums the residual alone, and the tangent only where that residual is not converged.
+    expect_converged = False
     for it in range(1, max_iter + 1):
         # The extended range (first iteration) uses the law in tension too.
         extended = it == 1 and extended_start and x0 is None
         # One sweep: the residual, the tangent over the compressed springs and (extended) the
         # bilateral ones (formulations/newton.md).
-        here = sweeps.state(AT, V, eps, law, extended=extended)
+        tangent = extended or not expect_converged
+        here = sweeps.scaled(sweeps.state(AT, V, eps, law, tangent=tangent, extended=extended), T, E0)
         internal = here.internal
         g = internal - r
         # Without a load, the scaling makes the overlap at this stage's origin of size 1: that floor
@@ -429,9 +438,11 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         if gnorm <= gtol:
             status, message, success = "converged", "equilibrium residual below gtol", True
             break
+        if here.K is None:  # (not converged after all: the tangent at these strains)
+            here = sweeps.scaled(sweeps.state(AT, V, eps, law), T, E0)
 
         def all_springs(eps=eps):  # this iteration's strains
-            return _tangent(AT, V * law.tangent(np.minimum(eps, 0.0)))
+            return T.T @ _tangent(AT, V * law.tangent(np.minimum(eps, 0.0))) @ T / E0
 
         d = None
         if extended and here.bilateral is not None and here.K_all is not None:
@@ -450,11 +461,11 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         if not slope < 0:
             status, message = "stalled", "no descent direction (a load along a direction no spring resists?)"
             break
-        np.matmul(d, AT, out=Ad)
+        np.matmul(T @ d, AT, out=Ad)
         # A safe step only knows the missing directions roughly: search the line closely, so
         # that the next spring to touch is reached rather than crept up on.
         curvature = _WOLFE_CURVATURE_SAFE if safe else _WOLFE_CURVATURE
-        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d, spare), slope, curvature)
+        alpha, trial, used = _line_search(_Line(law, V, r, eps, Ad, d, spare, E0), slope, curvature)
         evaluations += used
         if alpha is None or not np.isfinite(alpha):
             # (springs at eps = -1 make it "crushed" below)
@@ -468,9 +479,10 @@ def _iterate(system, law, scale, x0, extended_start, xtol, gtol, max_iter, may_r
         active = eps < 0
         settled = previous_active is not None and np.array_equal(active, previous_active)
         previous_active = active
+        expect_converged = bool(getattr(law, "is_linear", False) and alpha == 1.0 and settled)
         if alpha == 1.0 and settled and np.linalg.norm(step) <= xtol * max(float(np.linalg.norm(xi)), 1e-300):
             # Eq. (20) with the contact set unchanged: one more residual check confirms.
-            internal = sweeps.state(AT, V, eps, law, tangent=False).internal
+            internal = T.T @ sweeps.state(AT, V, eps, law, tangent=False).internal / E0
             norm = max(r_norm, float(np.linalg.norm(internal)), 0.0 if r_norm else 1.0)
             if np.linalg.norm(internal - r) / norm <= max(gtol, 1e-9):
                 status, message, success = "converged", "step below xtol (Eq. 20)", True

@@ -11,7 +11,7 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from ..formulations._parts.sweeps import blocks
+from ..formulations._parts.sweeps import BLOCK, blocks
 from .report import Check, ValidityLimits, _limit
 
 __all__ = ["rotation_gap_error"]
@@ -80,32 +80,63 @@ def rotation_gap_error(problem, u) -> np.ndarray:
     layer = problem.layer
     u = np.asarray(u, dtype=float)
     error = np.zeros(len(layer))
+    matrices, work = _gap_error_matrices(problem, u), _work(len(layer))
     for part in blocks(len(layer)):
-        error[part] = _gap_error_block(problem, u, part)
+        error[part] = _gap_error_block(problem, part, matrices, work)
     return error
 
 
-def _gap_error_block(problem, u, part: slice) -> np.ndarray:
-    """:func:`rotation_gap_error` over the springs ``part``, from the springs' points and normals
-    (their temporaries in cache: ``dea_opt/formulations/_parts/sweeps.py``)."""
-    layer = problem.layer
-    normals, points = layer.normals[part], layer.points[part]
-    error = np.zeros(len(points))
+def _gap_error_matrices(problem, u) -> list | None:
+    """``[(M_k, c_k)]`` for each rotating body: ``R - I - W = a W + b W^2``
+    (:func:`_rotation_error_factors`) signed by the body (body 1 -, body 2 +); None where a
+    rotation is not finite."""
+    matrices = []
     for sign, body, k in ((-1.0, problem.body1, 3), (1.0, problem.body2, 9)):
         theta = u[k : k + 3]
         angle = float(np.linalg.norm(theta))
         if not math.isfinite(angle):
-            return np.full(len(points), np.nan)
+            return None
         if angle == 0.0:
             continue
         a, b = _rotation_error_factors(angle)
-        r = points - np.asarray(body.reference, dtype=float)
-        # n . (theta x r) = theta . (r x n) (for either body; Eq. (11)'s rows hold r x n signed
-        # by the body)
-        n_theta_r = np.cross(r, normals) @ theta
-        # n . (theta x (theta x r)) = (n . theta)(r . theta) - |theta|^2 (n . r)
-        n_twice = (normals @ theta) * (r @ theta) - angle**2 * np.einsum("ij,ij->i", normals, r)
-        error += sign * (a * n_theta_r + b * n_twice)
+        W = np.array([[0.0, -theta[2], theta[1]], [theta[2], 0.0, -theta[0]], [-theta[1], theta[0], 0.0]])
+        # W^2 = theta theta^T - |theta|^2 I
+        M = sign * (a * W + b * (np.outer(theta, theta) - angle**2 * np.eye(3)))
+        matrices.append((M, np.asarray(body.reference, dtype=float)[:, None]))
+    return matrices
+
+
+def _work(n: int) -> tuple[np.ndarray, np.ndarray]:
+    """Two (3, min(BLOCK, n)) buffers for :func:`_gap_error_block`, made once per sweep: a fresh
+    temporary of three values a spring per block is a fresh mapping of pages (``sweeps.BLOCK``)."""
+    size = min(BLOCK, n)
+    return np.empty((3, size)), np.empty((3, size))
+
+
+def _gap_error_block(problem, part: slice, matrices, work) -> np.ndarray:
+    """:func:`rotation_gap_error` over the springs ``part`` (``matrices`` from
+    :func:`_gap_error_matrices`, ``work`` from :func:`_work`), from the springs' points and normals:
+    ``n . sum_k M_k (x - c_k)``, one small product of the block's points per rotating body and a
+    row-wise dot with its normals (its temporaries in cache: ``dea_opt/formulations/_parts/sweeps.py``)."""
+    layer = problem.layer
+    normals, points = layer.normals[part], layer.points[part]
+    m = len(points)
+    if matrices is None:
+        return np.full(m, np.nan)
+    if not matrices:
+        return np.zeros(m)
+    # Coordinates by rows of the buffers (3, m): arithmetic along rows of three values a spring
+    # is several times slower.
+    r, moved = work[0][:, :m], work[1][:, :m]
+    for j, (M, reference) in enumerate(matrices):
+        np.subtract(points.T, reference, out=r)
+        if j == 0:
+            np.matmul(M, r, out=moved)
+        else:
+            moved += M @ r
+    error = normals[:, 0] * moved[0]
+    error += normals[:, 1] * moved[1]
+    error += normals[:, 2] * moved[2]
     return error
 
 
@@ -182,8 +213,9 @@ def _rotation_checks(problem, u, limits: ValidityLimits, plane_error=None) -> tu
             (("mm", math.nan),),
         )
     mm = relative = 0.0
+    matrices, work = _gap_error_matrices(problem, u), _work(len(layer))
     for part in blocks(len(layer)):  # the largest error, without an array of N of it
-        error = np.abs(_gap_error_block(problem, u, part))
+        error = np.abs(_gap_error_block(problem, part, matrices, work))
         mm = float(np.max([mm, np.max(error)]))  # (NaN kept: a failed answer)
         relative = float(np.max([relative, np.max(error / layer.thickness[part])]))
     passed = relative <= limits.gap_error

@@ -152,3 +152,18 @@ def test_gap_error_is_the_exact_rotation_minus_the_linear_one():
         linear = np.cross(theta, r)
         expected += sign * np.einsum("ij,ij->i", n, exact - linear)
     np.testing.assert_allclose(got, expected, rtol=1e-9, atol=1e-12 * float(np.abs(expected).max()))
+
+
+@pytest.mark.parametrize("law", LAWS, ids=lambda law: type(law).__name__)
+def test_scaled_state_is_the_sums_over_the_scaled_copy(law):
+    # Newton sums over A^T and V and scales the sums (sweeps.scaled): the numbers of summing over
+    # the scaled copy T^T A^T and V / E0 that it no longer makes.
+    AT, V, eps = _arrays(4, k=4)
+    rng = np.random.default_rng(5)
+    T, E0 = rng.normal(size=(4, 3)) * 1e-3, 2.5e-6
+    got = sweeps.scaled(sweeps.state(AT, V, eps, law, extended=True), T, E0)
+    want = sweeps.state(np.ascontiguousarray(T.T @ AT), V / E0, eps, law, extended=True)
+    for name in ("internal", "K", "bilateral", "K_all"):
+        _close(getattr(got, name), getattr(want, name))
+    assert got.compression == pytest.approx(want.compression, rel=1e-12)
+    assert sweeps.scaled(sweeps.state(AT, V, eps, law, tangent=False), T, E0).K is None

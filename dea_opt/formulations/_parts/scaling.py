@@ -10,6 +10,7 @@ then mean the same for every unit and load. Units: mm, rad, N, N mm.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -35,10 +36,14 @@ class Scaling:
     Attributes
     ----------
     T : ndarray, shape (m, k)
+    system_AT, system_volume : ndarray, shape (m, N) and (N,)
+        The unscaled system's ``A^T`` and ``V`` (the system's own arrays, not copies).
     AT : ndarray, shape (k, N)
-        ``T^T A^T``: the strain per unit ``xi``.
+        ``T^T A^T``: the strain per unit ``xi``, computed on first use (a copy of ``8 k N``
+        bytes, which the formulations that build matrices need; Newton never asks for it: it
+        folds ``T`` into its ``k``-vectors and ``k x k`` matrices, ``formulations/energy.md``, "Scaling").
     volume : ndarray, shape (N,)
-        ``V / E0`` (mm^3 per energy unit).
+        ``V / E0`` (mm^3 per energy unit), computed on first use.
     energy_scale : float
         ``E0 = s^2`` (N mm).
     strain_scale : float
@@ -47,10 +52,18 @@ class Scaling:
     """
 
     T: np.ndarray
-    AT: np.ndarray
-    volume: np.ndarray
+    system_AT: np.ndarray
+    system_volume: np.ndarray
     energy_scale: float
     strain_scale: float
+
+    @cached_property
+    def AT(self) -> np.ndarray:
+        return np.ascontiguousarray(self.T.T @ self.system_AT)
+
+    @cached_property
+    def volume(self) -> np.ndarray:
+        return self.system_volume / self.energy_scale
 
     @property
     def n_dofs(self) -> int:
@@ -93,7 +106,7 @@ def scaling(system: SpringSystem, modulus: float, reference_load=None) -> Scalin
     T = T1 * s
     total = float(stiffness.sum())
     s0 = s / np.sqrt(total) if total > 0 else 1.0
-    return Scaling(T=T, AT=np.ascontiguousarray(T.T @ AT), volume=V / s**2, energy_scale=s**2, strain_scale=s0)
+    return Scaling(T=T, system_AT=AT, system_volume=V, energy_scale=s**2, strain_scale=s0)
 
 
 def norm(v) -> float:

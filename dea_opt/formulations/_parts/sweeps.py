@@ -22,10 +22,13 @@ from dataclasses import dataclass
 
 import numpy as np
 
-#: Springs per block: ``k`` rows of ``A^T`` over a block (6 x 16384 x 8 bytes = 786 kB) and its
-#: few temporaries stay in the second- or third-level cache, and the Python per block (a dozen
-#: NumPy calls) is under a tenth of the block's memory time.
-BLOCK = 1 << 14
+#: Springs per block: ``k`` rows of ``A^T`` over a block (6 x 8192 x 8 bytes = 393 kB) and its
+#: few temporaries stay in the second-level cache, and the Python per block (a dozen NumPy calls)
+#: stays small beside the block's memory time. Twice as many springs ran the sweeps 3-5x slower in
+#: some processes (measured at a million springs on a 2-core EPYC): a temporary of one value a
+#: spring was then exactly 128 kB, the C library's threshold for mapping fresh pages, which are
+#: faulted in anew block after block; 64 kB stays clear of it.
+BLOCK = 1 << 13
 
 
 def blocks(n: int):
@@ -78,6 +81,7 @@ def state(AT, V, eps, law, *, tangent: bool = True, extended: bool = False) -> S
     K = np.zeros((k, k)) if tangent else None
     bilateral = np.zeros(k) if extended else None
     K_all = np.zeros((k, k)) if extended else None
+    work = np.empty((k, min(BLOCK, n)))  # the weighted block, one buffer for every block
     with np.errstate(over="ignore", invalid="ignore"):
         for part in blocks(n):
             A, v, e = AT[:, part], V[part], eps[part]
@@ -87,23 +91,43 @@ def state(AT, V, eps, law, *, tangent: bool = True, extended: bool = False) -> S
             if K is not None:
                 active = e < 0
                 if active.all():
-                    K += (A * (v * law.tangent(c))) @ A.T
+                    K += np.multiply(A, v * law.tangent(c), out=work[:, : e.size]) @ A.T
                 elif active.any():
                     Aa = A[:, active]
                     K += (Aa * (v[active] * law.tangent(c[active]))) @ Aa.T
             if bilateral is not None and K_all is not None:
                 bilateral += A @ (v * law.stress(e))
-                K_all += (A * (v * law.tangent(e))) @ A.T
+                K_all += np.multiply(A, v * law.tangent(e), out=work[:, : e.size]) @ A.T
     return State(internal, compression, K, bilateral, K_all)
+
+
+def scaled(raw: State, T, energy_scale: float) -> State:
+    """``raw``, summed over the unscaled ``A^T`` and volumes, in the scaled variables ``xi`` of
+    :class:`~dea_opt.formulations._parts.scaling.Scaling` (``u = T xi``, energies over ``E0``):
+    forces ``T^T q / E0``, tangents ``T^T K T / E0``, the compression over ``E0``. The same sums as
+    over ``T^T A^T`` and ``V / E0``, without that copy of ``A^T``."""
+
+    def force(q):
+        with np.errstate(over="ignore", invalid="ignore"):  # (non-finite sums stay so: Newton says "nan")
+            return None if q is None else (T.T @ q) / energy_scale
+
+    def matrix(K):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return None if K is None else (T.T @ K @ T) / energy_scale
+
+    internal = force(raw.internal)
+    assert internal is not None
+    return State(internal, raw.compression / energy_scale, matrix(raw.K), force(raw.bilateral), matrix(raw.K_all))
 
 
 def tangent(AT, weight) -> np.ndarray:
     """``AT diag(weight) AT^T``, shape (k, k), summed by blocks (no copy of ``AT``)."""
     k, n = AT.shape
     K = np.zeros((k, k))
+    work = np.empty((k, min(BLOCK, n)))
     for part in blocks(n):
         A = AT[:, part]
-        K += (A * weight[part]) @ A.T
+        K += np.multiply(A, weight[part], out=work[:, : A.shape[1]]) @ A.T
     return K
 
 
