@@ -142,9 +142,7 @@ class _Run:
     def raise_unsupported(self) -> None:
         verdict.raise_unsupported(self.proof(), self.problem)
 
-    def __call__(
-        self, method, opts, x0=None, tracker=None, problem=None, start="auto", resume=False
-    ) -> FiniteSolution:
+    def __call__(self, method, opts, x0=None, tracker=None, problem=None, start="auto", resume=False) -> FiniteSolution:
         """One solve (``problem``: this one, or a continuation's with another load; ``start``: ``"auto"``,
         ``"predictor"`` or ``"zero"`` for a solve without ``x0``; ``resume``: ``tracker`` is that of
         a solve this one goes on from, whose events stay counted)."""
