@@ -68,6 +68,9 @@ class MeshTracker:
         Relative change of a loaded spring's thickness below which an update changed nothing.
     """
 
+    #: The events of the solve under way (:meth:`begin`): updates, re-casts, springs gained and lost.
+    counts: dict
+
     def __init__(self, cast, *, recast_shift: float = 0.01, full_shift: float = 5.0, thickness_tol: float = 1e-6):
         self.cast = cast
         self.frame = np.asarray(cast.pose, dtype=float)
