@@ -15,10 +15,7 @@ files are the same either way.
 
 Jobs are ``(module, function, args, kwargs)`` of :mod:`dea_opt.io`'s picture functions,
 pickled into files of a temporary folder whose names go through the pipe; the answers come
-back pickled through the other pipe: ``("ok", value)`` or ``("error", text)``, after the
-``("ready", None)`` a worker says once matplotlib is imported and warmed up. A run that leaves a
-core idle while it solves starts a second worker then (:meth:`PictureWorker.add_drawer`), and the
-pictures go to the ready worker with the fewest.
+back pickled through the other pipe: ``("ok", value)`` or ``("error", text)``.
 
 A run's outputs are staged in the run's process (:func:`dea_opt.files.atomic.staged`), which the
 worker does not see: given the output's own name it would rename its picture straight into the
@@ -113,13 +110,11 @@ class DrawHere:
 
 
 class _Drawer:
-    """One worker process: the jobs sent to it and the answers read back, in order (after the
-    ``("ready", None)`` it says once matplotlib is imported and warmed up)."""
+    """One worker process: the jobs sent to it and the answers read back, in order."""
 
     def __init__(self, env):
         self.sent = 0
         self.answers: list = []
-        self.ready = False
         try:
             self.process: subprocess.Popen | None = subprocess.Popen(
                 [sys.executable, "-m", "dea_opt.run.pictures"],
@@ -145,36 +140,8 @@ class _Drawer:
         self.sent += 1
         return self.sent - 1
 
-    def started(self) -> bool:
-        """Whether the worker said it is ready, without waiting for it (False where a pipe cannot be
-        polled: on Windows)."""
-        process = self.process
-        if self.ready or process is None or process.stdout is None:
-            return self.ready
-        import select
-
-        try:
-            waiting = select.select([process.stdout], [], [], 0)[0]
-        except (OSError, ValueError):
-            return False
-        return bool(waiting) and self._read_ready()
-
-    def _read_ready(self) -> bool:
-        try:
-            assert self.process is not None and self.process.stdout is not None
-            said = pickle.load(self.process.stdout)
-        except Exception:  # the worker died or wrote something else: drawn in the run instead
-            said = None
-        if said != ("ready", None):
-            self.stop()
-            return False
-        self.ready = True
-        return True
-
     def answer(self, place: int):
         """The answer in ``place`` (answers come in order), or None if the worker failed."""
-        if not self.ready and not self._read_ready():
-            return None
         try:
             while len(self.answers) <= place:
                 assert self.process is not None and self.process.stdout is not None
@@ -208,7 +175,6 @@ class PictureWorker:
     def __init__(self):
         self._jobs: list = []
         self._folder: str | None = None
-        self._others: list[_Drawer] = []
         package = str(Path(__file__).resolve().parents[2])
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package, env.get("PYTHONPATH")) if p)
@@ -217,22 +183,7 @@ class PictureWorker:
         # contend with the run's (its arrays are a few thousand rows: a thread's hand-over costs more)
         for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
             env.setdefault(name, "1")
-        self._env = env
         self._drawer = _Drawer(env)
-
-    def add_drawer(self) -> None:
-        """Start a second worker process, to draw beside the first once both are ready: call it when
-        the run begins a solve that leaves a core idle (a load path's), so that its imports run
-        there. A job goes to the ready worker with the fewest jobs (the first, if the second is not
-        ready yet): the knee's three pictures are drawn in 0.6 s instead of 0.9 s of one worker."""
-        if not self._others and self._drawer.process is not None:
-            self._others.append(_Drawer(self._env))
-
-    def _choose(self) -> _Drawer:
-        """The worker a job goes to: of the first and every other that is ready, the one with the
-        fewest jobs (the first on a tie)."""
-        drawers = [self._drawer, *(d for d in self._others if d.process is not None and d.started())]
-        return min(drawers, key=lambda d: d.sent)
 
     def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
         """Queue ``module.function(*args, **kwargs)``; returns the job's number for :meth:`result`.
@@ -240,25 +191,25 @@ class PictureWorker:
         The job goes to the worker as a file (its name through the pipe), so that handing it
         over never waits for the worker to finish drawing the one before."""
         job = (module, function, tuple(args), dict(kwargs or {}))
-        place, drawer = None, self._choose()
-        if drawer.process is not None:
+        place = None
+        if self._drawer.process is not None:
             try:
                 if self._folder is None:
                     self._folder = tempfile.mkdtemp(prefix="dea-opt-pictures-")
                 path = os.path.join(self._folder, f"job{len(self._jobs)}.pickle")
                 with open(path, "wb") as handle:
                     _JobPickler(handle, protocol=pickle.HIGHEST_PROTOCOL).dump(job)
-                place = drawer.send(path)
+                place = self._drawer.send(path)
             except (OSError, pickle.PicklingError, TypeError, AttributeError):
                 place = None
-        self._jobs.append((job, drawer, place))
+        self._jobs.append((job, place))
         return len(self._jobs) - 1
 
     def result(self, number: int):
         """The value of job ``number``: the worker's, or, if the worker failed, the job run here."""
-        job, drawer, place = self._jobs[number]
+        job, place = self._jobs[number]
         if place is not None:
-            answer = drawer.answer(place)
+            answer = self._drawer.answer(place)
             if answer is not None and answer[0] == "ok":
                 return answer[1]
         return _call(*job)
@@ -269,9 +220,8 @@ class PictureWorker:
         return PictureFiles(self)
 
     def close(self) -> None:
-        """End the workers (each finishes the job it is drawing first) and remove the job files."""
-        for drawer in (self._drawer, *self._others):
-            drawer.stop()
+        """End the worker (it finishes the job it is drawing first) and remove the job files."""
+        self._drawer.stop()
         if self._folder is not None:
             shutil.rmtree(self._folder, ignore_errors=True)
             self._folder = None
@@ -368,8 +318,6 @@ def _serve(source, sink) -> None:
     for module in _MODULES:
         importlib.import_module(module)
     _warm_up()
-    pickle.dump(("ready", None), sink, protocol=pickle.HIGHEST_PROTOCOL)
-    sink.flush()
     for line in source:
         try:
             with open(line.decode().rstrip("\n"), "rb") as handle:

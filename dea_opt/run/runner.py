@@ -153,8 +153,6 @@ def run_scenario(
         ):
             problem, cast, data, suspicions = prepare_run(scenario)
             report_ahead(scenario)
-            if pictures is not None:  # its imports on the core the solve leaves idle
-                pictures.add_drawer()
             for line in suspicions:
                 if shown is not None:
                     shown.note(f"dea-opt: warning: suspicious input: {line}")

@@ -53,25 +53,6 @@ def test_the_worker_draws_the_same_files_as_the_run(path, tmp_path):
     assert folder is not None and not os.path.exists(folder), "the job files were left behind"
 
 
-def test_a_second_worker_draws_beside_the_first_the_same_files(path, tmp_path):
-    """Once a second worker says it is ready, jobs go to the ready worker with the fewest: each
-    worker draws one of the path's two pictures, the same bytes as drawn in the run."""
-    here = path.write(tmp_path / "here", formats=("png",))
-    with PictureWorker() as pictures:
-        pictures.add_drawer()
-        pictures.add_drawer()  # one second worker, however often it is asked for
-        assert len(pictures._others) == 1
-        second = pictures._others[0]
-        deadline = time.monotonic() + 300
-        while not second.started() and time.monotonic() < deadline:
-            time.sleep(0.05)
-        assert second.started(), "the second worker did not say it is ready"
-        there = path.write(tmp_path / "there", formats=("png",), pictures=pictures)
-        assert (pictures._drawer.sent, second.sent) == (1, 1)
-    for name in here:
-        assert there[name].read_bytes() == here[name].read_bytes(), name
-
-
 def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_path):
     broken = path.table.drop(columns=["time_s"])
     from dea_opt.io.cycle import plot_cycle
