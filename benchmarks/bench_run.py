@@ -21,7 +21,7 @@ alternately, best of three:
 * ``python_s``: ``python -c pass``, for scale.
 
 Target (speed issue): ``cli_s <= 1.5 inproc_s + 1 s``. Both sides move with the machine's other
-jobs, the command's more (its two picture workers and its threads want the second core): compare
+jobs, the command's more (its picture worker and its threads want the second core): compare
 commits in the same minutes, and read the load average the header prints. For the breakdown: the outputs written
 in-process one family at a time (``outputs_*_s``), and the packages the command imports with
 their import times (``python -X importtime``): cvxpy, CasADi and Dask must not be among them.
