@@ -294,12 +294,39 @@ def _interrupted_outside_a_command(exc: SystemExit) -> bool:
 def entry() -> None:
     """The process's entry point (the ``dea-opt`` script, ``python -m dea_opt.cli``): exit with
     :func:`main`'s code. A Ctrl-C after the command ended (while the interpreter shuts down)
-    is ignored: the command's outcome and its exit code stand, published outputs included."""
+    is ignored: the command's outcome and its exit code stand, published outputs included.
+
+    The command has written, fsynced and published everything by then, so the process leaves
+    without the interpreter's teardown (:func:`_leave`): freeing every module and object of numpy,
+    SciPy, pandas, trimesh and matplotlib took 0.4-0.9 s of a run on the knee, after its work."""
     import signal
 
     code = main()
     signal.signal(signal.SIGINT, signal.SIG_IGN)
-    sys.exit(code)
+    _leave(code)
+
+
+def _leave(code: int) -> None:
+    """Exit with ``code`` once what Python runs at exit has run, in its order (the threads that are
+    not daemons joined and the executors' exit calls, then the ``atexit`` handlers: logging
+    flushed, temporary folders removed) and the standard streams are flushed, without the teardown
+    that follows them (``os._exit``); a stream that cannot be flushed exits as ``sys.exit`` would
+    (its error said, the code kept)."""
+    import atexit
+    import os
+    import threading
+
+    shutdown = getattr(threading, "_shutdown", None)  # what the interpreter's own exit calls first
+    if shutdown is not None:
+        shutdown()
+    atexit._run_exitfuncs()
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            if stream is not None:
+                stream.flush()
+        except (OSError, ValueError):  # a closed pipe: the interpreter's own exit says so
+            sys.exit(code)
+    os._exit(code)
 
 
 if __name__ == "__main__":  # pragma: no cover

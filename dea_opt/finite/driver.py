@@ -142,9 +142,10 @@ class _Run:
     def raise_unsupported(self) -> None:
         verdict.raise_unsupported(self.proof(), self.problem)
 
-    def __call__(self, method, opts, x0=None, tracker=None, problem=None, start="auto") -> FiniteSolution:
+    def __call__(self, method, opts, x0=None, tracker=None, problem=None, start="auto", resume=False) -> FiniteSolution:
         """One solve (``problem``: this one, or a continuation's with another load; ``start``: ``"auto"``,
-        ``"predictor"`` or ``"zero"`` for a solve without ``x0``)."""
+        ``"predictor"`` or ``"zero"`` for a solve without ``x0``; ``resume``: ``tracker`` is that of
+        a solve this one goes on from, whose events stay counted)."""
         own = problem is None
         return _solve(
             self.problem if own else problem,
@@ -157,6 +158,7 @@ class _Run:
             self.unresisted,
             start,
             self if own else None,
+            resume,
         )
 
 
@@ -165,7 +167,9 @@ def _check_frame(frame) -> np.ndarray:
     return np.eye(4) if checked is None else checked
 
 
-def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, unresisted, how, run) -> FiniteSolution:
+def _solve(
+    problem, method, certificate_tol, opts, x0, frame, tracker, unresisted, how, run, resume=False
+) -> FiniteSolution:
     start = time.perf_counter()
     if problem.kinematics != "finite":
         raise InputError("this problem has kinematics='small': solve it with dea_opt.solve")
@@ -174,7 +178,7 @@ def _solve(problem, method, certificate_tol, opts, x0, frame, tracker, unresiste
     if tracker is None and cast is not None and opts["recast"]:
         tracker = MeshTracker(cast, recast_shift=opts["recast_shift"], full_shift=opts["full_shift"])
     if tracker is not None:
-        tracker.begin(frame)
+        tracker.begin(frame, resume=resume)
         targets = tracker.targets()
     elif frame is not None:
         targets = targets.with_frame(_check_frame(frame))

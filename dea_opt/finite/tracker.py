@@ -68,6 +68,9 @@ class MeshTracker:
         Relative change of a loaded spring's thickness below which an update changed nothing.
     """
 
+    #: The events of the solve under way (:meth:`begin`): updates, re-casts, springs gained and lost.
+    counts: dict
+
     def __init__(self, cast, *, recast_shift: float = 0.01, full_shift: float = 5.0, thickness_tol: float = 1e-6):
         self.cast = cast
         self.frame = np.asarray(cast.pose, dtype=float)
@@ -96,15 +99,20 @@ class MeshTracker:
         self._layer = cast.layer if not hasattr(self, "_first_layer") else None
         self.dropped_faces = np.asarray(cast.dropped.faces["overlap"], dtype=np.int64)
 
-    def begin(self, frame=None) -> None:
+    def begin(self, frame=None, *, resume: bool = False) -> None:
         """Start counting a solve's events; ``frame`` (4x4) is mesh 2's pose at zero displacement
-        from now on (a load path's prescribed pose), else it is kept."""
+        from now on (a load path's prescribed pose), else it is kept. ``resume``: the solve goes on
+        from where the last one stopped (more updates): its events stay counted, the springs lost
+        through the layer included (the ``lost_through_layer`` check counts them all)."""
         from ..mesh import check_pose
 
         if frame is not None:
             self.frame = np.asarray(check_pose(frame, "frame"), dtype=float)
         self.complete = False  # the next update is partial (see update)
         self.last = None  # the pose of the last update
+        if resume and hasattr(self, "counts"):
+            self.counts["dropped"] = len(self.dropped_faces)
+            return
         self.counts = {
             "recasts": 0,
             "updates": 0,

@@ -265,7 +265,7 @@ def _solve_path(
     n_sites = _site_count(problem.layer, moving)
     stepper = FiniteStepper(method, options, certificate_tol) if finite else Stepper(method, options, certificate_tol)
     accumulator = ExposureAccumulator(n_sites, outputs.threshold)
-    frames = FrameSeries(outputs.series, len(loads)) if outputs.series is not None else None
+    frames = FrameSeries(outputs.series, len(loads), background=True) if outputs.series is not None else None
     start = time.perf_counter()
     problem.system()  # computes the geometry once, to be shared by every frame
     setup = time.perf_counter() - start
@@ -325,8 +325,12 @@ def _solve_path(
             if frames is not None:
                 frames.write(k, t, frame_layer(frame, certified), certified)
             bar.update()
+        if frames is not None:
+            frames.finish()  # every frame's file written (a write's error raised) before the result
     finally:
         bar.close()
+        if frames is not None:
+            frames.close()  # stopped early: no frame left being written into the folder
     table = make_table(rows, base_regions.prefixes if base_regions is not None else None, motion)
     result = PathResult(
         table=table,

@@ -179,6 +179,10 @@ class PictureWorker:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join(p for p in (package, env.get("PYTHONPATH")) if p)
         env.setdefault("MPLBACKEND", "Agg")
+        # The worker draws on one core beside the run: a BLAS thread pool of its own would only
+        # contend with the run's (its arrays are a few thousand rows: a thread's hand-over costs more)
+        for name in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+            env.setdefault(name, "1")
         self._drawer = _Drawer(env)
 
     def submit(self, module: str, function: str, args=(), kwargs=None) -> int:
@@ -273,19 +277,35 @@ class PictureFiles:
 
 
 def _warm_up() -> None:
-    """Draw a small figure with text, so that the first real picture does not pay for matplotlib's
-    first drawing (fonts, caches) while the run waits."""
+    """Draw a small figure of what the pictures hold (text, a legend, mathtext, triangles coloured
+    by face, a colour bar, a constrained layout), so that the first real picture does not pay for
+    matplotlib's first drawing (fonts, caches, the mathtext parser, the modules of triangles and
+    colour bars) while the run waits: the worker draws it while the run casts and solves."""
     import io
 
+    import numpy as np
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.cm import ScalarMappable
+    from matplotlib.collections import LineCollection
+    from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
+    from matplotlib.tri import Triangulation
 
-    fig = Figure(figsize=(2, 2))
+    fig = Figure(figsize=(3, 2), layout="constrained")
     FigureCanvasAgg(fig)
-    ax = fig.subplots()
-    ax.plot([0, 1], [0, 1], label="warm")
-    ax.legend()
-    ax.set_title("warm", fontweight="bold")
+    line, tri = fig.subplots(1, 2)
+    line.plot([0, 1], [0, 1], label="warm")
+    line.legend(fontsize="x-small", loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    line.set_ylabel("area (mm$^2$)")
+    line.set_title("warm", fontweight="bold")
+    triangles = Triangulation(np.array([0.0, 1.0, 0.0, 1.0]), np.array([0.0, 0.0, 1.0, 1.0]), [[0, 1, 2], [1, 3, 2]])
+    norm = Normalize(0.0, 1.0)
+    tri.tripcolor(triangles, facecolors=np.array([0.2, 0.8]), cmap="magma", norm=norm, edgecolors="none")
+    tri.tripcolor(triangles, np.array([0.0, 0.5, 1.0, 0.5]), cmap="viridis", norm=norm, shading="gouraud")
+    tri.add_collection(LineCollection([[(0.0, 0.0), (1.0, 1.0)]], colors="k", linewidths=0.8))
+    tri.set_aspect("equal")
+    fig.colorbar(ScalarMappable(norm=norm, cmap="magma"), ax=tri, label="warm (MPa s)", shrink=0.85)
+    fig.suptitle("warm\nwarm", fontsize="medium")
     fig.savefig(io.BytesIO(), format="png", dpi=40)
 
 

@@ -141,3 +141,33 @@ def test_label_by_axis_in_an_anatomical_frame(labelled):
         label_by_axis(labelled, "sideways", anatomy=anatomy)
     with pytest.raises(d.InputError, match="at must be"):
         label_by_axis(labelled, "x", at="cop")
+
+
+def test_frames_written_in_a_thread_are_the_frames_written_in_turn(path, labelled, tmp_path):
+    """``solve_path(..., PathOutputs(series=...))`` writes each frame's ``.vtu`` in a thread while
+    the next frame solves: the same bytes as :meth:`PathResult.to_pvd` writes from the kept
+    solutions in turn, every file there when the path returns, nothing else in the folder."""
+    problem = d.ContactProblem(labelled, d.LinearLaw(H), free=("uz", "ry"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        streamed = solve_path(
+            problem, LOADS, times=[0.0, 0.1, 0.2, 0.3], method="newton", outputs=d.PathOutputs(series=tmp_path / "s")
+        )
+    path.to_pvd(tmp_path / "kept.pvd")
+    written = sorted(p.name for p in (tmp_path / "s").iterdir())
+    assert written == [f"frame_{k:04d}.vtu" for k in range(len(LOADS))]
+    for name in written:
+        assert (tmp_path / "s" / name).read_bytes() == (tmp_path / "kept_frames" / name).read_bytes(), name
+    assert streamed.frame_files is not None and streamed.frame_files._thread is None  # the thread ended
+
+
+def test_a_frame_that_cannot_be_written_in_the_thread_fails_the_path(labelled, tmp_path):
+    """A frame's write that fails in the series' thread raises in the solve, as a write in turn did."""
+    from dea_opt.loadpath import FrameSeries
+
+    series = FrameSeries(tmp_path / "blocked", 2, background=True)
+    (tmp_path / "blocked").write_text("a file where the folder goes")
+    with pytest.raises((d.InputError, OSError)):
+        series.write(0, 0.0, labelled)
+        series.finish()
+    assert series._thread is None
