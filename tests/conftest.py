@@ -230,3 +230,23 @@ def one_paragraph_error(result):
     assert text.startswith("dea-opt: error: ")
     assert "\n" not in text and "Traceback" not in text
     return text
+
+
+@pytest.fixture(autouse=True)
+def _pictures_drawn_in_the_test_s_process(request, monkeypatch):
+    """A run started in a test's own process draws its load path's pictures there, as a run with
+    ``background_pictures=False`` (a sweep's case) does, instead of starting a
+    :class:`~dea_opt.run.pictures.PictureWorker`: a second Python process per run, a second of CPU
+    to import Matplotlib and warm up, for the same files. The worker itself is tested where it
+    is named (tests marked ``picture_worker``, and every command a test runs as a process)."""
+    if request.node.get_closest_marker("picture_worker") is not None:
+        return
+    from dea_opt.run import demo, runner
+
+    original = runner.picture_worker
+
+    def drawn_here(scenario, background=True):
+        return original(scenario, False)
+
+    monkeypatch.setattr(runner, "picture_worker", drawn_here)
+    monkeypatch.setattr(demo, "picture_worker", drawn_here)
