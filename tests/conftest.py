@@ -142,14 +142,24 @@ def real_knee_scenario(free, moment=(0.0, 0.0, 0.0)) -> str:
     """)
 
 
+_REAL_KNEE: dict = {}
+
+
 def real_knee() -> dict:
     """The real knee of ``../shared/data/knee`` cast tibia onto femur (labels medial/lateral, max_gap
     2 mm): ``mesh1``, ``mesh2``, ``options``, ``reference`` (the plateaus' mean centroid) and
-    ``cast``. Skips the test when the meshes are absent."""
-    from dea_opt import mesh as M
-
+    ``cast``. Skips the test when the meshes are absent. Read and cast once per test process (the
+    cast is a frozen record; each caller gets its own dict of the same objects)."""
     if not all((KNEE / name).is_file() for name in KNEE_FILES):
         pytest.skip(f"the knee meshes are not in {KNEE}")
+    if not _REAL_KNEE:
+        _REAL_KNEE.update(_read_real_knee())
+    return dict(_REAL_KNEE)
+
+
+def _read_real_knee() -> dict:
+    from dea_opt import mesh as M
+
     femur = M.load_mesh(KNEE / "femoral_cartilage.stl")
     medial = M.load_mesh(KNEE / "medial_tibial_cartilage.stl")
     lateral = M.load_mesh(KNEE / "lateral_tibial_cartilage.stl")
@@ -230,3 +240,23 @@ def one_paragraph_error(result):
     assert text.startswith("dea-opt: error: ")
     assert "\n" not in text and "Traceback" not in text
     return text
+
+
+@pytest.fixture(autouse=True)
+def _pictures_drawn_in_the_test_s_process(request, monkeypatch):
+    """A run started in a test's own process draws its load path's pictures there, as a run with
+    ``background_pictures=False`` (a sweep's case) does, instead of starting a
+    :class:`~dea_opt.run.pictures.PictureWorker`: a second Python process per run, a second of CPU
+    to import Matplotlib and warm up, for the same files. The worker itself is tested where it
+    is named (tests marked ``picture_worker``, and every command a test runs as a process)."""
+    if request.node.get_closest_marker("picture_worker") is not None:
+        return
+    from dea_opt.run import demo, runner
+
+    original = runner.picture_worker
+
+    def drawn_here(scenario, background=True):
+        return original(scenario, False)
+
+    monkeypatch.setattr(runner, "picture_worker", drawn_here)
+    monkeypatch.setattr(demo, "picture_worker", drawn_here)

@@ -18,6 +18,7 @@ import termios
 import textwrap
 
 import pytest
+from conftest import invoke
 
 PATH = """
 import numpy as np, dea_opt as d
@@ -126,9 +127,17 @@ def test_run_shows_its_stages_and_the_frames_time_left_on_a_terminal_only(knee, 
     assert "validity: valid" in static and "validity:" in path
 
 
+def piped(*args) -> str:
+    """``dea-opt ARGS`` run in this process, whose output streams are no terminal (as a pipe is
+    not): its stderr and stdout; it must exit 0."""
+    result = invoke(*args)
+    assert result.exit_code == 0, result.stderr
+    return result.stderr + result.stdout
+
+
 def test_run_draws_nothing_into_a_pipe(knee, tmp_path):
-    static = run_command(cli("run", knee / "static.toml", "-o", tmp_path / "a"), False, stdout=True)
-    path = run_command(cli("run", knee / "walk.toml", "-o", tmp_path / "b"), False, stdout=True)
+    static = piped("run", knee / "static.toml", "-o", tmp_path / "a")
+    path = piped("run", knee / "walk.toml", "-o", tmp_path / "b")
     assert not DRAWN.search(static) and not DRAWN.search(path), static + path
     assert "validity: valid" in static  # what a run prints is there, the progress is not
 
@@ -203,19 +212,16 @@ def test_compare_and_calibrate_show_progress_on_a_terminal_only(sphere, tmp_path
 
 @pytest.mark.parametrize("terminal", [True, False])
 def test_sweep_shows_its_cases_on_a_terminal_only(sphere, tmp_path, terminal):
-    swept = run_command(
-        cli(
-            "sweep",
-            sphere / "sphere.toml",
-            "--set",
-            "law.H=0.5,0.6",
-            "--scheduler",
-            "synchronous",
-            "-o",
-            tmp_path / "s",
-        ),
-        terminal,
-        stdout=True,
+    args = (
+        "sweep",
+        sphere / "sphere.toml",
+        "--set",
+        "law.H=0.5,0.6",
+        "--scheduler",
+        "synchronous",
+        "-o",
+        tmp_path / "s",
     )
+    swept = run_command(cli(*args), True, stdout=True) if terminal else piped(*args)
     assert "2 case(s) run" in swept
     assert bool(re.search(r"sweep: +\d+%\|", swept)) is terminal, swept

@@ -22,6 +22,9 @@ from dea_opt.run import pictures as pictures_module
 from dea_opt.run.pictures import DrawHere, PictureFiles, PictureWorker
 from dea_opt.run.publish import INCOMPLETE_NAME, MANIFEST_NAME, check_outputs, output_run, read_manifest
 
+#: The runs here draw in a PictureWorker, as outside the tests (tests/conftest.py).
+pytestmark = pytest.mark.picture_worker
+
 LOADS = np.array([[0.0, 0.0, -400.0, 0.0, m, 0.0] for m in (-1500.0, 0.0, 1500.0)])
 PNGS = ("cycle.png", "exposure.png")
 

@@ -18,6 +18,9 @@ from dea_opt.geometry import plate_layer
 from dea_opt.loadpath import solve_path
 from dea_opt.run.pictures import PictureWorker
 
+#: The runs here draw in a PictureWorker, as outside the tests (tests/conftest.py).
+pytestmark = pytest.mark.picture_worker
+
 LOADS = np.array([[0.0, 0.0, -400.0, 0.0, m, 0.0] for m in (-1500.0, 0.0, 1500.0)])
 
 

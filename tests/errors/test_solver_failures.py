@@ -1,4 +1,6 @@
-"""Failure paths, each forced: every one ends as a SolverError or a certified success.
+"""Failure paths, each forced: every one ends as a SolverError or a certified success; and loads
+that push a layer towards crushing, which end in a finite answer with a ValidityWarning, or a
+SolverError that says "crushed".
 
 Also ``method="auto"``: Newton first, then the constrained formulation that fits the law.
 """
@@ -24,8 +26,11 @@ def _plate(law=None, e=5.0):
     )
 
 
-def _bed(law, force):
+def _bed(law=None, force=5.0):
+    """A ball on a bed pressed down by ``force`` (N), only ``uz`` free (linear law H = 0.6 MPa
+    by default)."""
     layer = sphere_on_bed_layer(radius=25.0, thickness=2.0, extent=6.0, n_rings=30, n_sectors=16)
+    law = law or d.LinearLaw(0.6)
     return d.ContactProblem(layer, law, force=(0, 0, -force), reference=(0, 0, 25.0), free=("uz",))
 
 
@@ -228,3 +233,36 @@ def test_log_law_beyond_its_capacity_says_crushed():
 def test_strict_false_returns_the_uncertified_solution():
     s = d.solve(_plate(e=10.0), "newton", max_iter=1, strict=False)
     assert not s.success and s.status is Status.MAX_ITERATIONS and s.info["native_status"] == "max_iter"
+
+
+# --- towards crushing ---------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("method", ["newton", "nlp"])
+@pytest.mark.parametrize(
+    "law, force",
+    [(d.AteshianLaw(0.6, 0.05), 400.0), (d.AteshianLaw(0.6, 0.0), 400.0), (d.BlankevoortLaw(0.6), 100.0)],
+    ids=["ateshian", "ateshian-0", "log"],
+)
+def test_bounded_laws_pushed_towards_crushing_never_give_nan(method, law, force):
+    # The log law's barrier is weak (finite energy at eps = -1), so it gets a smaller load.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)  # no numpy warning
+        warnings.simplefilter("ignore", d.ValidityWarning)  # nearly crushed: expected here
+        s = d.solve(_bed(law, force), method)
+    assert np.isfinite(s.pressure).all() and np.isfinite(s.u).all()
+    assert -1 < s.strain.min() < -0.6
+    assert s.certificate.passed
+
+
+def test_linear_law_beyond_its_validity_warns():
+    with pytest.warns(d.ValidityWarning, match="beyond the range"):
+        d.solve(_bed(force=20.0), "newton")
+    with pytest.warns(d.ValidityWarning, match="crushed"):
+        d.solve(_bed(force=400.0), "newton")
+
+
+def test_bounded_law_nearly_crushed_warns():
+    with pytest.warns(d.ValidityWarning, match="nearly crushed"):
+        s = d.solve(_bed(d.AteshianLaw(0.6, 0.0), 400.0), "newton")
+    assert -1 < s.strain.min() <= -0.95
