@@ -331,22 +331,32 @@ def _warn_dropped(h1, h2, good, spec1, spec2) -> None:
     warnings.warn("; ".join(parts) + f"; dropped {int((~good).sum())} of {len(good)} springs", stacklevel=4)
 
 
-def _closest_distance(points: np.ndarray, mesh) -> float:
-    """Smallest distance from ``points`` to the surface of ``mesh`` (mm).
+def _closest_distance(points: np.ndarray, mesh) -> str:
+    """The smallest distance from ``points`` to the surface of ``mesh``, as the message says it.
 
-    A k-d tree over the mesh's vertices and centroids picks the 64 nearest candidates, whose
-    exact closest points on the surface are then computed.
+    Where the two bounding boxes lie further apart than the larger box's diagonal, the boxes'
+    distance is a lower bound within a factor of two of the answer, and the answer is said as
+    "at least" that: a k-d tree's nearest query over points that far out visits nearly every
+    node (seconds on a knee, for a message). Otherwise a k-d tree over the mesh's vertices and
+    centroids picks the 64 nearest candidates, whose exact closest points on the surface are
+    then computed.
     """
     from scipy.spatial import cKDTree
 
+    low, high = points.min(axis=0), points.max(axis=0)
+    mesh_low, mesh_high = mesh.bounds
+    apart = float(np.linalg.norm(np.maximum(0.0, np.maximum(low - mesh_high, mesh_low - high))))
+    size = max(float(np.linalg.norm(high - low)), float(np.linalg.norm(mesh_high - mesh_low)))
+    if apart > size:
+        return f"at least {apart:.4g} mm"
     tree = cKDTree(np.vstack([mesh.vertices, mesh.triangles_center]))
     rough, _ = tree.query(points)
     best = np.argsort(rough)[:64]
     try:
         _, distance, _ = mesh.nearest.on_surface(points[best])
-    except (IndexError, ValueError):  # trimesh's query finds no candidate far away (1e12 mm)
-        return float(np.min(rough))
-    return float(distance.min())
+    except (IndexError, ValueError):  # trimesh's query finds no candidate
+        return f"{float(np.min(rough)):.4g} mm"
+    return f"{float(distance.min()):.4g} mm"
 
 
 class NoSpringsError(InputError):
@@ -387,7 +397,7 @@ def _raise_no_springs(m2, cos_inside, t_outside, n_rejected, origins2, options):
     else:
         detail = (
             f"no normal of mesh1 meets a face of mesh2 that faces it; the smallest distance "
-            f"found between the meshes is {_closest_distance(origins2, m2):.4g} mm (check pose, "
+            f"found between the meshes is {_closest_distance(origins2, m2)} (check pose, "
             f"flip, units, and that both meshes are in the same frame)"
         )
     raise NoSpringsError(f"mesh1 and mesh2 never face each other within {window}: {detail}", n_rejected)

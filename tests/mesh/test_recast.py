@@ -140,6 +140,15 @@ def test_a_recast_counts_springs_lost_to_separation(plate):
         M.recast(start, translation(3.0))
 
 
+def test_a_recast_far_away_says_a_lower_bound_of_the_distance_it_can_prove(plate):
+    # 1e6 mm up: the boxes' distance bounds the meshes' from below (the message says "at least")
+    _, start = plate
+    with pytest.raises(d.InputError, match="between the meshes is at least") as raised:
+        M.recast(start, translation(1e6))
+    said = float(str(raised.value).split("is at least ")[1].split(" mm")[0])
+    assert 0.99e6 < said <= 1e6 + 3.0  # the plate lay 3 mm from facing at 3 mm up (above)
+
+
 def test_a_recast_counts_springs_that_slid_off(plate):
     _, start = plate
     shifted = np.eye(4)
