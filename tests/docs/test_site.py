@@ -23,17 +23,11 @@ from pathlib import Path
 from urllib.parse import unquote, urlsplit
 
 import pytest
+from conftest import docs_unavailable
 
 ROOT = Path(__file__).resolve().parents[2]
-REQUIRED = os.environ.get("DEA_OPT_REQUIRE_DOCS") == "1"
 
 pytestmark = pytest.mark.slow
-
-
-def unavailable(what: str) -> None:
-    if REQUIRED:
-        pytest.fail(f"{what}, and DEA_OPT_REQUIRE_DOCS=1 asks for the site's tests")
-    pytest.skip(what)
 
 
 @pytest.fixture(scope="session")
@@ -44,7 +38,7 @@ def site(tmp_path_factory) -> Path:
         assert (path / "index.html").is_file(), f"DEA_OPT_DOCS_HTML={given} holds no built site"
         return path
     if importlib.util.find_spec("sphinx") is None or importlib.util.find_spec("sphinx_gallery") is None:
-        unavailable('the docs extra is not installed (pip install -e ".[docs]")')
+        docs_unavailable('the docs extra is not installed (pip install -e ".[docs]")')
     shared = tmp_path_factory.getbasetemp().parent  # one build for every xdist worker
     out = shared / "dea-opt-site"
     with open(shared / "dea-opt-site.lock", "w") as lock:
@@ -200,7 +194,7 @@ def browser():
 
     executable = find_chromium()
     if executable is None:
-        unavailable("Chromium is not installed (apt-get install chromium)")
+        docs_unavailable("Chromium is not installed (apt-get install chromium)")
     with Browser(executable) as opened:
         yield opened
 
