@@ -1,10 +1,14 @@
 """Pictures drawn in a second process while a run solves and writes its other outputs.
 
-Matplotlib's import (0.3-0.5 s) and the drawing of a load path's two pictures (0.6-0.9 s on
-the knee of ``../shared/data/knee``) are most of what ``dea-opt run`` spends outside its
-solve. :class:`PictureWorker` starts a Python process when the run starts; it imports
-matplotlib on the other core while the run casts and solves, then draws the pictures while
-the run writes its tables and VTK files. The run waits for it before it publishes.
+Matplotlib's import (0.3-0.5 s) and the drawing of a load path's pictures (0.8-0.9 s on the
+knee of ``../shared/data/knee``: the cycle plot, the exposure maps, the peak frame's map) are
+most of what ``dea-opt run`` spends outside its solve. :class:`PictureWorker` starts a Python
+process when the run starts; it imports matplotlib (and what the pictures read: pandas, scipy's
+spatial and image modules) and draws a small figure on the other core while the run casts and
+solves. The pictures need every frame, so they are all handed over at once when the last frame is
+solved: the worker then forks a child per picture, up to one per core, and they are drawn side by
+side (0.5 s on the knee) while the run writes its tables and VTK files. The run waits for them
+before it publishes.
 
 Written here rather than with :class:`concurrent.futures.ProcessPoolExecutor` because the
 worker must end with the run however the run ends: it reads its jobs from a pipe and returns
@@ -28,9 +32,11 @@ like every other output: published with the others and listed in ``manifest.json
 from __future__ import annotations
 
 import contextlib
+import gc
 import importlib
 import os
 import pickle
+import select
 import shutil
 import subprocess
 import sys
@@ -43,6 +49,12 @@ __all__ = ["DrawHere", "PictureFiles", "PictureWorker"]
 
 #: The modules a worker may run functions of.
 _MODULES = ("dea_opt.io.cycle", "dea_opt.io.plots")
+
+
+#: What a job's pictures import on their way, imported while the run casts and solves rather than
+#: on the first job while the run waits: pandas (a load path's table comes as a DataFrame),
+#: scipy's spatial and image modules (the maps' site triangles and region outlines).
+_READ_BY_PICTURES = ("pandas", "scipy.spatial", "scipy.ndimage")
 
 
 def _call(module: str, function: str, args, kwargs):
@@ -309,31 +321,132 @@ def _warm_up() -> None:
     fig.savefig(io.BytesIO(), format="png", dpi=40)
 
 
-def _serve(source, sink) -> None:
-    """The worker's loop: read job files' names from ``source`` until it closes, answer each
-    job on ``sink``."""
+def _answer(path: str) -> bytes:
+    """The pickled answer to the job in file ``path``: ``("ok", value)`` or ``("error", text)``."""
+    try:
+        with open(path, "rb") as handle:
+            job = pickle.load(handle)
+        answer = ("ok", _call(*job))
+    except BaseException as error:  # answered, and the run draws it itself to raise the same
+        answer = ("error", f"{type(error).__name__}: {error}")
+    try:
+        return pickle.dumps(answer, protocol=pickle.HIGHEST_PROTOCOL)
+    except Exception as error:  # noqa: BLE001 - a value that does not pickle: the run draws it
+        return pickle.dumps(("error", f"{type(error).__name__}: {error}"))
+
+
+def _parallel_jobs() -> int:
+    """How many jobs the worker draws at once, each in a child forked from it (0: one after the
+    other in the worker itself, where ``fork`` is missing or unsafe: Windows, macOS)."""
+    if not hasattr(os, "fork") or sys.platform == "darwin":
+        return 0
+    cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else os.cpu_count()
+    return max(1, cores or 1)
+
+
+class _Child:
+    """A job drawn in a child forked from the warmed-up worker; its answer read back through a pipe."""
+
+    def __init__(self, path: str, pipes: tuple):
+        read, write = os.pipe()
+        self.pid = os.fork()
+        if self.pid == 0:  # the child: draw, send the answer, leave without the parent's cleanup
+            code = 1
+            try:
+                os.close(read)
+                # Off the run's pipes: a child the worker outlives (the worker killed mid-job)
+                # must not keep the run waiting for the end of the worker's answers.
+                null = os.open(os.devnull, os.O_RDWR)
+                for fd in pipes:
+                    os.dup2(null, fd)
+                data = memoryview(_answer(path))
+                while data:
+                    data = data[os.write(write, data) :]
+                code = 0
+            finally:
+                os._exit(code)
+        os.close(write)
+        self.fd = read
+        self.data = bytearray()
+
+    def read(self) -> bool:
+        """Read what the child sent; True once it has closed its end (its answer is complete)."""
+        chunk = os.read(self.fd, 1 << 16)
+        self.data += chunk
+        if chunk:
+            return False
+        os.close(self.fd)
+        _, status = os.waitpid(self.pid, 0)
+        if status != 0 or not self.data:  # it died mid-job: the run draws the picture itself
+            self.data = bytearray(pickle.dumps(("error", f"the drawing process ended with status {status}")))
+        return True
+
+
+def _serve(source: int, sink) -> None:
+    """The worker's loop: read job files' names, one per line, from the file descriptor
+    ``source`` until it closes; answer each job on ``sink``, in the order the jobs came.
+
+    Once warmed up, the worker forks a child per job, up to one per core, so that a run's
+    pictures (all handed over when its last frame is solved) are drawn at once rather than one
+    after the other while the run waits; a fork of the warmed-up worker starts in milliseconds
+    where a new process would import matplotlib again. When the run closes the pipe, jobs not
+    yet started are dropped (nobody waits for them) and those drawing finish."""
     import matplotlib
 
     matplotlib.use("Agg")
-    for module in _MODULES:
+    for module in _MODULES + _READ_BY_PICTURES:
         importlib.import_module(module)
     _warm_up()
-    for line in source:
-        try:
-            with open(line.decode().rstrip("\n"), "rb") as handle:
-                job = pickle.load(handle)
-            answer = ("ok", _call(*job))
-        except BaseException as error:  # answered, and the run draws it itself to raise the same
-            answer = ("error", f"{type(error).__name__}: {error}")
-        try:
-            pickle.dump(answer, sink, protocol=pickle.HIGHEST_PROTOCOL)
-            sink.flush()
-        except (OSError, pickle.PicklingError):
-            return
+    # What is loaded now (matplotlib, its fonts and caches) lives as long as the worker: kept out
+    # of the garbage collector's full passes, which otherwise walk it again and again while a
+    # picture of ten thousand polygons is made (a fifth of the exposure maps' time), and left
+    # untouched in the children's copy-on-write memory.
+    gc.freeze()
+    parallel = _parallel_jobs()
+    waiting: list = []  # (place, job file) not yet started
+    drawing: dict = {}  # file descriptor -> (place, _Child)
+    answers: dict = {}  # place -> pickled answer not yet sent
+    received = sent = 0
+    pending = b""
+    open_ = True
+    while open_ or drawing:
+        while waiting and (len(drawing) < parallel or not parallel):
+            place, path = waiting.pop(0)
+            if parallel:
+                child = _Child(path, (source, sink.fileno()))
+                drawing[child.fd] = (place, child)
+            else:
+                answers[place] = _answer(path)
+        while sent in answers:
+            try:
+                sink.write(answers.pop(sent))
+                sink.flush()
+            except OSError:
+                return
+            sent += 1
+        if not open_ and not drawing:
+            break
+        ready, _, _ = select.select(([source] if open_ else []) + list(drawing), [], [])
+        for fd in ready:
+            if fd == source:
+                chunk = os.read(source, 1 << 16)
+                if not chunk:
+                    open_, waiting = False, []
+                    continue
+                pending += chunk
+                *lines, pending = pending.split(b"\n")
+                for line in lines:
+                    waiting.append((received, line.decode()))
+                    received += 1
+            else:
+                place, child = drawing[fd]
+                if child.read():
+                    del drawing[fd]
+                    answers[place] = bytes(child.data)
 
 
 if __name__ == "__main__":
     try:
-        _serve(sys.stdin.buffer, sys.stdout.buffer)
+        _serve(sys.stdin.fileno(), sys.stdout.buffer)
     except KeyboardInterrupt:  # Ctrl-C reaches the run's whole process group: the run says what happened
         pass

@@ -3,6 +3,7 @@ run's own process, the same errors, and nothing left behind however the worker o
 
 from __future__ import annotations
 
+import contextlib
 import os
 import signal
 import subprocess
@@ -188,3 +189,86 @@ def test_a_job_goes_to_the_worker_without_the_meshes_its_springs_were_cast_from(
     )
     assert out.stdout.strip() == "False", out.stdout + out.stderr
     np.testing.assert_array_equal(pickle.loads(buffer.getvalue())[0][2][0].points, layer.points)
+
+
+def test_pictures_handed_over_together_are_each_answered_with_their_own_file(path, tmp_path):
+    """The worker draws jobs side by side in children of its own: a long job and a short one
+    handed over at once come back each with its own answer, the one the run would draw."""
+    from dea_opt.io.cycle import plot_cycle
+
+    short = path.table.iloc[:2]
+    with PictureWorker() as pictures:
+        numbers = [
+            pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "long.png")),
+            pictures.submit("dea_opt.io.cycle", "plot_cycle", (short, tmp_path / "short.png")),
+            pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "again.png")),
+        ]
+        answers = [pictures.result(n) for n in reversed(numbers)][::-1]
+    assert answers == [tmp_path / "long.png", tmp_path / "short.png", tmp_path / "again.png"]
+    plot_cycle(short, tmp_path / "short_here.png")
+    assert (tmp_path / "short.png").read_bytes() == (tmp_path / "short_here.png").read_bytes()
+    assert (tmp_path / "long.png").read_bytes() == (tmp_path / "again.png").read_bytes()
+    assert (tmp_path / "long.png").read_bytes() != (tmp_path / "short.png").read_bytes()
+
+
+def test_a_drawing_child_killed_mid_job_leaves_its_picture_to_the_run(path, tmp_path):
+    import psutil
+
+    from dea_opt.run.pictures import _parallel_jobs
+
+    if not _parallel_jobs():
+        pytest.skip("this platform draws in the worker itself (no fork): tested by the next test")
+    with PictureWorker() as pictures:
+        worker = psutil.Process(pictures._drawer.process.pid)
+        # A child killed once it has answered (a busy machine can be that slow to look) is
+        # tried again with another job.
+        for attempt in range(5):
+            number = pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / f"c{attempt}.png"))
+            deadline = time.monotonic() + 60
+            children: list = []
+            while not children and time.monotonic() < deadline:
+                children = worker.children()
+                time.sleep(0.002)
+            assert children, "the worker forked no child for the job"
+            with contextlib.suppress(psutil.NoSuchProcess):
+                children[0].kill()
+            answer = pictures._drawer.answer(number)
+            if answer is not None and answer[0] == "error":
+                break
+        assert answer is not None and answer[0] == "error" and "ended with status" in answer[1], answer
+        assert pictures.result(number) == tmp_path / f"c{attempt}.png"
+    assert (tmp_path / f"c{attempt}.png").stat().st_size > 1000
+
+
+def test_without_fork_the_worker_draws_its_jobs_itself_in_order(path, tmp_path, monkeypatch):
+    """Where ``fork`` is missing or unsafe (Windows, macOS) the worker draws each job itself, one
+    after the other: the same answers, in the order the jobs came, a refused job answered too."""
+    import gc
+    import io
+    import pickle
+
+    from dea_opt.run import pictures as module
+
+    monkeypatch.setattr(module, "_parallel_jobs", lambda: 0)
+    jobs = [
+        ("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "a.png"), {}),
+        ("os", "remove", (str(tmp_path / "x"),), {}),
+        ("dea_opt.io.cycle", "plot_cycle", (path.table.iloc[:2], tmp_path / "b.png"), {}),
+    ]
+    source, feed = os.pipe()
+    for k, job in enumerate(jobs):
+        (tmp_path / f"job{k}").write_bytes(pickle.dumps(job))
+        os.write(feed, f"{tmp_path / f'job{k}'}\n".encode())
+    os.close(feed)
+    sink = io.BytesIO()
+    try:
+        module._serve(source, sink)
+    finally:
+        gc.unfreeze()
+        os.close(source)
+    sink.seek(0)
+    answers = [pickle.load(sink) for _ in jobs]
+    assert sink.read() == b""
+    assert answers[0] == ("ok", tmp_path / "a.png") and answers[2] == ("ok", tmp_path / "b.png")
+    assert answers[1][0] == "error" and "picture worker runs functions of" in answers[1][1]
+    assert (tmp_path / "a.png").stat().st_size > 1000 and (tmp_path / "b.png").stat().st_size > 1000
