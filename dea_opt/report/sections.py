@@ -3,6 +3,7 @@ hashes, the timings, the software and the run's files."""
 
 from __future__ import annotations
 
+import functools
 import platform
 import sys
 import time
@@ -131,18 +132,27 @@ def _scenario_text(scenario) -> str:
         return ""
 
 
-def software_section(page: Page, timings: list) -> None:
-    """Timings (``[(what, seconds)]``) and the versions of Python, the platform and :data:`SOFTWARE`."""
+@functools.cache
+def _versions() -> tuple:
+    """``(name, version)`` of Python, the platform and :data:`SOFTWARE`, read once per process:
+    each lookup scans the installed distributions (20 ms for the list, paid by every report of a
+    sweep's cases or a test's runs otherwise)."""
     from importlib.metadata import PackageNotFoundError, version
 
-    page.heading("Timings and software", "software")
-    page.add(table(["step", "time (s)"], timings))
-    rows = [["python", sys.version.split()[0]], ["platform", platform.platform()]]
+    rows = [("python", sys.version.split()[0]), ("platform", platform.platform())]
     for package in SOFTWARE:
         try:
-            rows.append([package, version(package)])
+            rows.append((package, version(package)))
         except PackageNotFoundError:
-            rows.append([package, "not installed"])
+            rows.append((package, "not installed"))
+    return tuple(rows)
+
+
+def software_section(page: Page, timings: list) -> None:
+    """Timings (``[(what, seconds)]``) and the versions of Python, the platform and :data:`SOFTWARE`."""
+    page.heading("Timings and software", "software")
+    page.add(table(["step", "time (s)"], timings))
+    rows = [list(row) for row in _versions()]
     rows.append(["report written", time.strftime("%Y-%m-%d %H:%M:%S %z")])
     page.add(table(["software", "version"], rows))
 
