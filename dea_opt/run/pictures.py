@@ -167,14 +167,17 @@ class _Drawer:
         process, self.process = self.process, None
         if process is None:
             return
-        # Closing its pipes ends the worker; it is not waited for (its interpreter's shutdown is
-        # no part of the run).
+        # Its answers are no longer wanted: the worker is ended at once (it may still be warming
+        # up, a second of CPU for nothing), and not waited for (its end is no part of the run).
+        # A child drawing a job the run gave up on finishes it and ends, its pipe's reader gone.
         for stream in (process.stdin, process.stdout):
             try:
                 if stream is not None:
                     stream.close()
             except OSError:
                 pass
+        with contextlib.suppress(OSError):
+            process.kill()
 
 
 class PictureWorker:
@@ -232,7 +235,8 @@ class PictureWorker:
         return PictureFiles(self)
 
     def close(self) -> None:
-        """End the worker (it finishes the job it is drawing first) and remove the job files."""
+        """End the worker and remove the job files (a picture asked for and not yet drawn is
+        drawn here when its result is asked for)."""
         self._drawer.stop()
         if self._folder is not None:
             shutil.rmtree(self._folder, ignore_errors=True)

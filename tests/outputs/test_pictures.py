@@ -33,6 +33,14 @@ def path():
         return solve_path(problem, LOADS, times=[0.0, 0.1, 0.2], method="newton")
 
 
+@pytest.fixture(scope="module")
+def worker():
+    """One worker for the tests that neither end it nor look at what it leaves behind (each
+    worker takes a second of CPU to warm up)."""
+    with PictureWorker() as shared:
+        yield shared
+
+
 def _alive(pid: int) -> bool:
     """Whether ``pid`` still runs (a zombie, exited but not yet reaped, does not)."""
     import psutil
@@ -57,16 +65,15 @@ def test_the_worker_draws_the_same_files_as_the_run(path, tmp_path):
     assert folder is not None and not os.path.exists(folder), "the job files were left behind"
 
 
-def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_path):
+def test_a_job_the_worker_cannot_do_raises_the_error_the_run_would(path, tmp_path, worker):
     broken = path.table.drop(columns=["time_s"])
     from dea_opt.io.cycle import plot_cycle
 
     with pytest.raises(Exception) as here:
         plot_cycle(broken, tmp_path / "a.png")
-    with PictureWorker() as pictures:
-        number = pictures.submit("dea_opt.io.cycle", "plot_cycle", (broken, tmp_path / "b.png"))
-        with pytest.raises(type(here.value)):
-            pictures.result(number)
+    number = worker.submit("dea_opt.io.cycle", "plot_cycle", (broken, tmp_path / "b.png"))
+    with pytest.raises(type(here.value)):
+        worker.result(number)
     assert not (tmp_path / "b.png").exists()
 
 
@@ -89,9 +96,9 @@ def test_a_worker_killed_mid_job_leaves_the_picture_to_the_run(path, tmp_path):
     assert (tmp_path / "c.png").stat().st_size > 1000
 
 
-def test_only_picture_functions_run_in_the_worker(tmp_path):
-    with PictureWorker() as pictures, pytest.raises(ValueError, match="picture worker runs functions of"):
-        pictures.result(pictures.submit("os", "remove", (str(tmp_path / "x"),)))
+def test_only_picture_functions_run_in_the_worker(tmp_path, worker):
+    with pytest.raises(ValueError, match="picture worker runs functions of"):
+        worker.result(worker.submit("os", "remove", (str(tmp_path / "x"),)))
 
 
 def test_the_worker_ends_when_its_run_is_killed(tmp_path):
@@ -142,7 +149,7 @@ def test_a_run_of_a_load_path_draws_in_a_worker_and_a_static_run_does_not(tmp_pa
         assert none is None
 
 
-def test_a_job_goes_to_the_worker_without_the_meshes_its_springs_were_cast_from(tmp_path):
+def test_a_job_goes_to_the_worker_without_the_meshes_its_springs_were_cast_from(tmp_path, worker):
     """A load path on springs cast from meshes: the worker's pictures are the run's, byte for
     byte, and its jobs carry no SpringCast (the meshes and their ray tracer) and need no trimesh
     to be read, while the solutions they carry keep the validity assessed with the meshes."""
@@ -164,8 +171,7 @@ def test_a_job_goes_to_the_worker_without_the_meshes_its_springs_were_cast_from(
             problem, loads, times=[0.0, 0.1, 0.2], method="newton", outputs=d.PathOutputs(keep_frames=("peak",))
         )
         here = result.write(tmp_path / "here", formats=("png",))
-        with PictureWorker() as pictures:
-            there = result.write(tmp_path / "there", formats=("png",), pictures=pictures)
+        there = result.write(tmp_path / "there", formats=("png",), pictures=worker)
     assert set(here) == set(there) and "peak_map" in here
     for name in here:
         assert there[name].read_bytes() == here[name].read_bytes(), name
@@ -191,19 +197,19 @@ def test_a_job_goes_to_the_worker_without_the_meshes_its_springs_were_cast_from(
     np.testing.assert_array_equal(pickle.loads(buffer.getvalue())[0][2][0].points, layer.points)
 
 
-def test_pictures_handed_over_together_are_each_answered_with_their_own_file(path, tmp_path):
+def test_pictures_handed_over_together_are_each_answered_with_their_own_file(path, tmp_path, worker):
     """The worker draws jobs side by side in children of its own: a long job and a short one
     handed over at once come back each with its own answer, the one the run would draw."""
     from dea_opt.io.cycle import plot_cycle
 
     short = path.table.iloc[:2]
-    with PictureWorker() as pictures:
-        numbers = [
-            pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "long.png")),
-            pictures.submit("dea_opt.io.cycle", "plot_cycle", (short, tmp_path / "short.png")),
-            pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "again.png")),
-        ]
-        answers = [pictures.result(n) for n in reversed(numbers)][::-1]
+    numbers = [
+        worker.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "long.png")),
+        worker.submit("dea_opt.io.cycle", "plot_cycle", (short, tmp_path / "short.png")),
+        worker.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / "again.png")),
+    ]
+    answers = [worker.result(n) for n in reversed(numbers)][::-1]
+    assert worker._drawer.process is not None, "the worker failed: the run drew the pictures"
     assert answers == [tmp_path / "long.png", tmp_path / "short.png", tmp_path / "again.png"]
     plot_cycle(short, tmp_path / "short_here.png")
     assert (tmp_path / "short.png").read_bytes() == (tmp_path / "short_here.png").read_bytes()

@@ -51,6 +51,15 @@ def scenario(tmp_path):
     return path
 
 
+@pytest.fixture()
+def tables_only(tmp_path):
+    """The hip writing its tables only: for the tests of a sweep's bookkeeping, which read no
+    picture and no VTK file (the cases' full outputs are those of ``scenario``)."""
+    path = tmp_path / "hip_tables.toml"
+    path.write_text(SCENARIO.replace('formats = ["csv", "json", "vtk", "png"]', 'formats = ["csv", "json"]'))
+    return path
+
+
 def runs(out: Path) -> dict:
     """How many times each case was computed (from its record in .sweep/records/)."""
     return {p.stem: json.loads(p.read_text())["runs"] for p in (out / ".sweep" / "records").glob("[!.]*.json")}
@@ -88,7 +97,8 @@ def test_resume_runs_only_the_missing_cases(scenario, tmp_path):
     assert again.ran == [] and len(again.skipped) == 12
 
 
-def test_a_failing_case_is_recorded_and_its_retry_replaces_the_row(scenario, tmp_path):
+def test_a_failing_case_is_recorded_and_its_retry_replaces_the_row(tables_only, tmp_path):
+    scenario = tables_only
     out = tmp_path / "sweep"
     # the check before solving off: it would stop the negated path before its frames are solved
     sets = ["load_path.scale=1,-1", "solve.check_inputs=false"]
@@ -204,7 +214,8 @@ def test_twelve_cases_on_two_workers_survive_a_kill(tmp_path):
     assert len(set(after["pid"])) >= 2  # the cases ran in worker processes
 
 
-def test_sweep_command(scenario, tmp_path):
+def test_sweep_command(tables_only, tmp_path):
+    scenario = tables_only
     result = CliRunner().invoke(
         app, ["sweep", str(scenario), "--set", "law.H=5,10", "--scheduler", "synchronous", "-o", str(tmp_path / "s")]
     )
