@@ -133,16 +133,20 @@ def _cycle(edges) -> list[str] | None:
     return None
 
 
-EDGES = import_edges()
+@pytest.fixture(scope="module")
+def edges() -> dict[tuple[str, str], bool]:
+    """:func:`import_edges`, parsed once by the test process that runs these tests (every
+    module of the package read and parsed: a second at collection in each test process otherwise)."""
+    return import_edges()
 
 
-def test_the_graph_sees_the_imports_it_must():
+def test_the_graph_sees_the_imports_it_must(edges):
     # a module-level import, a function-level one, and the package front
-    assert EDGES[("dea_opt.mesh.springs", "dea_opt.layer")] is True
-    assert EDGES[("dea_opt.study", "dea_opt.solver")] is False
-    assert EDGES[("dea_opt", "dea_opt.loadpath")] is True
-    assert ("dea_opt.scenario.build", "dea_opt.laws") in EDGES  # `from .. import laws`
-    assert len(EDGES) > 100
+    assert edges[("dea_opt.mesh.springs", "dea_opt.layer")] is True
+    assert edges[("dea_opt.study", "dea_opt.solver")] is False
+    assert edges[("dea_opt", "dea_opt.loadpath")] is True
+    assert ("dea_opt.scenario.build", "dea_opt.laws") in edges  # `from .. import laws`
+    assert len(edges) > 100
 
 
 def _unit(module: str) -> str:
@@ -156,11 +160,11 @@ def test_every_subpackage_has_its_layer():
     assert units == set(LEVEL), f"not in LAYERS: {sorted(units - set(LEVEL))}; gone: {sorted(set(LEVEL) - units)}"
 
 
-def test_subpackages_import_only_from_the_layers_below():
+def test_subpackages_import_only_from_the_layers_below(edges):
     """Counting the imports inside functions: no subpackage reaches up, or across its own layer."""
     wrong = sorted(
         (a, b)
-        for a, b in EDGES
+        for a, b in edges
         if _unit(a) != "dea_opt" and _unit(a) != _unit(b) and LEVEL[_unit(a)] <= LEVEL[_unit(b)]
     )
     assert not wrong, "imports that break the layers: " + "; ".join(f"{a} -> {b}" for a, b in wrong)
@@ -173,13 +177,13 @@ def test_the_layer_rule_would_see_an_upward_import_inside_a_function():
     assert LEVEL[_unit("dea_opt.layer")] <= LEVEL[_unit("dea_opt.mesh")]  # would be reported
 
 
-def test_no_import_cycle_at_import_time():
-    cycle = _cycle([edge for edge, at_import in EDGES.items() if at_import])
+def test_no_import_cycle_at_import_time(edges):
+    cycle = _cycle([edge for edge, at_import in edges.items() if at_import])
     assert cycle is None, " -> ".join(cycle)
 
 
-def test_no_import_cycle_with_function_level_imports():
-    cycle = _cycle(list(EDGES))
+def test_no_import_cycle_with_function_level_imports(edges):
+    cycle = _cycle(list(edges))
     assert cycle is None, " -> ".join(cycle)
 
 
@@ -216,10 +220,10 @@ def _within(module: str, package: str) -> bool:
     return module == package or module.startswith(package + ".")
 
 
-def test_formulations_see_arrays_and_a_law_only():
+def test_formulations_see_arrays_and_a_law_only(edges):
     """No module under dea_opt/formulations/ imports, at module level or inside a function, from
     the packages that know meshes, files, problems or solutions."""
-    imported = {(a, b) for a, b in EDGES if _within(a, "dea_opt.formulations")}
+    imported = {(a, b) for a, b in edges if _within(a, "dea_opt.formulations")}
     assert imported, "the graph sees no import of the formulations"
     forbidden = sorted((a, b) for a, b in imported if any(_within(b, p) for p in NEVER_SEEN_BY_FORMULATIONS))
     assert not forbidden, f"formulations import what they must not see: {forbidden}"
