@@ -42,7 +42,7 @@ def run(method: str, problem, loads, options: dict | None = None, label: str | N
     walls = []
     for _ in range(max(int(repeats), 1)):
         start = time.perf_counter()
-        result = dea.solve_path(problem, loads, method=method, keep_solutions=False, **options)
+        result = dea.solve_path(problem, loads, method=method, outputs=dea.PathOutputs(keep_solutions=False), **options)
         walls.append(time.perf_counter() - start)
         if walls[-1] > 5.0:
             break  # repeats are for short paths only
@@ -95,7 +95,9 @@ def one(
     if frames:
         loads = loads.iloc[:frames]
     with blas_limit(blas_threads):
-        dea.solve_path(hip(500), loads.iloc[:3], method=method, keep_solutions=False, **options)
+        dea.solve_path(
+            hip(500), loads.iloc[:3], method=method, outputs=dea.PathOutputs(keep_solutions=False), **options
+        )
         row = run(method, hip(int(n_springs)), loads, options, label, repeats=repeats)
     row = {k: (v.item() if hasattr(v, "item") else v) for k, v in row.items()}
     row["peak_rss_mb"] = peak_rss_mb()

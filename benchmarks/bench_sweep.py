@@ -95,8 +95,7 @@ def case_solve(scenario: str, cases: int = 8) -> dict:
                 method=method,
                 times=data.times,
                 body=data.body,
-                keep_solutions=False,
-                keep_pressures=False,
+                outputs=dea.PathOutputs(keep_solutions=False, keep_pressures=False),
                 **options,
             )
             solved = time.perf_counter()

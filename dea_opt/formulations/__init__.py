@@ -24,6 +24,11 @@ A formulation is a module (or any object with these attributes):
     cone test of the load runs before it.
 ``EXTRA_OPTIONS`` (optional)
     Where options it does not declare go (``qp``: to the QP solver); ``None`` rejects them.
+``check_extra_options`` (optional)
+    ``check_extra_options(checked)`` raises the :class:`InputError` its solver would raise for
+    the options it passes on, before any model is built (``qp``: Clarabel's settings): checked
+    with its options, so that an option no solver knows is refused even where the formulation
+    never runs (``auto``'s fallback).
 ``VARIANT`` (optional)
     The :class:`Variant` a comparison study varies (``qp``: the solver).
 ``PAGE`` (optional)
@@ -321,8 +326,13 @@ def fallback_for(law, kinematics: str = "small") -> str | None:
 def check_options(name: str, given: dict) -> dict:
     """``given`` checked against the options of ``name``, defaults filled in (``x0`` is not an
     option of the model: leave it out). Unknown names are an :class:`InputError` naming the
-    accepted ones, unless the formulation passes them on (:func:`extra_options`)."""
-    return validate(name, options(name), dict(given), extra_options(name))
+    accepted ones, unless the formulation passes them on (:func:`extra_options`), and then those
+    its solver would refuse are (``check_extra_options`` of the module)."""
+    checked = validate(name, options(name), dict(given), extra_options(name))
+    check_extra = getattr(get(name), "check_extra_options", None)
+    if check_extra is not None:
+        check_extra(checked)
+    return checked
 
 
 def tolerance_options(name: str, tol: float | None) -> dict:

@@ -136,6 +136,25 @@ def _false_ray(ray, scale, scaled_load) -> str | None:
     )
 
 
+def check_extra_options(checked: dict) -> None:
+    """The :class:`InputError` a model would raise for ``checked`` (qp's options, validated, the
+    solver's among them), raised before any model is built: Clarabel's settings (the default
+    solver, called directly) against its ``DefaultSettings``. A solver reached through cvxpy
+    checks its own when it solves (cvxpy has no list of them)."""
+    known = {option.name for option in OPTIONS}
+    extra = {k: v for k, v in checked.items() if k not in known}
+    if not extra or checked.get("solver", DIRECT) != DIRECT:
+        return
+    import clarabel
+
+    settings = clarabel.DefaultSettings()
+    for name, value in extra.items():
+        try:
+            setattr(settings, name, value)
+        except (AttributeError, TypeError, ValueError) as exc:
+            raise _rejected(DIRECT, extra, exc) from None
+
+
 def _rejected(solver: str, options: dict, exc: Exception) -> InputError:
     own = ", ".join(option.name for option in OPTIONS)
     return InputError(

@@ -105,3 +105,18 @@ def test_ipopt_options_must_be_a_dict_of_names(small_bed, options):
 def test_an_unknown_qp_solver_setting_is_an_input_error(small_bed, solver):
     with pytest.raises(d.InputError, match=f"{solver} rejected the options \\['bogus'\\]"):
         d.solve(pressed(small_bed), "qp", solver=solver, bogus=1)
+
+
+def test_an_option_no_method_of_auto_knows_is_refused_even_where_newton_answers(small_bed):
+    """``auto`` hands an option Newton does not declare to the QP's solver, its fallback: an option
+    Clarabel does not know either is refused before anything is solved, not only on the day the
+    fallback runs (a misspelt option of a load path, such as ``keep_solutions`` given to
+    ``solve_path`` instead of in its ``outputs``, was silently dropped)."""
+    problem = pressed(small_bed)
+    assert d.solve(problem, "auto").method == "newton"  # the fallback would not run
+    with pytest.raises(d.InputError, match=r"CLARABEL rejected the options \['keep_solutions'\]"):
+        d.solve(problem, "auto", keep_solutions=False)
+    loads = np.array([[0.0, 0.0, -10.0], [0.0, 0.0, -20.0]])
+    with pytest.raises(d.InputError, match=r"CLARABEL rejected the options \['keep_solutions'\]"):
+        d.solve_path(problem, loads, method="auto", keep_solutions=False)
+    assert d.solve(problem, "auto", equilibrate_enable=True).success  # a setting Clarabel knows passes
