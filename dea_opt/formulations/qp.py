@@ -147,12 +147,20 @@ def check_extra_options(checked: dict) -> None:
         return
     import clarabel
 
+    _clarabel_settings(clarabel, extra, extra)
+
+
+def _clarabel_settings(clarabel, values: dict, options: dict):
+    """Clarabel's ``DefaultSettings`` with ``values`` set (quiet); a setting it refuses is the
+    :class:`InputError` naming the caller's ``options``."""
     settings = clarabel.DefaultSettings()
-    for name, value in extra.items():
+    settings.verbose = False
+    for name, value in values.items():
         try:
             setattr(settings, name, value)
         except (AttributeError, TypeError, ValueError) as exc:
-            raise _rejected(DIRECT, extra, exc) from None
+            raise _rejected(DIRECT, options, exc) from None
+    return settings
 
 
 def _rejected(solver: str, options: dict, exc: Exception) -> InputError:
@@ -231,14 +239,7 @@ class _Clarabel:
 
     def _settings(self, tol: float):
         """Clarabel's settings for the tolerance ``tol`` (``TOLERANCE_OPTIONS``) and the caller's options."""
-        settings = self.clarabel.DefaultSettings()
-        settings.verbose = False
-        for name, value in {**TOLERANCE_OPTIONS[DIRECT](tol), **self.options}.items():
-            try:
-                setattr(settings, name, value)
-            except (AttributeError, TypeError, ValueError) as exc:
-                raise _rejected(DIRECT, self.options, exc) from None
-        return settings
+        return _clarabel_settings(self.clarabel, {**TOLERANCE_OPTIONS[DIRECT](tol), **self.options}, self.options)
 
     def solve(self, scaled_load):
         """``(xi, lambda_hat, native status, iterations, Clarabel's solve_time)``.

@@ -407,20 +407,26 @@ def _serve(source: int, sink) -> None:
     # untouched in the children's copy-on-write memory.
     gc.freeze()
     parallel = _parallel_jobs()
-    waiting: list = []  # (place, job file) not yet started
+    if not parallel:  # one job after the other, read as they come (select takes no pipe on Windows)
+        with os.fdopen(source, "rb", closefd=False) as jobs:
+            for line in jobs:
+                try:
+                    sink.write(_answer(line.decode().rstrip("\n")))
+                    sink.flush()
+                except OSError:
+                    return
+        return
+    waiting: list = []  # (place, job file) not yet started, in order
     drawing: dict = {}  # file descriptor -> (place, _Child)
     answers: dict = {}  # place -> pickled answer not yet sent
     received = sent = 0
     pending = b""
     open_ = True
     while open_ or drawing:
-        while waiting and (len(drawing) < parallel or not parallel):
+        while waiting and len(drawing) < parallel:
             place, path = waiting.pop(0)
-            if parallel:
-                child = _Child(path, (source, sink.fileno()))
-                drawing[child.fd] = (place, child)
-            else:
-                answers[place] = _answer(path)
+            child = _Child(path, (source, sink.fileno()))
+            drawing[child.fd] = (place, child)
         while sent in answers:
             try:
                 sink.write(answers.pop(sent))
