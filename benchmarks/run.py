@@ -417,7 +417,42 @@ def targets(results) -> list[dict]:
                 fmt=lambda v: f"{v:.1f}x",
             )
         )
+        r = _find(finite, case="knee flexed 15 deg, 1000 N + 2000 N mm, H 40")
+        ok = r is not None and "ratio" in r
+        out.append(
+            target(
+                "knee flexed 15 deg about its condyles' axis, 1000 N + a flexion moment of 2000 N mm, H 40, uz rx ry free: "
+                "finite / small kinematics",
+                "<= 5x",
+                r["ratio"] if ok else None,
+                lambda v: v <= 5.0,
+                (
+                    f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} "
+                    f"deg), small {r['small_s']:.3g} s; pairs' median {r['pair_ratio_median']:.1f}x; "
+                    f"valid: {r['valid']}"
+                )
+                if ok
+                else (r or {}).get("status", "not run"),
+                fmt=lambda v: f"{v:.1f}x",
+            )
+        )
         r = next((row for row in finite if str(row.get("case", "")).startswith("knee gait")), None)
+        ok = r is not None and "wall_ratio" in r
+        out.append(
+            target(
+                "knee gait, finite kinematics: wall time of solve_path / the frames' solving time",
+                "<= 2x",
+                r["wall_ratio"] if ok else None,
+                lambda v: v <= 2.0,
+                (
+                    f"{r['frames']} frames, {r['wall_s']:.3g} s wall, {r['solve_sum_s']:.3g} s solving; "
+                    f"frames inside the model {r['valid']}"
+                )
+                if ok
+                else (r or {}).get("status", "not run"),
+                fmt=lambda v: f"{v:.2f}x",
+            )
+        )
         ok = r is not None and "wall_s" in r and r.get("frames") == 101
         out.append(
             target(
