@@ -35,6 +35,11 @@ from .tracker import MeshTracker
 __all__ = ["build_system", "plan", "resolve_targets", "solve"]
 
 _LOOSE = 1e-6  # the scaled residual a solve that an update of the springs follows stops at
+#: mm the hits may move after a complete update for its springs to stand at the pose: an update
+#: there could only move a hit across the edge of its face by this, changing its gap by less than
+#: this times the kink between two faces (far below any tolerance), and measures no thickness
+#: again (``recast_shift``, 0.01 mm by default, allows more).
+_SETTLED = 1e-6
 
 
 def solve(
@@ -102,6 +107,9 @@ def solve(
         if method == "auto":
             solution.info["requested"] = "auto"
             solution.info.setdefault("fallback", None)
+        # assessed here, on one BLAS thread as the solve: a product over the springs that wakes a
+        # second thread waits for it (milliseconds when the other core is busy)
+        outside = solution.success and not solution.validity.valid
     if not solution.success and strict:
         raise SolverError(
             f"{solution.method} (finite kinematics) returned no certified answer (status '{solution.status}': "
@@ -110,7 +118,7 @@ def solve(
             status=solution.status,
             solution=solution,
         )
-    if solution.success and not solution.validity.valid:
+    if outside:
         warnings.warn(solution.validity.message(), ValidityWarning, stacklevel=3)
     return solution
 
@@ -235,8 +243,10 @@ def _solve(
     start_state = None  # the state at x of the springs an update brought, which it computed
     escapes: list = []  # the unstable equilibria Newton converged to and left
     while True:
-        inner = _inner(method, system, law, T, E0, x, cold, loose_opts, start_state)
-        inner.info["loose"] = loose
+        # once the updates are complete, every one checks a pose solved to the options' tolerance
+        tight = not loose or (tracker is not None and tracker.complete)
+        inner = _inner(method, system, law, T, E0, x, cold, opts if tight else loose_opts, start_state)
+        inner.info["loose"] = not tight
         history.extend(inner.info.get("residual_history", []))
         x, cold = inner.u_free, False
         if first and not inner.success and not near_base(tracker, system):
@@ -312,6 +322,8 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
             inner = tighten(system, inner)
             if not inner.success:
                 return system, inner, False, True
+            if tracker.complete and tracker.moved_from_update(system.transform(inner.state.y)) <= _SETTLED:
+                return system, inner, False, True  # the last update's springs stand here (_SETTLED)
         tracker.complete = complete
         update = tracker.update(system, inner.state, complete=complete)
         if update is not None and update.none_left:

@@ -249,7 +249,9 @@ def _size_checks(layer, limits: ValidityLimits) -> tuple[Check, ...]:
     # One strided pass per coordinate is 10x faster than np.ptp(axis=0) over (N, 3).
     span = [float(column.max() - column.min()) for column in layer.points.T]
     extent = max(math.hypot(*span), math.sqrt(area))
-    thickness = float(layer.areas @ layer.thickness / area)
+    # an elementwise sum, not BLAS's dot: a dot over 1e4 springs wakes a second BLAS thread, which
+    # costs milliseconds when the other core is busy (this runs outside the solve's one-thread context)
+    thickness = float(np.sum(layer.areas * layer.thickness) / area)
     metres = "the geometry looks like metres: load meshes with load_mesh(path, scale=1000)"
     microns = "the geometry looks like micrometres: load meshes with load_mesh(path, scale=0.001)"
     return (
