@@ -302,12 +302,16 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
     where a partial one changed nothing that carries load; ``resolve`` when the equilibrium must be
     solved again. Newton keeps its answer when only springs that carry nothing changed; IPOPT
     solves again after any change. A complete update checks a pose solved to the options'
-    tolerance (``tighten``: ``inner`` solved again from its answer when it stopped short). At
+    tolerance (``tighten``: ``inner`` solved again from its answer when it stopped short); one
+    whose hits moved less than :data:`_SETTLED` since a complete update keeps its springs. At
     most ``max_recasts`` updates that changed the springs in a solve (``rounds``, a one-element
     list, counts them; ``stable`` False beyond: an equilibrium of these springs; another update
     might still change them).
     """
     max_recasts = opts["max_recasts"]
+    # right after a solve, tracker.complete says that the last update was complete (within this
+    # call it is also set before a complete update at the pose a partial one found unchanged)
+    after_complete = tracker.complete
     while True:
         if rounds[0] >= max_recasts:
             inner = tighten(system, inner)
@@ -322,8 +326,9 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
             inner = tighten(system, inner)
             if not inner.success:
                 return system, inner, False, True
-            if tracker.complete and tracker.moved_from_update(system.transform(inner.state.y)) <= _SETTLED:
+            if after_complete and tracker.moved_from_update(system.transform(inner.state.y)) <= _SETTLED:
                 return system, inner, False, True  # the last update's springs stand here (_SETTLED)
+        after_complete = False
         tracker.complete = complete
         update = tracker.update(system, inner.state, complete=complete)
         if update is not None and update.none_left:
