@@ -33,8 +33,9 @@ matplotlib.use("Agg")
 
 def problems(fig) -> list[str]:
     """What a reader would miss in ``fig``: text outside the figure (each axes' tight bounding box,
-    its tick labels, labels, title and legend included, and the figure's own texts), empty axes,
-    unlabelled colour bars."""
+    its tick labels, labels, title and legend included, and the figure's own texts), two axes
+    whose boxes so measured overlap (a map's labels over its neighbour's colour bar) or overlap
+    the heading or the note, empty axes, unlabelled colour bars."""
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     box = fig.bbox
@@ -42,14 +43,25 @@ def problems(fig) -> list[str]:
     def outside(extent) -> bool:
         return extent.x0 < box.x0 - 1 or extent.y0 < box.y0 - 1 or extent.x1 > box.x1 + 1 or extent.y1 > box.y1 + 1
 
+    def name(ax) -> str:
+        return repr(ax.get_ylabel() or ax.get_title() or ax.get_label())
+
     found = []
     for ax in fig.axes:
         if outside(ax.get_tightbbox(renderer)):
-            found.append(f"{ax.get_ylabel() or ax.get_title() or ax.get_label()!r}: a label is cut by the edge")
+            found.append(f"{name(ax)}: a label is cut by the edge")
     own = [*fig.texts, *(t for t in (fig._suptitle, fig._supxlabel, fig._supylabel) if t is not None)]
     for text in own:
         if text.get_visible() and text.get_text().strip() and outside(text.get_window_extent(renderer)):
             found.append(f"text {text.get_text()[:40]!r} is cut by the figure's edge")
+    boxes = [(name(ax), ax.get_tightbbox(renderer)) for ax in fig.axes]
+    boxes += [(repr(t.get_text()[:40]), t.get_window_extent(renderer)) for t in (fig._suptitle, fig._supxlabel) if t]
+    for k, (one, first) in enumerate(boxes):
+        for other, second in boxes[k + 1 :]:
+            across = min(first.x1, second.x1) - max(first.x0, second.x0)
+            along = min(first.y1, second.y1) - max(first.y0, second.y0)
+            if across > 1 and along > 1:
+                found.append(f"{one} and {other} overlap")
     for ax in fig.axes:
         if ax.get_label() == "<colorbar>":
             if not ax.get_ylabel() and not ax.get_xlabel():
