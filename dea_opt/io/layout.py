@@ -90,6 +90,7 @@ def _ticks(fig, axis, renderer) -> tuple[float, float, float]:
 
 
 def _title(fig, ax, renderer) -> float:
+    """Inches a map's title takes above it."""
     height = _size(fig, ax.title, renderer)[1]
     return height + ax.titleOffsetTrans.get_matrix()[1, 2] / fig.dpi if height else 0.0
 
@@ -105,10 +106,35 @@ def _rect(fig, left, bottom, width, height) -> tuple:
     )
 
 
+def _fit(fig, text, renderer, centre: float = 0.5, right: float = 1.0) -> bool:
+    """Wrap each line of ``text``, centred at ``centre`` (a fraction of the figure's width), that
+    would stand out of the figure's left edge or past ``right`` (a fraction: a colour bar's left
+    edge), at as many characters as fit (a scenario's title with its frame, "...: peak frame 36,
+    0.432 s", can be that wide): whether a line was wrapped."""
+    import textwrap
+
+    from matplotlib.text import Text
+
+    room = 2.0 * (min(centre, right - centre) * fig.bbox.width - PAD * fig.dpi)
+    probe = Text()
+    probe.update_from(text)
+    probe.set_figure(fig)
+    lines = text.get_text().split("\n")
+    fitted = []
+    for line in lines:
+        probe.set_text(line)
+        width = probe.get_window_extent(renderer).width if line.strip() else 0.0
+        fitted.append(textwrap.fill(line, max(10, int(len(line) * room / width))) if width > room else line)
+    text.set_text("\n".join(fitted))
+    return fitted != lines
+
+
 def _heading(fig, text) -> float:
-    """Put the figure's heading ``text`` (``fig.suptitle``'s, or None) at the top edge: inches it takes."""
+    """Put the figure's heading ``text`` (``fig.suptitle``'s, or None) at the top edge, its lines
+    fitted to the figure's width: inches it takes."""
     if text is None:
         return 0.0
+    _fit(fig, text, _renderer(fig))
     text.set_y(1.0 - PAD / fig.get_size_inches()[1])
     text.set_verticalalignment("top")
     height = _size(fig, text, _renderer(fig))[1]
@@ -146,12 +172,12 @@ def _sides(fig, ax, right, renderer) -> tuple[float, float, float]:
 def place_maps(fig, pairs, heading=None, note=None) -> None:
     """Place maps side by side in one row, each with its colour bar on its right.
 
-    Above the maps: the heading and each map's title; below: each map's tick labels and axis
-    label, then the note. A colour bar is :data:`SHRINK` times its map's height, centred beside
-    it. A map of equal scale shrinks inside its place (matplotlib keeps its aspect), and its
-    locator may then give other ticks (``2.5`` where the place gave ``2``): the margins are
-    measured again at the shrunk map until they stop growing (at most three times), each the
-    largest it was measured.
+    Above the maps: the heading and each map's title (a line that would stand out of the figure,
+    or over the map's colour bar beside it, wrapped to fit); below: each map's tick labels and axis label, then the note. A colour bar is
+    :data:`SHRINK` times its map's height, centred beside it. A map of equal scale shrinks inside
+    its place (matplotlib keeps its aspect), and its locator may then give other ticks (``2.5``
+    where the place gave ``2``): the margins are measured again at the shrunk map until they stop
+    growing (at most three times), each the largest it was measured.
 
     Parameters
     ----------
@@ -163,6 +189,21 @@ def place_maps(fig, pairs, heading=None, note=None) -> None:
         The figure's ``suptitle`` and ``supxlabel``, put at its top and bottom edges.
     """
     renderer = _renderer(fig)
+    _maps(fig, pairs, heading, note, renderer)
+    # a map's title is centred on it: a line that would stand out of the figure, or over the map's
+    # colour bar where the title is beside it (a wide map's title is half way down the figure), is
+    # wrapped (every title, hence the list), and the maps are placed again under the taller title
+    fitted = []
+    for ax, bar in pairs:
+        box, beside = ax.get_position(), bar.ax.get_position()
+        above = box.y1 + ax.titleOffsetTrans.get_matrix()[1, 2] / fig.bbox.height >= beside.y1
+        fitted.append(_fit(fig, ax.title, renderer, 0.5 * (box.x0 + box.x1), 1.0 if above else beside.x0))
+    if any(fitted):
+        _maps(fig, pairs, heading, note, renderer)
+
+
+def _maps(fig, pairs, heading, note, renderer) -> None:
+    """:func:`place_maps`' placing, for the titles as they stand."""
     width, height = fig.get_size_inches()
     top = PAD + _heading(fig, heading) + max(_title(fig, ax, renderer) for ax, _ in pairs)
     bottom = PAD + _note(fig, note)
@@ -194,11 +235,11 @@ def place_maps(fig, pairs, heading=None, note=None) -> None:
 def place_panels(fig, axes, heading=None) -> None:
     """Place panels stacked in one column over a shared x axis, each legend beside its panel.
 
-    Above: the heading; on the left, each panel's tick labels and axis label; on the right, each
-    panel's legend (anchored just right of its panel's upper corner); below: the bottom panel's
-    tick labels and axis label. Panels are :data:`GAP` apart, more where a panel has an offset
-    text (``1e6``) over it. The tick labels are measured at the panels' height, the one they are
-    drawn at.
+    Above: the heading (a line wider than the figure wrapped to fit); on the left, each panel's
+    tick labels and axis label; on the right, each panel's legend (anchored just right of its
+    panel's upper corner); below: the bottom panel's tick labels and axis label. Panels are
+    :data:`GAP` apart, more where a panel has an offset text (``1e6``) over it. The tick labels
+    are measured at the panels' height, the one they are drawn at.
 
     Parameters
     ----------

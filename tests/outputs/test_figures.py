@@ -164,6 +164,18 @@ def test_a_map_outside_validity_is_stamped_with_its_reason(crushed):
     assert "OUTSIDE VALIDITY: strain" in title and "> 0.3" in title
 
 
+def test_a_title_wider_than_its_room_is_wrapped_to_fit(plate):
+    long = "Real knee over a synthetic stance, from an OpenSim JointReaction file: peak frame 36, 0.432 s"
+    fig = pressure_figure(plate, title=long)
+    assert problems(fig) == []
+    lines = fig.axes[0].get_title().splitlines()
+    assert len(lines) >= 3 and " ".join(lines[:-1]) == long
+    assert pressure_figure(plate, title="A plate").axes[0].get_title().splitlines()[0] == "A plate"
+    path = path_table([1000.0, 3000.0, 2000.0])
+    fig = cycle_figure(path.table, f"{long} {long}")
+    assert problems(fig) == [] and fig._suptitle.get_text().replace("\n", " ").startswith(f"{long} {long}")
+
+
 def test_maps_on_points_and_in_3d_fit(socket_solution):
     for view in ("plane", "3d"):
         fig = pressure_figure(socket_solution, view=view, title="A socket")
