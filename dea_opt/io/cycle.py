@@ -14,6 +14,7 @@ import numpy as np
 
 from ..files.atomic import write_atomic
 from .draw import draw_regions, draw_values, map_geometry
+from .layout import colorbar_axes, place_maps, place_panels
 from .mapframe import map_frame
 from .marks import path_verdict, stamp, verdict_lines
 from .plots import decorate_map, note_frame, save_options
@@ -25,10 +26,9 @@ def _figure(figsize):
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
 
-    # Constrained layout: the labels of five-digit ticks and the legends outside the axes are
-    # given the room they take (a fixed layout clipped them); drawn once per run, in the
-    # background when a PictureWorker draws it.
-    fig = Figure(figsize=figsize, layout="constrained")
+    # No layout engine: the axes are placed by dea_opt/io/layout.py, with the room their texts
+    # take measured (the labels of five-digit ticks, the legends outside the axes).
+    fig = Figure(figsize=figsize, layout=None)
     FigureCanvasAgg(fig)
     return fig
 
@@ -172,7 +172,8 @@ def cycle_figure(table, title: str | None = None, *, regions: dict | None = None
     numbers += f", {int(failed.sum())} without a certified answer" if failed.any() else ""
     numbers += "; no moment applied" if "moment" not in ax else ""
     verdict = path_verdict(table)
-    fig.suptitle((f"{title}\n{numbers}" if title else numbers) + verdict_lines(verdict), fontsize="medium")
+    heading = fig.suptitle((f"{title}\n{numbers}" if title else numbers) + verdict_lines(verdict), fontsize="medium")
+    place_panels(fig, list(axes), heading)
     stamp(fig, verdict)
     return fig
 
@@ -213,6 +214,7 @@ def exposure_figure(layer, exposure, *, moving: bool = False, title: str | None 
         (axes[0], exposure.pressure_time_integral, "pressure-time integral (MPa s)", "magma"),
         (axes[1], exposure.time_above, f"time above {exposure.threshold:g} MPa (s)", "viridis"),
     )
+    bars = []
     for ax, values, label, cmap in maps:
         top = float(values.max(initial=0.0))
         norm = Normalize(0.0, top if top > 0 else 1.0)
@@ -220,9 +222,12 @@ def exposure_figure(layer, exposure, *, moving: bool = False, title: str | None 
         if not moving and layer.labels is not None:
             draw_regions(ax, geometry, layer.labels)
         decorate_map(ax, frame, geometry)
-        fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), ax=ax, label=label, shrink=0.85)
-    note_frame(fig, frame)
+        bars.append(fig.colorbar(ScalarMappable(norm=norm, cmap=cmap), cax=colorbar_axes(fig), label=label))
+    note = note_frame(fig, frame)
     numbers = f"Contact-stress exposure over {exposure.duration:.3g} s (threshold {exposure.threshold:g} MPa)"
-    fig.suptitle((f"{title}\n{numbers}" if title else numbers) + verdict_lines(verdict, 120), fontsize="medium")
+    heading = fig.suptitle(
+        (f"{title}\n{numbers}" if title else numbers) + verdict_lines(verdict, 120), fontsize="medium"
+    )
+    place_maps(fig, list(zip(axes, bars)), heading, note)
     stamp(fig, verdict)
     return fig

@@ -26,6 +26,7 @@ from .draw import (
     draw_values,
     map_geometry,
 )
+from .layout import colorbar_axes, place_maps
 from .mapframe import best_fit_frame, map_frame
 from .marks import region_colours, solution_verdict, stamp, verdict_lines
 from .surface import contact_surface
@@ -75,11 +76,11 @@ def decorate_map(ax, frame, geometry) -> None:
         )
 
 
-def note_frame(fig, frame) -> None:
-    """The frame's note (view, origin) in small grey type under the figure."""
+def note_frame(fig, frame):
+    """The frame's note (view, origin) in small grey type under the figure: the text."""
     import textwrap
 
-    fig.supxlabel(textwrap.fill(frame.note, 110), fontsize="x-small", color="0.35")
+    return fig.supxlabel(textwrap.fill(frame.note, 110), fontsize="x-small", color="0.35")
 
 
 def _draw_3d(ax, solution, cmap, norm, grey, parts=None):
@@ -258,8 +259,11 @@ def pressure_figure(
     parts = _regions(solution) if regions and layer.labels is not None else {}
     verdict = solution_verdict(solution) if verdict is None else verdict
 
-    fig = Figure(figsize=figsize, layout="constrained")
+    # A map's place is measured from its texts (dea_opt/io/layout.py); a 3-D view's labels lie
+    # where its camera puts them, and its few pictures keep matplotlib's constrained layout.
+    fig = Figure(figsize=figsize, layout=None if view == "plane" else "constrained")
     FigureCanvasAgg(fig)
+    note = None
     if view == "plane":
         frame = map_frame(layer.points, layer.areas, layer.normals, anatomy)
         ax = fig.add_subplot()
@@ -286,7 +290,7 @@ def pressure_figure(
                     ax.plot(c[0], c[1], "D", mfc=colour, mec="k", ms=7, zorder=8)
         _mark_centre(ax, frame.project, solution.center_of_pressure)
         decorate_map(ax, frame, geometry)
-        note_frame(fig, frame)
+        note = note_frame(fig, frame)
     else:
         ax = fig.add_subplot(projection="3d", computed_zorder=False)
         outlined = _draw_3d(ax, solution, colormap, norm, grey, parts)
@@ -305,13 +309,19 @@ def pressure_figure(
             azim=float(np.degrees(np.arctan2(eye[1], eye[0]))) if azim is None else azim,
         )
     _legend(ax, solution, parts, outlined)
-    fig.colorbar(ScalarMappable(norm=norm, cmap=colormap), ax=ax, label="pressure (MPa)", shrink=0.85)
+    mappable = ScalarMappable(norm=norm, cmap=colormap)
+    if view == "plane":
+        bar = fig.colorbar(mappable, cax=colorbar_axes(fig), label="pressure (MPa)")
+    else:
+        fig.colorbar(mappable, ax=ax, label="pressure (MPa)", shrink=0.85)
     numbers = (
         f"peak {solution.peak_pressure:.4g} MPa, resultant {np.linalg.norm(solution.contact_force):.4g} N, "
         f"contact area {solution.contact_area:.4g} mm$^2$"
     )
     heading = f"{title}\n{numbers}" if title else numbers
     ax.set_title(heading + verdict_lines(verdict, 70), fontsize="medium")
+    if view == "plane":
+        place_maps(fig, [(ax, bar)], note=note)
     stamp(fig, verdict)
     return fig
 

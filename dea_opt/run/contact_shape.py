@@ -3,7 +3,8 @@
 :class:`ContactShape` is what the checks of :mod:`dea_opt.run.preflight` and the grouping of a
 load path's failed frames (:mod:`dea_opt.run.diagnose`) need to know about the springs: their
 centre, mean normal, size and area. :func:`frame_cause` says what is wrong with one load on it,
-in the terms a user can act on (a sign, a column, a unit), or None.
+in the terms a user can act on (a sign, a column, a unit), or None; :func:`frame_causes` says it of
+every frame of a path at once.
 Units: mm, N, N mm, MPa.
 """
 
@@ -14,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["ContactShape", "frame_cause", "pressing_fraction", "pulls_apart_proven"]
+__all__ = ["ContactShape", "frame_cause", "frame_causes", "moment_arms", "pressing_fraction", "pulls_apart_proven"]
 
 #: A force within this cosine of the contact's surface (60 degrees from its normal) lies along it.
 ALONG_SURFACE = 0.5
@@ -88,15 +89,28 @@ class ContactShape:
         return self.distance(point) > self.radius
 
 
+#: Springs times frames whose dot products :func:`frame_causes` holds at once (8 MB).
+_BLOCK = 1 << 20
+
+
+def _rows(values) -> np.ndarray:
+    return np.asarray(values, dtype=float).reshape(-1, 3)
+
+
 def pressing_fraction(shape: ContactShape, force, body: int) -> float:
     """The part of ``force`` (N, on ``body``) that presses the bodies together along the
     contact's mean normal, over its size: 1 straight into the other body, 0 along the surface,
     -1 straight away from it; NaN without a mean normal or a force."""
-    force = np.asarray(force, dtype=float)
-    size = float(np.linalg.norm(force))
-    if shape.normal is None or size == 0.0:
-        return math.nan
-    along = float(force @ shape.normal) / size
+    return float(_fractions(shape, _rows(force), body)[0])
+
+
+def _fractions(shape: ContactShape, forces: np.ndarray, body: int) -> np.ndarray:
+    """:func:`pressing_fraction` of each row of ``forces`` (T, 3)."""
+    sizes = np.linalg.norm(forces, axis=1)
+    if shape.normal is None:
+        return np.full(len(forces), math.nan)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        along = np.where(sizes > 0.0, (forces @ shape.normal) / sizes, math.nan)
     return -along if body == 2 else along
 
 
@@ -110,14 +124,23 @@ def pulls_apart_proven(shape: ContactShape, force, body: int, free_translations)
     every spring, then ``|P f|^2 = -sum lambda_i P f . P n_i <= 0``, a contradiction for
     ``P f != 0``.
     """
-    mask = np.zeros(3)
-    for axis in free_translations:
-        mask["xyz".index(axis)] = 1.0
-    projected = np.asarray(force, dtype=float) * mask
-    if not projected.any() or not len(shape.normals):
-        return False
-    dots = (shape.normals * mask) @ projected
-    return bool((dots >= 0.0).all()) if body == 2 else bool((dots <= 0.0).all())
+    return bool(_proven(shape, _rows(force), body, free_translations)[0])
+
+
+def _proven(shape: ContactShape, forces: np.ndarray, body: int, free_translations) -> np.ndarray:
+    """:func:`pulls_apart_proven` of each row of ``forces`` (T, 3): the springs' dot products
+    with a block of frames at a time (at most :data:`_BLOCK` of them)."""
+    mask = np.array([axis in free_translations for axis in "xyz"], dtype=float)
+    projected = forces * mask
+    proven = np.zeros(len(forces), dtype=bool)
+    if not len(shape.normals):
+        return proven
+    normals = shape.normals * mask
+    step = max(1, _BLOCK // len(normals))
+    for start in range(0, len(forces), step):
+        dots = normals @ projected[start : start + step].T
+        proven[start : start + step] = (dots >= 0.0).all(axis=0) if body == 2 else (dots <= 0.0).all(axis=0)
+    return proven & projected.any(axis=1)
 
 
 def frame_cause(shape: ContactShape, problem, force, moment, point, body: int) -> str | None:
@@ -131,38 +154,51 @@ def frame_cause(shape: ContactShape, problem, force, moment, point, body: int) -
     - ``"moment_units"``: its moment about the contact's centre needs a lever arm of more than
       :data:`MOMENT_ARMS` layer radii (about a free rotation of the body).
     """
+    return frame_causes(shape, problem, force, moment, point, body)[0]
+
+
+def frame_causes(shape: ContactShape, problem, forces, moments, point, body: int) -> list:
+    """:func:`frame_cause` of each frame of a path (``forces``, ``moments``: (T, 3)), computed on
+    the arrays at once: a hundred thousand frames are checked before a run in milliseconds."""
     the_body = problem.body1 if body == 1 else problem.body2
     free = set(the_body.free)
     translations = [dof[1] for dof in ("ux", "uy", "uz") if dof in free]
-    force = np.asarray(force, dtype=float)
-    size = float(np.linalg.norm(force))
-    if size == 0.0:
-        return None
-    if translations and pulls_apart_proven(shape, force, body, translations):
-        return "pulls_apart_proven"
-    fraction = pressing_fraction(shape, force, body)
-    if math.isfinite(fraction) and fraction <= -ALONG_SURFACE:
-        return "pulls_apart"
-    if math.isfinite(fraction) and abs(fraction) < ALONG_SURFACE:
-        return "along_surface"
-    if moment_arm(shape, problem, force, moment, point, body) > MOMENT_ARMS * shape.radius:
-        return "moment_units"
-    return None
+    forces = _rows(forces)
+    causes = np.full(len(forces), None, dtype=object)
+    causes[moment_arms(shape, problem, forces, moments, point, body) > MOMENT_ARMS * shape.radius] = "moment_units"
+    fractions = _fractions(shape, forces, body)
+    finite = np.isfinite(fractions)
+    causes[finite & (np.abs(fractions) < ALONG_SURFACE)] = "along_surface"
+    causes[finite & (fractions <= -ALONG_SURFACE)] = "pulls_apart"
+    if translations:
+        causes[_proven(shape, forces, body, translations)] = "pulls_apart_proven"
+    causes[np.linalg.norm(forces, axis=1) == 0.0] = None
+    return causes.tolist()
 
 
 def moment_arm(shape: ContactShape, problem, force, moment, point, body: int) -> float:
     """The lever arm (mm) the load's moment about the contact's centre needs, counted along the
     body's free rotations only (the held ones take theirs): ``|M_c| / |F|``, with ``M_c = M +
     (p - c) x F`` (``p`` the force's point, else the body's reference)."""
+    return float(moment_arms(shape, problem, force, moment, point, body)[0])
+
+
+def moment_arms(shape: ContactShape, problem, forces, moments, point, body: int) -> np.ndarray:
+    """:func:`moment_arm` of each frame of a path (``forces``, ``moments``: (T, 3); ``point``
+    shared by the frames, or None), computed on the arrays at once."""
     the_body = problem.body1 if body == 1 else problem.body2
     rotations = [dof[1] for dof in ("rx", "ry", "rz") if dof in set(the_body.free)]
-    size = float(np.linalg.norm(force))
-    if not rotations or size == 0.0:
-        return 0.0
+    forces, moments = _rows(forces), _rows(moments)
+    sizes = np.linalg.norm(forces, axis=1)
+    arms = np.zeros(len(forces))
+    loaded = sizes > 0.0
+    if not rotations or not loaded.any():
+        return arms
     at = np.asarray(point if point is not None else the_body.reference, dtype=float)
-    about_centre = np.asarray(moment, dtype=float) + np.cross(at - shape.centre, np.asarray(force, dtype=float))
+    about_centre = moments[loaded] + np.cross(at - shape.centre, forces[loaded])
     mask = np.array([axis in rotations for axis in "xyz"], dtype=float)
-    return float(np.linalg.norm(about_centre * mask)) / size
+    arms[loaded] = np.linalg.norm(about_centre * mask, axis=1) / sizes[loaded]
+    return arms
 
 
 def vector_text(vector, digits: int = 4) -> str:

@@ -294,9 +294,10 @@ class PictureFiles:
 
 def _warm_up() -> None:
     """Draw a small figure of what the pictures hold (text, a legend, mathtext, triangles coloured
-    by face, a colour bar, a constrained layout), so that the first real picture does not pay for
-    matplotlib's first drawing (fonts, caches, the mathtext parser, the modules of triangles and
-    colour bars) while the run waits: the worker draws it while the run casts and solves."""
+    by face, a colour bar, axes placed by :mod:`dea_opt.io.layout`), so that the first real picture
+    does not pay for matplotlib's first drawing (fonts, caches, the mathtext parser, the modules of
+    triangles and colour bars) while the run waits: the worker draws it while the run casts and
+    solves."""
     import io
 
     import numpy as np
@@ -307,7 +308,9 @@ def _warm_up() -> None:
     from matplotlib.figure import Figure
     from matplotlib.tri import Triangulation
 
-    fig = Figure(figsize=(3, 2), layout="constrained")
+    from ..io.layout import colorbar_axes, place_maps
+
+    fig = Figure(figsize=(3, 2), layout=None)
     FigureCanvasAgg(fig)
     line, tri = fig.subplots(1, 2)
     line.plot([0, 1], [0, 1], label="warm")
@@ -320,8 +323,8 @@ def _warm_up() -> None:
     tri.tripcolor(triangles, np.array([0.0, 0.5, 1.0, 0.5]), cmap="viridis", norm=norm, shading="gouraud")
     tri.add_collection(LineCollection([[(0.0, 0.0), (1.0, 1.0)]], colors="k", linewidths=0.8))
     tri.set_aspect("equal")
-    fig.colorbar(ScalarMappable(norm=norm, cmap="magma"), ax=tri, label="warm (MPa s)", shrink=0.85)
-    fig.suptitle("warm\nwarm", fontsize="medium")
+    bar = fig.colorbar(ScalarMappable(norm=norm, cmap="magma"), cax=colorbar_axes(fig), label="warm (MPa s)")
+    place_maps(fig, [(tri, bar)], fig.suptitle("warm\nwarm", fontsize="medium"))
     fig.savefig(io.BytesIO(), format="png", dpi=40)
 
 

@@ -30,7 +30,7 @@ import numpy as np
 
 from ..errors import ImplausibleInputError, LoadNotSupportedError
 from ..laws.moduli import MODULI
-from .contact_shape import MOMENT_ARMS, ContactShape, frame_cause, moment_arm, vector_text
+from .contact_shape import MOMENT_ARMS, ContactShape, frame_causes, moment_arms, vector_text
 from .diagnose import LoadSource, cause_text, who_text
 
 __all__ = ["MODULUS_RANGE", "check_inputs", "check_meshes", "loaded_frames"]
@@ -201,7 +201,7 @@ def _check_loads(problem, shape, source, forces, moments, point, body) -> None:
     frames = loaded_frames(forces)
     if not len(frames):
         return
-    arms = [moment_arm(shape, problem, forces[k], moments[k], point, body) for k in frames]
+    arms = moment_arms(shape, problem, forces[frames], moments[frames], point, body)
     arm = float(np.median(arms))
     who = who_text(source, len(frames), len(forces))
     if arm > MOMENT_ARMS * shape.radius:
@@ -209,7 +209,7 @@ def _check_loads(problem, shape, source, forces, moments, point, body) -> None:
         raise ImplausibleInputError(
             text + "; [solve] check_inputs = false solves it as it is", key=source.key("moment_units")
         )
-    causes = {frame_cause(shape, problem, forces[k], moments[k], point, body) for k in frames}
+    causes = set(frame_causes(shape, problem, forces[frames], moments[frames], point, body))
     if causes <= {"pulls_apart", "pulls_apart_proven"}:
         first = "pulls_apart_proven" if causes == {"pulls_apart_proven"} else "pulls_apart"
     elif causes == {"along_surface"}:

@@ -14,7 +14,7 @@ import warnings
 
 import numpy as np
 import pytest
-from conftest import KNEE_SCENARIO
+from conftest import COARSE_KNEE_SCENARIO, KNEE_SCENARIO
 
 import dea_opt as d
 from dea_opt import finite, formulations
@@ -209,7 +209,7 @@ def test_a_scenario_sets_max_recasts_for_finite_kinematics_only(tmp_path):
 
     from dea_opt.cli import app
 
-    text = KNEE_SCENARIO.replace('kinematics = "finite"', 'kinematics = "KIND"\nmax_recasts = COUNT')
+    text = COARSE_KNEE_SCENARIO.replace('kinematics = "finite"', 'kinematics = "KIND"\nmax_recasts = COUNT')
     for kind, count, code, said in (
         ("finite", 0, 1, "max_iterations"),
         ("small", 2, 2, 'only kinematics = "finite" has'),

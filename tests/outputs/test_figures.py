@@ -33,8 +33,9 @@ matplotlib.use("Agg")
 
 def problems(fig) -> list[str]:
     """What a reader would miss in ``fig``: text outside the figure (each axes' tight bounding box,
-    its tick labels, labels, title and legend included, and the figure's own texts), empty axes,
-    unlabelled colour bars."""
+    its tick labels, labels, title and legend included, and the figure's own texts), two axes
+    whose boxes so measured overlap (a map's labels over its neighbour's colour bar) or overlap
+    the heading or the note, empty axes, unlabelled colour bars."""
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     box = fig.bbox
@@ -42,14 +43,25 @@ def problems(fig) -> list[str]:
     def outside(extent) -> bool:
         return extent.x0 < box.x0 - 1 or extent.y0 < box.y0 - 1 or extent.x1 > box.x1 + 1 or extent.y1 > box.y1 + 1
 
+    def name(ax) -> str:
+        return repr(ax.get_ylabel() or ax.get_title() or ax.get_label())
+
     found = []
     for ax in fig.axes:
         if outside(ax.get_tightbbox(renderer)):
-            found.append(f"{ax.get_ylabel() or ax.get_title() or ax.get_label()!r}: a label is cut by the edge")
+            found.append(f"{name(ax)}: a label is cut by the edge")
     own = [*fig.texts, *(t for t in (fig._suptitle, fig._supxlabel, fig._supylabel) if t is not None)]
     for text in own:
         if text.get_visible() and text.get_text().strip() and outside(text.get_window_extent(renderer)):
             found.append(f"text {text.get_text()[:40]!r} is cut by the figure's edge")
+    boxes = [(name(ax), ax.get_tightbbox(renderer)) for ax in fig.axes]
+    boxes += [(repr(t.get_text()[:40]), t.get_window_extent(renderer)) for t in (fig._suptitle, fig._supxlabel) if t]
+    for k, (one, first) in enumerate(boxes):
+        for other, second in boxes[k + 1 :]:
+            across = min(first.x1, second.x1) - max(first.x0, second.x0)
+            along = min(first.y1, second.y1) - max(first.y0, second.y0)
+            if across > 1 and along > 1:
+                found.append(f"{one} and {other} overlap")
     for ax in fig.axes:
         if ax.get_label() == "<colorbar>":
             if not ax.get_ylabel() and not ax.get_xlabel():
@@ -150,6 +162,18 @@ def test_a_map_outside_validity_is_stamped_with_its_reason(crushed):
     assert "OUTSIDE VALIDITY" in [t.get_text() for t in fig.texts]
     title = fig.axes[0].get_title()
     assert "OUTSIDE VALIDITY: strain" in title and "> 0.3" in title
+
+
+def test_a_title_wider_than_its_room_is_wrapped_to_fit(plate):
+    long = "Real knee over a synthetic stance, from an OpenSim JointReaction file: peak frame 36, 0.432 s"
+    fig = pressure_figure(plate, title=long)
+    assert problems(fig) == []
+    lines = fig.axes[0].get_title().splitlines()
+    assert len(lines) >= 3 and " ".join(lines[:-1]) == long
+    assert pressure_figure(plate, title="A plate").axes[0].get_title().splitlines()[0] == "A plate"
+    path = path_table([1000.0, 3000.0, 2000.0])
+    fig = cycle_figure(path.table, f"{long} {long}")
+    assert problems(fig) == [] and fig._suptitle.get_text().replace("\n", " ").startswith(f"{long} {long}")
 
 
 def test_maps_on_points_and_in_3d_fit(socket_solution):

@@ -60,6 +60,14 @@ def paths():
     return _solve(1.0), _solve(1.5)
 
 
+@pytest.fixture(scope="module")
+def worker():
+    """One PictureWorker for the tests that hand it their pictures (each worker takes a second of
+    CPU to warm up); ``dea-opt run``'s own workers are tested by the scenario's test."""
+    with PictureWorker() as shared:
+        yield shared
+
+
 def _sha256(path: Path) -> str:
     return hashlib.sha256(path.read_bytes()).hexdigest()
 
@@ -86,13 +94,13 @@ def _worker_only(monkeypatch):
 
 
 @pytest.mark.parametrize("drawer", ["worker", "here"])
-def test_the_manifest_lists_the_pictures_with_their_sha256(paths, tmp_path, monkeypatch, drawer):
+def test_the_manifest_lists_the_pictures_with_their_sha256(paths, tmp_path, monkeypatch, drawer, request):
     folder = tmp_path / "out"
     if drawer == "worker":
-        with PictureWorker() as worker:
-            assert worker._drawer.process is not None, "the worker did not start"
-            _worker_only(monkeypatch)  # the worker still draws them, in parallel with the other files
-            out = _publish(paths[0], folder, pictures=worker)
+        worker = request.getfixturevalue("worker")
+        assert worker._drawer.process is not None, "the worker did not start"
+        _worker_only(monkeypatch)  # the worker still draws them, in parallel with the other files
+        out = _publish(paths[0], folder, pictures=worker)
     else:
         out = _publish(paths[0], folder)
     assert out["staged"] == {"cycle.png": False, "exposure.png": False}, "a picture reached the folder unpublished"
@@ -110,21 +118,19 @@ def test_the_manifest_lists_the_pictures_with_their_sha256(paths, tmp_path, monk
     assert check_outputs(folder) == [] and _temporary(folder) == [] and not (folder / INCOMPLETE_NAME).exists()
 
 
-def test_the_worker_and_the_run_draw_the_same_published_files(paths, tmp_path):
+def test_the_worker_and_the_run_draw_the_same_published_files(paths, tmp_path, worker, monkeypatch):
     here = _publish(paths[0], tmp_path / "here", formats=("png",))["manifest"]["files"]
-    with PictureWorker() as worker:
-        there = _publish(paths[0], tmp_path / "there", formats=("png",), pictures=worker)["manifest"]["files"]
+    _worker_only(monkeypatch)
+    there = _publish(paths[0], tmp_path / "there", formats=("png",), pictures=worker)["manifest"]["files"]
     assert set(here) == set(PNGS) and here == there
 
 
-def test_a_rerun_without_pictures_removes_the_old_pictures(paths, tmp_path):
+def test_a_rerun_without_pictures_removes_the_old_pictures(paths, tmp_path, worker):
     """As a shorter path's rerun removes the frames it no longer writes (``series_frames/``)."""
     folder = tmp_path / "out"
-    with PictureWorker() as worker:
-        _publish(paths[0], folder, pictures=worker)
+    _publish(paths[0], folder, pictures=worker)
     assert {"cycle.png", "exposure.png", "series_frames/frame_0002.vtu"} <= set(read_manifest(folder)["files"])
-    with PictureWorker() as worker:
-        second = _publish(paths[1], folder, formats=("csv", "json"), pictures=worker)["manifest"]
+    second = _publish(paths[1], folder, formats=("csv", "json"), pictures=worker)["manifest"]
     assert set(second["files"]) == {"frames.csv", "summary.json"}
     assert sorted(p.name for p in folder.iterdir()) == [".dea-opt.lock", "frames.csv", MANIFEST_NAME, "summary.json"]
     assert check_outputs(folder) == []
@@ -150,12 +156,12 @@ def test_a_run_of_a_scenario_publishes_its_pictures_and_its_rerun_removes_them(t
     assert check_outputs(folder) == []
 
 
-def test_the_previous_run_stays_whole_until_the_pictures_are_published(paths, tmp_path):
+def test_the_previous_run_stays_whole_until_the_pictures_are_published(paths, tmp_path, worker):
     """A run killed before its publication leaves the previous run's pictures, which its manifest lists."""
     folder = tmp_path / "out"
     _publish(paths[0], folder)
     old = {name: _sha256(folder / name) for name in PNGS}
-    with PictureWorker() as worker, output_run(folder) as run:
+    with output_run(folder) as run:
         paths[1].write(run.folder, pictures=worker)  # drawn and staged, not published: then the kill
         assert {name: _sha256(folder / name) for name in PNGS} == old
         assert check_outputs(folder) == []
@@ -165,7 +171,7 @@ def test_the_previous_run_stays_whole_until_the_pictures_are_published(paths, tm
 
 
 @pytest.mark.parametrize("name", PNGS)
-def test_a_crash_while_a_picture_is_renamed_leaves_no_manifest_and_says_so(paths, tmp_path, name):
+def test_a_crash_while_a_picture_is_renamed_leaves_no_manifest_and_says_so(paths, tmp_path, name, worker):
     folder = tmp_path / "out"
     _publish(paths[0], folder)
     original = os.replace
@@ -175,7 +181,7 @@ def test_a_crash_while_a_picture_is_renamed_leaves_no_manifest_and_says_so(paths
             raise OSError(28, "No space left on device")
         original(src, dst)
 
-    with pytest.raises(OSError), PictureWorker() as worker, output_run(folder) as run:
+    with pytest.raises(OSError), output_run(folder) as run:
         paths[1].write(run.folder, pictures=worker)
         os.replace = failing_replace
         try:

@@ -217,33 +217,37 @@ def test_pictures_handed_over_together_are_each_answered_with_their_own_file(pat
     assert (tmp_path / "long.png").read_bytes() != (tmp_path / "short.png").read_bytes()
 
 
-def test_a_drawing_child_killed_mid_job_leaves_its_picture_to_the_run(path, tmp_path):
+def test_a_drawing_child_killed_mid_job_leaves_its_picture_to_the_run(path, tmp_path, worker):
+    """The child drawing a job is killed: the job's answer is an error naming how the child
+    ended, the run draws the picture itself, and the worker (the module's, which other tests
+    share) goes on."""
     import psutil
 
     from dea_opt.run.pictures import _parallel_jobs
 
     if not _parallel_jobs():
         pytest.skip("this platform draws in the worker itself (no fork): tested by the next test")
-    with PictureWorker() as pictures:
-        worker = psutil.Process(pictures._drawer.process.pid)
-        # A child killed once it has answered (a busy machine can be that slow to look) is
-        # tried again with another job.
-        for attempt in range(5):
-            number = pictures.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / f"c{attempt}.png"))
-            deadline = time.monotonic() + 60
-            children: list = []
-            while not children and time.monotonic() < deadline:
-                children = worker.children()
-                time.sleep(0.002)
-            assert children, "the worker forked no child for the job"
-            with contextlib.suppress(psutil.NoSuchProcess):
-                children[0].kill()
-            answer = pictures._drawer.answer(number)
-            if answer is not None and answer[0] == "error":
-                break
-        assert answer is not None and answer[0] == "error" and "ended with status" in answer[1], answer
-        assert pictures.result(number) == tmp_path / f"c{attempt}.png"
+    process = psutil.Process(worker._drawer.process.pid)
+    # A child killed once it has answered (a busy machine can be that slow to look) is
+    # tried again with another job.
+    for attempt in range(5):
+        before = set(process.children())  # none once earlier jobs are answered: each child is reaped first
+        number = worker.submit("dea_opt.io.cycle", "plot_cycle", (path.table, tmp_path / f"c{attempt}.png"))
+        deadline = time.monotonic() + 60
+        children: list = []
+        while not children and time.monotonic() < deadline:
+            children = [child for child in process.children() if child not in before]
+            time.sleep(0.002)
+        assert children, "the worker forked no child for the job"
+        with contextlib.suppress(psutil.NoSuchProcess):
+            children[0].kill()
+        answer = worker._drawer.answer(number)
+        if answer is not None and answer[0] == "error":
+            break
+    assert answer is not None and answer[0] == "error" and "ended with status" in answer[1], answer
+    assert worker.result(number) == tmp_path / f"c{attempt}.png"
     assert (tmp_path / f"c{attempt}.png").stat().st_size > 1000
+    assert worker._drawer.process is not None and worker._drawer.process.poll() is None, "the worker ended"
 
 
 def test_without_fork_the_worker_draws_its_jobs_itself_in_order(path, tmp_path, monkeypatch):

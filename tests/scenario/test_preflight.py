@@ -11,7 +11,15 @@ from scipy.optimize import nnls
 
 import dea_opt as d
 from dea_opt.geometry import plate_layer
-from dea_opt.run.contact_shape import ContactShape, frame_cause, moment_arm, pulls_apart_proven
+from dea_opt.run import contact_shape
+from dea_opt.run.contact_shape import (
+    ContactShape,
+    frame_cause,
+    frame_causes,
+    moment_arm,
+    moment_arms,
+    pulls_apart_proven,
+)
 from dea_opt.run.diagnose import frames_text
 from dea_opt.run.preflight import MODULUS_RANGE, _thousands
 
@@ -73,6 +81,48 @@ def test_frame_causes_on_a_plate():
     # a moment needing an arm of a hundred radii (the plate's radius about 20.6 mm)
     assert frame_cause(shape, problem, (0, 0, -100.0), (0, 100.0 * 2100.0, 0), None, 2) == "moment_units"
     assert frame_cause(shape, problem, (0, 0, -100.0), (0, 100.0 * 15.0, 0), None, 2) is None
+
+
+@pytest.mark.parametrize("translations", [("ux", "uz"), ("ux",)])
+@pytest.mark.parametrize("body", [1, 2])
+def test_the_causes_of_a_path_s_frames_at_once_are_each_frame_s(body, translations, monkeypatch):
+    """Every frame of a path at once (in blocks of a few frames here, so that a path spans many):
+    each frame's cause and lever arm as the rules say them, written here frame by frame."""
+    monkeypatch.setattr(contact_shape, "_BLOCK", 64)
+    rng = np.random.default_rng(body)
+    layer = _Layer(rng.normal(size=(20, 3)), np.tile([0.0, 0.0, 1.0], (20, 1)) + 0.3 * rng.normal(size=(20, 3)))
+    layer.normals /= np.linalg.norm(layer.normals, axis=1)[:, None]
+    shape = ContactShape.of(layer)
+    reference = (1.0, -2.0, 3.0)
+    bodies = {f"body{body}": d.Body(free=(*translations, "rx", "ry"), reference=reference)}
+    bodies[f"body{3 - body}"] = d.Body(free=())
+    problem = d.ContactProblem(plate_layer(40.0, 10.0, 8, 4, 2.0), d.LinearLaw(10.0), **bodies)
+    forces = rng.normal(size=(500, 3)) * 100.0
+    forces[::50] = 0.0
+    moments = rng.normal(size=(500, 3)) * rng.choice([10.0, 1e5], size=(500, 1))
+    causes = frame_causes(shape, problem, forces, moments, None, body)
+    arms = moment_arms(shape, problem, forces, moments, None, body)
+    mask, turn = np.array([1.0, 0.0, float("uz" in translations)]), np.array([1.0, 1.0, 0.0])
+    sign = 1.0 if body == 2 else -1.0
+    for k, (force, moment) in enumerate(zip(forces, moments)):
+        size = np.linalg.norm(force)
+        about_centre = moment + np.cross(np.subtract(reference, shape.centre), force)
+        arm = np.linalg.norm(about_centre * turn) / size if size else 0.0
+        assert arms[k] == pytest.approx(arm, rel=1e-12, abs=1e-12)
+        fraction = -sign * (force @ shape.normal) / size if size else np.nan
+        if size == 0:
+            expected = None
+        elif (force * mask).any() and (sign * (layer.normals * mask) @ (force * mask) >= 0).all():
+            expected = "pulls_apart_proven"
+        elif fraction <= -0.5:
+            expected = "pulls_apart"
+        elif abs(fraction) < 0.5:
+            expected = "along_surface"
+        else:
+            expected = "moment_units" if arm > 100.0 * shape.radius else None
+        assert causes[k] == expected == frame_cause(shape, problem, force, moment, None, body), k
+    assert {None, "along_surface", "moment_units"} <= set(causes)
+    assert {"pulls_apart", "pulls_apart_proven"} & set(causes)
 
 
 def test_moment_arm_about_the_contact_along_the_free_rotations():
