@@ -399,41 +399,37 @@ def targets(results) -> list[dict]:
     # 10. Finite kinematics on the real knee.
     finite = results.get("finite")
     if finite is not None:
-        r = _find(finite, case="knee 1000 N, uz rx ry")
-        ok = r is not None and "ratio" in r
-        out.append(
-            target(
-                "knee, 1000 N, uz rx ry free: finite / small kinematics, whole dea.solve (re-casts included)",
-                "<= 5x",
-                r["ratio"] if ok else None,
-                lambda v: v <= 5.0,
-                (
-                    f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} "
-                    f"deg), small {r['small_s']:.3g} s; small + its validation re-cast "
-                    f"{r['small_recast_s']:.3g} s ({r['finite_s'] / r['small_recast_s']:.2f}x)"
-                )
+
+        def finite_ratio(case, what, detail):
+            """The TARGETS row of a knee case's finite / small ratio (``detail(r)``: what it adds)."""
+            r = _find(finite, case=case)
+            ok = r is not None and "ratio" in r
+            said = (
+                f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} deg), "
+                f"small {r['small_s']:.3g} s; {detail(r)}"
                 if ok
-                else (r or {}).get("status", "not run"),
-                fmt=lambda v: f"{v:.1f}x",
+                else (r or {}).get("status", "not run")
+            )
+            return target(
+                what, "<= 5x", r["ratio"] if ok else None, lambda v: v <= 5.0, said, fmt=lambda v: f"{v:.1f}x"
+            )
+
+        out.append(
+            finite_ratio(
+                "knee 1000 N, uz rx ry",
+                "knee, 1000 N, uz rx ry free: finite / small kinematics, whole dea.solve (re-casts included)",
+                lambda r: (
+                    f"small + its validation re-cast {r['small_recast_s']:.3g} s "
+                    f"({r['finite_s'] / r['small_recast_s']:.2f}x)"
+                ),
             )
         )
-        r = _find(finite, case="knee flexed 15 deg, 1000 N + 2000 N mm, H 40")
-        ok = r is not None and "ratio" in r
         out.append(
-            target(
-                "knee flexed 15 deg about its condyles' axis, 1000 N + a flexion moment of 2000 N mm, H 40, uz rx ry free: "
-                "finite / small kinematics",
-                "<= 5x",
-                r["ratio"] if ok else None,
-                lambda v: v <= 5.0,
-                (
-                    f"finite {r['finite_s']:.3g} s ({r['updates']} spring updates, {r['rotation_deg']:.2f} "
-                    f"deg), small {r['small_s']:.3g} s; pairs' median {r['pair_ratio_median']:.1f}x; "
-                    f"valid: {r['valid']}"
-                )
-                if ok
-                else (r or {}).get("status", "not run"),
-                fmt=lambda v: f"{v:.1f}x",
+            finite_ratio(
+                "knee flexed 15 deg, 1000 N + 2000 N mm, H 40",
+                "knee flexed 15 deg about its condyles' axis, 1000 N + a flexion moment of 2000 N mm, H 40, "
+                "uz rx ry free: finite / small kinematics",
+                lambda r: f"pairs' median {r['pair_ratio_median']:.1f}x; valid: {r['valid']}",
             )
         )
         r = next((row for row in finite if str(row.get("case", "")).startswith("knee gait")), None)
