@@ -281,10 +281,10 @@ def _solve(
     noted(inner, escapes)
     if tracker is not None:
         tracker.counts["stable"] = stable
-        if tracker.crushed_through and not inner.success:
+        if not stable and inner.success:
+            unsettled(inner, tracker.crushed_through)
+        if tracker.crushed_through and not inner.success:  # (the springs lost on the way say why)
             crushed_through(tracker, inner, law, system, rms_radius(system))
-        elif not stable and inner.success:
-            unsettled(inner)
     if not inner.success and inner.status not in ("crushed", "unbounded", "pose_error"):
         ran_away(system, inner, rms_radius(system))
     if inner.status == "crushed" and np.isfinite(inner.u_free).all():

@@ -153,13 +153,16 @@ def _beyond(law) -> str:
     )
 
 
-def unsettled(inner) -> None:
+def unsettled(inner, crushing: int = 0) -> None:
     """Mark a converged solve whose springs still changed at the last update allowed
     (``max_recasts``) as failed, ``max_iterations``: an equilibrium of springs that were not
     confirmed at its own pose is not an answer of the meshes there (its certificate passes for
-    those springs). ``auto`` does not fall back to IPOPT, whose springs are updated alike."""
+    those springs). ``auto`` does not fall back to IPOPT, whose springs are updated alike.
+    ``crushing``: loaded springs were lost through the layer on the way (which says why, not
+    ``max_recasts``)."""
     inner.success, inner.status = False, "max_iterations"
     inner.message += (
-        ": they were not brought up to date at the solved pose, so the answer is not certified "
-        "for the meshes there (raise max_recasts)"
+        ": they were not brought up to date at the solved pose, so the answer is not certified for the meshes there"
     )
+    if not crushing:
+        inner.message += " (raise max_recasts)"

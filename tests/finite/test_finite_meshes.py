@@ -481,3 +481,49 @@ def test_tangent_planes_not_re_cast_are_measured_against_mesh_2_and_fail_validit
     assert error > 0.1 and dict(check.details)["mm"] == pytest.approx(error, abs=1e-9)
     followed = quiet(d.solve, problem)
     assert followed.success and followed.validity.valid and followed.validity["gap_error"].passed is None
+
+
+def test_a_partial_update_after_a_long_step_picks_up_where_the_contact_spreads_without_casting(knee, monkeypatch):
+    """The femur turned 3 deg in varus and pressed 0.5 mm into the tibia: the contact spreads onto
+    faces whose rays met the femur beyond the window at the cast (375 springs of a whole re-cast
+    there with a gap below 0.2 mm are new, 264 of them loaded). A partial update (no cast of new
+    faces: one raises here) picks up nine in ten of them, where the contact's edges alone leave
+    four times as many to the complete update, which finds the rest (the answer's springs are a
+    whole re-cast's: ``test_the_springs_kept_up_to_date_are_those_of_a_whole_re_cast``)."""
+    from dea_opt.finite import growth
+    from dea_opt.finite.arrays import build_system
+    from dea_opt.finite.tracker import MeshTracker
+
+    cast = knee["cast"]
+    problem = d.ContactProblem(
+        cast.layer,
+        d.LinearLaw(10.0),
+        force=(0.0, 0.0, -LOAD),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=cast,
+    )
+    y = np.array([0.0, 0.0, -0.5, 0.0, 0.05, 0.0])
+
+    def no_cast(*args, **kw):
+        raise AssertionError("a partial update cast the faces next to the springs")
+
+    monkeypatch.setattr(growth, "cast_faces", no_cast)
+    picked = {}
+    for spreads in (True, False):
+        tracker = MeshTracker(cast)
+        system = build_system(problem, tracker.targets(), tracker)
+        if not spreads:  # the contact's edges only: no faces followed from what their rays met
+            monkeypatch.setattr(tracker, "_candidates", lambda pose, tried, near=None: np.zeros(0, dtype=np.int64))
+        update = tracker.update(system, system.state(y, problem.law), complete=False)
+        assert update is not None and update.resolve
+        picked[spreads] = set(tracker.springs.faces1.tolist())
+    whole = M.recast(cast, system.transform(y)).cast.layer
+    before = set(cast.layer.source_face.tolist())
+    new = set(whole.source_face[whole.gap < 0.2].tolist()) - before
+    loaded = set(whole.source_face[whole.gap < 0].tolist()) - before
+    assert len(new) > 300 and len(loaded) > 200
+    missed = {spreads: len(new - picked[spreads]) for spreads in picked}
+    assert missed[True] <= 0.1 * len(new) and 4 * missed[True] <= missed[False]
+    assert len(loaded - picked[True]) <= 0.1 * len(loaded)
