@@ -11,22 +11,21 @@ from __future__ import annotations
 import numpy as np
 
 from ..mesh import Mesh1, Mesh2, SpringCast, cast_faces, follow_faces, measure
-from ..mesh.walk import dot
-from .springs import Springs, joined, put_rows, ring
+from ..mesh.walk import dot, window_faces
+from .springs import Springs, joined, ring
 
 __all__ = ["Growth"]
 
 
 class Growth:
     """The growth of a :class:`~dea_opt.finite.tracker.MeshTracker`'s springs into the faces next
-    to them (its ``springs``, ``met``, ``met_point``, meshes and cast)."""
+    to them (its ``springs``, ``met``, meshes and cast)."""
 
     cast: SpringCast
     mesh1: Mesh1
     mesh2: Mesh2
     springs: Springs
     met: np.ndarray  # (F,) per face of mesh 1, the face of mesh 2 its ray met first (-1: not known)
-    met_point: np.ndarray  # (F, 3) and where, in mesh 2's own frame
     counts: dict
     dropped_faces: np.ndarray
     _slot: np.ndarray
@@ -41,22 +40,11 @@ class Growth:
         whose gap to that face's tangent plane at ``pose`` lies within the window widened by
         ``_REACH`` (below ``near`` mm, given: where the contact spreads): where springs most likely
         came into range."""
-        known = np.flatnonzero((self.met >= 0) & ~tried)
-        if not len(known):
-            return known
-        R, shift = pose[:3, :3], pose[:3, 3]
-        # whole rows gathered (one cache line a face), then the plane's gap along each ray
-        m = np.take(self.mesh2.planes.normals, self.met[known], axis=0)
-        mR = m @ R.T  # the normals at the pose
-        along = dot(np.take(self.mesh1.normals, known, axis=0), mR)
-        ahead = dot(np.take(self.met_point, known, axis=0), m) + mR @ shift
-        ahead -= dot(np.take(self.mesh1.centroids, known, axis=0), mR)
         options = self.cast.options
-        with np.errstate(divide="ignore", invalid="ignore"):
-            gap = np.where(along < 0, ahead / along, np.inf)
         low = -(options["max_overlap"] + 2.0 * self._REACH)  # the window follows the pose: wide
         high = options["max_gap"] + self._REACH if near is None else near
-        return known[(gap >= low) & (gap <= high)]
+        mesh1 = self.mesh1
+        return window_faces(self.met, tried, mesh1.centroids, mesh1.normals, self.mesh2.planes, pose, low, high)
 
     def _near_spring(self, faces) -> np.ndarray:
         """For faces of mesh 1, the face of mesh 2 a spring next to each meets now (-1: none), where
@@ -72,7 +60,6 @@ class Growth:
     def _remember(self, faces, fresh) -> None:
         """Keep what the rays of ``faces`` met first (a :class:`~dea_opt.mesh.FaceCast`'s ``first2``)."""
         self.met[faces] = fresh.first2
-        put_rows(self.met_point, faces, fresh.first_point)
 
     def _grow(self, pose, near=None) -> int:
         """Cast the faces next to the springs at ``pose``, ring after ring (each twice as wide as
@@ -102,8 +89,6 @@ class Growth:
             fresh = follow_faces(self.cast, pose, candidates, start, allowed, self.mesh1, self.mesh2, cast_rest=False)
             settled = fresh.outcome != -2  # the others are left to the rings' casts
             self.met[candidates[settled]] = fresh.first2[settled]
-            judged = np.flatnonzero(settled)
-            put_rows(self.met_point, candidates[judged], np.take(fresh.first_point, judged, axis=0))
             grown.append(fresh.subset(fresh.spring))
             dropped.append(fresh.faces[fresh.dropped])
             tried[candidates[fresh.spring]] = True

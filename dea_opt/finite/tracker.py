@@ -87,15 +87,14 @@ class MeshTracker(Growth):
         self.cast, self.full = cast, np.asarray(cast.pose, dtype=float)
         self.updated_at = self.full  # mesh 2's pose where the springs were last brought up to date
         self.springs = Springs(cast.layer, cast.thickness1, cast.thickness2)
-        # Per face of mesh 1, the face of mesh 2 its ray met first facing it at its last cast, and
-        # where (mesh 2's own frame): -1 and NaN where not known.
+        # Per face of mesh 1, the face of mesh 2 its ray met first facing it at its last cast (-1
+        # where not known).
         n = len(cast.mesh1.faces)
-        met, point = getattr(cast, "met", None), getattr(cast, "met_point", None)
-        known = met is not None and point is not None and len(met) == n
-        self.met = np.array(met, dtype=np.int64) if known else np.full(n, -1, dtype=np.int64)
-        self.met_point = np.array(point, dtype=float) if known else np.full((n, 3), np.nan)
+        met = getattr(cast, "met", None)
+        self.met = (
+            np.array(met, dtype=np.int64) if met is not None and len(met) == n else np.full(n, -1, dtype=np.int64)
+        )
         self.met[self.springs.faces1] = self.springs.faces2
-        put_rows(self.met_point, self.springs.faces1, self.springs.q)
         self._slot = np.zeros(len(cast.mesh1.faces), dtype=np.int64)
         # The first cast's layer is the problem's own; a whole re-cast's is rebuilt with its labels.
         self._layer = cast.layer if not hasattr(self, "_first_layer") else None

@@ -1,5 +1,6 @@
-/* The inner loop of dea_opt.mesh.walk.Walker.follow, compiled (optional: the numpy loop in
- * walk.py is the same walk, used where this module was not built).
+/* The inner loop of dea_opt.mesh.walk.Walker.follow, and the scan of dea_opt.mesh.walk.window_faces,
+ * compiled (optional: the numpy twins in walk.py give the same numbers, used where this module was
+ * not built).
  *
  * Written by hand, as the walk itself (see walk.py): a ray steps across a mesh's edges from a face
  * it met before until its point on a face's plane lies inside the face. In numpy every step is a
@@ -111,13 +112,73 @@ static PyObject *follow(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
+static PyObject *window(PyObject *self, PyObject *args)
+{
+    PyObject *objs[7];
+    Py_ssize_t n1, n2;
+    double low, high;
+    if (!PyArg_ParseTuple(args, "nnddOOOOOOO", &n1, &n2, &low, &high, &objs[0], &objs[1], &objs[2], &objs[3],
+                          &objs[4], &objs[5], &objs[6]))
+        return NULL;
+    if (n1 < 0 || n2 < 0) {
+        PyErr_SetString(PyExc_ValueError, "window: negative size");
+        return NULL;
+    }
+    /* met (n1,) int64, tried (n1,) uint8, centroids and normals (n1, 3), records (n2, 12), pose (12,):
+       R row by row then the shift; the output: out (n1,) int64 */
+    static const char *names[7] = {"met", "tried", "centroids", "normals", "records", "pose", "out"};
+    const Py_ssize_t sizes[7] = {8, 1, 8, 8, 8, 8, 8};
+    const Py_ssize_t counts[7] = {n1, n1, 3 * n1, 3 * n1, 12 * n2, 12, n1};
+    Py_buffer views[7];
+    int got = 0;
+    for (; got < 7; got++)
+        if (take(objs[got], &views[got], got == 6, sizes[got], counts[got], names[got]) < 0)
+            break;
+    if (got < 7) {
+        for (int j = 0; j < got; j++)
+            PyBuffer_Release(&views[j]);
+        return NULL;
+    }
+    const int64_t *met = views[0].buf;
+    const uint8_t *tried = views[1].buf;
+    const double *c = views[2].buf, *n = views[3].buf, *rec = views[4].buf, *pose = views[5].buf;
+    int64_t *out = views[6].buf;
+    Py_ssize_t count = 0;
+
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t f = 0; f < n1; f++) {
+        const int64_t j = met[f];
+        if (j < 0 || j >= n2 || tried[f])
+            continue;
+        const double *r = rec + 12 * j;
+        /* the plane's normal at the pose, R m, and the ray's gap to the plane (m . x = offset at the pose) */
+        const double mx = (pose[0] * r[0] + pose[1] * r[1]) + pose[2] * r[2];
+        const double my = (pose[3] * r[0] + pose[4] * r[1]) + pose[5] * r[2];
+        const double mz = (pose[6] * r[0] + pose[7] * r[1]) + pose[8] * r[2];
+        const double *cf = c + 3 * f, *nf = n + 3 * f;
+        const double along = (nf[0] * mx + nf[1] * my) + nf[2] * mz;
+        const double ahead = r[3] - (((cf[0] - pose[9]) * mx + (cf[1] - pose[10]) * my) + (cf[2] - pose[11]) * mz);
+        const double gap = ahead / along;
+        if (along < 0 && gap >= low && gap <= high)
+            out[count++] = f;
+    }
+    Py_END_ALLOW_THREADS
+
+    for (int j = 0; j < 7; j++)
+        PyBuffer_Release(&views[j]);
+    return PyLong_FromSsize_t(count);
+}
+
 static PyMethodDef methods[] = {
     {"follow", follow, METH_VARARGS,
      "follow(k, n_faces, steps, on_face, faces, origins, directions, records, across, face, t, found, margin, along): "
      "Walker.follow's loop, writing the outputs in place."},
+    {"window", window, METH_VARARGS,
+     "window(n1, n2, low, high, met, tried, centroids, normals, records, pose, out): window_faces's scan, "
+     "writing the faces found to out; their number."},
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_walk", "Walker.follow's loop, compiled.", -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_walk", "Walker.follow's loop and window_faces's scan, compiled.", -1, methods};
 
 PyMODINIT_FUNC PyInit__walk(void) { return PyModule_Create(&module); }

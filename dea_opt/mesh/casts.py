@@ -150,5 +150,3 @@ class SpringCast:
     """Per face of mesh 1: the face of mesh 2 its ray met first facing it (-1: none), within the
     window or beyond it, where springs that follow body 2 start looking at another pose (None:
     not kept)."""
-    met_point: np.ndarray | None = field(default=None, repr=False)
-    """Per face of mesh 1 (F1, 3): where its ray met that face, in mesh 2's own frame (NaN: none)."""

@@ -31,14 +31,12 @@ _SPRING = -1
 class FaceCast:
     """What the rays of some faces of mesh 1 met: a spring or the reason for none, per face."""
 
-    def __init__(self, cast, faces, outcome, q, m, faces2, gap, h1, h2, far2=None, first_point=None):
+    def __init__(self, cast, faces, outcome, q, m, faces2, gap, h1, h2, far2=None):
         self.cast, self.faces, self.outcome = cast, faces, outcome
         self.q, self.m, self.faces2, self.gap, self.h1, self.h2 = q, m, faces2, gap, h1, h2
         # the far face of mesh 2 each thickness was measured to (-1: none; -2: not measured)
         self.far2 = np.full(len(faces), -2, dtype=np.int64) if far2 is None else far2
         self.first2 = np.full(len(faces), -1, dtype=np.int64)  # what each ray met first (cast_faces)
-        # where (mesh 2's own frame)
-        self.first_point = np.full((len(faces), 3), np.nan) if first_point is None else first_point
         self.clear = np.zeros(len(faces))  # how far each hit may move on its face (0: not known)
 
     @property
@@ -73,13 +71,12 @@ class FaceCast:
 
 class _Crossings:
     """The crossings of mesh 2 a cast judges for K rays: ``ray``, ``face``, ``t``, ``cos`` (one entry
-    a crossing), ``unique`` (at most one a ray), and ``first`` (K,) with ``first_t``: the face a ray
-    met first, when it faces the ray (-1 otherwise), and how far along it, from which the ray can be
-    followed at the next pose."""
+    a crossing), ``unique`` (at most one a ray), and ``first`` (K,): the face a ray met first, when
+    it faces the ray (-1 otherwise), from which the ray can be followed at the next pose."""
 
-    def __init__(self, ray, face, t, cos, unique, first, first_t):
+    def __init__(self, ray, face, t, cos, unique, first):
         self.ray, self.face, self.t, self.cos, self.unique = ray, face, t, cos, unique
-        self.first, self.first_t = first, first_t
+        self.first = first
 
 
 def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, met=None) -> _Crossings:
@@ -119,7 +116,7 @@ def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, me
     ray = np.flatnonzero(simple)
     facing_first = np.where(found & (cos > 0), first, -1)
     if not len(again):
-        return _Crossings(ray, first[ray], t[ray], cos[ray], True, facing_first, t)
+        return _Crossings(ray, first[ray], t[ray], cos[ray], True, facing_first)
     caster = _caster(mesh2.mesh, mesh2.engine)
     more_ray, more_face, more_t = caster.hits(origins[again], directions[again], start[again], stop[again])
     more_cos = -dot(np.take(mesh2.planes.normals, more_face, axis=0), directions[again[more_ray]])
@@ -131,15 +128,14 @@ def _crossings(mesh2: Mesh2, origins, directions, look, max_gap, depth, eps1, me
         np.concatenate([cos[ray], more_cos[facing]]),
         False,
         facing_first,
-        t,
     )
 
 
 def _empty(cast, faces, points=None) -> FaceCast:
-    """No spring for any of ``faces`` yet; ``points`` (q, m, first_point: (K, 3) each) when the caller
+    """No spring for any of ``faces`` yet; ``points`` (q, m: (K, 3) each) when the caller
     has them already (else NaN: three fresh arrays of 1e4 rows cost more than the pass that fills them)."""
     k = len(faces)
-    q, m, first_point = (np.full((k, 3), np.nan) for _ in range(3)) if points is None else points
+    q, m = (np.full((k, 3), np.nan) for _ in range(2)) if points is None else points
     return FaceCast(
         cast,
         faces,
@@ -151,7 +147,6 @@ def _empty(cast, faces, points=None) -> FaceCast:
         np.full(k, np.nan),
         np.full(k, np.nan),
         np.full(k, -2, dtype=np.int64),
-        first_point,
     )
 
 
@@ -203,8 +198,6 @@ def cast_faces(
     origins, directions = _rays(pose, faces, mesh1)
     crossings = _crossings(mesh2, origins, directions, look, max_gap, depth, mesh1.eps, met)
     out.first2 = crossings.first
-    known = crossings.first >= 0
-    out.first_point[known] = origins[known] + crossings.first_t[known, None] * directions[known]
     ray, face, t, cos = crossings.ray, crossings.face, crossings.t, crossings.cos
     through = -t >= depth[ray] - mesh1.eps
     window = (t >= -allowed[ray]) & (t <= max_gap)
@@ -278,7 +271,6 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
             # whole arrays where most rays make springs: one pass each rather than a gather and a scatter
             np.where(spring[:, None], point, np.nan),
             np.where(spring[:, None], np.take(mesh2.planes.normals, face, axis=0), np.nan),
-            np.where(met_facing[:, None], point, np.nan),
         ),
     )
     out.first2[met_facing] = face[met_facing]
@@ -297,7 +289,7 @@ def follow_faces(cast, pose, faces, met, allowed, mesh1: Mesh1, mesh2: Mesh2, ca
             outcome[rest] = -2
             return out
         again = cast_faces(cast, pose, faces[rest], allowed[rest], mesh1, mesh2, met=None, thickness=False)
-        for name in ("outcome", "q", "m", "faces2", "gap", "first2", "first_point", "clear"):
+        for name in ("outcome", "q", "m", "faces2", "gap", "first2", "clear"):
             getattr(out, name)[rest] = getattr(again, name)
     return out
 

@@ -238,33 +238,30 @@ def _cast(m1, m2, T, options, allowed=None) -> SpringCast:
 _MET_REACH = 10.0
 
 
-def _first_met(m2, engine, ray, face, t, origins2, directions2, stop) -> tuple[np.ndarray, np.ndarray]:
-    """``(face (F1,), point (F1, 3))``: what each ray met first facing it, in mesh 2's own frame
-    (-1 and NaN: nothing), among the crossings of the cast's range (``ray, face, t``, facing)
+def _first_met(m2, engine, ray, face, t, origins2, directions2, stop) -> np.ndarray:
+    """``face (F1,)``: the face of mesh 2 each ray met first facing it (-1: nothing), among the crossings of the cast's range (``ray, face, t``, facing)
     and, for rays with none there, by one first-hit query up to ``_MET_REACH`` beyond ``stop``
     (F1,): where springs that follow body 2 start looking for the faces of mesh 1 near them at
     another pose."""
     n = len(origins2)
     first = _first_per_ray(ray, t, n)
     met = np.where(first >= 0, face[first.clip(0)], -1) if len(face) else np.full(n, -1, dtype=np.int64)
-    dist = np.where(first >= 0, t[first.clip(0)], np.nan) if len(face) else np.full(n, np.nan)
     beyond = np.flatnonzero(met < 0)
     if len(beyond):
         start = origins2[beyond] + stop[beyond, None] * directions2[beyond]
-        more, ahead = _caster(m2, engine).nearest(start, directions2[beyond], 0.0, _MET_REACH)
+        more, _ = _caster(m2, engine).nearest(start, directions2[beyond], 0.0, _MET_REACH)
         found = more >= 0
         facing = np.zeros(len(beyond), dtype=bool)
         facing[found] = np.einsum("ij,ij->i", m2.face_normals[more[found]], directions2[beyond][found]) < 0
         met[beyond[facing]] = more[facing]
-        dist[beyond[facing]] = stop[beyond[facing]] + ahead[facing]
-    return met, origins2 + dist[:, None] * directions2
+    return met
 
 
 def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, outcome, met=None) -> SpringCast:
     """The :class:`SpringCast` of what the rays found: the faces of mesh 1 with a spring
     (``sel``), their gaps, the faces of mesh 2 met and where (in mesh 2's frame), the two
     thicknesses, and every face's outcome (and, optionally, ``met``: the face of mesh 2 each ray
-    met first facing it and where, :func:`_first_met`). A sweep's cache keeps these arrays and
+    met first facing it, :func:`_first_met`). A sweep's cache keeps these arrays and
     nothing else (not ``met``)."""
     normals = -m1.face_normals if options["flip"] else m1.face_normals
     face_labels = options["labels"]
@@ -283,10 +280,8 @@ def assemble_cast(m1, m2, T, options, sel, gap, hit_face, hit_point2, h1, h2, ou
     )
     hit_point = hit_point2 @ T[:3, :3].T + T[:3, 3]
     dropped = Dropped({r: np.flatnonzero(outcome == i) for i, r in enumerate(DROP_REASONS)})
-    met, met_point = (None, None) if met is None else (_readonly(np.asarray(met[0])), _readonly(np.asarray(met[1])))
-    cast = SpringCast(
-        layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome), met, met_point
-    )
+    met = None if met is None else _readonly(np.asarray(met))
+    cast = SpringCast(layer, hit_face, hit_point, h1, h2, m1, m2, T, dropped, options, _readonly(outcome), met)
     object.__setattr__(layer, "_cast", cast)  # the layer knows its meshes (SpringLayer.cast)
     return cast
 

@@ -23,7 +23,7 @@ import numpy as np
 from .._checks.dependencies import compiled
 from .raycast import _self_epsilon
 
-__all__ = ["Planes", "Walk", "Walker", "compiled_walk", "dot", "dot3"]
+__all__ = ["Planes", "Walk", "Walker", "compiled_walk", "dot", "dot3", "window_faces"]
 
 #: Barycentric slack (relative to the face) inside which a point still lies on a face.
 ON_FACE = 1e-9
@@ -271,3 +271,34 @@ class Walker:
             face[active] = nxt[go]
             o, d = np.take(oT, active, axis=1), np.take(dT, active, axis=1)
         return Walk(face, t, found, margin, along)
+
+
+def window_faces(met, tried, centroids, normals, planes: Planes, pose, low: float, high: float, compiled=None):
+    """The faces of mesh 1 (indices, increasing) whose ray, from its centroid along its normal
+    (``centroids``, ``normals`` (F, 3)), meets the plane of the face of mesh 2 it met before
+    (``met`` (F,), -1: none) at mesh 2's ``pose`` (4x4) facing it, at a distance within
+    ``[low, high]`` (mm), leaving out the faces ``tried`` (F,) bool.
+
+    One compiled pass over the faces (``_walk.c``) unless ``compiled`` is False or it was not
+    built, else numpy, operation for operation the same numbers."""
+    pose = np.asarray(pose, dtype=float)
+    flat = np.ascontiguousarray(np.concatenate([pose[:3, :3].ravel(), pose[:3, 3]]))
+    kernel = compiled_walk() if compiled is None or compiled else None
+    if kernel is not None:
+        n1 = len(met)
+        out = np.empty(n1, dtype=np.int64)
+        count = kernel.window(
+            n1, len(planes.records), float(low), float(high), np.ascontiguousarray(met, dtype=np.int64),
+            np.ascontiguousarray(tried, dtype=bool).view(np.uint8), np.ascontiguousarray(centroids, dtype=float),
+            np.ascontiguousarray(normals, dtype=float), planes.records, flat, out,
+        )  # fmt: skip
+        return out[:count]
+    known = np.flatnonzero((met >= 0) & (met < len(planes.records)) & ~np.asarray(tried, dtype=bool))
+    r = np.take(planes.records, met[known], axis=0)
+    m = [(flat[3 * i] * r[:, 0] + flat[3 * i + 1] * r[:, 1]) + flat[3 * i + 2] * r[:, 2] for i in range(3)]
+    c, n = np.take(centroids, known, axis=0), np.take(normals, known, axis=0)
+    along = (n[:, 0] * m[0] + n[:, 1] * m[1]) + n[:, 2] * m[2]
+    ahead = r[:, 3] - (((c[:, 0] - flat[9]) * m[0] + (c[:, 1] - flat[10]) * m[1]) + (c[:, 2] - flat[11]) * m[2])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gap = ahead / along
+    return known[(along < 0) & (gap >= low) & (gap <= high)]

@@ -1,5 +1,9 @@
 """The walk's two loops, compiled (``dea_opt/mesh/_walk.c``) and numpy, against closed forms and each other.
 
+The scan of :func:`~dea_opt.mesh.walk.window_faces` (the faces whose ray meets the plane of what
+it met before within a window) likewise: on a flat grid the gaps are the heights, on the hip the
+two scans find the same faces.
+
 On a flat grid the face a ray crosses, and where, are known in closed form; on the embedded hip
 turned by large rotations (walks of many steps, rays that leave the mesh, run out of steps, or
 meet a face edge-on) the two loops must give the same faces and the same numbers, bit for bit.
@@ -18,7 +22,7 @@ import trimesh
 from dea_opt import mesh as M
 from dea_opt.formulations.finite.geometry import rotation
 from dea_opt.geometry import hip_meshes
-from dea_opt.mesh.walk import ON_FACE, Planes, Walker, compiled_walk
+from dea_opt.mesh.walk import ON_FACE, Planes, Walker, compiled_walk, window_faces
 
 WALKS = ["numpy"] + (["compiled"] if compiled_walk() is not None else [])
 
@@ -125,3 +129,45 @@ def test_every_walk_gives_the_numpy_walk_s_numbers_bit_for_bit(walk, degrees):
         for a, b in zip(mine, theirs):
             assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
     assert 0.0 < theirs.found.mean() <= 1.0
+
+
+@pytest.mark.parametrize("walk", WALKS)
+def test_the_window_scan_keeps_the_faces_whose_ray_meets_the_plane_it_met_within_the_window(walk):
+    """Mesh 2 a flat grid in z = 0 (normals +z); rays from heights 0.5, 1.5, ..., 4.5 mm straight
+    down onto face 3: their gap is the height less mesh 2's lift, whatever it turns about z. Rays
+    that met nothing (-1), name no face, point away, or were tried are left out."""
+    planes = Planes(_grid())
+    heights = np.arange(10) + 0.5
+    centroids = np.column_stack([np.full(10, 2.0), np.full(10, 3.0), heights])
+    normals = np.tile([0.0, 0.0, -1.0], (10, 1))
+    met = np.full(10, 3, dtype=np.int64)
+    met[6], met[7] = -1, len(planes.records) + 2  # met nothing; names no face
+    normals[8] = [0.0, 0.0, 1.0]  # points away from the grid
+    tried = np.zeros(10, dtype=bool)
+    tried[9] = True
+    pose = np.eye(4)
+    pose[:3, :3] = rotation(np.radians(35.0) * np.array([0.0, 0.0, 1.0]))
+    pose[:3, 3] = [0.4, -0.7, 1.0]  # lifted 1 mm: gaps = heights - 1
+    found = window_faces(met, tried, centroids, normals, planes, pose, 1.0, 3.0, compiled=walk == "compiled")
+    assert found.dtype == np.int64 and found.tolist() == [2, 3]  # gaps 1.5 and 2.5 (0.5 below, 3.5 above)
+    found = window_faces(met, tried, centroids, normals, planes, pose, -1.0, 10.0, compiled=walk == "compiled")
+    assert found.tolist() == [0, 1, 2, 3, 4, 5]
+
+
+@pytest.mark.parametrize("walk", WALKS)
+@pytest.mark.parametrize("degrees", [0.5, 4.0, 15.0])
+def test_every_window_scan_finds_the_numpy_scan_s_faces(walk, degrees):
+    pair = hip_meshes(step=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+    mesh1 = M.Mesh1.of(cast)
+    planes = Planes(pair.mesh2)
+    T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2))
+    tried = np.zeros(len(cast.met), dtype=bool)
+    tried[::3] = True
+    for low, high in ((-4.0, 3.0), (-1.0, 0.5), (0.0, 0.0)):
+        mine = window_faces(cast.met, tried, mesh1.centroids, mesh1.normals, planes, T, low, high, walk == "compiled")
+        theirs = window_faces(cast.met, tried, mesh1.centroids, mesh1.normals, planes, T, low, high, False)
+        assert np.array_equal(mine, theirs)
+    assert len(window_faces(cast.met, tried, mesh1.centroids, mesh1.normals, planes, T, -4.0, 3.0)) > 10
