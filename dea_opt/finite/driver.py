@@ -301,17 +301,25 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
     complete update (also the faces next to the springs, :meth:`MeshTracker.update`) at the pose
     where a partial one changed nothing that carries load; ``resolve`` when the equilibrium must be
     solved again. Newton keeps its answer when only springs that carry nothing changed; IPOPT
-    solves again after any change. A complete update checks a pose solved to the options'
-    tolerance (``tighten``: ``inner`` solved again from its answer when it stopped short); one
-    whose hits moved less than :data:`_SETTLED` since a complete update keeps its springs. At
-    most ``max_recasts`` updates that changed the springs in a solve (``rounds``, a one-element
-    list, counts them; ``stable`` False beyond: an equilibrium of these springs; another update
-    might still change them).
+    solves again after any change. A pose where a complete update changed nothing that carries
+    load is solved to the options' tolerance (``tighten``: ``inner`` solved again from its answer
+    when it stopped short), and its springs stand there where that moved the hits less than
+    :data:`_SETTLED` since the update, else they are updated again; a complete update that
+    changes a loaded spring is followed by a solve anyway, so the pose it checks need not be
+    tightened first. At most ``max_recasts`` updates that changed the springs in a solve
+    (``rounds``, a one-element list, counts them; ``stable`` False beyond: an equilibrium of these
+    springs; another update might still change them).
     """
     max_recasts = opts["max_recasts"]
     # right after a solve, tracker.complete says that the last update was complete (within this
     # call it is also set before a complete update at the pose a partial one found unchanged)
     after_complete = tracker.complete
+
+    def stands():  # inner solved to the tolerance; whether the last update's springs stand there
+        nonlocal inner
+        inner = tighten(system, inner)
+        return not inner.success or tracker.moved_from_update(system.transform(inner.state.y)) <= _SETTLED
+
     while True:
         if rounds[0] >= max_recasts:
             inner = tighten(system, inner)
@@ -321,13 +329,10 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
                 else "; the springs were not updated (max_recasts = 0)"
             )
             return system, inner, False, False
-        complete = tracker.complete or tracker.short_step(system.transform(inner.state.y))
-        if complete:
-            inner = tighten(system, inner)
-            if not inner.success:
-                return system, inner, False, True
-            if after_complete and tracker.moved_from_update(system.transform(inner.state.y)) <= _SETTLED:
-                return system, inner, False, True  # the last update's springs stand here (_SETTLED)
+        pose = system.transform(inner.state.y)
+        complete = tracker.complete or tracker.short_step(pose)
+        if complete and after_complete and tracker.moved_from_update(pose) <= _SETTLED and stands():
+            return system, inner, False, True  # the last update's springs stand here (_SETTLED)
         after_complete = False
         tracker.complete = complete
         update = tracker.update(system, inner.state, complete=complete)
@@ -337,21 +342,20 @@ def _bring_up_to_date(tracker, system, inner, method, opts, rounds, tighten) -> 
                 inner.status = "pose_error"
             inner.message += f"; no spring is left at the solved pose ({update.none_left})"
             return system, inner, False, True
-        if update is None:
-            if complete:
-                return system, inner, False, True
+        if update is not None:
+            rounds[0] += 1
+            system = update.system
+            # the new springs at the solved pose: where the next solve starts, or (when only springs
+            # that carry nothing changed) the same equilibrium
+            inner.state = update.state
+            if update.resolve or method != "finite":
+                return system, inner, True, True
+        if not complete:
             tracker.complete = True  # nothing changed that carries load: now the whole of it
             continue
-        rounds[0] += 1
-        system = update.system
-        # the new springs at the solved pose: where the next solve starts, or (when only springs
-        # that carry nothing changed) the same equilibrium
-        inner.state = update.state
-        if update.resolve or method != "finite":
-            return system, inner, True, True
-        if complete:
+        if stands():
             return system, inner, False, True
-        tracker.complete = True
+        after_complete = True  # solving to the tolerance moved the hits: updated again there
 
 
 def _inner(method, system, law, T, E0, x, cold, opts, start_state=None):

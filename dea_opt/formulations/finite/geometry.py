@@ -132,7 +132,7 @@ def jacobian_transpose_derivative(theta, moment) -> np.ndarray:
     tau = float(theta @ theta)
     b, c, db, dc = _coefficient_slopes(tau)
     tm = float(theta @ moment)
-    cross = np.cross(theta, moment)
+    cross = _hat(theta) @ moment  # theta x moment (np.cross costs five times as much on two 3-vectors)
     D = b * _hat(moment) + c * (tm * np.eye(3) + np.outer(theta, moment) - 2.0 * np.outer(moment, theta))
     D += 2.0 * np.outer(dc * (theta * tm - tau * moment) - db * cross, theta)
     return D
