@@ -86,7 +86,7 @@ class Springs:
         if self._room and all(getattr(self, name).flags.writeable for name in self.FIELDS):
             return
         n = len(self)
-        size = n + n // 4 + 256
+        size = n + n // 2 + 256  # half again as many: a contact that spreads as body 2 moves fits
         self._room = {}
         for name in self.FIELDS:
             value = getattr(self, name)

@@ -34,7 +34,6 @@ import numpy as np
 from ..formulations.finite import Targets
 from ..mesh import Mesh1, Mesh2, cast_faces, follow_faces, recast
 from ..mesh.springs import LOST_REASONS, NoSpringsError
-from ..mesh.walk import ON_FACE
 from .growth import Growth
 from .springs import Springs, face_labels, put_rows
 
@@ -197,27 +196,16 @@ class MeshTracker(Growth):
         self.springs.own()  # what the last answer holds is left as it was
         springs, options = self.springs, self.cast.options
         gaps = state.gaps
-        R, shift = pose[:3, :3], pose[:3, 3]
-        # the hits in mesh 2's own frame, as rows (3, N): R^T (p + s n - shift)
         rows = system.planes
         pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
-        along = np.where(gaps.valid, gaps.s, 0.0)
-        ownT = R.T @ (pT - shift[:, None]) + along * (R.T @ nT)
-        # Which hits left their face: a hit that moved less than its clearance since it was last
-        # found on its face is still on it; the others are tested (barycentric coordinates).
-        step = ownT - springs.tested.T
-        check = np.flatnonzero(~gaps.valid | (np.einsum("ij,ij->j", step, step) >= springs.clear * springs.clear))
-        bary = self.mesh2.planes.barycentric(ownT[:, check], springs.faces2[check], rows=True)
-        low = bary.min(axis=0)
-        out = ~((low >= -ON_FACE) & gaps.valid[check])
-        left = np.zeros(len(springs.faces1), dtype=bool)
-        left[check] = out
-        stays = check[~out]
-        put_rows(springs.tested, stays, ownT[:, stays].T)
-        springs.clear[stays] = self.mesh2.planes.clearance(springs.faces2[stays], low[~out])
-        shifted = ownT - springs.measured.T
-        moved = ~left & (np.einsum("ij,ij->j", shifted, shifted) > self.recast_shift**2)
-        beyond = ~left & (gaps.s > options["max_gap"])
+        # The hits in mesh 2's own frame, R^T (p + s n - shift), and which left their face: a hit
+        # that moved less than its clearance since it was last found on its face is still on it;
+        # the others are tested (barycentric coordinates; one compiled pass, Planes.track).
+        track = self.mesh2.planes.track(
+            pT, nT, gaps.s, gaps.valid, pose, springs.faces2, springs.tested, springs.clear, springs.measured,
+            self.recast_shift, options["max_gap"],
+        )  # fmt: skip
+        ownT, left, moved, beyond = track.own, track.left, track.moved, track.beyond
         loaded = state.eps < 0
         before_faces, before_h = springs.faces2.copy(), self.thickness.copy()
         # 1. Springs whose hit left its face: met again (followed across mesh 2's edges, else cast),
@@ -227,7 +215,7 @@ class MeshTracker(Growth):
             self.cast,
             pose,
             springs.faces1[index],
-            self.mesh2.planes.beyond(springs.faces2[index], np.take(bary, np.flatnonzero(out), axis=1)),
+            track.next[index],
             np.maximum(options["max_overlap"], options["max_overlap"] - np.nan_to_num(gaps.s[index])),
             self.mesh1,
             self.mesh2,

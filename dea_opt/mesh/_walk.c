@@ -1,4 +1,5 @@
-/* The inner loop of dea_opt.mesh.walk.Walker.follow, and the scan of dea_opt.mesh.walk.window_faces,
+/* The inner loop of dea_opt.mesh.walk.Walker.follow, the pass of dea_opt.mesh.walk.Planes.track and the
+ * scan of dea_opt.mesh.walk.window_faces,
  * compiled (optional: the numpy twins in walk.py give the same numbers, used where this module was
  * not built).
  *
@@ -169,16 +170,113 @@ static PyObject *window(PyObject *self, PyObject *args)
     return PyLong_FromSsize_t(count);
 }
 
+static PyObject *track(PyObject *self, PyObject *args)
+{
+    PyObject *objs[15];
+    Py_ssize_t n, n2;
+    double on_face, shift2, max_gap;
+    if (!PyArg_ParseTuple(args, "nndddOOOOOOOOOOOOOOO", &n, &n2, &on_face, &shift2, &max_gap, &objs[0], &objs[1],
+                          &objs[2], &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8], &objs[9], &objs[10],
+                          &objs[11], &objs[12], &objs[13], &objs[14]))
+        return NULL;
+    if (n < 0 || n2 < 0) {
+        PyErr_SetString(PyExc_ValueError, "track: negative size");
+        return NULL;
+    }
+    /* pT, nT (3, N) rows, s (N,), valid (N,) uint8, pose (12,), faces2 (N,) int64, measured (N, 3),
+       records (F, 12), altitude (F,), across (3F,) int64, then tested (N, 3) and clear (N,), read and
+       written, and the outputs: ownT (3, N), status (N,) uint8, next (N,) int64 */
+    static const char *names[15] = {"pT", "nT", "s", "valid", "pose", "faces2", "measured", "records",
+                                    "altitude", "across", "tested", "clear", "ownT", "status", "next"};
+    const Py_ssize_t sizes[15] = {8, 8, 8, 1, 8, 8, 8, 8, 8, 8, 8, 8, 8, 1, 8};
+    const Py_ssize_t counts[15] = {3 * n, 3 * n, n, n, 12, n, 3 * n, 12 * n2, n2, 3 * n2, 3 * n, n, 3 * n, n, n};
+    Py_buffer views[15];
+    int got = 0;
+    for (; got < 15; got++)
+        if (take(objs[got], &views[got], got >= 10, sizes[got], counts[got], names[got]) < 0)
+            break;
+    if (got < 15) {
+        for (int j = 0; j < got; j++)
+            PyBuffer_Release(&views[j]);
+        return NULL;
+    }
+    const double *pT = views[0].buf, *nT = views[1].buf, *s = views[2].buf, *pose = views[4].buf;
+    const uint8_t *valid = views[3].buf;
+    const int64_t *faces2 = views[5].buf, *across = views[9].buf;
+    const double *measured = views[6].buf, *rec = views[7].buf, *altitude = views[8].buf;
+    double *tested = views[10].buf, *clear = views[11].buf, *ownT = views[12].buf;
+    uint8_t *status = views[13].buf;
+    int64_t *next = views[14].buf;
+
+    Py_BEGIN_ALLOW_THREADS
+    for (Py_ssize_t i = 0; i < n; i++) {
+        const int v = valid[i] != 0;
+        const double a = v ? s[i] : 0.0;
+        const double dx = pT[i] - pose[9], dy = pT[n + i] - pose[10], dz = pT[2 * n + i] - pose[11];
+        const double nx = nT[i], ny = nT[n + i], nz = nT[2 * n + i];
+        double o[3];
+        for (int k = 0; k < 3; k++) /* R^T (p - shift) + a R^T n */
+            o[k] = ((pose[k] * dx + pose[3 + k] * dy) + pose[6 + k] * dz) +
+                   a * ((pose[k] * nx + pose[3 + k] * ny) + pose[6 + k] * nz);
+        ownT[i] = o[0], ownT[n + i] = o[1], ownT[2 * n + i] = o[2];
+        double *tst = tested + 3 * i;
+        const double sx = o[0] - tst[0], sy = o[1] - tst[1], sz = o[2] - tst[2];
+        int left = 0;
+        int64_t across_to = -1;
+        double low = NAN;
+        if (!v || ((sx * sx + sy * sy) + sz * sz) >= clear[i] * clear[i]) {
+            const int64_t f = faces2[i];
+            if (f >= 0 && f < n2) {
+                const double *r = rec + 12 * f;
+                const double b1 = ((r[4] * o[0] + r[5] * o[1]) + r[6] * o[2]) - r[7];
+                const double b2 = ((r[8] * o[0] + r[9] * o[1]) + r[10] * o[2]) - r[11];
+                const double b0 = (1.0 - b1) - b2;
+                if (!isnan(b0) && !isnan(b1) && !isnan(b2)) {
+                    low = b0 < b1 ? b0 : b1;
+                    low = low < b2 ? low : b2;
+                }
+                if (low >= -on_face && v) {
+                    tst[0] = o[0], tst[1] = o[1], tst[2] = o[2];
+                    clear[i] = (low > 0.0 ? low : 0.0) * altitude[f];
+                } else {
+                    left = 1;
+                    /* the face across the edge opposite the first lowest coordinate (NaN read as 0) */
+                    const double c0 = isnan(b0) ? 0.0 : b0, c1 = isnan(b1) ? 0.0 : b1, c2 = isnan(b2) ? 0.0 : b2;
+                    const int corner = (c0 <= c1 && c0 <= c2) ? 0 : (c1 <= c2 ? 1 : 2);
+                    across_to = across[3 * f + corner];
+                    if (across_to < 0)
+                        across_to = f;
+                }
+            } else
+                left = 1;
+        }
+        const double *msr = measured + 3 * i;
+        const double mx = o[0] - msr[0], my = o[1] - msr[1], mz = o[2] - msr[2];
+        const int moved = !left && ((mx * mx + my * my) + mz * mz) > shift2;
+        const int beyond = !left && s[i] > max_gap;
+        status[i] = (uint8_t)(left | (moved << 1) | (beyond << 2));
+        next[i] = across_to;
+    }
+    Py_END_ALLOW_THREADS
+
+    for (int j = 0; j < 15; j++)
+        PyBuffer_Release(&views[j]);
+    Py_RETURN_NONE;
+}
+
 static PyMethodDef methods[] = {
     {"follow", follow, METH_VARARGS,
      "follow(k, n_faces, steps, on_face, faces, origins, directions, records, across, face, t, found, margin, along): "
      "Walker.follow's loop, writing the outputs in place."},
+    {"track", track, METH_VARARGS,
+     "track(n, n2, on_face, shift2, max_gap, pT, nT, s, valid, pose, faces2, measured, records, altitude, across, "
+     "tested, clear, ownT, status, next): Planes.track's pass, writing tested, clear and the outputs in place."},
     {"window", window, METH_VARARGS,
      "window(n1, n2, low, high, met, tried, centroids, normals, records, pose, out): window_faces's scan, "
      "writing the faces found to out; their number."},
     {NULL, NULL, 0, NULL},
 };
 
-static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_walk", "Walker.follow's loop and window_faces's scan, compiled.", -1, methods};
+static struct PyModuleDef module = {PyModuleDef_HEAD_INIT, "_walk", "Walker.follow's loop, Planes.track's pass and window_faces's scan, compiled.", -1, methods};
 
 PyMODINIT_FUNC PyInit__walk(void) { return PyModule_Create(&module); }

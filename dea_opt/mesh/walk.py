@@ -10,7 +10,10 @@ ray casters at hand (Embree through trimesh, the numpy grid) start every query f
 and a cartilage surface met once along a ray is a sheet whose neighbouring faces the mesh's
 edges name. The walk's loop is compiled (``_walk.c``, built at install where a C compiler is at
 hand: one pass over the rays rather than a dozen numpy passes a step, a third of a finite solve's
-updates on the knee) and in numpy otherwise, operation for operation the same numbers.
+updates on the knee) and in numpy otherwise, operation for operation the same numbers; so are
+the pass that finds where springs' hits are at a pose and which left their face
+(:meth:`Planes.track`) and the scan of the faces whose ray meets the plane it met before within
+a window (:func:`window_faces`).
 """
 
 from __future__ import annotations
@@ -23,7 +26,7 @@ import numpy as np
 from .._checks.dependencies import compiled
 from .raycast import _self_epsilon
 
-__all__ = ["Planes", "Walk", "Walker", "compiled_walk", "dot", "dot3", "window_faces"]
+__all__ = ["Planes", "Track", "Walk", "Walker", "compiled_walk", "dot", "dot3", "window_faces"]
 
 #: Barycentric slack (relative to the face) inside which a point still lies on a face.
 ON_FACE = 1e-9
@@ -127,6 +130,70 @@ class Planes:
         moves less than it stays in its face (0 where ``low`` is not positive)."""
         return np.maximum(low, 0.0) * np.take(self.altitude, faces)
 
+    def track(self, pT, nT, s, valid, pose, faces, tested, clear, measured, shift, max_gap, compiled=None) -> Track:
+        """Where the hits of springs on these faces are at mesh 2's ``pose`` (4x4), and which left.
+
+        Spring ``i`` at ``p_i`` along ``n_i`` (rows ``pT``, ``nT`` (3, N)) meets the plane of face
+        ``faces[i]`` at gap ``s[i]`` (where ``valid``): its hit, in this mesh's own frame, is
+        ``R^T (p + s n - t)``. A hit that moved less than ``clear[i]`` from ``tested[i]`` (N, 3)
+        is on its face still; the others are tested (barycentric coordinates, ``ON_FACE``), and
+        where on it ``tested`` and ``clear`` (the new :meth:`clearance`) are written in place. Of
+        the hits that stayed: those that moved more than ``shift`` (mm) from ``measured`` (N, 3),
+        and those with a gap beyond ``max_gap``. One compiled pass (``_walk.c``) unless
+        ``compiled`` is False or it was not built, else numpy, operation for operation the same
+        numbers (:class:`Track`)."""
+        n = len(faces)
+        pT, nT = np.ascontiguousarray(pT, dtype=float), np.ascontiguousarray(nT, dtype=float)
+        pose = np.asarray(pose, dtype=float)
+        flat = np.ascontiguousarray(np.concatenate([pose[:3, :3].ravel(), pose[:3, 3]]))
+        valid = np.ascontiguousarray(valid, dtype=bool)
+        s, faces = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(faces, dtype=np.int64)
+        kernel = compiled_walk() if compiled is None or compiled else None
+        if kernel is not None:
+            own, status, after = np.empty((3, n)), np.empty(n, dtype=np.uint8), np.empty(n, dtype=np.int64)
+            kernel.track(
+                n, len(self.records), ON_FACE, float(shift) ** 2, float(max_gap), pT, nT, s, valid.view(np.uint8),
+                flat, faces, np.ascontiguousarray(measured, dtype=float), self.records, self.altitude,
+                np.ascontiguousarray(self.across, dtype=np.int64), tested, clear, own, status, after,
+            )  # fmt: skip
+            left = (status & 1).astype(bool)
+            return Track(own, left, (status & 2).astype(bool), (status & 4).astype(bool), after)
+        a = np.where(valid, s, 0.0)
+        d = [pT[k] - flat[9 + k] for k in range(3)]
+        own = np.empty((3, n))
+        for k in range(3):  # R^T (p - t) + a R^T n, the kernel's sums in its order
+            turned = (flat[k] * nT[0] + flat[3 + k] * nT[1]) + flat[6 + k] * nT[2]
+            own[k] = ((flat[k] * d[0] + flat[3 + k] * d[1]) + flat[6 + k] * d[2]) + a * turned
+        step = own - tested.T
+        check = np.flatnonzero(
+            ~valid | (((step[0] * step[0] + step[1] * step[1]) + step[2] * step[2]) >= clear * clear)
+        )
+        f = faces[check]
+        named = (f >= 0) & (f < len(self.records))
+        r = self.gathered(np.where(named, f, 0))
+        o = own[:, check]
+        b1 = ((r[4] * o[0] + r[5] * o[1]) + r[6] * o[2]) - r[7]
+        b2 = ((r[8] * o[0] + r[9] * o[1]) + r[10] * o[2]) - r[11]
+        b0 = (1.0 - b1) - b2
+        low = np.where(named, np.minimum(np.minimum(b0, b1), b2), np.nan)
+        on = (low >= -ON_FACE) & valid[check]
+        stays = check[on]
+        tested[stays] = own[:, stays].T
+        clear[stays] = np.where(low[on] > 0.0, low[on], 0.0) * self.altitude[f[on]]
+        left = np.zeros(n, dtype=bool)
+        left[check] = ~on
+        gone = ~on & named
+        c = [np.nan_to_num(b[gone], nan=0.0) for b in (b0, b1, b2)]
+        corner = np.where((c[0] <= c[1]) & (c[0] <= c[2]), 0, np.where(c[1] <= c[2], 1, 2))
+        across = self.across.ravel()[3 * f[gone] + corner]
+        after = np.full(n, -1, dtype=np.int64)
+        after[check[gone]] = np.where(across >= 0, across, f[gone])
+        m = own - np.asarray(measured, dtype=float).T
+        moved = ~left & (((m[0] * m[0] + m[1] * m[1]) + m[2] * m[2]) > float(shift) ** 2)
+        with np.errstate(invalid="ignore"):
+            beyond = ~left & (s > max_gap)
+        return Track(own, left, moved, beyond, after)
+
     def inside(self, points, faces, tolerance: float = ON_FACE, rows: bool = False) -> np.ndarray:
         """Whether ``points`` (K, 3), or (3, K) with ``rows``, lie within faces ``faces`` (K,)
         (barycentric, with ``tolerance``)."""
@@ -176,6 +243,21 @@ def _barycentric(records, points) -> np.ndarray:
     out[2] = dot3(records[8:11], points) - records[11]
     out[0] = 1.0 - out[1] - out[2]
     return out
+
+
+class Track(NamedTuple):
+    """Where springs' hits are on mesh 2 at a pose (:meth:`Planes.track`), per spring (N,)."""
+
+    #: The hits in the mesh's own frame, as rows (3, N).
+    own: np.ndarray
+    #: The hit left its face (or its gap is not valid there).
+    left: np.ndarray
+    #: It stayed, and moved more than the shift from where it was measured.
+    moved: np.ndarray
+    #: It stayed, with a gap beyond ``max_gap``.
+    beyond: np.ndarray
+    #: Where it left: the face across the edge it left through (itself at the boundary; -1 elsewhere).
+    next: np.ndarray
 
 
 class Walk(NamedTuple):

@@ -1,6 +1,7 @@
 """The walk's two loops, compiled (``dea_opt/mesh/_walk.c``) and numpy, against closed forms and each other.
 
-The scan of :func:`~dea_opt.mesh.walk.window_faces` (the faces whose ray meets the plane of what
+The pass of :meth:`~dea_opt.mesh.walk.Planes.track` (where springs' hits are at a pose, which left
+their face and where to) and the scan of :func:`~dea_opt.mesh.walk.window_faces` (the faces whose ray meets the plane of what
 it met before within a window) likewise: on a flat grid the gaps are the heights, on the hip the
 two scans find the same faces.
 
@@ -171,3 +172,71 @@ def test_every_window_scan_finds_the_numpy_scan_s_faces(walk, degrees):
         theirs = window_faces(cast.met, tried, mesh1.centroids, mesh1.normals, planes, T, low, high, False)
         assert np.array_equal(mine, theirs)
     assert len(window_faces(cast.met, tried, mesh1.centroids, mesh1.normals, planes, T, -4.0, 3.0)) > 10
+
+
+def _track(planes, walk, pT, nT, s, faces, tested, clear, measured, pose=None, valid=None):
+    valid = np.isfinite(s) if valid is None else valid
+    pose = np.eye(4) if pose is None else pose
+    return planes.track(pT, nT, s, valid, pose, faces, tested, clear, measured, 0.01, 2.0, compiled=walk == "compiled")
+
+
+@pytest.mark.parametrize("walk", WALKS)
+def test_the_track_of_hits_on_a_flat_grid_says_which_stayed_moved_or_left_and_where_to(walk):
+    """Springs straight down onto the grid (z = 0) from above, at (x, y): their hits are
+    (x, y, 0). A hit inside its face stays (tested and clearance written); one that moved less
+    than its clearance is not tested; one outside its face left, to the face across the edge it
+    crossed (itself at the grid's boundary); one with no valid gap left; of those that stayed,
+    one moved more than 0.01 mm from where it was measured, one lies beyond max_gap."""
+    mesh = _grid()
+    planes = Planes(mesh)
+    xy = np.array([[0.3, 0.1], [0.3, 0.1], [1.1, 0.3], [0.3, 0.1], [0.5, 0.2], [0.5, 0.2], [0.5, -0.1]])
+    n = len(xy)
+    s = np.array([1.0, 1.0, 1.0, np.nan, 1.0, 3.0, 1.0])  # the sixth 3 mm above the grid
+    pT = np.vstack([xy.T, np.where(np.isfinite(s), s, 1.0)])
+    nT = np.tile([[0.0], [0.0], [-1.0]], (1, n))
+    faces = np.array([_face_at(mesh, 0.3, 0.1)] * n, dtype=np.int64)
+    faces[4:6] = _face_at(mesh, 0.5, 0.2)
+    hits = np.column_stack([xy, np.zeros(n)])
+    tested = hits.copy()
+    tested[0] += [0.02, 0.0, 0.0]  # moved 0.02 mm: tested again (clearance 0)
+    clear = np.zeros(n)
+    clear[1] = 0.5  # tested here before, with room to move: not tested
+    tested[1] += [0.2, 0.0, 0.0]
+    measured = hits.copy()
+    measured[4] += [0.0, 0.05, 0.0]  # measured 0.05 mm away
+    track = _track(planes, walk, pT, nT, s, faces, tested, clear, measured)
+    assert np.abs(track.own[:, np.isfinite(s)] - hits[np.isfinite(s)].T).max() < 1e-14
+    assert track.left.tolist() == [False, False, True, True, False, False, True]
+    assert track.moved.tolist() == [False, False, False, False, True, False, False]
+    assert track.beyond.tolist() == [False, False, False, False, False, True, False]
+    # the first square's lower triangle is left through its edge x = 1, across which lies the next
+    # square's upper triangle (which holds the hit); at y < 0 the boundary: the face itself
+    assert track.next[2] == _face_at(mesh, 1.1, 0.3) == 3 and track.next[6] == faces[6]
+    assert track.next[[0, 1, 4, 5]].tolist() == [-1] * 4 and track.next[3] >= 0  # (no gap: from a face)
+    assert np.array_equal(tested[0], hits[0]) and clear[0] > 0.0  # tested: found on its face
+    assert clear[1] == 0.5 and np.array_equal(tested[1], hits[1] + [0.2, 0.0, 0.0])  # not tested
+
+
+@pytest.mark.parametrize("walk", WALKS)
+@pytest.mark.parametrize("degrees", [0.5, 4.0, 15.0])
+def test_every_track_gives_the_numpy_track_s_numbers_bit_for_bit(walk, degrees):
+    pair = hip_meshes(step=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+    layer = cast.layer
+    T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2))
+    own = (layer.points - T[:3, 3]) @ T[:3, :3]
+    s = M.Mesh2.of(cast).planes.distance(layer.target_faces, own, layer.normals @ T[:3, :3])
+    planes = Planes(pair.mesh2)
+    rng = np.random.default_rng(int(degrees * 10))
+    clear = np.where(rng.random(len(layer)) < 0.5, rng.uniform(0.0, 0.5, len(layer)), 0.0)
+    outs = []
+    for kind in (walk, "numpy"):
+        tested, room = layer.target_points.copy(), clear.copy()
+        track = _track(planes, kind, layer.points.T, layer.normals.T, s, layer.target_faces, tested, room,
+                       layer.target_points, T)  # fmt: skip
+        outs.append((*track, tested, room))
+    for a, b in zip(*outs):
+        assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
+    assert 0 < outs[1][1].sum() < len(layer)  # some left their face, some stayed

@@ -322,6 +322,7 @@ def solve(
     status, message, success = "max_iterations", f"no convergence in {max_iter} iterations", False
     history, evaluations, kinds = [], 0, []
     previous_active = None
+    scaled = np.linalg.pinv(T) if T.size else None  # x - x0 = T xi: xi, the step's scaled size (one SVD a solve)
     it = 0
     for it in range(1, max_iter + 1):
         if not state.finite:
@@ -389,7 +390,7 @@ def solve(
         settled = previous_active is not None and np.array_equal(active, previous_active)
         previous_active = active
         scaled_step = float(np.linalg.norm(alpha * d))
-        size = float(np.linalg.norm(np.linalg.lstsq(T, x - x0, rcond=None)[0])) if T.size else 0.0
+        size = float(np.linalg.norm(scaled @ (x - x0))) if T.size else 0.0
         if alpha == 1.0 and settled and scaled_step <= xtol * max(size, 1e-300):
             g = T.T @ state.residual() / energy_scale
             norm = max(
