@@ -148,10 +148,11 @@ class Planes:
         flat = np.ascontiguousarray(np.concatenate([pose[:3, :3].ravel(), pose[:3, 3]]))
         valid = np.ascontiguousarray(valid, dtype=bool)
         s, faces = np.ascontiguousarray(s, dtype=float), np.ascontiguousarray(faces, dtype=np.int64)
-        kernel = compiled_walk() if compiled is None or compiled else None
+        # (a module built before this pass was written has none: numpy then)
+        kernel = getattr(compiled_walk(), "track", None) if compiled is None or compiled else None
         if kernel is not None:
             own, status, after = np.empty((3, n)), np.empty(n, dtype=np.uint8), np.empty(n, dtype=np.int64)
-            kernel.track(
+            kernel(
                 n, len(self.records), ON_FACE, float(shift) ** 2, float(max_gap), pT, nT, s, valid.view(np.uint8),
                 flat, faces, np.ascontiguousarray(measured, dtype=float), self.records, self.altitude,
                 np.ascontiguousarray(self.across, dtype=np.int64), tested, clear, own, status, after,
@@ -365,11 +366,11 @@ def window_faces(met, tried, centroids, normals, planes: Planes, pose, low: floa
     built, else numpy, operation for operation the same numbers."""
     pose = np.asarray(pose, dtype=float)
     flat = np.ascontiguousarray(np.concatenate([pose[:3, :3].ravel(), pose[:3, 3]]))
-    kernel = compiled_walk() if compiled is None or compiled else None
+    kernel = getattr(compiled_walk(), "window", None) if compiled is None or compiled else None
     if kernel is not None:
         n1 = len(met)
         out = np.empty(n1, dtype=np.int64)
-        count = kernel.window(
+        count = kernel(
             n1, len(planes.records), float(low), float(high), np.ascontiguousarray(met, dtype=np.int64),
             np.ascontiguousarray(tried, dtype=bool).view(np.uint8), np.ascontiguousarray(centroids, dtype=float),
             np.ascontiguousarray(normals, dtype=float), planes.records, flat, out,
