@@ -10,7 +10,7 @@ rules of a cast (:func:`dea_opt.mesh.cast_springs`, the window following the pos
   from where they left (:func:`dea_opt.mesh.follow_faces`), cast where that settles nothing (a
   new face, or lost: beyond the window, turned past ``max_angle``, back through body 1's own
   layer, no face of mesh 2 facing it); a hit that moved less than its clearance on its face
-  is not tested;
+  is not tested; a ray turned past ``max_angle`` on its face is met again there (lost);
 * every spring whose hit moved more than ``recast_shift`` since its thickness was measured is
   measured again at its hit; springs beyond ``max_gap`` are dropped (they carry nothing);
 * the faces of mesh 1 next to the springs (the springs' ring) are cast: springs coming into
@@ -200,10 +200,11 @@ class MeshTracker(Growth):
         pT, nT = (rows.pT, rows.nT) if rows is not None else (springs.points.T, springs.normals.T)
         # The hits in mesh 2's own frame, R^T (p + s n - shift), and which left their face: a hit
         # that moved less than its clearance since it was last found on its face is still on it;
-        # the others are tested (barycentric coordinates; one compiled pass, Planes.track).
+        # the others are tested (barycentric coordinates; one compiled pass, Planes.track). A ray
+        # turned past max_angle on its face is met again there too (a cast loses it).
         track = self.mesh2.planes.track(
             pT, nT, gaps.s, gaps.valid, pose, springs.faces2, springs.tested, springs.clear, springs.measured,
-            self.recast_shift, options["max_gap"],
+            springs.m, (self.recast_shift, options["max_gap"], options["max_angle"]),
         )  # fmt: skip
         ownT, left, moved, beyond = track.own, track.left, track.moved, track.beyond
         loaded = state.eps < 0
@@ -266,7 +267,7 @@ class MeshTracker(Growth):
             gained = self._grow(pose, self._NEAR) if since_last > self._LONG else 0
         self.counts["updates"] += 1
         self.counts["gained"] += gained
-        self.counts["left_face"] += len(index)
+        self.counts["left_face"] += len(index) - int(track.turned.sum())
         self._layer = None
         kept = len(before)
         if not (springs.faces2[:kept] != before_faces[before]).any() and not gained and keep.all():

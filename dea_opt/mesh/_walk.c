@@ -172,30 +172,30 @@ static PyObject *window(PyObject *self, PyObject *args)
 
 static PyObject *track(PyObject *self, PyObject *args)
 {
-    PyObject *objs[15];
+    PyObject *objs[16];
     Py_ssize_t n, n2;
-    double on_face, shift2, max_gap;
-    if (!PyArg_ParseTuple(args, "nndddOOOOOOOOOOOOOOO", &n, &n2, &on_face, &shift2, &max_gap, &objs[0], &objs[1],
-                          &objs[2], &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8], &objs[9], &objs[10],
-                          &objs[11], &objs[12], &objs[13], &objs[14]))
+    double on_face, shift2, max_gap, facing_min;
+    if (!PyArg_ParseTuple(args, "nnddddOOOOOOOOOOOOOOOO", &n, &n2, &on_face, &shift2, &max_gap, &facing_min, &objs[0],
+                          &objs[1], &objs[2], &objs[3], &objs[4], &objs[5], &objs[6], &objs[7], &objs[8], &objs[9],
+                          &objs[10], &objs[11], &objs[12], &objs[13], &objs[14], &objs[15]))
         return NULL;
     if (n < 0 || n2 < 0) {
         PyErr_SetString(PyExc_ValueError, "track: negative size");
         return NULL;
     }
     /* pT, nT (3, N) rows, s (N,), valid (N,) uint8, pose (12,), faces2 (N,) int64, measured (N, 3),
-       records (F, 12), altitude (F,), across (3F,) int64, then tested (N, 3) and clear (N,), read and
-       written, and the outputs: ownT (3, N), status (N,) uint8, next (N,) int64 */
-    static const char *names[15] = {"pT", "nT", "s", "valid", "pose", "faces2", "measured", "records",
-                                    "altitude", "across", "tested", "clear", "ownT", "status", "next"};
-    const Py_ssize_t sizes[15] = {8, 8, 8, 1, 8, 8, 8, 8, 8, 8, 8, 8, 8, 1, 8};
-    const Py_ssize_t counts[15] = {3 * n, 3 * n, n, n, 12, n, 3 * n, 12 * n2, n2, 3 * n2, 3 * n, n, 3 * n, n, n};
-    Py_buffer views[15];
+       records (F, 12), altitude (F,), across (3F,) int64, m (N, 3), then tested (N, 3) and clear (N,),
+       read and written, and the outputs: ownT (3, N), status (N,) uint8, next (N,) int64 */
+    static const char *names[16] = {"pT", "nT", "s", "valid", "pose", "faces2", "measured", "records",
+                                    "altitude", "across", "m", "tested", "clear", "ownT", "status", "next"};
+    const Py_ssize_t sizes[16] = {8, 8, 8, 1, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 1, 8};
+    const Py_ssize_t counts[16] = {3 * n, 3 * n, n, n, 12, n, 3 * n, 12 * n2, n2, 3 * n2, 3 * n, 3 * n, n, 3 * n, n, n};
+    Py_buffer views[16];
     int got = 0;
-    for (; got < 15; got++)
-        if (take(objs[got], &views[got], got >= 10, sizes[got], counts[got], names[got]) < 0)
+    for (; got < 16; got++)
+        if (take(objs[got], &views[got], got >= 11, sizes[got], counts[got], names[got]) < 0)
             break;
-    if (got < 15) {
+    if (got < 16) {
         for (int j = 0; j < got; j++)
             PyBuffer_Release(&views[j]);
         return NULL;
@@ -203,10 +203,10 @@ static PyObject *track(PyObject *self, PyObject *args)
     const double *pT = views[0].buf, *nT = views[1].buf, *s = views[2].buf, *pose = views[4].buf;
     const uint8_t *valid = views[3].buf;
     const int64_t *faces2 = views[5].buf, *across = views[9].buf;
-    const double *measured = views[6].buf, *rec = views[7].buf, *altitude = views[8].buf;
-    double *tested = views[10].buf, *clear = views[11].buf, *ownT = views[12].buf;
-    uint8_t *status = views[13].buf;
-    int64_t *next = views[14].buf;
+    const double *measured = views[6].buf, *rec = views[7].buf, *altitude = views[8].buf, *m = views[10].buf;
+    double *tested = views[11].buf, *clear = views[12].buf, *ownT = views[13].buf;
+    uint8_t *status = views[14].buf;
+    int64_t *next = views[15].buf;
 
     Py_BEGIN_ALLOW_THREADS
     for (Py_ssize_t i = 0; i < n; i++) {
@@ -214,10 +214,11 @@ static PyObject *track(PyObject *self, PyObject *args)
         const double a = v ? s[i] : 0.0;
         const double dx = pT[i] - pose[9], dy = pT[n + i] - pose[10], dz = pT[2 * n + i] - pose[11];
         const double nx = nT[i], ny = nT[n + i], nz = nT[2 * n + i];
-        double o[3];
-        for (int k = 0; k < 3; k++) /* R^T (p - shift) + a R^T n */
-            o[k] = ((pose[k] * dx + pose[3 + k] * dy) + pose[6 + k] * dz) +
-                   a * ((pose[k] * nx + pose[3 + k] * ny) + pose[6 + k] * nz);
+        double o[3], d[3];
+        for (int k = 0; k < 3; k++) { /* the ray's direction R^T n, and the hit R^T (p - shift) + a R^T n */
+            d[k] = (pose[k] * nx + pose[3 + k] * ny) + pose[6 + k] * nz;
+            o[k] = ((pose[k] * dx + pose[3 + k] * dy) + pose[6 + k] * dz) + a * d[k];
+        }
         ownT[i] = o[0], ownT[n + i] = o[1], ownT[2 * n + i] = o[2];
         double *tst = tested + 3 * i;
         const double sx = o[0] - tst[0], sy = o[1] - tst[1], sz = o[2] - tst[2];
@@ -250,16 +251,21 @@ static PyObject *track(PyObject *self, PyObject *args)
             } else
                 left = 1;
         }
+        /* a hit on its face whose ray turned past max_angle from facing it: met again there (lost) */
+        const double *mi = m + 3 * i;
+        const int turned = !left && -((d[0] * mi[0] + d[1] * mi[1]) + d[2] * mi[2]) < facing_min;
+        if (turned)
+            left = 1, across_to = faces2[i];
         const double *msr = measured + 3 * i;
         const double mx = o[0] - msr[0], my = o[1] - msr[1], mz = o[2] - msr[2];
         const int moved = !left && ((mx * mx + my * my) + mz * mz) > shift2;
         const int beyond = !left && s[i] > max_gap;
-        status[i] = (uint8_t)(left | (moved << 1) | (beyond << 2));
+        status[i] = (uint8_t)(left | (moved << 1) | (beyond << 2) | (turned << 3));
         next[i] = across_to;
     }
     Py_END_ALLOW_THREADS
 
-    for (int j = 0; j < 15; j++)
+    for (int j = 0; j < 16; j++)
         PyBuffer_Release(&views[j]);
     Py_RETURN_NONE;
 }
@@ -269,8 +275,8 @@ static PyMethodDef methods[] = {
      "follow(k, n_faces, steps, on_face, faces, origins, directions, records, across, face, t, found, margin, along): "
      "Walker.follow's loop, writing the outputs in place."},
     {"track", track, METH_VARARGS,
-     "track(n, n2, on_face, shift2, max_gap, pT, nT, s, valid, pose, faces2, measured, records, altitude, across, "
-     "tested, clear, ownT, status, next): Planes.track's pass, writing tested, clear and the outputs in place."},
+     "track(n, n2, on_face, shift2, max_gap, facing_min, pT, nT, s, valid, pose, faces2, measured, records, "
+     "altitude, across, m, tested, clear, ownT, status, next): Planes.track's pass, writing tested, clear and the outputs in place."},
     {"window", window, METH_VARARGS,
      "window(n1, n2, low, high, met, tried, centroids, normals, records, pose, out): window_faces's scan, "
      "writing the faces found to out; their number."},

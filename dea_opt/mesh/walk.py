@@ -18,12 +18,14 @@ a window (:func:`window_faces`).
 
 from __future__ import annotations
 
+import math
 import threading
 from typing import Any, NamedTuple
 
 import numpy as np
 
 from .._checks.dependencies import compiled
+from .._checks.thresholds import ANGLE_SLACK
 from .raycast import _self_epsilon
 
 __all__ = ["Planes", "Track", "Walk", "Walker", "compiled_walk", "dot", "dot3", "window_faces"]
@@ -130,18 +132,22 @@ class Planes:
         moves less than it stays in its face (0 where ``low`` is not positive)."""
         return np.maximum(low, 0.0) * np.take(self.altitude, faces)
 
-    def track(self, pT, nT, s, valid, pose, faces, tested, clear, measured, shift, max_gap, compiled=None) -> Track:
+    def track(self, pT, nT, s, valid, pose, faces, tested, clear, measured, m, limits, compiled=None) -> Track:
         """Where the hits of springs on these faces are at mesh 2's ``pose`` (4x4), and which left.
 
         Spring ``i`` at ``p_i`` along ``n_i`` (rows ``pT``, ``nT`` (3, N)) meets the plane of face
         ``faces[i]`` at gap ``s[i]`` (where ``valid``): its hit, in this mesh's own frame, is
         ``R^T (p + s n - t)``. A hit that moved less than ``clear[i]`` from ``tested[i]`` (N, 3)
         is on its face still; the others are tested (barycentric coordinates, ``ON_FACE``), and
-        where on it ``tested`` and ``clear`` (the new :meth:`clearance`) are written in place. Of
-        the hits that stayed: those that moved more than ``shift`` (mm) from ``measured`` (N, 3),
-        and those with a gap beyond ``max_gap``. One compiled pass (``_walk.c``) unless
-        ``compiled`` is False or it was not built, else numpy, operation for operation the same
-        numbers (:class:`Track`)."""
+        where on it ``tested`` and ``clear`` (the new :meth:`clearance`) are written in place. A
+        hit on its face whose ray turned past ``max_angle`` from facing it (the face's normal
+        ``m`` (N, 3)) is met again there, as one that left (a cast judges it lost). Of the hits
+        that stayed: those that moved more than ``recast_shift`` (mm) from ``measured`` (N, 3),
+        and those with a gap beyond ``max_gap``; ``limits`` is ``(recast_shift, max_gap,
+        max_angle)`` (mm, mm, deg). One compiled pass (``_walk.c``) unless ``compiled`` is False
+        or it was not built, else numpy, operation for operation the same numbers (:class:`Track`)."""
+        shift, max_gap, max_angle = limits
+        facing_min = math.cos(math.radians(max_angle)) - ANGLE_SLACK  # as a cast judges the angle
         n = len(faces)
         pT, nT = np.ascontiguousarray(pT, dtype=float), np.ascontiguousarray(nT, dtype=float)
         pose = np.asarray(pose, dtype=float)
@@ -153,18 +159,19 @@ class Planes:
         if kernel is not None:
             own, status, after = np.empty((3, n)), np.empty(n, dtype=np.uint8), np.empty(n, dtype=np.int64)
             kernel(
-                n, len(self.records), ON_FACE, float(shift) ** 2, float(max_gap), pT, nT, s, valid.view(np.uint8),
-                flat, faces, np.ascontiguousarray(measured, dtype=float), self.records, self.altitude,
-                np.ascontiguousarray(self.across, dtype=np.int64), tested, clear, own, status, after,
+                n, len(self.records), ON_FACE, float(shift) ** 2, float(max_gap), facing_min, pT, nT, s,
+                valid.view(np.uint8), flat, faces, np.ascontiguousarray(measured, dtype=float), self.records,
+                self.altitude, np.ascontiguousarray(self.across, dtype=np.int64),
+                np.ascontiguousarray(m, dtype=float), tested, clear, own, status, after,
             )  # fmt: skip
-            left = (status & 1).astype(bool)
-            return Track(own, left, (status & 2).astype(bool), (status & 4).astype(bool), after)
+            bits = [(status & bit).astype(bool) for bit in (1, 2, 4, 8)]
+            return Track(own, bits[0], bits[1], bits[2], bits[3], after)
         a = np.where(valid, s, 0.0)
         d = [pT[k] - flat[9 + k] for k in range(3)]
         own = np.empty((3, n))
+        ray = [(flat[k] * nT[0] + flat[3 + k] * nT[1]) + flat[6 + k] * nT[2] for k in range(3)]  # R^T n
         for k in range(3):  # R^T (p - t) + a R^T n, the kernel's sums in its order
-            turned = (flat[k] * nT[0] + flat[3 + k] * nT[1]) + flat[6 + k] * nT[2]
-            own[k] = ((flat[k] * d[0] + flat[3 + k] * d[1]) + flat[6 + k] * d[2]) + a * turned
+            own[k] = ((flat[k] * d[0] + flat[3 + k] * d[1]) + flat[6 + k] * d[2]) + a * ray[k]
         step = own - tested.T
         check = np.flatnonzero(
             ~valid | (((step[0] * step[0] + step[1] * step[1]) + step[2] * step[2]) >= clear * clear)
@@ -189,11 +196,15 @@ class Planes:
         across = self.across.ravel()[3 * f[gone] + corner]
         after = np.full(n, -1, dtype=np.int64)
         after[check[gone]] = np.where(across >= 0, across, f[gone])
-        m = own - np.asarray(measured, dtype=float).T
-        moved = ~left & (((m[0] * m[0] + m[1] * m[1]) + m[2] * m[2]) > float(shift) ** 2)
+        m = np.asarray(m, dtype=float)
+        turned = ~left & (-((ray[0] * m[:, 0] + ray[1] * m[:, 1]) + ray[2] * m[:, 2]) < facing_min)
+        after[turned] = faces[turned]
+        left |= turned
+        shifted = own - np.asarray(measured, dtype=float).T
+        moved = ~left & (((shifted[0] * shifted[0] + shifted[1] * shifted[1]) + shifted[2] * shifted[2]) > shift**2)
         with np.errstate(invalid="ignore"):
             beyond = ~left & (s > max_gap)
-        return Track(own, left, moved, beyond, after)
+        return Track(own, left, moved, beyond, turned, after)
 
     def inside(self, points, faces, tolerance: float = ON_FACE, rows: bool = False) -> np.ndarray:
         """Whether ``points`` (K, 3), or (3, K) with ``rows``, lie within faces ``faces`` (K,)
@@ -257,7 +268,10 @@ class Track(NamedTuple):
     moved: np.ndarray
     #: It stayed, with a gap beyond ``max_gap``.
     beyond: np.ndarray
-    #: Where it left: the face across the edge it left through (itself at the boundary; -1 elsewhere).
+    #: On its face, its ray turned past ``max_angle`` from facing it (also ``left``: met again).
+    turned: np.ndarray
+    #: Where it left: the face across the edge it left through (itself at the boundary, or where it
+    #: turned; -1 elsewhere).
     next: np.ndarray
 
 

@@ -427,6 +427,27 @@ def test_the_springs_kept_up_to_date_are_those_of_a_whole_re_cast(knee, knee_sol
     assert np.abs(mine.thickness[i0] / whole.thickness[i1] - 1)[loaded].max() <= 5e-3
 
 
+def test_a_spring_whose_ray_turned_past_max_angle_on_its_face_is_lost_as_a_whole_re_cast_loses_it(knee):
+    """At 2000 N the femur turns enough that a spring's ray, its hit still on the same face, meets
+    that face past ``max_angle``: a whole re-cast at the solved pose loses it for its angle, and
+    so do the updates (they look at every spring's angle, not only at the hits that moved)."""
+    cast = knee["cast"]
+    problem = d.ContactProblem(
+        cast.layer,
+        d.LinearLaw(10.0),
+        force=(0.0, 0.0, -2.0 * LOAD),
+        reference=tuple(knee["reference"]),
+        free=("uz", "rx", "ry"),
+        kinematics="finite",
+        targets=cast,
+    )
+    solution = quiet(d.solve, problem, "newton")
+    assert solution.success  # (certified; strain 0.44 there, past the linear law's range)
+    whole = M.recast(cast, solution.pose).cast.layer
+    assert np.array_equal(np.sort(solution.problem.layer.source_face), np.sort(whole.source_face))
+    assert solution.info["recast"]["lost_by_reason"]["angle"] > 0
+
+
 def test_the_rows_the_tracker_keeps_are_those_its_springs_give(knee_solved):
     """The tracker keeps its springs' rows (points, normals, arms, targets) up to date through every
     spring lost, gained and moved to another face, rather than building them for each system: at

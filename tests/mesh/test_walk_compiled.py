@@ -174,10 +174,12 @@ def test_every_window_scan_finds_the_numpy_scan_s_faces(walk, degrees):
     assert len(window_faces(cast.met, tried, mesh1.centroids, mesh1.normals, planes, T, -4.0, 3.0)) > 10
 
 
-def _track(planes, walk, pT, nT, s, faces, tested, clear, measured, pose=None, valid=None):
-    valid = np.isfinite(s) if valid is None else valid
+def _track(planes, walk, pT, nT, s, faces, tested, clear, measured, pose=None, max_angle=60.0):
+    """:meth:`Planes.track` with recast_shift 0.01 mm, max_gap 2 mm, the faces' own normals."""
     pose = np.eye(4) if pose is None else pose
-    return planes.track(pT, nT, s, valid, pose, faces, tested, clear, measured, 0.01, 2.0, compiled=walk == "compiled")
+    m = planes.normals[np.clip(faces, 0, len(planes.normals) - 1)]
+    limits = (0.01, 2.0, max_angle)
+    return planes.track(pT, nT, s, np.isfinite(s), pose, faces, tested, clear, measured, m, limits, walk == "compiled")
 
 
 @pytest.mark.parametrize("walk", WALKS)
@@ -209,6 +211,7 @@ def test_the_track_of_hits_on_a_flat_grid_says_which_stayed_moved_or_left_and_wh
     assert track.left.tolist() == [False, False, True, True, False, False, True]
     assert track.moved.tolist() == [False, False, False, False, True, False, False]
     assert track.beyond.tolist() == [False, False, False, False, False, True, False]
+    assert not track.turned.any()
     # the first square's lower triangle is left through its edge x = 1, across which lies the next
     # square's upper triangle (which holds the hit); at y < 0 the boundary: the face itself
     assert track.next[2] == _face_at(mesh, 1.1, 0.3) == 3 and track.next[6] == faces[6]
@@ -240,3 +243,22 @@ def test_every_track_gives_the_numpy_track_s_numbers_bit_for_bit(walk, degrees):
     for a, b in zip(*outs):
         assert a.dtype == b.dtype and np.array_equal(a, b, equal_nan=True)
     assert 0 < outs[1][1].sum() < len(layer)  # some left their face, some stayed
+
+
+@pytest.mark.parametrize("walk", WALKS)
+def test_a_ray_turned_past_max_angle_on_its_face_is_met_again_there(walk):
+    """Springs 1 mm above the grid, tilted 30 and 50 deg from straight down: with max_angle 40 deg
+    the second, on its face still, is met again from that face (a cast loses it for its angle)."""
+    mesh = _grid()
+    planes = Planes(mesh)
+    tilt = np.radians([30.0, 50.0])
+    nT = np.vstack([np.sin(tilt), np.zeros(2), -np.cos(tilt)])
+    s = 1.0 / np.cos(tilt)
+    hits = np.array([[2.5, 3.2, 0.0], [2.5, 3.2, 0.0]])
+    pT = hits.T - s * nT
+    faces = np.array([_face_at(mesh, 2.5, 3.2)] * 2, dtype=np.int64)
+    tested, clear = hits.copy(), np.full(2, 0.3)  # not tested again: the angle is looked at anyway
+    track = _track(planes, walk, pT, nT, s, faces, tested, clear, hits.copy(), max_angle=40.0)
+    assert track.turned.tolist() == [False, True] and track.left.tolist() == [False, True]
+    assert track.next.tolist() == [-1, faces[1]] and not track.moved.any()
+    assert np.abs(track.own - hits.T).max() < 1e-14
