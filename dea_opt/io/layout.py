@@ -11,6 +11,8 @@ inside it). Headings, notes, axis labels and legends are measured as they are; t
 the strings their axis' locator and formatter give for the axes where it stands (what the
 drawing writes there, five-digit loads included), measured without making a tick.
 ``tests/outputs/test_figures.py`` checks that every text of every kind of picture lies inside it.
+A figure resized after it was placed (``set_size_inches`` before ``savefig``) is placed again
+when it is drawn (a layout engine, :func:`_placed`, that does nothing at the size it placed).
 """
 
 from __future__ import annotations
@@ -25,6 +27,51 @@ SHRINK, ASPECT = 0.85, 20.0
 GAP = 10.0 / 72.0
 #: Inches between maps side by side: one's colour bar label and the next one's axis label.
 COLUMN_GAP = 0.3
+
+
+_ENGINE: list = []  # the layout engine's class, made at the first figure (matplotlib is imported then)
+
+
+def _engine_class():
+    """The class of :func:`_placed`'s layout engine (defined once matplotlib is wanted: importing
+    dea_opt starts no picture machinery)."""
+    if not _ENGINE:
+        from matplotlib.layout_engine import LayoutEngine
+
+        class Placed(LayoutEngine):
+            """The placing of :func:`place_maps` or :func:`place_panels`, made again when the
+            figure is drawn at another size (inches) than the one it was placed at: a figure a
+            user resizes before saving it keeps its texts inside it. At the size it was placed
+            at, drawing costs nothing more. ``after``: what is sized to the placed figure (a
+            stamp's mark), done again after it."""
+
+            _adjust_compatible = True
+            _colorbar_gridspec = False
+
+            def __init__(self, place, size):
+                super().__init__()
+                self.place, self.size, self.after = place, tuple(size), []
+
+            def set(self, **kwargs):
+                raise TypeError("a placed figure's layout has no parameters: it is placed again at its new size")
+
+            def execute(self, fig):
+                if tuple(fig.get_size_inches()) != self.size:
+                    self.place()
+                    for again in self.after:
+                        again()
+
+        _ENGINE.append(Placed)
+    return _ENGINE[0]
+
+
+def _placed(fig, place) -> None:
+    """Keep ``place`` (a call placing ``fig`` again) as the figure's layout engine, at its size now."""
+    engine, kind = fig.get_layout_engine(), _engine_class()
+    if isinstance(engine, kind):
+        engine.place, engine.size = place, tuple(fig.get_size_inches())
+    else:
+        fig.set_layout_engine(kind(place, fig.get_size_inches()))
 
 
 def colorbar_axes(fig):
@@ -142,9 +189,11 @@ def _heading(fig, text) -> float:
 
 
 def _note(fig, text) -> float:
-    """Put the figure's note ``text`` (``fig.supxlabel``'s, or None) at the bottom edge: inches it takes."""
+    """Put the figure's note ``text`` (``fig.supxlabel``'s, or None) at the bottom edge, its lines
+    fitted to the figure's width: inches it takes."""
     if text is None:
         return 0.0
+    _fit(fig, text, _renderer(fig))
     text.set_y(PAD / fig.get_size_inches()[1])
     text.set_verticalalignment("bottom")
     height = _size(fig, text, _renderer(fig))[1]
@@ -182,13 +231,15 @@ def place_maps(fig, pairs, heading=None, note=None) -> None:
     Parameters
     ----------
     fig : matplotlib.figure.Figure
-        Without a layout engine, on an Agg canvas, holding every text it will draw.
+        Without a layout engine (it is given one that places it again at another size), on an
+        Agg canvas, holding every text it will draw.
     pairs : list of (Axes, Colorbar)
         The maps from left to right, each colour bar drawn in an axes of :func:`colorbar_axes`.
     heading, note : matplotlib.text.Text, optional
         The figure's ``suptitle`` and ``supxlabel``, put at its top and bottom edges.
     """
     renderer = _renderer(fig)
+    _placed(fig, lambda: place_maps(fig, pairs, heading, note))
     _maps(fig, pairs, heading, note, renderer)
     # a map's title is centred on it: a line that would stand out of the figure, or over the map's
     # colour bar where the title is beside it (a wide map's title is half way down the figure), is
@@ -244,13 +295,15 @@ def place_panels(fig, axes, heading=None) -> None:
     Parameters
     ----------
     fig : matplotlib.figure.Figure
-        Without a layout engine, on an Agg canvas, holding every text it will draw.
+        Without a layout engine (it is given one that places it again at another size), on an
+        Agg canvas, holding every text it will draw.
     axes : list of Axes
         The panels from top to bottom.
     heading : matplotlib.text.Text, optional
         The figure's ``suptitle``, put at its top edge.
     """
     renderer = _renderer(fig)
+    _placed(fig, lambda: place_panels(fig, axes, heading))
     width, height = fig.get_size_inches()
     top = PAD + _heading(fig, heading)
     bottom = PAD + _ticks(fig, axes[-1].xaxis, renderer)[0] + _label(fig, axes[-1].xaxis, renderer)

@@ -70,6 +70,19 @@ def verdict_lines(verdict, width: int = 90) -> str:
     return "\n" + textwrap.fill(f"{mark}: {reason}", width)
 
 
+def _size_mark(fig, text) -> None:
+    """The mark's letters as large as the figure allows (at most 48 pt), shrunk until it lies well
+    inside the figure (its size depends on the font)."""
+    width, height = fig.get_size_inches() * 72.0  # points
+    mark = text.get_text()
+    text.set_fontsize(max(10.0, min(48.0, 1.1 * min(width, 2.0 * height) / max(len(mark), 1))))
+    renderer = fig.canvas.get_renderer()
+    box, figure = text.get_window_extent(renderer), fig.bbox
+    scale = min(0.85 * figure.width / max(box.width, 1.0), 0.85 * figure.height / max(box.height, 1.0), 1.0)
+    if scale < 1.0:
+        text.set_fontsize(text.get_fontsize() * scale)
+
+
 def stamp(fig, verdict) -> None:
     """Stamp ``verdict`` (``(mark, reason)`` or None) on ``fig``: the mark in large red letters
     across the figure, and a red border. Call it once the figure is laid out; the mark is sized
@@ -79,26 +92,14 @@ def stamp(fig, verdict) -> None:
     from matplotlib.patches import Rectangle
 
     mark = verdict[0]
-    width, height = fig.get_size_inches() * 72.0  # points
     text = fig.text(
-        0.5,
-        0.5,
-        mark,
-        ha="center",
-        va="center",
-        rotation=20,
-        fontsize=max(10.0, min(48.0, 1.1 * min(width, 2.0 * height) / max(len(mark), 1))),
-        fontweight="bold",
-        color="#d00000",
-        alpha=0.35,
+        0.5, 0.5, mark, ha="center", va="center", rotation=20, fontweight="bold", color="#d00000", alpha=0.35,
         zorder=100,
-    )
-    # Shrink the mark until it fits well inside the figure (its size depends on the font).
-    renderer = fig.canvas.get_renderer()
-    box, figure = text.get_window_extent(renderer), fig.bbox
-    scale = min(0.85 * figure.width / max(box.width, 1.0), 0.85 * figure.height / max(box.height, 1.0), 1.0)
-    if scale < 1.0:
-        text.set_fontsize(text.get_fontsize() * scale)
+    )  # fmt: skip
+    _size_mark(fig, text)
+    after = getattr(fig.get_layout_engine(), "after", None)  # (dea_opt.io.layout's engine)
+    if after is not None:  # a figure placed again at another size sizes its mark again
+        after.append(lambda: _size_mark(fig, text))
     fig.add_artist(
         Rectangle((0.0, 0.0), 1.0, 1.0, transform=fig.transFigure, fill=False, edgecolor="#d00000", linewidth=6)
     )

@@ -216,6 +216,40 @@ def test_a_path_outside_validity_is_stamped_on_its_cycle_and_exposure_plots():
     assert problems(fig) == [] and "OUTSIDE VALIDITY" in [t.get_text() for t in fig.texts]
 
 
+@pytest.mark.parametrize("scale", [0.8, 1.5])
+def test_a_figure_resized_before_it_is_saved_is_placed_again_at_its_new_size(plate, scale):
+    """A reader sizes a picture for a slide or a paper: ``set_size_inches`` and then ``savefig``.
+    Each kind of picture (a map, a load path's cycle and exposure, stamped outside validity) is
+    placed again when drawn at another size, its texts inside it (from 0.8 to 1.5 times the size
+    it was drawn at; a cycle plot's five panels are too short for their labels much below), the
+    stamp sized again; drawn at its own size, nothing moves."""
+    from matplotlib.layout_engine import LayoutEngine
+
+    from dea_opt.io.marks import path_verdict
+
+    result = path_table([500.0, 4000.0, 8000.0], moments=[-30000.0, -45000.0, 0.0], failed=[1])
+    makers = {
+        "map": lambda: pressure_figure(plate, title="Plate in two compartments"),
+        "cycle": lambda: cycle_figure(result.table, "A plate", regions=result.regions),
+        "exposure": lambda: exposure_figure(
+            result.problem.layer, result.exposure, title="A plate", verdict=path_verdict(result.table)
+        ),
+    }
+    for kind, make in makers.items():
+        fig = make()
+        assert isinstance(fig.get_layout_engine(), LayoutEngine)
+        placed = [ax.get_position().bounds for ax in fig.axes]
+        fig.canvas.draw()
+        assert [ax.get_position().bounds for ax in fig.axes] == placed, kind  # its own size: as placed
+        marks = [t for t in fig.texts if t.get_text() == "OUTSIDE VALIDITY"]
+        before = [mark.get_fontsize() for mark in marks]
+        fig.set_size_inches(*(scale * fig.get_size_inches()))
+        assert problems(fig) == [], (kind, scale)
+        assert len(marks) == (kind != "map")
+        for mark, font in zip(marks, before):  # sized again: smaller on a smaller figure, at most 48 pt
+            assert mark.get_fontsize() < font if scale < 1 else font <= mark.get_fontsize() <= 48.0
+
+
 def test_a_path_without_a_certified_frame_draws_only_its_loads():
     result = path_table([1.0, 2.0], failed=[0, 1])
     fig = cycle_figure(result.table)
