@@ -104,6 +104,15 @@ def test_rays_that_leave_the_grid_run_out_of_steps_or_lie_in_its_plane_are_not_f
     assert t[4] == pytest.approx(1.0, abs=1e-15)
 
 
+@pytest.fixture(scope="module")
+def hip():
+    """The embedded hip's meshes and their cast (the springs whose rays the walks follow)."""
+    pair = hip_meshes(step=2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return pair, M.cast_springs(pair.mesh1, pair.mesh2)
+
+
 def _turned(reference, degrees, axis):
     T = np.eye(4)
     R = rotation(np.radians(degrees) * np.asarray(axis, dtype=float) / np.linalg.norm(axis))
@@ -114,11 +123,8 @@ def _turned(reference, degrees, axis):
 
 @pytest.mark.parametrize("walk", WALKS)
 @pytest.mark.parametrize("degrees", [0.5, 4.0, 15.0, 40.0])
-def test_every_walk_gives_the_numpy_walk_s_numbers_bit_for_bit(walk, degrees):
-    pair = hip_meshes(step=2.0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+def test_every_walk_gives_the_numpy_walk_s_numbers_bit_for_bit(walk, degrees, hip):
+    pair, cast = hip
     layer = cast.layer
     T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2))
     origins = (layer.points - T[:3, 3]) @ T[:3, :3]
@@ -157,11 +163,8 @@ def test_the_window_scan_keeps_the_faces_whose_ray_meets_the_plane_it_met_within
 
 @pytest.mark.parametrize("walk", WALKS)
 @pytest.mark.parametrize("degrees", [0.5, 4.0, 15.0])
-def test_every_window_scan_finds_the_numpy_scan_s_faces(walk, degrees):
-    pair = hip_meshes(step=2.0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+def test_every_window_scan_finds_the_numpy_scan_s_faces(walk, degrees, hip):
+    pair, cast = hip
     mesh1 = M.Mesh1.of(cast)
     planes = Planes(pair.mesh2)
     T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2))
@@ -222,11 +225,8 @@ def test_the_track_of_hits_on_a_flat_grid_says_which_stayed_moved_or_left_and_wh
 
 @pytest.mark.parametrize("walk", WALKS)
 @pytest.mark.parametrize("degrees", [0.5, 4.0, 15.0])
-def test_every_track_gives_the_numpy_track_s_numbers_bit_for_bit(walk, degrees):
-    pair = hip_meshes(step=2.0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        cast = M.cast_springs(pair.mesh1, pair.mesh2)
+def test_every_track_gives_the_numpy_track_s_numbers_bit_for_bit(walk, degrees, hip):
+    pair, cast = hip
     layer = cast.layer
     T = _turned(pair.reference2, degrees, (1.0, 0.4, -0.2))
     own = (layer.points - T[:3, 3]) @ T[:3, :3]
