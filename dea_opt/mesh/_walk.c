@@ -31,6 +31,19 @@ static int take(PyObject *obj, Py_buffer *view, int writable, Py_ssize_t itemsiz
     return 0;
 }
 
+/* Every buffer of objs (count of them), those from first_writable on writable: 0, or -1 with none held. */
+static int take_all(PyObject **objs, Py_buffer *views, int count, int first_writable, const Py_ssize_t *sizes,
+                    const Py_ssize_t *counts, const char **names)
+{
+    for (int got = 0; got < count; got++)
+        if (take(objs[got], &views[got], got >= first_writable, sizes[got], counts[got], names[got]) < 0) {
+            for (int j = 0; j < got; j++)
+                PyBuffer_Release(&views[j]);
+            return -1;
+        }
+    return 0;
+}
+
 static PyObject *follow(PyObject *self, PyObject *args)
 {
     PyObject *objs[10];
@@ -51,15 +64,8 @@ static PyObject *follow(PyObject *self, PyObject *args)
     const Py_ssize_t sizes[10] = {8, 8, 8, 8, 8, 8, 8, 1, 8, 8};
     const Py_ssize_t counts[10] = {k, 3 * k, 3 * k, 12 * n_faces, 3 * n_faces, k, k, k, k, k};
     Py_buffer views[10];
-    int got = 0;
-    for (; got < 10; got++)
-        if (take(objs[got], &views[got], got >= 5, sizes[got], counts[got], names[got]) < 0)
-            break;
-    if (got < 10) {
-        for (int j = 0; j < got; j++)
-            PyBuffer_Release(&views[j]);
+    if (take_all(objs, views, 10, 5, sizes, counts, names) < 0)
         return NULL;
-    }
     const int64_t *faces = views[0].buf, *across = views[4].buf;
     const double *o = views[1].buf, *d = views[2].buf, *rec = views[3].buf;
     int64_t *face_out = views[5].buf;
@@ -131,15 +137,8 @@ static PyObject *window(PyObject *self, PyObject *args)
     const Py_ssize_t sizes[7] = {8, 1, 8, 8, 8, 8, 8};
     const Py_ssize_t counts[7] = {n1, n1, 3 * n1, 3 * n1, 12 * n2, 12, n1};
     Py_buffer views[7];
-    int got = 0;
-    for (; got < 7; got++)
-        if (take(objs[got], &views[got], got == 6, sizes[got], counts[got], names[got]) < 0)
-            break;
-    if (got < 7) {
-        for (int j = 0; j < got; j++)
-            PyBuffer_Release(&views[j]);
+    if (take_all(objs, views, 7, 6, sizes, counts, names) < 0)
         return NULL;
-    }
     const int64_t *met = views[0].buf;
     const uint8_t *tried = views[1].buf;
     const double *c = views[2].buf, *n = views[3].buf, *rec = views[4].buf, *pose = views[5].buf;
@@ -191,15 +190,8 @@ static PyObject *track(PyObject *self, PyObject *args)
     const Py_ssize_t sizes[16] = {8, 8, 8, 1, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 1, 8};
     const Py_ssize_t counts[16] = {3 * n, 3 * n, n, n, 12, n, 3 * n, 12 * n2, n2, 3 * n2, 3 * n, 3 * n, n, 3 * n, n, n};
     Py_buffer views[16];
-    int got = 0;
-    for (; got < 16; got++)
-        if (take(objs[got], &views[got], got >= 11, sizes[got], counts[got], names[got]) < 0)
-            break;
-    if (got < 16) {
-        for (int j = 0; j < got; j++)
-            PyBuffer_Release(&views[j]);
+    if (take_all(objs, views, 16, 11, sizes, counts, names) < 0)
         return NULL;
-    }
     const double *pT = views[0].buf, *nT = views[1].buf, *s = views[2].buf, *pose = views[4].buf;
     const uint8_t *valid = views[3].buf;
     const int64_t *faces2 = views[5].buf, *across = views[9].buf;
