@@ -77,10 +77,9 @@ def decorate_map(ax, frame, geometry) -> None:
 
 
 def note_frame(fig, frame):
-    """The frame's note (view, origin) in small grey type under the figure: the text."""
-    import textwrap
-
-    return fig.supxlabel(textwrap.fill(frame.note, 110), fontsize="x-small", color="0.35")
+    """The frame's note (view, origin) in small grey type under the figure: the text (its lines
+    fitted to the figure's width when it is placed, :func:`~dea_opt.io.layout.place_maps`)."""
+    return fig.supxlabel(frame.note, fontsize="x-small", color="0.35")
 
 
 def _draw_3d(ax, solution, cmap, norm, grey, parts=None):
