@@ -91,7 +91,7 @@ class Solution:
         an exact rotation about its reference, ``T1^-1 T2`` (for ``kinematics="small"`` the rigid
         motion with the linearised motion's rotation vector and translation; for ``"finite"`` the
         solved pose itself, composed with the pose the targets were cast at)."""
-        from .formulations.finite.geometry import pose_matrix
+        from .formulations.finite.rotations import pose_matrix
 
         c1, c2 = self.problem.body1.reference, self.problem.body2.reference
         return np.linalg.inv(pose_matrix(self.u[:6], c1)) @ pose_matrix(self.u[6:], c2)

@@ -19,7 +19,7 @@ import numpy as np
 
 from .._checks.inputs import vector3
 from ..errors import InputError
-from ..formulations.finite.geometry import left_jacobian, pose_matrix, rotation
+from ..formulations.finite.rotations import left_jacobian, pose_matrix, rotation
 
 __all__ = ["LOAD_FRAMES", "BodyLoad", "Coordinates", "rotation_vector_motion"]
 

@@ -187,7 +187,7 @@ def bushing_rows(bushings, frames1, frames2, c1, c2) -> tuple[np.ndarray, np.nda
     rates those of the bodies' velocities and angular velocities (``formulations/joint.md``)."""
     from scipy.spatial.transform import Rotation
 
-    from ..formulations.finite.geometry import left_jacobian
+    from ..formulations.finite.rotations import left_jacobian
 
     n = len(bushings)
     G, e0 = np.zeros((6 * n, 12)), np.zeros(6 * n)

@@ -179,7 +179,7 @@ def _strain_check(ligaments, limits) -> Check:
 def _length_check(joint, body_u, limits) -> Check:
     """The exact length of the same motion (rotation vectors taken as exact rotations) against the
     linearised one, over the slack length."""
-    from ..formulations.finite.geometry import pose_matrix
+    from ..formulations.finite.rotations import pose_matrix
 
     worst = 0.0
     for group in joint.ligament_groups:

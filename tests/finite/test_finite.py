@@ -18,6 +18,7 @@ import dea_opt as d
 from dea_opt import finite
 from dea_opt.formulations.finite import Targets
 from dea_opt.formulations.finite import geometry as G
+from dea_opt.formulations.finite import rotations as Rot
 from dea_opt.formulations.finite.system import FiniteSystem
 from dea_opt.geometry import plate_layer, socket_layer, sphere_on_bed_layer
 
@@ -64,22 +65,22 @@ def springs_on_body2(solution):
     "theta", [np.zeros(3), np.array([1e-5, -2e-5, 3e-6]), np.array([0.3, -0.2, 0.5]), np.array([1.5, 0.4, -2.0])]
 )
 def test_rotation_and_its_jacobian(theta):
-    assert np.abs(G.rotation(theta) - Rotation.from_rotvec(theta).as_matrix()).max() < 1e-14
-    R, J = G.rotation(theta), G.left_jacobian(theta)
+    assert np.abs(Rot.rotation(theta) - Rotation.from_rotvec(theta).as_matrix()).max() < 1e-14
+    R, J = Rot.rotation(theta), Rot.left_jacobian(theta)
     for j in range(3):
         step = np.zeros(3)
         step[j] = 1e-6
-        dR = (G.rotation(theta + step) - G.rotation(theta - step)) / 2e-6
+        dR = (Rot.rotation(theta + step) - Rot.rotation(theta - step)) / 2e-6
         spin = dR @ R.T  # [J e_j]x
         assert np.allclose([spin[2, 1], spin[0, 2], spin[1, 0]], J[:, j], atol=1e-8)
     moment = np.array([3.0, -1.0, 2.0])
     fd = np.column_stack(
         [
-            (G.left_jacobian(theta + e).T @ moment - G.left_jacobian(theta - e).T @ moment) / 2e-6
+            (Rot.left_jacobian(theta + e).T @ moment - Rot.left_jacobian(theta - e).T @ moment) / 2e-6
             for e in np.eye(3) * 1e-6
         ]
     )
-    assert np.allclose(G.jacobian_transpose_derivative(theta, moment), fd, atol=1e-7)
+    assert np.allclose(Rot.jacobian_transpose_derivative(theta, moment), fd, atol=1e-7)
 
 
 @pytest.mark.parametrize("tau", [0.0, 1e-8, 0.0999999, 0.1, 0.1000001, 0.5, 4.0])
@@ -91,8 +92,8 @@ def test_the_derivative_of_j_transpose_m_is_smooth_where_its_series_meets_its_cl
     for j in range(3):
         step = theta.astype(complex)
         step[j] += 1e-30j
-        reference[:, j] = (G.left_jacobian(step).T @ moment).imag / 1e-30
-    assert np.abs(G.jacobian_transpose_derivative(theta, moment) - reference).max() < 1e-13
+        reference[:, j] = (Rot.left_jacobian(step).T @ moment).imag / 1e-30
+    assert np.abs(Rot.jacobian_transpose_derivative(theta, moment) - reference).max() < 1e-13
 
 
 def _random_springs(rng, n=80):
@@ -119,12 +120,12 @@ def test_gap_derivative_is_the_derivative_of_the_gap(kind):
     y = np.array([0.1, -0.2, 0.05, 0.2, -0.1, 0.3])
 
     def gaps(y):
-        return G.evaluate(targets, p, n, G.pose_matrix(y, c)).s
+        return G.evaluate(targets, p, n, Rot.pose_matrix(y, c)).s
 
-    g = G.evaluate(targets, p, n, G.pose_matrix(y, c))
+    g = G.evaluate(targets, p, n, Rot.pose_matrix(y, c))
     assert g.valid.sum() > len(p) // 2
     rows = g.rows(c + y[:3])
-    J = G.left_jacobian(y[3:])
+    J = Rot.left_jacobian(y[3:])
     for j in range(6):
         e = np.zeros(6)
         e[j] = 1e-7
@@ -386,7 +387,7 @@ def test_newton_and_ipopt_agree(name):
     problem = newton.problem
     free = [i for i in range(6) if d.DOFS[i] in problem.body2.free]
     load = np.concatenate([problem.body2.force, problem.body2.moment])
-    J = G.left_jacobian(newton.u[9:12])
+    J = Rot.left_jacobian(newton.u[9:12])
     net = np.concatenate([resultant, about]) + load  # springs' push plus the load, about c'
     generalized = np.concatenate([net[:3], J.T @ net[3:]])
     size = max(np.abs(load[:3]).max(), np.abs(resultant).max())
@@ -433,11 +434,11 @@ def test_pose_and_reactions_at_the_solved_pose():
     # the supports hold ux, uy: minus the springs' push minus the load along them
     assert reactions["body2.ux"] == pytest.approx(-resultant[0] - load[0], abs=1e-9)
     assert reactions["body2.uy"] == pytest.approx(-resultant[1] - load[1], abs=1e-9)
-    J = G.left_jacobian(solution.u[9:12])
+    J = Rot.left_jacobian(solution.u[9:12])
     assert reactions["body2.rx"] == pytest.approx(-(J.T @ about)[0], rel=1e-9)
     assert np.allclose(solution.contact_moment, about)
     small = solve(d.ContactProblem(problem.layer, problem.law, body2=problem.body2))
-    T2 = G.pose_matrix(small.u[6:], c)
+    T2 = Rot.pose_matrix(small.u[6:], c)
     assert np.allclose(small.pose, T2)
 
 
@@ -527,7 +528,7 @@ def test_random_tilted_problems_are_in_equilibrium_by_our_own_sums(seed):
     )
     newton = solve(problem, "finite")
     resultant, about = springs_on_body2(newton)
-    J = G.left_jacobian(newton.u[9:12])
+    J = Rot.left_jacobian(newton.u[9:12])
     net = np.concatenate([resultant + force, J.T @ (about + np.array(moment))])
     index = [d.DOFS.index(dof) for dof in free]
     assert np.abs(net[index]).max() <= 1e-8 * max(abs(force[2]), np.abs(moment).max())

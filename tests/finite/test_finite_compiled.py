@@ -19,7 +19,8 @@ import dea_opt as dea
 from dea_opt import mesh as M
 from dea_opt.formulations.finite import geometry as finite_geometry
 from dea_opt.formulations.finite import system as finite_system
-from dea_opt.formulations.finite.geometry import MISSED, PlaneRows, Targets, plane_gaps, pose_matrix
+from dea_opt.formulations.finite.geometry import MISSED, PlaneRows, Targets, plane_gaps
+from dea_opt.formulations.finite.rotations import pose_matrix
 from dea_opt.formulations.finite.system import stiffness_sum
 from dea_opt.geometry import hip_meshes
 

@@ -21,11 +21,8 @@ from scipy.spatial import cKDTree
 
 import dea_opt as d
 from dea_opt import mesh as M
-from dea_opt.formulations.finite.geometry import (
-    Targets,
-    evaluate,
-    rotation,
-)
+from dea_opt.formulations.finite.geometry import Targets, evaluate
+from dea_opt.formulations.finite.rotations import rotation
 from dea_opt.geometry import hip_meshes
 from dea_opt.mesh import off_face
 from dea_opt.validity import ValidityLimits

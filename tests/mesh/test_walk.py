@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from dea_opt import mesh as M
-from dea_opt.formulations.finite.geometry import rotation
+from dea_opt.formulations.finite.rotations import rotation
 from dea_opt.geometry import hip_meshes
 from dea_opt.mesh import facecast, raycast
 from dea_opt.mesh.walk import Planes, Walker

@@ -21,7 +21,7 @@ import pytest
 import trimesh
 
 from dea_opt import mesh as M
-from dea_opt.formulations.finite.geometry import rotation
+from dea_opt.formulations.finite.rotations import rotation
 from dea_opt.geometry import hip_meshes
 from dea_opt.mesh.walk import ON_FACE, Planes, Walker, compiled_walk, window_faces
 

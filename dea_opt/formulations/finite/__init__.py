@@ -43,9 +43,10 @@ from ...status import CERTIFIABLE, Status
 from .._parts.options import Capabilities, Option, newton_tolerances
 from .._parts.resistance import modulus_scale, resistance
 from .._parts.system import SpringSystem, start_vector
-from .geometry import Targets, evaluate, left_jacobian, pose_matrix, rotation
+from .geometry import Targets, evaluate
 from .motion import motion
 from .newton import InnerResult, escape_step
+from .rotations import left_jacobian, pose_matrix, rotation
 from .system import FiniteSystem, State, generalized
 
 __all__ = [

@@ -1,8 +1,9 @@
-"""Finite kinematics, geometry: exact rotations, body 2's pose, each spring's target and its gap.
+"""Finite kinematics, geometry: each spring's target and its gap at body 2's pose.
 
-Written math: ``formulations/finite.md`` ("Pose", "Targets", "Gap and its derivative"); mm, rad.
-Body 2 moves by ``x' = c + t + R(theta) (x - c)``: ``t`` (3,) the translation of its reference
-``c`` (3,), ``R`` (3, 3) the exact rotation of the rotation vector ``theta`` (3,). Each spring
+Written math: ``formulations/finite.md`` ("Targets", "Gap and its derivative"); mm, rad. Body 2
+moves by ``x' = c + t + R(theta) (x - c)`` (:mod:`~dea_opt.formulations.finite.rotations`: ``t``
+(3,) the translation of its reference ``c`` (3,), ``R`` (3, 3) the exact rotation of the
+rotation vector ``theta`` (3,)). Each spring
 ``i`` (a point ``p_i`` and unit normal ``n_i`` of body 1, which stays fixed) looks along its ray
 ``p_i + s n_i`` at its target on body 2 (:class:`Targets`, in body 2's own frame): the tangent
 plane of a face (a point ``q_i``, the outward normal ``m_i``) or a sphere (centre ``o_i``, radius
@@ -14,7 +15,6 @@ the hit and ``m_i'`` the target's normal there (:meth:`Gaps.rows`).
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -30,123 +30,13 @@ __all__ = [
     "Targets",
     "compiled_system",
     "evaluate",
-    "jacobian_transpose_derivative",
-    "left_jacobian",
     "plane_gaps",
-    "pose_matrix",
-    "rotation",
-    "rotation_and_jacobian",
 ]
 
 #: ``|n . m'|`` below which a ray runs along its target (no gap): the target turned away.
 FACING = 1e-9
 #: Gap (mm) of a spring whose ray misses its target: open, it carries nothing.
 MISSED = np.inf
-
-
-def _coefficients(theta):
-    """``(a, b, c)`` = ``(sin t / t, (1 - cos t) / t^2, (t - sin t) / t^3)`` of ``t = |theta|``.
-
-    Written in ``tau = theta . theta`` (each is an even, entire function of ``t``), so that a
-    complex ``theta`` (the complex-step derivative of :func:`left_jacobian`) is exact too; the
-    Taylor series below ``tau = 1e-6`` avoid the cancellation of the closed forms.
-    """
-    tau = theta @ theta
-    if abs(tau) < 1e-6:
-        a = 1 - tau / 6 + tau**2 / 120
-        b = 0.5 - tau / 24 + tau**2 / 720
-        c = 1 / 6 - tau / 120 + tau**2 / 5040
-        return a, b, c
-    t = np.sqrt(tau + 0j) if np.iscomplexobj(theta) else np.sqrt(tau)
-    s, co = np.sin(t), np.cos(t)
-    return s / t, (1 - co) / tau, (t - s) / (tau * t)
-
-
-def _hat(v) -> np.ndarray:
-    """``[v]x``, the matrix of ``v x``."""
-    return np.array([[0, -v[2], v[1]], [v[2], 0, -v[0]], [-v[1], v[0], 0]], dtype=np.result_type(v, float))
-
-
-def rotation(theta) -> np.ndarray:
-    """``R = exp([theta]x) = I + a [theta]x + b [theta]x^2`` (Rodrigues), shape (3, 3), of the
-    rotation vector ``theta`` (3,): the turn ``|theta|`` (rad) about the axis ``theta / |theta|``."""
-    theta = np.asarray(theta)
-    a, b, _ = _coefficients(theta)
-    W = _hat(theta)
-    return np.eye(3) + a * W + b * (W @ W)
-
-
-def left_jacobian(theta) -> np.ndarray:
-    """``J(theta) = I + b [theta]x + c [theta]x^2``: ``dR R^T = [J dtheta]x`` (3, 3).
-
-    The angular velocity of body 2 is ``w = J(theta) dtheta/dt`` for a rate of its rotation
-    vector; ``J^T M`` is the generalized force of a moment ``M`` on the rotation vector.
-    """
-    theta = np.asarray(theta)
-    _, b, c = _coefficients(theta)
-    W = _hat(theta)
-    return np.eye(3) + b * W + c * (W @ W)
-
-
-def rotation_and_jacobian(theta) -> tuple[np.ndarray, np.ndarray]:
-    """``(R, J)`` of :func:`rotation` and :func:`left_jacobian`, from one evaluation of the coefficients."""
-    theta = np.asarray(theta)
-    a, b, c = _coefficients(theta)
-    W = _hat(theta)
-    W2 = W @ W
-    eye = np.eye(3)
-    return eye + a * W + b * W2, eye + b * W + c * W2
-
-
-def _coefficient_slopes(tau: float) -> tuple[float, float, float, float]:
-    """``(b, c, db/dtau, dc/dtau)`` of :func:`_coefficients` at ``tau = theta . theta`` (real):
-    the Taylor series below ``tau = 0.1`` (the closed forms cancel there), else the closed forms."""
-    if tau < 0.1:
-        # b = sum_k (-tau)^k / (2k + 2)!, c = sum_k (-tau)^k / (2k + 3)!; d(-tau)^k/dtau = -k (-tau)^(k-1)
-        b = c = db = dc = 0.0
-        term_b, term_c, power, previous = 0.5, 1.0 / 6.0, 1.0, 0.0
-        for k in range(9):
-            b += term_b * power
-            c += term_c * power
-            db -= k * term_b * previous
-            dc -= k * term_c * previous
-            previous, power = power, power * -tau
-            term_b /= (2 * k + 3) * (2 * k + 4)
-            term_c /= (2 * k + 4) * (2 * k + 5)
-        return b, c, db, dc
-    t = math.sqrt(tau)
-    a, co = math.sin(t) / t, math.cos(t)
-    b, c = (1.0 - co) / tau, (1.0 - a) / tau
-    return b, c, (0.5 * a - b) / tau, -((co - a) / (2.0 * tau) + c) / tau
-
-
-def jacobian_transpose_derivative(theta, moment) -> np.ndarray:
-    """``D[:, j] = d/dtheta_j (J(theta)^T moment)`` (3, 3), in closed form.
-
-    With ``W = [theta]x``, ``J^T M = M - b theta x M + c (theta (theta . M) - tau M)``, so
-    ``D = b [M]x + c ((theta . M) I + theta M^T - 2 M theta^T)
-    + 2 (c' (theta (theta . M) - tau M) - b' theta x M) theta^T`` (``'``: the derivative in ``tau``).
-    """
-    theta = np.asarray(theta, dtype=float)
-    moment = np.asarray(moment, dtype=float)
-    tau = float(theta @ theta)
-    b, c, db, dc = _coefficient_slopes(tau)
-    tm = float(theta @ moment)
-    cross = _hat(theta) @ moment  # theta x moment (np.cross costs five times as much on two 3-vectors)
-    D = b * _hat(moment) + c * (tm * np.eye(3) + np.outer(theta, moment) - 2.0 * np.outer(moment, theta))
-    D += 2.0 * np.outer(dc * (theta * tm - tau * moment) - db * cross, theta)
-    return D
-
-
-def pose_matrix(u6, reference) -> np.ndarray:
-    """The 4x4 pose of a body displaced by ``u6 = (ux, uy, uz, rx, ry, rz)`` about ``reference``:
-    ``x' = c + t + R(theta) (x - c)`` with the exact rotation of the rotation vector."""
-    u6 = np.asarray(u6, dtype=float)
-    c = np.asarray(reference, dtype=float)
-    T = np.eye(4)
-    T[:3, :3] = rotation(u6[3:6])
-    T[:3, 3] = c + u6[:3] - T[:3, :3] @ c
-    return T
 
 
 @dataclass(frozen=True, eq=False)

@@ -38,10 +38,9 @@ from .geometry import (
     _as_rows,
     compiled_system,
     evaluate,
-    jacobian_transpose_derivative,
     plane_gaps,
-    rotation_and_jacobian,
 )
+from .rotations import jacobian_transpose_derivative, rotation_and_jacobian
 
 __all__ = ["FiniteSystem", "State", "arms_of", "generalized", "stiffness_sum"]
 
