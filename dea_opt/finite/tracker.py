@@ -184,9 +184,10 @@ class MeshTracker(Growth):
     def update(self, system, state, complete: bool = True):
         """After a converged solve: the system with its springs brought up to date at the solved pose,
         or None when nothing changed. A partial update (not ``complete``) keeps the springs it has
-        up to date and picks up none: the faces next to them, where springs come into the window,
-        are cast only in a complete update (at the window's far edge they carry nothing, so a
-        solve's intermediate poses need not look there)."""
+        up to date and casts no ray: after a long step it follows the faces where the contact
+        spreads (:meth:`_grow` with ``near``); the faces next to the springs at the window's far
+        edge, where they carry nothing, are cast only in a complete update (a solve's
+        intermediate poses need not look there)."""
         pose = system.transform(state.y)
         since_full, since_last = self._moved(pose, self.full, self.last)
         self.last = self.updated_at = pose

@@ -191,11 +191,8 @@ class Planes:
         left = np.zeros(n, dtype=bool)
         left[check] = ~on
         gone = ~on & named
-        c = [np.nan_to_num(b[gone], nan=0.0) for b in (b0, b1, b2)]
-        corner = np.where((c[0] <= c[1]) & (c[0] <= c[2]), 0, np.where(c[1] <= c[2], 1, 2))
-        across = self.across.ravel()[3 * f[gone] + corner]
         after = np.full(n, -1, dtype=np.int64)
-        after[check[gone]] = np.where(across >= 0, across, f[gone])
+        after[check[gone]] = self.beyond(f[gone], np.array([b0[gone], b1[gone], b2[gone]]))
         m = np.asarray(m, dtype=float)
         turned = ~left & (-((ray[0] * m[:, 0] + ray[1] * m[:, 1]) + ray[2] * m[:, 2]) < facing_min)
         after[turned] = faces[turned]
