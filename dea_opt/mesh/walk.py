@@ -179,10 +179,7 @@ class Planes:
         f = faces[check]
         named = (f >= 0) & (f < len(self.records))
         r = self.gathered(np.where(named, f, 0))
-        o = own[:, check]
-        b1 = ((r[4] * o[0] + r[5] * o[1]) + r[6] * o[2]) - r[7]
-        b2 = ((r[8] * o[0] + r[9] * o[1]) + r[10] * o[2]) - r[11]
-        b0 = (1.0 - b1) - b2
+        b0, b1, b2 = _barycentric(r, own[:, check])
         low = np.where(named, np.minimum(np.minimum(b0, b1), b2), np.nan)
         on = (low >= -ON_FACE) & valid[check]
         stays = check[on]
